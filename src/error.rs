@@ -1,0 +1,82 @@
+//! The library's one error type, split by who is at fault.
+
+use std::fmt;
+
+/// Everything that can go wrong in normalfit's library calls.
+///
+/// Messages are one line, lower case, and never name a file: the caller
+/// knows which file it passed and prefixes it.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Error {
+    /// An option is out of range (even patch, non-finite scale, …).
+    InvalidOption(String),
+    /// The caller's buffers do not match the dimensions given.
+    BufferSize {
+        /// What the dimensions need.
+        expected: usize,
+        /// What was passed.
+        actual: usize,
+    },
+    /// A height is NaN or infinite; (x, y) is the first such texel in row order.
+    NonFiniteHeight {
+        /// Column of the texel.
+        x: usize,
+        /// Row of the texel.
+        y: usize,
+    },
+    /// The bytes are not a readable image: unknown format, corrupt or
+    /// truncated data, zero size.
+    Decode(String),
+    /// A valid image that normalfit cannot use (a missing channel, a layout
+    /// it does not read) or an output it cannot write (8-bit EXR, …).
+    Unsupported(String),
+    /// The image is larger than the limit set for the read.
+    Limits(String),
+    /// Encoding the output failed.
+    Encode(String),
+    /// Reading or writing failed at the operating system.
+    Io(std::io::Error),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::InvalidOption(m) => write!(f, "invalid option: {m}"),
+            Error::BufferSize { expected, actual } => {
+                write!(f, "buffer holds {actual} elements, the dimensions need {expected}")
+            }
+            Error::NonFiniteHeight { x, y } => {
+                write!(f, "height at texel (x {x}, y {y}) is NaN or infinite")
+            }
+            Error::Decode(m) => write!(f, "cannot decode: {m}"),
+            Error::Unsupported(m) => write!(f, "unsupported: {m}"),
+            Error::Limits(m) => write!(f, "too large: {m}"),
+            Error::Encode(m) => write!(f, "cannot encode: {m}"),
+            Error::Io(e) => write!(f, "{}", one_line(&e.to_string())),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<std::io::Error> for Error {
+    fn from(e: std::io::Error) -> Self {
+        Error::Io(e)
+    }
+}
+
+/// Collapses a message from a dependency onto one line.
+pub(crate) fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Shorthand for results of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

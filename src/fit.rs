@@ -1,0 +1,339 @@
+//! The plane fit: heights in, unit normals out. Knows nothing of files.
+//!
+//! For texel (x, y), patch size N = 2r + 1, the points are
+//! p(i, j) = (i, σ·j, z(x + i, y + j)) for i, j ∈ [−r, r], z = S · h, with
+//! σ = −1 for OpenGL and +1 for DirectX. With the mean removed only these
+//! sums remain (Σi = Σj = Σij = 0 on the square grid):
+//!
+//! ```text
+//! A   = Σ i²  (= Σ j²)  = N · r(r + 1)(2r + 1) / 3
+//! Cx  = Σ i · z         Cy = σ · Σ j · z
+//! Czz = Σ z² − (Σ z)² / N²
+//! ```
+//!
+//! * vertical fit: n ∝ (−Cx, −Cy, A);
+//! * orthogonal fit: n ∝ (−Cx, −Cy, A − λ), λ the covariance's smallest
+//!   eigenvalue; with d = (A − Czz)/2, q = √(d² + Cx² + Cy²),
+//!   A − λ = d + q if d ≥ 0, else (Cx² + Cy²)/(q − d) (the same value,
+//!   written so that it does not cancel);
+//! * a patch with Cx² + Cy² ≤ 1e-20 · (A + Czz)² is flat: n = (0, 0, 1).
+//!
+//! # How the sums are found
+//!
+//! The four patch sums Σz, Σiz, Σjz, Σz² are separable, so each is a
+//! horizontal running sum along a row followed by a vertical running sum
+//! down the columns. Every step adds the entering texel and removes the
+//! leaving one, so the cost per texel is the same for N = 3 and N = 63.
+//!
+//! Rules the loops obey, and why:
+//! * Sums are f64 over z − c, where c is one texel's value per tile
+//!   (a block of rows × a segment of columns). Subtracting c leaves Cx, Cy
+//!   and Czz unchanged, and keeps Σz² − (Σz)²/N² from cancelling when the
+//!   heights sit far from zero (a float map around 1000 with fine detail).
+//! * Running sums restart from scratch at every tile edge, so rounding drift
+//!   is bounded by the tile size, and the tiles are fixed by the image and
+//!   N alone. Rows are split among threads by whole tiles, so every texel is
+//!   computed by the same operations in the same order whatever the number
+//!   of threads: the output is identical bit for bit.
+//! * Tiles are at least 8·N long, so restarting (N steps) costs at most an
+//!   eighth of the sliding work (2 steps a texel): the cost stays flat in N.
+
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::options::{Border, Fit, Options};
+
+/// A type an output texel can be made from a unit normal.
+///
+/// Implemented for `[f32; 3]` (the normal n itself, components in [−1, 1])
+/// and for `[u8; 3]` / `[u16; 3]` (the contract's RGB encoding
+/// c = (n + 1)/2, rounded). Writing texels straight from the fit saves a
+/// pass and a float copy of the image.
+pub trait FromNormal: Copy + Send + Sync {
+    /// Makes the texel from the normal's (x, y, z), a unit vector with z ≥ 0.
+    fn from_normal(n: [f64; 3]) -> Self;
+}
+
+impl FromNormal for [f32; 3] {
+    #[inline]
+    fn from_normal(n: [f64; 3]) -> Self {
+        [n[0] as f32, n[1] as f32, n[2] as f32]
+    }
+}
+
+impl FromNormal for [u8; 3] {
+    #[inline]
+    fn from_normal(n: [f64; 3]) -> Self {
+        n.map(|c| ((c + 1.0) * 127.5).round() as u8)
+    }
+}
+
+impl FromNormal for [u16; 3] {
+    #[inline]
+    fn from_normal(n: [f64; 3]) -> Self {
+        n.map(|c| ((c + 1.0) * 32767.5).round() as u16)
+    }
+}
+
+/// Unit normals of a `width` × `height` height map, as `[x, y, z]` in
+/// [−1, 1], row-major.
+///
+/// `heights` is row-major, `width * height` long; heights are in the
+/// contract's units (integer images divided by 2^bits − 1). Rows are
+/// computed in parallel on rayon's current pool.
+///
+/// ```
+/// use normalfit::{normals, Options};
+/// // A ramp rising to the right: normals lean left (−x), green stays 0.
+/// let (w, h) = (8, 4);
+/// let heights: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 * 0.25).collect();
+/// let opts = Options::default().with_borders(normalfit::Borders::both(normalfit::Border::Clamp));
+/// let n = normals(&heights, w, h, &opts).unwrap();
+/// let [nx, ny, nz] = n[w + 3];
+/// assert!(nx < 0.0 && ny.abs() < 1e-6 && nz > 0.0);
+/// ```
+pub fn normals(heights: &[f32], width: usize, height: usize, opts: &Options) -> Result<Vec<[f32; 3]>> {
+    let mut out = vec![[0.0f32; 3]; checked_len(width, height)?];
+    normals_into(heights, width, height, opts, &mut out)?;
+    Ok(out)
+}
+
+/// Like [`normals`], but writes into `out` (`width * height` texels) in
+/// any texel type: `[f32; 3]` for the normal itself, `[u8; 3]` or
+/// `[u16; 3]` for the encoded RGB of the contract.
+pub fn normals_into<T: FromNormal>(
+    heights: &[f32],
+    width: usize,
+    height: usize,
+    opts: &Options,
+    out: &mut [T],
+) -> Result<()> {
+    let plan = Plan::new(heights, width, height, opts)?;
+    if out.len() != heights.len() {
+        return Err(Error::BufferSize { expected: heights.len(), actual: out.len() });
+    }
+    out.par_chunks_mut(plan.block_rows * width)
+        .enumerate()
+        .for_each(|(b, rows)| plan.fit_block(heights, b * plan.block_rows, rows));
+    Ok(())
+}
+
+/// `width * height`, refusing zero sizes and overflow.
+pub(crate) fn checked_len(width: usize, height: usize) -> Result<usize> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidOption(format!("image is {width}×{height}: both sides must be at least 1")));
+    }
+    width
+        .checked_mul(height)
+        .ok_or_else(|| Error::InvalidOption(format!("image of {width}×{height} texels is too large")))
+}
+
+/// The first texel (x, y) in row order whose height is NaN or infinite.
+pub(crate) fn first_non_finite(heights: &[f32], width: usize) -> Option<(usize, usize)> {
+    heights.iter().position(|h| !h.is_finite()).map(|k| (k % width, k / width))
+}
+
+/// Everything about a conversion that is the same for every tile.
+struct Plan {
+    width: usize,
+    n: usize,
+    r: usize,
+    /// S: surface z per unit of height, sign included.
+    scale: f64,
+    sigma: f64,
+    fit: Fit,
+    /// A = Σ i² over the patch.
+    a: f64,
+    /// Source column of padded column p = x + i + r.
+    xmap: Vec<usize>,
+    /// Source row of padded row p = y + j + r.
+    ymap: Vec<usize>,
+    block_rows: usize,
+    segment_cols: usize,
+}
+
+impl Plan {
+    fn new(heights: &[f32], width: usize, height: usize, opts: &Options) -> Result<Plan> {
+        opts.validate()?;
+        let len = checked_len(width, height)?;
+        if heights.len() != len {
+            return Err(Error::BufferSize { expected: len, actual: heights.len() });
+        }
+        if let Some((x, y)) = first_non_finite(heights, width) {
+            return Err(Error::NonFiniteHeight { x, y });
+        }
+        let n = opts.patch;
+        let r = n / 2;
+        let padded = |len: usize, mode: Border| -> Vec<usize> {
+            (0..len + 2 * r).map(|p| mode.map(p as isize - r as isize, len)).collect()
+        };
+        let tile = (8 * n).max(64);
+        let rf = r as f64;
+        Ok(Plan {
+            width,
+            n,
+            r,
+            scale: opts.scale_for_width(width),
+            sigma: opts.convention.sigma(),
+            fit: opts.fit,
+            a: n as f64 * rf * (rf + 1.0) * (2.0 * rf + 1.0) / 3.0,
+            xmap: padded(width, opts.borders.x),
+            ymap: padded(height, opts.borders.y),
+            block_rows: tile,
+            segment_cols: tile,
+        })
+    }
+
+    /// Fits the output rows `y0 .. y0 + out.len() / width`.
+    fn fit_block<T: FromNormal>(&self, heights: &[f32], y0: usize, out: &mut [T]) {
+        let (w, n, r) = (self.width, self.n, self.r);
+        let row_of = |p: usize| &heights[self.ymap[p] * w..][..w];
+
+        // The reference c of each column: one texel per (block, segment).
+        let reference: Vec<f64> = (0..w)
+            .map(|x| {
+                let x0 = x - x % self.segment_cols;
+                self.scale * f64::from(row_of(y0 + r)[self.xmap[x0 + r]])
+            })
+            .collect();
+
+        // Ring of the N rows' horizontal sums: slot p % N holds padded row p.
+        let mut ring: Vec<RowSums> = (y0..y0 + n)
+            .map(|p| {
+                let mut sums = RowSums::zeros(w);
+                self.horizontal_sums(row_of(p), &reference, &mut sums);
+                sums
+            })
+            .collect();
+        ring.rotate_right(y0 % n);
+        let mut entering = RowSums::zeros(w);
+
+        // Vertical sums over the window, started from scratch at the block's top.
+        let mut v = WindowSums::zeros(w);
+        for j in 0..n {
+            let offset = j as f64 - r as f64;
+            let h = &ring[(y0 + j) % n];
+            for x in 0..w {
+                v.s0[x] += h.s0[x];
+                v.si[x] += h.si[x];
+                v.sj[x] += offset * h.s0[x];
+                v.szz[x] += h.szz[x];
+            }
+        }
+
+        let (rf, r1) = (r as f64, r as f64 + 1.0);
+        for (k, out_row) in out.chunks_exact_mut(w).enumerate() {
+            if k > 0 {
+                // Slide down one row: padded row p_in enters, p_out leaves.
+                let p_out = y0 + k - 1;
+                let p_in = p_out + n;
+                self.horizontal_sums(row_of(p_in), &reference, &mut entering);
+                let (e, l) = (&entering, &ring[p_out % n]);
+                for x in 0..w {
+                    let s0 = v.s0[x] - l.s0[x] + e.s0[x];
+                    v.sj[x] += rf * l.s0[x] + r1 * e.s0[x] - s0;
+                    v.s0[x] = s0;
+                    v.si[x] += e.si[x] - l.si[x];
+                    v.szz[x] += e.szz[x] - l.szz[x];
+                }
+                std::mem::swap(&mut ring[p_out % n], &mut entering);
+            }
+            self.emit(&v, out_row);
+        }
+    }
+
+    /// Σz, Σiz, Σz² over each column's horizontal window of one source row,
+    /// z relative to the column's reference.
+    fn horizontal_sums(&self, src: &[f32], reference: &[f64], out: &mut RowSums) {
+        let padded = &mut out.padded;
+        let (w, n, r) = (self.width, self.n, self.r);
+        let (rf, r1) = (r as f64, r as f64 + 1.0);
+        for x0 in (0..w).step_by(self.segment_cols) {
+            let x1 = (x0 + self.segment_cols).min(w);
+            let c = reference[x0];
+            // The segment's texels with their borders: padded[q] is column x0 + q − r.
+            padded.clear();
+            padded.extend(self.xmap[x0..x1 + 2 * r].iter().map(|&sx| self.scale * f64::from(src[sx]) - c));
+            let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
+            for (q, &z) in padded[..n].iter().enumerate() {
+                s0 += z;
+                si += (q as f64 - rf) * z;
+                szz += z * z;
+            }
+            out.s0[x0] = s0;
+            out.si[x0] = si;
+            out.szz[x0] = szz;
+            for x in x0 + 1..x1 {
+                let leaving = padded[x - 1 - x0];
+                let entering = padded[x - x0 + 2 * r];
+                s0 += entering - leaving;
+                si += rf * leaving + r1 * entering - s0;
+                szz += entering * entering - leaving * leaving;
+                out.s0[x] = s0;
+                out.si[x] = si;
+                out.szz[x] = szz;
+            }
+        }
+    }
+
+    /// Turns the window sums of one row into normals.
+    fn emit<T: FromNormal>(&self, v: &WindowSums, out: &mut [T]) {
+        let n2 = (self.n * self.n) as f64;
+        for (x, texel) in out.iter_mut().enumerate() {
+            let cx = v.si[x];
+            let cy = self.sigma * v.sj[x];
+            let czz = (v.szz[x] - v.s0[x] * v.s0[x] / n2).max(0.0);
+            *texel = T::from_normal(plane_normal(self.fit, self.a, cx, cy, czz));
+        }
+    }
+}
+
+/// The fitted plane's unit normal from the patch sums (see the module docs).
+#[inline]
+pub(crate) fn plane_normal(fit: Fit, a: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
+    let tilt2 = cx * cx + cy * cy;
+    if tilt2 <= 1e-20 * (a + czz) * (a + czz) {
+        return [0.0, 0.0, 1.0];
+    }
+    let nz = match fit {
+        Fit::Vertical => a,
+        Fit::Orthogonal => {
+            let d = 0.5 * (a - czz);
+            let q = (d * d + tilt2).sqrt();
+            if d >= 0.0 { d + q } else { tilt2 / (q - d) }
+        }
+    };
+    let inv = 1.0 / (tilt2 + nz * nz).sqrt();
+    [-cx * inv, -cy * inv, nz * inv]
+}
+
+/// One row's horizontal sums per column, as planes so the loops vectorise.
+struct RowSums {
+    s0: Vec<f64>,
+    si: Vec<f64>,
+    szz: Vec<f64>,
+    /// Scratch: one segment's heights with their borders.
+    padded: Vec<f64>,
+}
+
+impl RowSums {
+    fn zeros(width: usize) -> Self {
+        let z = vec![0.0; width];
+        RowSums { s0: z.clone(), si: z.clone(), szz: z, padded: Vec::new() }
+    }
+}
+
+/// The patch sums of the current output row, per column.
+struct WindowSums {
+    s0: Vec<f64>,
+    si: Vec<f64>,
+    sj: Vec<f64>,
+    szz: Vec<f64>,
+}
+
+impl WindowSums {
+    fn zeros(width: usize) -> Self {
+        let z = vec![0.0; width];
+        WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z }
+    }
+}

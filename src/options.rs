@@ -1,0 +1,279 @@
+//! What a conversion is asked to do: the plane fit's parameters, each with
+//! its default from the contract (`SPEC.md`, sections 1 and 2).
+
+use crate::error::Error;
+
+/// Which plane the fit finds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Fit {
+    /// The plane minimising the summed squared *perpendicular* distances to
+    /// the patch's points (total least squares). Steep slopes keep their
+    /// true angle. The default.
+    #[default]
+    Orthogonal,
+    /// Ordinary least squares of height over the patch (vertical distances).
+    /// For N = 3 it is the Prewitt filter divided by 6, DirectXTex's kernel.
+    Vertical,
+}
+
+/// What a texel index outside the image maps to, per axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Border {
+    /// `k mod n`: the texture tiles. The default.
+    #[default]
+    Wrap,
+    /// The nearest edge texel.
+    Clamp,
+    /// Reflection about the edge texel, the edge not repeated (−1 → 1);
+    /// period 2(n − 1). An axis of one texel acts as clamp.
+    Mirror,
+}
+
+impl Border {
+    /// Maps any index `k` (possibly far outside) onto `[0, n)`. `n` must be ≥ 1.
+    #[must_use]
+    pub fn map(self, k: isize, n: usize) -> usize {
+        debug_assert!(n >= 1);
+        let n = n as isize;
+        let m = match self {
+            Border::Wrap => k.rem_euclid(n),
+            Border::Clamp => k.clamp(0, n - 1),
+            Border::Mirror if n == 1 => 0,
+            Border::Mirror => {
+                let period = 2 * (n - 1);
+                let m = k.rem_euclid(period);
+                if m < n { m } else { period - m }
+            }
+        };
+        m as usize
+    }
+}
+
+/// Border modes for the two axes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Borders {
+    /// Along x (columns). Default: wrap.
+    pub x: Border,
+    /// Along y (rows). Default: wrap.
+    pub y: Border,
+}
+
+impl Borders {
+    /// The same mode on both axes.
+    #[must_use]
+    pub fn both(mode: Border) -> Self {
+        Borders { x: mode, y: mode }
+    }
+}
+
+/// Which way the normal's green (+Y) component points.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Convention {
+    /// +Y points to smaller row indices ("green up"): OpenGL, glTF, Blender,
+    /// Unity. The default.
+    #[default]
+    OpenGl,
+    /// +Y points to larger row indices ("green down"): DirectX, Unreal.
+    DirectX,
+}
+
+impl Convention {
+    /// σ of the contract: the sign that turns a row offset into the patch's
+    /// v coordinate.
+    #[must_use]
+    pub(crate) fn sigma(self) -> f64 {
+        match self {
+            Convention::OpenGl => -1.0,
+            Convention::DirectX => 1.0,
+        }
+    }
+}
+
+/// How heights become surface z in texel units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Strength {
+    /// z = S · h: the full [0, 1] height range spans S texel widths.
+    Scale(f64),
+    /// z = F · W · h (W the image width), so the look does not change when
+    /// the texture is resampled.
+    Relief(f64),
+}
+
+impl Default for Strength {
+    /// `Scale(1.0)`: the gain of DirectXTex, GIMP's 3×3 filter and Godot.
+    fn default() -> Self {
+        Strength::Scale(1.0)
+    }
+}
+
+/// Everything the plane fit needs besides the heights.
+///
+/// ```
+/// use normalfit::{Border, Borders, Fit, Options};
+/// let opts = Options::default()
+///     .with_patch(9)
+///     .with_fit(Fit::Vertical)
+///     .with_borders(Borders { x: Border::Wrap, y: Border::Clamp });
+/// assert_eq!(opts.patch, 9);
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct Options {
+    /// Patch size N: the fit uses the N×N texels around each texel. Odd, ≥ 3.
+    /// Default: 3.
+    pub patch: usize,
+    /// Orthogonal or vertical least squares. Default: orthogonal.
+    pub fit: Fit,
+    /// Border mode per axis. Default: wrap on both.
+    pub borders: Borders,
+    /// Green up (OpenGL) or down (DirectX). Default: OpenGL.
+    pub convention: Convention,
+    /// Height gain. Default: `Scale(1.0)`.
+    pub strength: Strength,
+    /// Negate the gain: heights are depths. Default: false.
+    pub invert: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options::new()
+    }
+}
+
+impl Options {
+    /// The contract's defaults: N = 3, orthogonal fit, wrap on both axes,
+    /// OpenGL, scale 1, not inverted.
+    #[must_use]
+    pub fn new() -> Self {
+        Options {
+            patch: 3,
+            fit: Fit::Orthogonal,
+            borders: Borders::default(),
+            convention: Convention::OpenGl,
+            strength: Strength::Scale(1.0),
+            invert: false,
+        }
+    }
+
+    /// Sets the patch size N (odd, ≥ 3).
+    #[must_use]
+    pub fn with_patch(mut self, n: usize) -> Self {
+        self.patch = n;
+        self
+    }
+    /// Sets the fit.
+    #[must_use]
+    pub fn with_fit(mut self, fit: Fit) -> Self {
+        self.fit = fit;
+        self
+    }
+    /// Sets the border modes.
+    #[must_use]
+    pub fn with_borders(mut self, borders: Borders) -> Self {
+        self.borders = borders;
+        self
+    }
+    /// Sets the green convention.
+    #[must_use]
+    pub fn with_convention(mut self, convention: Convention) -> Self {
+        self.convention = convention;
+        self
+    }
+    /// Sets the height gain.
+    #[must_use]
+    pub fn with_strength(mut self, strength: Strength) -> Self {
+        self.strength = strength;
+        self
+    }
+    /// Heights are depths when `invert` is true.
+    #[must_use]
+    pub fn with_invert(mut self, invert: bool) -> Self {
+        self.invert = invert;
+        self
+    }
+
+    /// The gain S for an image `width` texels wide, sign included.
+    #[must_use]
+    pub fn scale_for_width(&self, width: usize) -> f64 {
+        let s = match self.strength {
+            Strength::Scale(s) => s,
+            Strength::Relief(f) => f * width as f64,
+        };
+        if self.invert { -s } else { s }
+    }
+
+    /// Checks the options on their own (the image is checked elsewhere).
+    pub fn validate(&self) -> Result<(), Error> {
+        if self.patch < 3 || self.patch % 2 == 0 {
+            return Err(Error::InvalidOption(format!(
+                "patch size must be odd and at least 3, got {}",
+                self.patch
+            )));
+        }
+        if self.patch > MAX_PATCH {
+            return Err(Error::InvalidOption(format!(
+                "patch size must be at most {MAX_PATCH}, got {}",
+                self.patch
+            )));
+        }
+        let (name, value) = match self.strength {
+            Strength::Scale(s) => ("scale", s),
+            Strength::Relief(f) => ("relief", f),
+        };
+        if !value.is_finite() || value.abs() > MAX_GAIN {
+            return Err(Error::InvalidOption(format!(
+                "{name} must be a finite number of magnitude at most {MAX_GAIN:e}, got {value}"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The largest patch accepted. Sums stay exact far beyond it; the limit only
+/// keeps a typo (`-n 30001`) from asking for gigabytes of ring buffers.
+pub const MAX_PATCH: usize = 1023;
+
+/// The largest gain accepted: with heights up to ±3.4e38 (f32's range) the
+/// squared sums stay far inside f64's range, so no normal becomes NaN.
+pub const MAX_GAIN: f64 = 1e30;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_the_contracts() {
+        let o = Options::default();
+        assert_eq!((o.patch, o.fit, o.borders, o.convention), (3, Fit::Orthogonal, Borders::both(Border::Wrap), Convention::OpenGl));
+        assert_eq!((o.strength, o.invert), (Strength::Scale(1.0), false));
+    }
+
+    #[test]
+    fn border_maps_follow_the_contract() {
+        let n = 4;
+        let wrap: Vec<usize> = (-5..9).map(|k| Border::Wrap.map(k, n)).collect();
+        assert_eq!(wrap, [3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0]);
+        let clamp: Vec<usize> = (-2..6).map(|k| Border::Clamp.map(k, n)).collect();
+        assert_eq!(clamp, [0, 0, 0, 1, 2, 3, 3, 3]);
+        // Period 2(n - 1) = 6: ... 2 1 | 0 1 2 3 | 2 1 0 1 2 3 ...
+        let mirror: Vec<usize> = (-4..10).map(|k| Border::Mirror.map(k, n)).collect();
+        assert_eq!(mirror, [2, 3, 2, 1, 0, 1, 2, 3, 2, 1, 0, 1, 2, 3]);
+        assert_eq!(Border::Mirror.map(-7, 1), 0);
+        assert_eq!(Border::Mirror.map(5, 2), 1);
+    }
+
+    #[test]
+    fn validation_refuses_even_small_and_non_finite() {
+        assert!(Options::new().with_patch(4).validate().is_err());
+        assert!(Options::new().with_patch(1).validate().is_err());
+        assert!(Options::new().with_patch(63).validate().is_ok());
+        let nan = Options::new().with_strength(Strength::Scale(f64::NAN));
+        assert!(nan.validate().is_err());
+    }
+
+    #[test]
+    fn relief_scales_with_width_and_invert_negates() {
+        let o = Options::new().with_strength(Strength::Relief(0.5)).with_invert(true);
+        assert_eq!(o.scale_for_width(64), -32.0);
+    }
+}

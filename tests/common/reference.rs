@@ -1,0 +1,157 @@
+//! An independent, slow, obviously-right plane fit for the tests.
+//!
+//! Written apart from `src/fit.rs` and sharing nothing with it: N² loops in
+//! f64 over the patch's actual points, the full 3×3 covariance (no sums
+//! assumed zero), a Jacobi eigen-solver for the orthogonal fit and the
+//! normal equations solved by Gaussian elimination for the vertical fit.
+#![allow(dead_code)]
+
+use normalfit::{Border, Convention, Fit, Options};
+
+/// The index rule of SPEC.md section 2, written out case by case.
+pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
+    match mode {
+        Border::Wrap => ((k % n) + n) % n,
+        Border::Clamp => k.max(0).min(n - 1),
+        Border::Mirror => {
+            if n == 1 {
+                return 0;
+            }
+            let mut k = k;
+            // Reflect until inside; each reflection is about an edge texel.
+            loop {
+                if k < 0 {
+                    k = -k;
+                } else if k > n - 1 {
+                    k = 2 * (n - 1) - k;
+                } else {
+                    return k;
+                }
+            }
+        }
+    }
+}
+
+/// The reference normal of texel (x, y).
+pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> [f64; 3] {
+    let n = opts.patch as i64;
+    let r = n / 2;
+    let s = opts.scale_for_width(w);
+    let sigma = match opts.convention {
+        Convention::OpenGl => -1.0,
+        Convention::DirectX => 1.0,
+    };
+    let mut pts = Vec::new();
+    for j in -r..=r {
+        for i in -r..=r {
+            let sx = source_index(x as i64 + i, w as i64, opts.borders.x) as usize;
+            let sy = source_index(y as i64 + j, h as i64, opts.borders.y) as usize;
+            pts.push([i as f64, sigma * j as f64, s * heights[sy * w + sx] as f64]);
+        }
+    }
+    let count = pts.len() as f64;
+    let mean: Vec<f64> = (0..3).map(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count).collect();
+    let mut cov = [[0.0f64; 3]; 3];
+    for p in &pts {
+        for a in 0..3 {
+            for b in 0..3 {
+                cov[a][b] += (p[a] - mean[a]) * (p[b] - mean[b]);
+            }
+        }
+    }
+    // The contract's "no tilt" rule, from the same covariance entries.
+    let (a, cx, cy, czz) = (cov[0][0], cov[0][2], cov[1][2], cov[2][2]);
+    if cx * cx + cy * cy <= 1e-20 * (a + czz) * (a + czz) {
+        return [0.0, 0.0, 1.0];
+    }
+    let n = match opts.fit {
+        Fit::Orthogonal => smallest_eigenvector(cov),
+        Fit::Vertical => {
+            // z = c0 + c1 u + c2 v by least squares; the normal is (−c1, −c2, 1).
+            let mut m = [[0.0f64; 4]; 3];
+            for p in &pts {
+                let row = [1.0, p[0], p[1]];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        m[a][b] += row[a] * row[b];
+                    }
+                    m[a][3] += row[a] * p[2];
+                }
+            }
+            let c = solve3(m);
+            [-c[1], -c[2], 1.0]
+        }
+    };
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    let sign = if n[2] < 0.0 { -1.0 } else { 1.0 };
+    [sign * n[0] / len, sign * n[1] / len, sign * n[2] / len]
+}
+
+/// The whole reference normal map.
+pub fn normal_map(heights: &[f32], w: usize, h: usize, opts: &Options) -> Vec<[f64; 3]> {
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            out.push(normal_at(heights, w, h, opts, x, y));
+        }
+    }
+    out
+}
+
+/// Eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, by
+/// cyclic Jacobi rotations.
+fn smallest_eigenvector(mut m: [[f64; 3]; 3]) -> [f64; 3] {
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _sweep in 0..100 {
+        let off = m[0][1].powi(2) + m[0][2].powi(2) + m[1][2].powi(2);
+        let diag = m[0][0].powi(2) + m[1][1].powi(2) + m[2][2].powi(2);
+        if off <= 1e-34 * diag || off == 0.0 {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if m[p][q] == 0.0 {
+                continue;
+            }
+            let theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            // m ← Jᵀ m J, v ← v J for the rotation J in the (p, q) plane.
+            for k in 0..3 {
+                let (mkp, mkq) = (m[k][p], m[k][q]);
+                m[k][p] = c * mkp - s * mkq;
+                m[k][q] = s * mkp + c * mkq;
+            }
+            for k in 0..3 {
+                let (mpk, mqk) = (m[p][k], m[q][k]);
+                m[p][k] = c * mpk - s * mqk;
+                m[q][k] = s * mpk + c * mqk;
+            }
+            for row in v.iter_mut() {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let k = (0..3).min_by(|&a, &b| m[a][a].total_cmp(&m[b][b])).unwrap();
+    [v[0][k], v[1][k], v[2][k]]
+}
+
+/// Solves a 3×3 system given as an augmented matrix, with partial pivoting.
+fn solve3(mut m: [[f64; 4]; 3]) -> [f64; 3] {
+    for col in 0..3 {
+        let piv = (col..3).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs())).unwrap();
+        m.swap(col, piv);
+        for row in 0..3 {
+            if row != col {
+                let f = m[row][col] / m[col][col];
+                for k in col..4 {
+                    m[row][k] -= f * m[col][k];
+                }
+            }
+        }
+    }
+    [m[0][3] / m[0][0], m[1][3] / m[1][1], m[2][3] / m[2][2]]
+}
