@@ -7,7 +7,10 @@
 
 pub mod error;
 pub mod fit;
+pub mod io;
 pub mod options;
+pub mod shade;
+pub mod tiling;
 
 pub use error::{Error, Result};
 pub use fit::{normals, normals_into, FromNormal};

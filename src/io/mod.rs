@@ -1,0 +1,1 @@
+//! Reading height maps and writing normal maps: image files, bytes, atomic writes.

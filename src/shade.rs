@@ -1,0 +1,1 @@
+//! Lit views of normal maps, for people to look at.

@@ -1,0 +1,1 @@
+//! Whether a texture tiles: a seam score per axis.
