@@ -81,3 +81,155 @@ proptest! {
         prop_assert!(err < 1e-5, "error {err:e} at texel {at}");
     }
 }
+
+/// A tilted plane z = a·x + b·y has one exact normal everywhere the patch
+/// lies inside the image (clamp only distorts the texels near its edges).
+#[test]
+fn tilted_plane_gives_its_exact_normal() {
+    let (w, h) = (40, 30);
+    let (a, b) = (0.3, -0.2); // heights per texel
+    let heights: Vec<f32> = (0..w * h).map(|k| (a * (k % w) as f64 + b * (k / w) as f64) as f32 + 2.0).collect();
+    for n in [3, 5, 9, 15] {
+        for fit in [Fit::Orthogonal, Fit::Vertical] {
+            for conv in [Convention::OpenGl, Convention::DirectX] {
+                let opts = Options::new().with_patch(n).with_fit(fit).with_convention(conv).with_borders(Borders::both(Border::Clamp));
+                let out = normals(&heights, w, h, &opts).unwrap();
+                // Surface z = a·u + b·row; with v = σ·row, ∂z/∂v = σ·b.
+                let sigma = if conv == Convention::OpenGl { -1.0 } else { 1.0 };
+                let raw = [-a, -sigma * b, 1.0];
+                let len = (raw[0] * raw[0] + raw[1] * raw[1] + 1.0f64).sqrt();
+                let want = raw.map(|c| c / len);
+                let r = n / 2;
+                for y in r..h - r {
+                    for x in r..w - r {
+                        let got = out[y * w + x];
+                        for c in 0..3 {
+                            assert!((got[c] as f64 - want[c]).abs() < 1e-6, "n={n} {fit:?} {conv:?} at ({x},{y}): {got:?} vs {want:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A bump: right of it the surface falls to the right, so red > 0.5;
+/// above it (smaller rows) the surface falls upward, so OpenGL green > 0.5
+/// there and DirectX green < 0.5.
+#[test]
+fn bump_lights_red_on_its_right_and_green_above_it() {
+    let (w, h) = (33, 33);
+    let heights: Vec<f32> = (0..w * h)
+        .map(|k| {
+            let (dx, dy) = ((k % w) as f32 - 16.0, (k / w) as f32 - 16.0);
+            (-(dx * dx + dy * dy) / 30.0).exp()
+        })
+        .collect();
+    for fit in [Fit::Orthogonal, Fit::Vertical] {
+        let gl: Vec<[u8; 3]> = encoded(&heights, w, h, &Options::new().with_fit(fit));
+        let dx: Vec<[u8; 3]> = encoded(&heights, w, h, &Options::new().with_fit(fit).with_convention(Convention::DirectX));
+        let right = 16 * w + 20;
+        let above = 12 * w + 16;
+        assert!(gl[right][0] > 128 && gl[right][1] == 128, "right of bump: {:?}", gl[right]);
+        assert!(gl[above][1] > 128 && gl[above][0] == 128, "above bump, OpenGL: {:?}", gl[above]);
+        assert!(dx[above][1] < 128, "above bump, DirectX: {:?}", dx[above]);
+        assert_eq!(gl[16 * w + 16], [128, 128, 255], "the top of the bump is flat");
+    }
+}
+
+fn encoded(heights: &[f32], w: usize, h: usize, opts: &Options) -> Vec<[u8; 3]> {
+    let mut out = vec![[0u8; 3]; w * h];
+    normals_into(heights, w, h, opts, &mut out).unwrap();
+    out
+}
+
+/// Flat in, flat out: any constant height, any options.
+#[test]
+fn constant_heights_give_flat_normals() {
+    for (w, h) in [(1, 1), (7, 1), (1, 9), (70, 50)] {
+        for value in [0.0f32, 0.5, -812.25, 3.0e38] {
+            for n in [3, 7, 63] {
+                let heights = vec![value; w * h];
+                let opts = Options::new().with_patch(n).with_strength(Strength::Scale(40.0));
+                let out = encoded(&heights, w, h, &opts);
+                assert!(out.iter().all(|&t| t == [128, 128, 255]), "{w}x{h} value {value} n {n}");
+            }
+        }
+    }
+}
+
+fn random_heights(w: usize, h: usize, seed: u64) -> Vec<f32> {
+    let mut s = seed;
+    (0..w * h)
+        .map(|_| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        })
+        .collect()
+}
+
+/// Wrapping makes the fit commute with circular shifts of the image.
+#[test]
+fn wrap_commutes_with_circular_shifts() {
+    let (w, h) = (150, 90); // larger than one tile, so tile seams are crossed
+    let heights = random_heights(w, h, 7);
+    for n in [3, 9, 31] {
+        for fit in [Fit::Orthogonal, Fit::Vertical] {
+            let opts = Options::new().with_patch(n).with_fit(fit).with_strength(Strength::Scale(8.0));
+            let base = normals(&heights, w, h, &opts).unwrap();
+            let (sx, sy) = (37, 71);
+            let shifted: Vec<f32> = (0..w * h).map(|k| heights[((k / w + sy) % h) * w + (k % w + sx) % w]).collect();
+            let out = normals(&shifted, w, h, &opts).unwrap();
+            for k in 0..w * h {
+                let from = ((k / w + sy) % h) * w + (k % w + sx) % w;
+                for c in 0..3 {
+                    assert!((out[k][c] - base[from][c]).abs() < 1e-6, "n {n} {fit:?} texel {k}");
+                }
+            }
+        }
+    }
+}
+
+/// The output is the same bit for bit whatever the number of threads.
+#[test]
+fn parallel_equals_serial_bit_for_bit() {
+    let (w, h) = (301, 517); // several tiles each way, odd sizes
+    let heights: Vec<f32> = random_heights(w, h, 3).iter().map(|v| 500.0 + v).collect();
+    for n in [3, 15, 63] {
+        let opts = Options::new().with_patch(n).with_strength(Strength::Scale(40.0)).with_borders(Borders { x: Border::Mirror, y: Border::Wrap });
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| normals(&heights, w, h, &opts).unwrap())
+        };
+        let serial = run(1);
+        for threads in [2, 3, 8] {
+            let par = run(threads);
+            assert!(serial.iter().zip(&par).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)), "n {n}, {threads} threads");
+        }
+    }
+}
+
+/// Bad calls are errors, never panics.
+#[test]
+fn bad_calls_are_errors() {
+    let opts = Options::new();
+    assert!(normals(&[], 0, 0, &opts).is_err());
+    assert!(normals(&[0.0; 5], 2, 3, &opts).is_err());
+    let err = normals(&[0.0, 1.0, f32::NAN, 0.0], 2, 2, &opts).unwrap_err();
+    assert!(matches!(err, normalfit::Error::NonFiniteHeight { x: 0, y: 1 }), "{err}");
+    assert!(normals(&[0.0; 4], 2, 2, &opts.clone().with_patch(4)).is_err());
+    let mut short = vec![[0u8; 3]; 3];
+    assert!(normals_into(&[0.0; 4], 2, 2, &opts, &mut short).is_err());
+}
+
+/// Finite heights of extreme size never turn into NaN normals.
+#[test]
+fn extreme_heights_stay_finite() {
+    let (w, h) = (20, 20);
+    let heights: Vec<f32> = random_heights(w, h, 11).iter().map(|v| if *v > 0.5 { 3.0e38 } else { -3.0e38 }).collect();
+    for fit in [Fit::Orthogonal, Fit::Vertical] {
+        let opts = Options::new().with_fit(fit).with_strength(Strength::Scale(1e30));
+        let out = normals(&heights, w, h, &opts).unwrap();
+        assert!(out.iter().all(|n| n.iter().all(|c| c.is_finite()) && n[2] >= 0.0));
+    }
+}
