@@ -1,0 +1,179 @@
+//! The command line as clap sees it. Nothing here computes: `convert.rs`
+//! and `tiling.rs` turn these into the library's options.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use normalfit::options::MAX_PATCH;
+use normalfit::{Border, Borders};
+
+/// Tangent-space normal maps from height maps, by least-squares plane fits;
+/// and whether a texture tiles seamlessly.
+#[derive(Parser, Debug)]
+#[command(name = "normalfit", version, about, propagate_version = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Turn height maps into normal maps.
+    Convert(ConvertArgs),
+    /// Tell whether images tile seamlessly (exit 0: all tile, 1: a seam).
+    Tiling(TilingArgs),
+}
+
+#[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
+pub struct ConvertArgs {
+    /// Height maps to convert (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-` reads
+    /// standard input).
+    #[arg(required = true, value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
+
+    /// Output file, or folder for many inputs; `-` writes standard output.
+    /// Default: `<stem>_normal.<ext>` beside each input (standard output for
+    /// standard input).
+    #[arg(short, long, value_name = "OUTPUT")]
+    pub output: Option<PathBuf>,
+
+    /// Patch size N: fit a plane to the N×N texels around each texel (odd, ≥ 3).
+    /// Larger patches smooth more; the cost does not grow with N.
+    #[arg(short = 'n', long, value_name = "N", default_value_t = 3, value_parser = parse_patch)]
+    pub patch: usize,
+
+    /// Height gain S: the [0, 1] height range spans S texel widths.
+    #[arg(short, long, value_name = "S", default_value_t = 1.0, value_parser = parse_finite, conflicts_with = "relief")]
+    pub scale: f64,
+
+    /// Gain relative to the width: S = F × image width, so the look does not
+    /// change with resolution.
+    #[arg(long, value_name = "F", value_parser = parse_finite)]
+    pub relief: Option<f64>,
+
+    /// Heights are depths: negate the gain.
+    #[arg(long)]
+    pub invert: bool,
+
+    /// Which least-squares plane: perpendicular distances (orthogonal) or
+    /// vertical ones.
+    #[arg(long, value_enum, default_value_t = FitArg::Orthogonal)]
+    pub fit: FitArg,
+
+    /// Border mode, one for both axes or `X,Y`: wrap (tiles), clamp, mirror.
+    #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_borders)]
+    pub border: Borders,
+
+    /// Green up (opengl: glTF, Blender, Unity) or down (directx: Unreal).
+    #[arg(long, value_enum, default_value_t = ConventionArg::Opengl)]
+    pub convention: ConventionArg,
+
+    /// Channel of a colour image that holds the height (gray images use gray).
+    #[arg(long, value_enum)]
+    pub channel: Option<ChannelArg>,
+
+    /// Bits per output channel: 8 or 16 for PNG, 16 (half) or 32 (float) for
+    /// EXR. Default: 16 for inputs of more than 8 bits, else 8; 32 for EXR.
+    #[arg(long, value_name = "BITS", value_parser = clap::builder::PossibleValuesParser::new(["8", "16", "32"]).map(|s| s.parse::<u8>().unwrap_or(8)))]
+    pub bits: Option<u8>,
+
+    /// Output format; default: the output file's extension, else the input's
+    /// format (PNG for integer images, EXR for float ones).
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
+
+    /// Write the normal's components in [−1, 1] instead of (n + 1)/2 (EXR only).
+    #[arg(long)]
+    pub signed: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct TilingArgs {
+    /// Images to check (height or normal maps; `-` reads standard input).
+    #[arg(required = true, value_name = "IMAGE")]
+    pub inputs: Vec<PathBuf>,
+
+    /// One JSON object per image, one per line.
+    #[arg(long)]
+    pub json: bool,
+
+    /// Score above which an axis has a visible seam.
+    #[arg(long, value_name = "T", value_parser = parse_finite)]
+    pub threshold: Option<f64>,
+
+    /// What the images hold; auto decides from the pixels.
+    #[arg(long, value_enum, default_value_t = KindArg::Auto)]
+    pub kind: KindArg,
+
+    /// Channel of a colour height map that holds the height.
+    #[arg(long, value_enum)]
+    pub channel: Option<ChannelArg>,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum FitArg {
+    Orthogonal,
+    Vertical,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum ConventionArg {
+    #[value(alias = "gl")]
+    Opengl,
+    #[value(alias = "dx")]
+    Directx,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum ChannelArg {
+    Luma,
+    R,
+    G,
+    B,
+    A,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FormatArg {
+    Png,
+    Exr,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum KindArg {
+    Auto,
+    Height,
+    Normal,
+}
+
+fn parse_patch(s: &str) -> Result<usize, String> {
+    let n: usize = s.parse().map_err(|_| format!("patch size must be a whole number, got '{s}'"))?;
+    if n < 3 || n % 2 == 0 || n > MAX_PATCH {
+        return Err(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"));
+    }
+    Ok(n)
+}
+
+fn parse_finite(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("expected a finite number, got '{s}'")),
+    }
+}
+
+fn parse_border(s: &str) -> Result<Border, String> {
+    match s.trim() {
+        "wrap" => Ok(Border::Wrap),
+        "clamp" => Ok(Border::Clamp),
+        "mirror" => Ok(Border::Mirror),
+        other => Err(format!("unknown border mode '{other}': use wrap, clamp or mirror")),
+    }
+}
+
+fn parse_borders(s: &str) -> Result<Borders, String> {
+    match s.split_once(',') {
+        None => Ok(Borders::both(parse_border(s)?)),
+        Some((x, y)) => Ok(Borders { x: parse_border(x)?, y: parse_border(y)? }),
+    }
+}

@@ -1,0 +1,253 @@
+//! `normalfit convert`: where each output goes, in which format, and the
+//! promise that outputs appear whole or not at all and never replace an input.
+
+use std::collections::HashSet;
+use std::io::{Cursor, Write};
+use std::path::{Path, PathBuf};
+
+use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions};
+use normalfit::{Convention, Fit, Options, Strength, normals_into};
+
+use super::args::{ChannelArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
+use super::input::{Input, InputIds, read_input};
+use super::report::Failure;
+
+/// What `convert` does with every input, decided once from the arguments.
+struct Plan {
+    fit: Options,
+    channel: Option<Channel>,
+    bits: Option<u8>,
+    format: Option<FormatArg>,
+    signed: bool,
+    destination: Destination,
+}
+
+/// Where outputs go.
+enum Destination {
+    /// `<stem>_normal.<ext>` beside each input (standard output for `-`).
+    BesideInputs,
+    /// This exact file (one input only).
+    File(PathBuf),
+    /// `<dir>/<stem>_normal.<ext>`.
+    Folder(PathBuf),
+    /// Standard output (one input only).
+    Stdout,
+}
+
+/// Converts every input; returns the failures (already reported).
+pub fn run(args: ConvertArgs) -> Result<usize, Failure> {
+    let plan = Plan::from_args(&args)?;
+    let ids = InputIds::of(&args.inputs);
+    let mut written: HashSet<PathBuf> = HashSet::new();
+    let mut failures = 0;
+    for path in &args.inputs {
+        let input = Input::from_arg(path);
+        if let Err(f) = plan.convert_one(&input, &ids, &mut written) {
+            f.report();
+            failures += 1;
+        }
+    }
+    Ok(failures)
+}
+
+impl Plan {
+    fn from_args(args: &ConvertArgs) -> Result<Plan, Failure> {
+        let strength = match args.relief {
+            Some(f) => Strength::Relief(f),
+            None => Strength::Scale(args.scale),
+        };
+        let fit = Options::new()
+            .with_patch(args.patch)
+            .with_fit(match args.fit {
+                FitArg::Orthogonal => Fit::Orthogonal,
+                FitArg::Vertical => Fit::Vertical,
+            })
+            .with_borders(args.border)
+            .with_convention(match args.convention {
+                ConventionArg::Opengl => Convention::OpenGl,
+                ConventionArg::Directx => Convention::DirectX,
+            })
+            .with_strength(strength)
+            .with_invert(args.invert);
+        fit.validate().map_err(|e| Failure::usage(e.to_string()))?;
+
+        let many = args.inputs.len() > 1;
+        let stdin_count = args.inputs.iter().filter(|p| p.as_os_str() == "-").count();
+        if stdin_count > 1 {
+            return Err(Failure::usage("standard input ('-') can be read only once"));
+        }
+        let destination = match &args.output {
+            None => Destination::BesideInputs,
+            Some(o) if o.as_os_str() == "-" => {
+                if many {
+                    return Err(Failure::usage("'-o -' takes one input: many images cannot share standard output"));
+                }
+                Destination::Stdout
+            }
+            Some(o) if many || o.is_dir() => Destination::Folder(o.clone()),
+            Some(o) => Destination::File(o.clone()),
+        };
+        if let Destination::Folder(dir) = &destination {
+            if dir.exists() && !dir.is_dir() {
+                return Err(Failure::file(dir, "is not a folder: with many inputs, -o names the output folder"));
+            }
+            std::fs::create_dir_all(dir).map_err(|e| Failure::file(dir, format!("cannot create the output folder: {}", e)))?;
+        }
+        Ok(Plan {
+            fit,
+            channel: args.channel.map(|c| match c {
+                ChannelArg::Luma => Channel::Luma,
+                ChannelArg::R => Channel::R,
+                ChannelArg::G => Channel::G,
+                ChannelArg::B => Channel::B,
+                ChannelArg::A => Channel::A,
+            }),
+            bits: args.bits,
+            format: args.format,
+            signed: args.signed,
+            destination,
+        })
+    }
+
+    fn convert_one(&self, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
+        let raster = read_input(input, &ReadOptions::default())?;
+        let target = self.target(input, &raster)?;
+        if let Some(path) = &target.path {
+            ids.refuse_overwrite(path)?;
+            let key = std::path::absolute(path).unwrap_or_else(|_| path.clone());
+            if !written.insert(key) {
+                return Err(Failure::file(path, "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders"));
+            }
+        }
+        let (width, height) = (raster.width, raster.height);
+        let heights = raster.into_heights(self.channel).map_err(|e| Failure::file(input.name(), e))?;
+        let encoded = |out: &mut dyn Write| -> normalfit::Result<()> {
+            encode(&heights, width, height, &self.fit, &target, out)
+        };
+        match &target.path {
+            Some(path) => io::write_atomically(path, encoded).map_err(|e| Failure::file(path, e)),
+            None => {
+                // EXR needs to seek while writing, so the bytes are assembled first.
+                let mut bytes = Cursor::new(Vec::new());
+                encoded(&mut bytes).map_err(|e| Failure::file("<standard output>", e))?;
+                let mut stdout = std::io::stdout().lock();
+                stdout
+                    .write_all(bytes.get_ref())
+                    .and_then(|()| stdout.flush())
+                    .map_err(|e| Failure::file("<standard output>", e))
+            }
+        }
+    }
+
+    /// The output's path (None: standard output), format and depth.
+    fn target(&self, input: &Input, raster: &Raster) -> Result<Target, Failure> {
+        let float_input = !matches!(raster.sample, io::SampleType::Int { .. });
+        let from_input = match raster.format {
+            InputFormat::Exr => FormatArg::Exr,
+            InputFormat::Png => FormatArg::Png,
+            _ if float_input => FormatArg::Exr,
+            _ => FormatArg::Png,
+        };
+        let explicit_file = match &self.destination {
+            Destination::File(p) => Some(p),
+            _ => None,
+        };
+        let from_extension = match explicit_file {
+            Some(p) => format_of_extension(p)?,
+            None => None,
+        };
+        let format = self.format.or(from_extension).unwrap_or(from_input);
+        if let (Some(f), Some(e), Some(p)) = (self.format, from_extension, explicit_file) {
+            if f != e {
+                return Err(Failure::file(p, format!("extension says {e:?} but --format says {f:?}").to_lowercase()));
+            }
+        }
+        let ext = match format {
+            FormatArg::Png => "png",
+            FormatArg::Exr => "exr",
+        };
+        let beside = |dir: &Path| dir.join(format!("{}_normal.{ext}", input.stem()));
+        let path = match &self.destination {
+            Destination::Stdout => None,
+            Destination::BesideInputs => match input {
+                Input::Stdin => None,
+                Input::File(p) => Some(beside(p.parent().unwrap_or(Path::new("")))),
+            },
+            Destination::File(p) => Some(p.clone()),
+            Destination::Folder(dir) => Some(beside(dir)),
+        };
+        let name = path.as_deref().unwrap_or(Path::new("<standard output>"));
+        let encoding = match (format, self.bits) {
+            (FormatArg::Png, None) => {
+                if raster.sample.more_than_8_bits() {
+                    Encoding::Png16
+                } else {
+                    Encoding::Png8
+                }
+            }
+            (FormatArg::Png, Some(8)) => Encoding::Png8,
+            (FormatArg::Png, Some(16)) => Encoding::Png16,
+            (FormatArg::Png, Some(_)) => return Err(Failure::file(name, "PNG holds 8 or 16 bits: --bits 32 needs EXR output")),
+            (FormatArg::Exr, None | Some(32)) => Encoding::Exr(ExrDepth::Float),
+            (FormatArg::Exr, Some(16)) => Encoding::Exr(ExrDepth::Half),
+            (FormatArg::Exr, Some(_)) => return Err(Failure::file(name, "EXR holds 16- or 32-bit floats: --bits 8 needs PNG output")),
+        };
+        if self.signed && !matches!(encoding, Encoding::Exr(_)) {
+            return Err(Failure::file(name, "--signed needs a float output (EXR): PNG stores only [0, 1]"));
+        }
+        Ok(Target { path, encoding, signed: self.signed })
+    }
+}
+
+/// Where one output goes and how it is encoded.
+struct Target {
+    path: Option<PathBuf>,
+    encoding: Encoding,
+    signed: bool,
+}
+
+#[derive(Clone, Copy)]
+enum Encoding {
+    Png8,
+    Png16,
+    Exr(ExrDepth),
+}
+
+/// Fits the normals straight into the output's texel type and encodes them.
+fn encode(heights: &[f32], w: usize, h: usize, opts: &Options, target: &Target, out: &mut dyn Write) -> normalfit::Result<()> {
+    let compression = PngCompression::default();
+    match target.encoding {
+        Encoding::Png8 => {
+            let mut texels = vec![[0u8; 3]; heights.len()];
+            normals_into(heights, w, h, opts, &mut texels)?;
+            io::encode_png_rgb8(&texels, w, h, compression, out)
+        }
+        Encoding::Png16 => {
+            let mut texels = vec![[0u16; 3]; heights.len()];
+            normals_into(heights, w, h, opts, &mut texels)?;
+            io::encode_png_rgb16(&texels, w, h, compression, out)
+        }
+        Encoding::Exr(depth) => {
+            let mut texels = vec![[0f32; 3]; heights.len()];
+            normals_into(heights, w, h, opts, &mut texels)?;
+            if !target.signed {
+                texels.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
+            }
+            let mut bytes = Cursor::new(Vec::new());
+            io::encode_exr(&texels, w, h, depth, &mut bytes)?;
+            out.write_all(bytes.get_ref())?;
+            Ok(())
+        }
+    }
+}
+
+/// PNG or EXR from a file name's extension; other extensions are refused,
+/// none at all leaves the choice to the input.
+fn format_of_extension(path: &Path) -> Result<Option<FormatArg>, Failure> {
+    let Some(ext) = path.extension() else { return Ok(None) };
+    match ext.to_string_lossy().to_ascii_lowercase().as_str() {
+        "png" => Ok(Some(FormatArg::Png)),
+        "exr" => Ok(Some(FormatArg::Exr)),
+        other => Err(Failure::file(path, format!("cannot write .{other} files: name the output .png or .exr"))),
+    }
+}

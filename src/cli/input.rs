@@ -1,0 +1,77 @@
+//! Inputs as the command line names them: files or standard input, and the
+//! identities (device, inode) that protect them from being written over.
+
+use std::io::Read;
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
+
+use normalfit::io::{self, Raster, ReadOptions};
+
+use super::report::Failure;
+
+/// One input: a file, or `-` for standard input.
+pub enum Input {
+    File(PathBuf),
+    Stdin,
+}
+
+impl Input {
+    pub fn from_arg(arg: &Path) -> Input {
+        if arg.as_os_str() == "-" { Input::Stdin } else { Input::File(arg.to_path_buf()) }
+    }
+
+    /// How messages name it.
+    pub fn name(&self) -> &Path {
+        match self {
+            Input::File(p) => p,
+            Input::Stdin => Path::new("<standard input>"),
+        }
+    }
+
+    /// The file name without its extension, for `<stem>_normal.<ext>`.
+    pub fn stem(&self) -> String {
+        match self {
+            Input::File(p) => p.file_stem().map_or_else(|| "image".into(), |s| s.to_string_lossy().into_owned()),
+            Input::Stdin => "stdin".into(),
+        }
+    }
+}
+
+/// Reads and decodes one input; errors name it.
+pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> {
+    let fail = |e: normalfit::Error| Failure::file(input.name(), e);
+    match input {
+        Input::File(p) => {
+            if p.is_dir() {
+                return Err(Failure::file(p, "is a folder, not an image"));
+            }
+            io::read_path(p, opts).map_err(fail)
+        }
+        Input::Stdin => {
+            let mut bytes = Vec::new();
+            std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| fail(e.into()))?;
+            io::decode(&bytes, opts).map_err(fail)
+        }
+    }
+}
+
+/// The (device, inode) of every input file, so that no output replaces one,
+/// whether named directly, through a symbolic link or as a hard link.
+pub struct InputIds(Vec<(u64, u64)>);
+
+impl InputIds {
+    pub fn of(inputs: &[PathBuf]) -> InputIds {
+        InputIds(inputs.iter().filter_map(|p| std::fs::metadata(p).ok()).map(|m| (m.dev(), m.ino())).collect())
+    }
+
+    /// Refuses `output` if it is (or links to) one of the inputs.
+    pub fn refuse_overwrite(&self, output: &Path) -> Result<(), Failure> {
+        match std::fs::metadata(output) {
+            Ok(m) if self.0.contains(&(m.dev(), m.ino())) => {
+                Err(Failure::file(output, "is one of the inputs (or a link to one): normalfit never writes over an input"))
+            }
+            Ok(m) if m.is_dir() => Err(Failure::file(output, "is a folder: cannot write the output there")),
+            _ => Ok(()),
+        }
+    }
+}

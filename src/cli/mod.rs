@@ -1,0 +1,57 @@
+//! The command-line program: argument parsing and printing only. All the
+//! work is the library's.
+
+pub mod args;
+pub mod convert;
+pub mod input;
+pub mod report;
+pub mod tiling;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+use args::{Cli, Command};
+use report::Failure;
+
+/// Exit codes, as grep: 0 success, 1 a seam found (`tiling` only), 2 error.
+pub mod exit {
+    pub const OK: u8 = 0;
+    pub const SEAM: u8 = 1;
+    pub const ERROR: u8 = 2;
+}
+
+/// Parses the arguments, runs the command, and maps the outcome to an exit code.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => {
+            // --help and --version: print as clap formats them.
+            let _ = e.print();
+            return ExitCode::from(exit::OK);
+        }
+        Err(e) => {
+            Failure::usage(clap_one_line(&e)).report();
+            return ExitCode::from(exit::ERROR);
+        }
+    };
+    let outcome = match cli.command {
+        Command::Convert(args) => convert::run(args).map(|failures| if failures == 0 { exit::OK } else { exit::ERROR }),
+        Command::Tiling(args) => tiling::run(args),
+    };
+    match outcome {
+        Ok(code) => ExitCode::from(code),
+        Err(f) => {
+            f.report();
+            ExitCode::from(exit::ERROR)
+        }
+    }
+}
+
+/// clap's message without its blank lines, usage block and colours.
+fn clap_one_line(e: &clap::Error) -> String {
+    let text = e.to_string();
+    let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
+    let first = first.trim_start_matches("error: ");
+    format!("{first} (see 'normalfit --help')")
+}
