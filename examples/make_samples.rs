@@ -65,7 +65,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// Heights of the samples span [0, 1]; these gains (texel widths per unit
 /// of height) give each a relief that reads well at 512². The contract's
 /// default of 1 suits maps whose detail is a few texels deep at most.
-const BRICKS_SCALE: f64 = 12.0;
+const BRICKS_SCALE: f64 = 8.0;
 const ROCK_SCALE: f64 = 16.0;
 const TERRAIN_SCALE: f64 = 40.0;
 
@@ -234,7 +234,7 @@ fn bricks(u: f64, v: f64) -> f64 {
 
     let mortar_half = 2.5;
     // Chipped arrises: noise eats into the bevel, more in some places.
-    let chips = 2.2 * fbm_tiled(u, v, 24, 3, 0.55, 21).max(-0.1) + 0.8;
+    let chips = 4.0 * fbm_tiled(u, v, 24, 4, 0.55, 21).max(-0.1) + 0.4;
     let inside = edge - mortar_half - chips.max(0.0);
     let bevel = 4.0;
     let t = (inside / bevel).clamp(0.0, 1.0);
@@ -242,12 +242,12 @@ fn bricks(u: f64, v: f64) -> f64 {
 
     // Per-brick: a height offset and a slight tilt, as laid by hand.
     let (i, j) = id;
-    let lift = 0.08 * (hash01(i, j, 31) - 0.5);
-    let tilt_x = 0.06 * (hash01(i, j, 32) - 0.5) * (lx / bw - 0.5);
-    let tilt_y = 0.06 * (hash01(i, j, 33) - 0.5) * (ly / bh - 0.5);
+    let lift = 0.14 * (hash01(i, j, 31) - 0.5);
+    let tilt_x = 0.12 * (hash01(i, j, 32) - 0.5) * (lx / bw - 0.5);
+    let tilt_y = 0.10 * (hash01(i, j, 33) - 0.5) * (ly / bh - 0.5);
     // Fired-clay surface: low-frequency waviness plus fine grain and pits.
-    let surface = 0.05 * fbm_tiled(u, v, 8, 3, 0.5, 41) + 0.025 * fbm_tiled(u, v, 64, 3, 0.6, 42);
-    let pits = -0.06 * smoothstep(0.30, 0.45, fbm_tiled(u, v, 48, 2, 0.5, 43));
+    let surface = 0.06 * fbm_tiled(u, v, 8, 3, 0.5, 41) + 0.035 * fbm_tiled(u, v, 64, 3, 0.65, 42);
+    let pits = -0.04 * smoothstep(0.35, 0.5, fbm_tiled(u, v, 96, 2, 0.5, 43));
     let top = 0.75 + lift + tilt_x + tilt_y + surface + pits;
 
     // Mortar: recessed, sandy.
@@ -259,27 +259,28 @@ fn bricks(u: f64, v: f64) -> f64 {
 /// by cracks) under ridged fractal noise.
 fn rock(u: f64, v: f64) -> f64 {
     // Warp the plate pattern so the fractures are not straight Voronoi edges.
-    let wu = u + 0.025 * fbm_tiled(u, v, 4, 4, 0.5, 61);
-    let wv = v + 0.025 * fbm_tiled(u, v, 4, 4, 0.5, 62);
+    let wu = u + 0.045 * fbm_tiled(u, v, 4, 5, 0.5, 61);
+    let wv = v + 0.045 * fbm_tiled(u, v, 4, 5, 0.5, 62);
     let (f1, f2, (i, j)) = worley_tiled(wu, wv, 5, 63);
     let plate = 0.25 * hash01(i, j, 64);
     // Cracks along the cell borders (where f2 − f1 is small), fine ones
     // within the plates from a second, smaller lattice.
     let crack = smoothstep(0.0, 0.08, f2 - f1);
-    let (g1, g2, _) = worley_tiled(wu, wv, 13, 65);
-    let fine = smoothstep(0.0, 0.05, g2 - g1);
+    let (g1, g2, _) = worley_tiled(wu + 0.01 * fbm_tiled(u, v, 16, 2, 0.5, 66), wv, 9, 65);
+    let fine = smoothstep(0.0, 0.03, g2 - g1);
     let _ = (f1, g1);
 
     // Ridged fBm: 1 − |n| makes sharp crests; squared, they sharpen more.
-    let (mut ridged, mut amp, mut p) = (0.0, 0.5, 4);
+    let (mut ridged, mut amp, mut p) = (0.0, 0.5, 3);
     for k in 0..6 {
         let n = gradient(wu * p as f64, wv * p as f64, Some(p), 70 + k);
-        ridged += amp * (1.0 - n.abs() * 1.6).powi(2);
-        amp *= 0.5;
+        ridged += amp * (1.0 - n.abs() * 1.6).max(0.0).powi(3);
+        amp *= 0.65;
         p *= 2;
     }
     let base = 0.5 * fbm_tiled(u, v, 2, 3, 0.5, 80);
-    base + plate + 0.35 * ridged - 0.30 * (1.0 - crack) - 0.08 * (1.0 - fine)
+    let grain = 0.05 * fbm_tiled(u, v, 64, 3, 0.6, 81);
+    base + plate + 0.6 * ridged + grain - 0.22 * (1.0 - crack) - 0.04 * (1.0 - fine)
 }
 
 /// Eroded-looking terrain: fBm whose octaves are damped where the slope is
