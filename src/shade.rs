@@ -176,7 +176,7 @@ mod tests {
             azimuth_deg: 200.0,
             elevation_deg: 30.0,
         };
-        let out = shade(&vec![[0.0, 0.0, 1.0]; 12], 4, 3, light, Convention::OpenGl).unwrap();
+        let out = shade(&[[0.0, 0.0, 1.0]; 12], 4, 3, light, Convention::OpenGl).unwrap();
         assert_eq!(out, vec![147u8; 12]);
     }
 
