@@ -404,12 +404,13 @@ fn erode(mut map: Vec<f64>) -> Vec<f64> {
     const GRAVITY: f64 = 6.0;
     const RADIUS: i64 = 2;
     let n = SIZE as i64;
-    // Heights in texel units give the slopes a droplet should feel.
+    // Heights in texel units, with the relief the normal map will show, so
+    // droplets feel the slopes a viewer sees.
     let (lo, hi) = map
         .iter()
         .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
     for h in &mut map {
-        *h = (*h - lo) / (hi - lo) * 40.0;
+        *h = (*h - lo) / (hi - lo) * TERRAIN_SCALE;
     }
     let brush: Vec<(i64, i64, f64)> = {
         let mut b = Vec::new();
