@@ -1,1 +1,269 @@
 //! Lit views of normal maps, for people to look at.
+//!
+//! A normal map's colours say little to the eye; the same normals lit by a
+//! single raking light show the relief at once, and tiling the lit view 2×2
+//! shows whether the seams match. The shading is Lambert's law with a
+//! little ambient light, so faces turned away from the light stay grey
+//! rather than black:
+//!
+//! ```text
+//! L     = (cos e · cos a,  cos e · sin a,  sin e)      a = azimuth, e = elevation
+//! value = AMBIENT + (1 − AMBIENT) · max(0, n · L)      in [0, 1], then × 255
+//! ```
+//!
+//! n and L are in the OpenGL tangent frame: +x to the right (larger column
+//! index), +y up the image (smaller row index), +z out of the surface.
+
+use crate::error::{Error, Result};
+use crate::fit::checked_len;
+use crate::options::Convention;
+
+/// The share of full brightness a texel gets even when it faces away from
+/// the light, so shadowed slopes keep some visible detail.
+pub const AMBIENT: f64 = 0.15;
+
+/// A directional light, as seen on the image as it is displayed.
+///
+/// Angles are in degrees:
+/// * `azimuth_deg`: the direction *towards* the light in the image plane,
+///   counter-clockwise from the image's right (+x), with up the image
+///   (towards row 0) at 90°. So 0° is light from the right, 90° from the
+///   top, 135° from the top-left, 180° from the left.
+/// * `elevation_deg`: the light's height above the surface: 90° is straight
+///   overhead (no relief visible), small angles rake across it.
+///
+/// ```
+/// use normalfit::shade::Light;
+/// let from_top_left = Light::default();
+/// assert_eq!((from_top_left.azimuth_deg, from_top_left.elevation_deg), (135.0, 35.0));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Direction towards the light in the image plane, degrees
+    /// counter-clockwise from +x (right), 90° = up. Default: 135 (top-left).
+    pub azimuth_deg: f64,
+    /// Height of the light above the surface, degrees, 90 = overhead.
+    /// Default: 35.
+    pub elevation_deg: f64,
+}
+
+impl Default for Light {
+    /// Light from the top-left at 35° above the surface: the usual
+    /// convention of relief drawings (bumps read as bumps, not dents), low
+    /// enough to rake across fine detail.
+    fn default() -> Self {
+        Light {
+            azimuth_deg: 135.0,
+            elevation_deg: 35.0,
+        }
+    }
+}
+
+impl Light {
+    /// The unit vector towards the light in the OpenGL tangent frame.
+    #[must_use]
+    pub fn direction(self) -> [f64; 3] {
+        let (a, e) = (
+            self.azimuth_deg.to_radians(),
+            self.elevation_deg.to_radians(),
+        );
+        [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()]
+    }
+}
+
+/// An 8-bit grey picture of `normals` lit by `light`, row-major,
+/// `width * height` bytes.
+///
+/// `normals` are tangent-space `[x, y, z]` in `convention`'s frame (what
+/// [`normals`](crate::normals) returns for the same
+/// [`Options::convention`](crate::Options)); DirectX normals have their y
+/// flipped here, so both conventions light the same way on screen. They
+/// need not be exactly unit length (decoded 8-bit maps are not): each is
+/// normalised first, and a zero or non-finite vector is taken as flat.
+///
+/// Fails with [`Error::BufferSize`] if `normals` is not `width * height`
+/// long, or [`Error::InvalidOption`] for a zero or overflowing size.
+///
+/// ```
+/// use normalfit::{shade::{shade, Light}, Convention};
+/// let flat = vec![[0.0f32, 0.0, 1.0]; 4];
+/// let overhead = Light { azimuth_deg: 0.0, elevation_deg: 90.0 };
+/// assert_eq!(shade(&flat, 2, 2, overhead, Convention::OpenGl).unwrap(), [255; 4]);
+/// ```
+pub fn shade(
+    normals: &[[f32; 3]],
+    width: usize,
+    height: usize,
+    light: Light,
+    convention: Convention,
+) -> Result<Vec<u8>> {
+    let len = checked_len(width, height)?;
+    if normals.len() != len {
+        return Err(Error::BufferSize {
+            expected: len,
+            actual: normals.len(),
+        });
+    }
+    let [lx, ly, lz] = light.direction();
+    // Flipping the light's y is the same as flipping every normal's y.
+    let ly = match convention {
+        Convention::OpenGl => ly,
+        Convention::DirectX => -ly,
+    };
+    Ok(normals
+        .iter()
+        .map(|n| {
+            let [x, y, z] = n.map(f64::from);
+            let len = (x * x + y * y + z * z).sqrt();
+            let cos = if len > 0.0 && len.is_finite() {
+                (x * lx + y * ly + z * lz) / len
+            } else {
+                lz
+            };
+            let value = AMBIENT + (1.0 - AMBIENT) * cos.max(0.0);
+            (value * 255.0).round() as u8
+        })
+        .collect())
+}
+
+/// `pixels` (one byte a texel, `width * height`, row-major) repeated 2×2:
+/// a `2 * width` × `2 * height` image whose middle cross is where the
+/// texture's right edge meets its left and its bottom meets its top, so a
+/// seam that does not match shows there.
+///
+/// Fails like [`shade`] if the buffer does not match the size.
+///
+/// ```
+/// use normalfit::shade::tile_2x2;
+/// assert_eq!(tile_2x2(&[1, 2], 2, 1).unwrap(), [1, 2, 1, 2, 1, 2, 1, 2]);
+/// ```
+pub fn tile_2x2(pixels: &[u8], width: usize, height: usize) -> Result<Vec<u8>> {
+    let len = checked_len(width, height)?;
+    if pixels.len() != len {
+        return Err(Error::BufferSize {
+            expected: len,
+            actual: pixels.len(),
+        });
+    }
+    let out_len = len.checked_mul(4).ok_or_else(|| {
+        Error::InvalidOption(format!(
+            "a 2×2 tiling of {width}×{height} texels is too large"
+        ))
+    })?;
+    let mut out = Vec::with_capacity(out_len);
+    for _ in 0..2 {
+        for row in pixels.chunks_exact(width) {
+            out.extend_from_slice(row);
+            out.extend_from_slice(row);
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit(v: [f64; 3]) -> [f32; 3] {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|c| (c / l) as f32)
+    }
+
+    #[test]
+    fn flat_map_is_uniform_lambert_of_the_elevation() {
+        // n · L = sin 30° = 1/2, so 0.15 + 0.85 · 0.5 = 0.575; × 255 = 146.6.
+        let light = Light {
+            azimuth_deg: 200.0,
+            elevation_deg: 30.0,
+        };
+        let out = shade(&[[0.0, 0.0, 1.0]; 12], 4, 3, light, Convention::OpenGl).unwrap();
+        assert_eq!(out, vec![147u8; 12]);
+    }
+
+    #[test]
+    fn facing_the_light_is_brighter_than_facing_away() {
+        // Default light from the top-left: a slope whose normal leans up-left
+        // (−x, +y in OpenGL) faces it, its mirror image faces away.
+        let toward = unit([-1.0, 1.0, 2.0]);
+        let away = unit([1.0, -1.0, 2.0]);
+        let flat = [0.0, 0.0, 1.0];
+        let out = shade(
+            &[toward, flat, away],
+            3,
+            1,
+            Light::default(),
+            Convention::OpenGl,
+        )
+        .unwrap();
+        assert!(out[0] > out[1] && out[1] > out[2], "{out:?}");
+        // Turned fully away from the light: only the ambient share is left.
+        let back = Light {
+            azimuth_deg: 0.0,
+            elevation_deg: 10.0,
+        };
+        let dark = shade(&[unit([-1.0, 0.0, 0.1])], 1, 1, back, Convention::OpenGl).unwrap();
+        assert_eq!(dark, [(AMBIENT * 255.0).round() as u8]);
+    }
+
+    #[test]
+    fn directx_normals_light_like_their_opengl_twins() {
+        // The same surface: DirectX stores y negated.
+        let gl = [unit([0.3, 0.5, 1.0]), unit([-0.2, -0.7, 1.0])];
+        let dx = gl.map(|[x, y, z]| [x, -y, z]);
+        let light = Light {
+            azimuth_deg: 90.0,
+            elevation_deg: 40.0,
+        };
+        let a = shade(&gl, 2, 1, light, Convention::OpenGl).unwrap();
+        let b = shade(&dx, 2, 1, light, Convention::DirectX).unwrap();
+        assert_eq!(a, b);
+        assert!(
+            a[0] > a[1],
+            "the normal leaning up faces a light from the top"
+        );
+    }
+
+    #[test]
+    fn unnormalised_and_degenerate_normals_are_handled() {
+        let light = Light::default();
+        let a = shade(
+            &[[0.0, 0.0, 1.0], [0.0, 0.0, 7.0], [0.0; 3], [f32::NAN; 3]],
+            4,
+            1,
+            light,
+            Convention::OpenGl,
+        )
+        .unwrap();
+        assert!(a.iter().all(|&v| v == a[0]), "{a:?}");
+    }
+
+    #[test]
+    fn wrong_sizes_are_errors_not_panics() {
+        let l = Light::default();
+        assert!(matches!(
+            shade(&[[0.0, 0.0, 1.0]; 3], 2, 2, l, Convention::OpenGl),
+            Err(Error::BufferSize {
+                expected: 4,
+                actual: 3
+            })
+        ));
+        assert!(shade(&[], 0, 0, l, Convention::OpenGl).is_err());
+        assert!(tile_2x2(&[1, 2, 3], 2, 2).is_err());
+        assert!(tile_2x2(&[], 0, 3).is_err());
+    }
+
+    #[test]
+    fn tiling_repeats_the_image_two_by_two() {
+        // 3 × 2 image, values naming their texel.
+        let img = [1, 2, 3, 4, 5, 6];
+        let out = tile_2x2(&img, 3, 2).unwrap();
+        #[rustfmt::skip]
+        let want = [
+            1, 2, 3, 1, 2, 3,
+            4, 5, 6, 4, 5, 6,
+            1, 2, 3, 1, 2, 3,
+            4, 5, 6, 4, 5, 6,
+        ];
+        assert_eq!(out, want);
+    }
+}
