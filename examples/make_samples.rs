@@ -35,11 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             make: || render(bricks),
             opts: wrap.clone().with_strength(Strength::Scale(BRICKS_SCALE)),
         },
-        Sample {
-            name: "rock",
-            make: || render(rock),
-            opts: wrap.with_strength(Strength::Scale(ROCK_SCALE)),
-        },
+        Sample { name: "rock", make: || render(rock), opts: wrap.with_strength(Strength::Scale(ROCK_SCALE)) },
         // Not tileable, so wrapping would put a false cliff at the edges;
         // N = 5 smooths the texel-scale erosion noise a little.
         Sample {
@@ -55,30 +51,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let heights = quantize(&make());
         // The encoder takes 16-bit samples in native byte order.
         let bytes: Vec<u8> = heights.iter().flat_map(|v| v.to_ne_bytes()).collect();
-        write_png(
-            &dir.join(format!("{name}.png")),
-            &bytes,
-            ExtendedColorType::L16,
-        )?;
+        write_png(&dir.join(format!("{name}.png")), &bytes, ExtendedColorType::L16)?;
 
         // The normals are made from the 16-bit values just written, so they
         // are exactly what `normalfit` gives for the file.
         let h: Vec<f32> = heights.iter().map(|&v| f32::from(v) / 65535.0).collect();
         let mut rgb = vec![[0u8; 3]; h.len()];
         normals_into(&h, SIZE, SIZE, &opts, &mut rgb)?;
-        write_png(
-            &dir.join(format!("{name}_normal.png")),
-            rgb.as_flattened(),
-            ExtendedColorType::Rgb8,
-        )?;
+        write_png(&dir.join(format!("{name}_normal.png")), rgb.as_flattened(), ExtendedColorType::Rgb8)?;
 
         let n = normals(&h, SIZE, SIZE, &opts)?;
         let lit = shade(&n, SIZE, SIZE, Light::default(), Convention::OpenGl)?;
-        write_png(
-            &dir.join(format!("{name}_lit.png")),
-            &lit,
-            ExtendedColorType::L8,
-        )?;
+        write_png(&dir.join(format!("{name}_lit.png")), &lit, ExtendedColorType::L8)?;
         println!("wrote samples/{name}.png, {name}_normal.png, {name}_lit.png");
     }
     Ok(())
@@ -104,10 +88,7 @@ fn render(field: fn(f64, f64) -> f64) -> Vec<f64> {
     let mut out = Vec::with_capacity(SIZE * SIZE);
     for y in 0..SIZE {
         for x in 0..SIZE {
-            out.push(field(
-                (x as f64 + 0.5) / SIZE as f64,
-                (y as f64 + 0.5) / SIZE as f64,
-            ));
+            out.push(field((x as f64 + 0.5) / SIZE as f64, (y as f64 + 0.5) / SIZE as f64));
         }
     }
     out
@@ -115,22 +96,13 @@ fn render(field: fn(f64, f64) -> f64) -> Vec<f64> {
 
 /// Stretches the field onto the full 16-bit range.
 fn quantize(field: &[f64]) -> Vec<u16> {
-    let (lo, hi) = field
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    field
-        .iter()
-        .map(|&v| ((v - lo) / (hi - lo) * 65535.0).round() as u16)
-        .collect()
+    let (lo, hi) = field.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    field.iter().map(|&v| ((v - lo) / (hi - lo) * 65535.0).round() as u16).collect()
 }
 
 /// Best compression: the files are committed, so size matters more than
 /// the second it costs.
-fn write_png(
-    path: &Path,
-    bytes: &[u8],
-    color: ExtendedColorType,
-) -> Result<(), Box<dyn std::error::Error>> {
+fn write_png(path: &Path, bytes: &[u8], color: ExtendedColorType) -> Result<(), Box<dyn std::error::Error>> {
     let file = std::io::BufWriter::new(std::fs::File::create(path)?);
     PngEncoder::new_with_quality(file, CompressionType::Best, FilterType::Adaptive).write_image(
         bytes,
@@ -147,9 +119,8 @@ fn write_png(
 /// over a mix of the inputs): cheap, and good enough that neighbouring
 /// cells look unrelated.
 fn hash(x: i64, y: i64, seed: u32) -> u32 {
-    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
-        ^ (y as u32).wrapping_mul(0xd816_3841)
-        ^ seed.wrapping_mul(0xcb1a_b31f);
+    let mut h =
+        (x as u32).wrapping_mul(0x8da6_b343) ^ (y as u32).wrapping_mul(0xd816_3841) ^ seed.wrapping_mul(0xcb1a_b31f);
     h ^= h >> 16;
     h = h.wrapping_mul(0x85eb_ca6b);
     h ^= h >> 13;
@@ -200,23 +171,12 @@ fn gradient(x: f64, y: f64, period: Period, seed: u32) -> f64 {
 fn value_d(x: f64, y: f64, period: Period, seed: u32) -> (f64, f64, f64) {
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
-    let at = |dx: i64, dy: i64| {
-        hash01(
-            cell(x0 as i64 + dx, period),
-            cell(y0 as i64 + dy, period),
-            seed,
-        ) * 2.0
-            - 1.0
-    };
+    let at = |dx: i64, dy: i64| hash01(cell(x0 as i64 + dx, period), cell(y0 as i64 + dy, period), seed) * 2.0 - 1.0;
     let (a, b, c, d) = (at(0, 0), at(1, 0), at(0, 1), at(1, 1));
     let (u, v) = (fade(fx), fade(fy));
     let k = a - b - c + d;
     let value = a + (b - a) * u + (c - a) * v + k * u * v;
-    (
-        value,
-        fade_d(fx) * ((b - a) + k * v),
-        fade_d(fy) * ((c - a) + k * u),
-    )
+    (value, fade_d(fx) * ((b - a) + k * v), fade_d(fy) * ((c - a) + k * u))
 }
 
 /// Fractal sum of gradient noise over image coordinates u, v ∈ [0, 1):
@@ -225,13 +185,7 @@ fn value_d(x: f64, y: f64, period: Period, seed: u32) -> (f64, f64, f64) {
 fn fbm_tiled(u: f64, v: f64, cells: i64, octaves: u32, gain: f64, seed: u32) -> f64 {
     let (mut sum, mut amp, mut p) = (0.0, 1.0, cells);
     for k in 0..octaves {
-        sum += amp
-            * gradient(
-                u * p as f64,
-                v * p as f64,
-                Some(p),
-                seed.wrapping_add(k * 1013),
-            );
+        sum += amp * gradient(u * p as f64, v * p as f64, Some(p), seed.wrapping_add(k * 1013));
         amp *= gain;
         p *= 2;
     }
@@ -281,28 +235,17 @@ fn bricks(u: f64, v: f64) -> f64 {
     let wv = v + 1.6 * texel * fbm_tiled(u, v, 16, 3, 0.5, 12);
 
     let row = (wv * ROWS).floor();
-    let shift = if (row as i64).rem_euclid(2) == 1 {
-        0.5
-    } else {
-        0.0
-    };
+    let shift = if (row as i64).rem_euclid(2) == 1 { 0.5 } else { 0.0 };
     let bx = wu * COLS + shift;
     let col = bx.floor();
-    let id = (
-        (col as i64).rem_euclid(COLS as i64),
-        (row as i64).rem_euclid(ROWS as i64),
-    );
+    let id = ((col as i64).rem_euclid(COLS as i64), (row as i64).rem_euclid(ROWS as i64));
     // Position inside the brick, in texels from its left/top edge.
     let (bw, bh) = (SIZE as f64 / COLS, SIZE as f64 / ROWS);
     let (lx, ly) = ((bx - col) * bw, (wv * ROWS - row) * bh);
     // Distance inside a rounded rectangle, so corners bevel round.
     let (ex, ey) = (lx.min(bw - lx), ly.min(bh - ly));
     let r = 4.0;
-    let edge = if ex < r && ey < r {
-        r - ((r - ex).powi(2) + (r - ey).powi(2)).sqrt()
-    } else {
-        ex.min(ey)
-    };
+    let edge = if ex < r && ey < r { r - ((r - ex).powi(2) + (r - ey).powi(2)).sqrt() } else { ex.min(ey) };
 
     let mortar_half = 2.5;
     // Chipped arrises: noise eats into the bevel, more in some places.
@@ -323,8 +266,7 @@ fn bricks(u: f64, v: f64) -> f64 {
     let top = 0.75 + lift + tilt_x + tilt_y + surface + pits;
 
     // Mortar: recessed, sandy.
-    let mortar =
-        0.12 + 0.03 * fbm_tiled(u, v, 96, 2, 0.5, 51) + 0.03 * fbm_tiled(u, v, 12, 2, 0.5, 52);
+    let mortar = 0.12 + 0.03 * fbm_tiled(u, v, 96, 2, 0.5, 51) + 0.03 * fbm_tiled(u, v, 12, 2, 0.5, 52);
     mortar + (top - mortar).max(0.0) * profile
 }
 
@@ -406,9 +348,7 @@ fn erode(mut map: Vec<f64>) -> Vec<f64> {
     let n = SIZE as i64;
     // Heights in texel units, with the relief the normal map will show, so
     // droplets feel the slopes a viewer sees.
-    let (lo, hi) = map
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let (lo, hi) = map.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
     for h in &mut map {
         *h = (*h - lo) / (hi - lo) * TERRAIN_SCALE;
     }
@@ -434,8 +374,7 @@ fn erode(mut map: Vec<f64>) -> Vec<f64> {
         let (c, d) = (map[idx(cx, cy + 1)], map[idx(cx + 1, cy + 1)]);
         let gx = (b - a) * (1.0 - fy) + (d - c) * fy;
         let gy = (c - a) * (1.0 - fx) + (d - b) * fx;
-        let h =
-            a * (1.0 - fx) * (1.0 - fy) + b * fx * (1.0 - fy) + c * (1.0 - fx) * fy + d * fx * fy;
+        let h = a * (1.0 - fx) * (1.0 - fy) + b * fx * (1.0 - fy) + c * (1.0 - fx) * fy + d * fx * fy;
         (h, gx, gy)
     };
     let limit = (n - 1) as f64;
@@ -462,11 +401,7 @@ fn erode(mut map: Vec<f64>) -> Vec<f64> {
             let capacity = (-dh * speed * water * CAPACITY).max(MIN_CAPACITY);
             if sediment > capacity || dh > 0.0 {
                 // Fill the pit it climbs out of, or shed what it cannot carry.
-                let amount = if dh > 0.0 {
-                    dh.min(sediment)
-                } else {
-                    (sediment - capacity) * DEPOSIT
-                };
+                let amount = if dh > 0.0 { dh.min(sediment) } else { (sediment - capacity) * DEPOSIT };
                 sediment -= amount;
                 // Spread like the erosion, or thin levees build up.
                 let mut kept = 0.0;

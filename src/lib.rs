@@ -13,5 +13,5 @@ pub mod shade;
 pub mod tiling;
 
 pub use error::{Error, Result};
-pub use fit::{normals, normals_into, FromNormal};
+pub use fit::{FromNormal, normals, normals_into};
 pub use options::{Border, Borders, Convention, Fit, Options, Strength};

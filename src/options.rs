@@ -205,16 +205,10 @@ impl Options {
     /// Checks the options on their own (the image is checked elsewhere).
     pub fn validate(&self) -> Result<(), Error> {
         if self.patch < 3 || self.patch % 2 == 0 {
-            return Err(Error::InvalidOption(format!(
-                "patch size must be odd and at least 3, got {}",
-                self.patch
-            )));
+            return Err(Error::InvalidOption(format!("patch size must be odd and at least 3, got {}", self.patch)));
         }
         if self.patch > MAX_PATCH {
-            return Err(Error::InvalidOption(format!(
-                "patch size must be at most {MAX_PATCH}, got {}",
-                self.patch
-            )));
+            return Err(Error::InvalidOption(format!("patch size must be at most {MAX_PATCH}, got {}", self.patch)));
         }
         let (name, value) = match self.strength {
             Strength::Scale(s) => ("scale", s),
@@ -244,7 +238,10 @@ mod tests {
     #[test]
     fn default_is_the_contracts() {
         let o = Options::default();
-        assert_eq!((o.patch, o.fit, o.borders, o.convention), (3, Fit::Orthogonal, Borders::both(Border::Wrap), Convention::OpenGl));
+        assert_eq!(
+            (o.patch, o.fit, o.borders, o.convention),
+            (3, Fit::Orthogonal, Borders::both(Border::Wrap), Convention::OpenGl)
+        );
         assert_eq!((o.strength, o.invert), (Strength::Scale(1.0), false));
     }
 

@@ -52,10 +52,7 @@ impl Default for Light {
     /// convention of relief drawings (bumps read as bumps, not dents), low
     /// enough to rake across fine detail.
     fn default() -> Self {
-        Light {
-            azimuth_deg: 135.0,
-            elevation_deg: 35.0,
-        }
+        Light { azimuth_deg: 135.0, elevation_deg: 35.0 }
     }
 }
 
@@ -63,10 +60,7 @@ impl Light {
     /// The unit vector towards the light in the OpenGL tangent frame.
     #[must_use]
     pub fn direction(self) -> [f64; 3] {
-        let (a, e) = (
-            self.azimuth_deg.to_radians(),
-            self.elevation_deg.to_radians(),
-        );
+        let (a, e) = (self.azimuth_deg.to_radians(), self.elevation_deg.to_radians());
         [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()]
     }
 }
@@ -99,10 +93,7 @@ pub fn shade(
 ) -> Result<Vec<u8>> {
     let len = checked_len(width, height)?;
     if normals.len() != len {
-        return Err(Error::BufferSize {
-            expected: len,
-            actual: normals.len(),
-        });
+        return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
     let [lx, ly, lz] = light.direction();
     // Flipping the light's y is the same as flipping every normal's y.
@@ -115,11 +106,7 @@ pub fn shade(
         .map(|n| {
             let [x, y, z] = n.map(f64::from);
             let len = (x * x + y * y + z * z).sqrt();
-            let cos = if len > 0.0 && len.is_finite() {
-                (x * lx + y * ly + z * lz) / len
-            } else {
-                lz
-            };
+            let cos = if len > 0.0 && len.is_finite() { (x * lx + y * ly + z * lz) / len } else { lz };
             let value = AMBIENT + (1.0 - AMBIENT) * cos.max(0.0);
             (value * 255.0).round() as u8
         })
@@ -140,16 +127,11 @@ pub fn shade(
 pub fn tile_2x2(pixels: &[u8], width: usize, height: usize) -> Result<Vec<u8>> {
     let len = checked_len(width, height)?;
     if pixels.len() != len {
-        return Err(Error::BufferSize {
-            expected: len,
-            actual: pixels.len(),
-        });
+        return Err(Error::BufferSize { expected: len, actual: pixels.len() });
     }
-    let out_len = len.checked_mul(4).ok_or_else(|| {
-        Error::InvalidOption(format!(
-            "a 2×2 tiling of {width}×{height} texels is too large"
-        ))
-    })?;
+    let out_len = len
+        .checked_mul(4)
+        .ok_or_else(|| Error::InvalidOption(format!("a 2×2 tiling of {width}×{height} texels is too large")))?;
     let mut out = Vec::with_capacity(out_len);
     for _ in 0..2 {
         for row in pixels.chunks_exact(width) {
@@ -172,10 +154,7 @@ mod tests {
     #[test]
     fn flat_map_is_uniform_lambert_of_the_elevation() {
         // n · L = sin 30° = 1/2, so 0.15 + 0.85 · 0.5 = 0.575; × 255 = 146.6.
-        let light = Light {
-            azimuth_deg: 200.0,
-            elevation_deg: 30.0,
-        };
+        let light = Light { azimuth_deg: 200.0, elevation_deg: 30.0 };
         let out = shade(&[[0.0, 0.0, 1.0]; 12], 4, 3, light, Convention::OpenGl).unwrap();
         assert_eq!(out, vec![147u8; 12]);
     }
@@ -187,20 +166,10 @@ mod tests {
         let toward = unit([-1.0, 1.0, 2.0]);
         let away = unit([1.0, -1.0, 2.0]);
         let flat = [0.0, 0.0, 1.0];
-        let out = shade(
-            &[toward, flat, away],
-            3,
-            1,
-            Light::default(),
-            Convention::OpenGl,
-        )
-        .unwrap();
+        let out = shade(&[toward, flat, away], 3, 1, Light::default(), Convention::OpenGl).unwrap();
         assert!(out[0] > out[1] && out[1] > out[2], "{out:?}");
         // Turned fully away from the light: only the ambient share is left.
-        let back = Light {
-            azimuth_deg: 0.0,
-            elevation_deg: 10.0,
-        };
+        let back = Light { azimuth_deg: 0.0, elevation_deg: 10.0 };
         let dark = shade(&[unit([-1.0, 0.0, 0.1])], 1, 1, back, Convention::OpenGl).unwrap();
         assert_eq!(dark, [(AMBIENT * 255.0).round() as u8]);
     }
@@ -210,30 +179,18 @@ mod tests {
         // The same surface: DirectX stores y negated.
         let gl = [unit([0.3, 0.5, 1.0]), unit([-0.2, -0.7, 1.0])];
         let dx = gl.map(|[x, y, z]| [x, -y, z]);
-        let light = Light {
-            azimuth_deg: 90.0,
-            elevation_deg: 40.0,
-        };
+        let light = Light { azimuth_deg: 90.0, elevation_deg: 40.0 };
         let a = shade(&gl, 2, 1, light, Convention::OpenGl).unwrap();
         let b = shade(&dx, 2, 1, light, Convention::DirectX).unwrap();
         assert_eq!(a, b);
-        assert!(
-            a[0] > a[1],
-            "the normal leaning up faces a light from the top"
-        );
+        assert!(a[0] > a[1], "the normal leaning up faces a light from the top");
     }
 
     #[test]
     fn unnormalised_and_degenerate_normals_are_handled() {
         let light = Light::default();
-        let a = shade(
-            &[[0.0, 0.0, 1.0], [0.0, 0.0, 7.0], [0.0; 3], [f32::NAN; 3]],
-            4,
-            1,
-            light,
-            Convention::OpenGl,
-        )
-        .unwrap();
+        let a = shade(&[[0.0, 0.0, 1.0], [0.0, 0.0, 7.0], [0.0; 3], [f32::NAN; 3]], 4, 1, light, Convention::OpenGl)
+            .unwrap();
         assert!(a.iter().all(|&v| v == a[0]), "{a:?}");
     }
 
@@ -242,10 +199,7 @@ mod tests {
         let l = Light::default();
         assert!(matches!(
             shade(&[[0.0, 0.0, 1.0]; 3], 2, 2, l, Convention::OpenGl),
-            Err(Error::BufferSize {
-                expected: 4,
-                actual: 3
-            })
+            Err(Error::BufferSize { expected: 4, actual: 3 })
         ));
         assert!(shade(&[], 0, 0, l, Convention::OpenGl).is_err());
         assert!(tile_2x2(&[1, 2, 3], 2, 2).is_err());

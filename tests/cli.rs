@@ -28,7 +28,9 @@ fn write_gray16(path: &Path, w: u32, h: u32) -> Vec<f32> {
     let mut img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(w, h);
     for (x, y, p) in img.enumerate_pixels_mut() {
         let (dx, dy) = (x as f64 - w as f64 / 2.0, y as f64 - h as f64 / 3.0);
-        let v = 0.3 * x as f64 / w as f64 + 0.5 * (-(dx * dx + dy * dy) / 40.0).exp() + 0.1 * ((x * 7 + y * 3) % 5) as f64 / 5.0;
+        let v = 0.3 * x as f64 / w as f64
+            + 0.5 * (-(dx * dx + dy * dy) / 40.0).exp()
+            + 0.1 * ((x * 7 + y * 3) % 5) as f64 / 5.0;
         p.0[0] = (v.min(1.0) * 65535.0).round() as u16;
     }
     img.save(path).unwrap();
@@ -48,7 +50,8 @@ fn one_line_error(out: &Output) -> String {
 }
 
 fn files_in(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut v: Vec<String> =
+        fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     v.sort();
     v
 }
@@ -59,7 +62,22 @@ fn converts_a_16_bit_map_exactly_as_the_reference() {
     let input = dir.path().join("h.png");
     let heights = write_gray16(&input, 37, 23);
     let out = dir.path().join("n.png");
-    let args = ["convert", s(&input), "-o", s(&out), "-n", "5", "--fit", "vertical", "--border", "clamp,mirror", "--convention", "dx", "--scale", "12"];
+    let args = [
+        "convert",
+        s(&input),
+        "-o",
+        s(&out),
+        "-n",
+        "5",
+        "--fit",
+        "vertical",
+        "--border",
+        "clamp,mirror",
+        "--convention",
+        "dx",
+        "--scale",
+        "12",
+    ];
     let r = run(&args);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let got = image::open(&out).unwrap();
@@ -128,7 +146,9 @@ fn unreadable_inputs_are_named_in_one_line() {
     let empty = dir.path().join("empty.exr");
     fs::write(&empty, "").unwrap();
     let out = dir.path().join("o.png");
-    for (input, name) in [(text.clone(), "notes.png"), (empty.clone(), "empty.exr"), (dir.path().join("missing.png"), "missing.png")] {
+    for (input, name) in
+        [(text.clone(), "notes.png"), (empty.clone(), "empty.exr"), (dir.path().join("missing.png"), "missing.png")]
+    {
         let r = run(&["convert", s(&input), "-o", s(&out)]);
         assert_eq!(r.status.code(), Some(2));
         let err = one_line_error(&r);

@@ -5,7 +5,7 @@
 mod common;
 
 use common::reference;
-use normalfit::{normals, normals_into, Border, Borders, Convention, Fit, Options, Strength};
+use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals, normals_into};
 use proptest::prelude::*;
 
 const BORDERS: [Border; 3] = [Border::Wrap, Border::Clamp, Border::Mirror];
@@ -29,10 +29,7 @@ fn options_strategy() -> impl Strategy<Value = Options> {
         prop_oneof![Just(Fit::Orthogonal), Just(Fit::Vertical)],
         (0usize..3, 0usize..3),
         prop_oneof![Just(Convention::OpenGl), Just(Convention::DirectX)],
-        prop_oneof![
-            (0.05f64..50.0).prop_map(Strength::Scale),
-            (0.001f64..0.3).prop_map(Strength::Relief)
-        ],
+        prop_oneof![(0.05f64..50.0).prop_map(Strength::Scale), (0.001f64..0.3).prop_map(Strength::Relief)],
         any::<bool>(),
     )
         .prop_map(|(n, fit, (bx, by), conv, strength, invert)| {
@@ -92,7 +89,11 @@ fn tilted_plane_gives_its_exact_normal() {
     for n in [3, 5, 9, 15] {
         for fit in [Fit::Orthogonal, Fit::Vertical] {
             for conv in [Convention::OpenGl, Convention::DirectX] {
-                let opts = Options::new().with_patch(n).with_fit(fit).with_convention(conv).with_borders(Borders::both(Border::Clamp));
+                let opts = Options::new()
+                    .with_patch(n)
+                    .with_fit(fit)
+                    .with_convention(conv)
+                    .with_borders(Borders::both(Border::Clamp));
                 let out = normals(&heights, w, h, &opts).unwrap();
                 // Surface z = a·u + b·row; with v = σ·row, ∂z/∂v = σ·b.
                 let sigma = if conv == Convention::OpenGl { -1.0 } else { 1.0 };
@@ -104,7 +105,10 @@ fn tilted_plane_gives_its_exact_normal() {
                     for x in r..w - r {
                         let got = out[y * w + x];
                         for c in 0..3 {
-                            assert!((got[c] as f64 - want[c]).abs() < 1e-6, "n={n} {fit:?} {conv:?} at ({x},{y}): {got:?} vs {want:?}");
+                            assert!(
+                                (got[c] as f64 - want[c]).abs() < 1e-6,
+                                "n={n} {fit:?} {conv:?} at ({x},{y}): {got:?} vs {want:?}"
+                            );
                         }
                     }
                 }
@@ -127,7 +131,8 @@ fn bump_lights_red_on_its_right_and_green_above_it() {
         .collect();
     for fit in [Fit::Orthogonal, Fit::Vertical] {
         let gl: Vec<[u8; 3]> = encoded(&heights, w, h, &Options::new().with_fit(fit));
-        let dx: Vec<[u8; 3]> = encoded(&heights, w, h, &Options::new().with_fit(fit).with_convention(Convention::DirectX));
+        let dx: Vec<[u8; 3]> =
+            encoded(&heights, w, h, &Options::new().with_fit(fit).with_convention(Convention::DirectX));
         let right = 16 * w + 20;
         let above = 12 * w + 16;
         assert!(gl[right][0] > 128 && gl[right][1] == 128, "right of bump: {:?}", gl[right]);
@@ -196,7 +201,10 @@ fn parallel_equals_serial_bit_for_bit() {
     let (w, h) = (301, 517); // several tiles each way, odd sizes
     let heights: Vec<f32> = random_heights(w, h, 3).iter().map(|v| 500.0 + v).collect();
     for n in [3, 15, 63] {
-        let opts = Options::new().with_patch(n).with_strength(Strength::Scale(40.0)).with_borders(Borders { x: Border::Mirror, y: Border::Wrap });
+        let opts = Options::new()
+            .with_patch(n)
+            .with_strength(Strength::Scale(40.0))
+            .with_borders(Borders { x: Border::Mirror, y: Border::Wrap });
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| normals(&heights, w, h, &opts).unwrap())
@@ -204,7 +212,10 @@ fn parallel_equals_serial_bit_for_bit() {
         let serial = run(1);
         for threads in [2, 3, 8] {
             let par = run(threads);
-            assert!(serial.iter().zip(&par).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)), "n {n}, {threads} threads");
+            assert!(
+                serial.iter().zip(&par).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)),
+                "n {n}, {threads} threads"
+            );
         }
     }
 }

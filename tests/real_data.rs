@@ -44,9 +44,8 @@ fn agreement(height: &Path, normal: &Path, convention: Convention) -> (f64, f64)
     let ours = normals(&heights, w, h, &fit).unwrap();
     let theirs = read_path(normal, &opts).unwrap();
     assert_eq!((theirs.width, theirs.height), (w, h), "{}", normal.display());
-    let channel = |name: &str| -> Vec<f64> {
-        theirs.plane(name).unwrap().data.iter().map(|&c| 2.0 * c as f64 - 1.0).collect()
-    };
+    let channel =
+        |name: &str| -> Vec<f64> { theirs.plane(name).unwrap().data.iter().map(|&c| 2.0 * c as f64 - 1.0).collect() };
     let ours_c = |c: usize| -> Vec<f64> { ours.iter().map(|n| n[c] as f64).collect() };
     (correlation(&ours_c(0), &channel("R")), correlation(&ours_c(1), &channel("G")))
 }
@@ -56,11 +55,31 @@ fn fitted_normals_agree_in_direction_with_the_sets_own() {
     let Some(data) = data_dir() else { return };
     let t = data.join("tileable");
     let sets = [
-        ("ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg", "ambientcg_Bricks061/Bricks061_1K-JPG_NormalGL.jpg", Convention::OpenGl),
-        ("ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg", "ambientcg_Bricks061/Bricks061_1K-JPG_NormalDX.jpg", Convention::DirectX),
-        ("polyhaven_denim_fabric/denim_fabric_disp_1k.png", "polyhaven_denim_fabric/denim_fabric_nor_gl_1k.png", Convention::OpenGl),
-        ("materialx_adsk_bricks_02/bricks_02_height_2k_raw.exr", "materialx_adsk_bricks_02/bricks_02_normal_2k_raw.exr", Convention::OpenGl),
-        ("materialx_adsk_bricks_02/bricks_02_height_2k_raw.exr", "materialx_adsk_bricks_02/bricks_02_normal_2k_raw.png", Convention::OpenGl),
+        (
+            "ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg",
+            "ambientcg_Bricks061/Bricks061_1K-JPG_NormalGL.jpg",
+            Convention::OpenGl,
+        ),
+        (
+            "ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg",
+            "ambientcg_Bricks061/Bricks061_1K-JPG_NormalDX.jpg",
+            Convention::DirectX,
+        ),
+        (
+            "polyhaven_denim_fabric/denim_fabric_disp_1k.png",
+            "polyhaven_denim_fabric/denim_fabric_nor_gl_1k.png",
+            Convention::OpenGl,
+        ),
+        (
+            "materialx_adsk_bricks_02/bricks_02_height_2k_raw.exr",
+            "materialx_adsk_bricks_02/bricks_02_normal_2k_raw.exr",
+            Convention::OpenGl,
+        ),
+        (
+            "materialx_adsk_bricks_02/bricks_02_height_2k_raw.exr",
+            "materialx_adsk_bricks_02/bricks_02_normal_2k_raw.png",
+            Convention::OpenGl,
+        ),
     ];
     for (height, normal, convention) in sets {
         let other = match convention {

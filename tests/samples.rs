@@ -16,16 +16,9 @@ use std::path::PathBuf;
 
 /// Heights of `samples/<name>.png` as 16-bit values, with the size.
 fn load(name: &str) -> (Vec<f64>, usize, usize) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("samples")
-        .join(format!("{name}.png"));
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("samples").join(format!("{name}.png"));
     let img = image::open(&path)
-        .unwrap_or_else(|e| {
-            panic!(
-                "{}: {e} (run `cargo run --release --example make_samples`)",
-                path.display()
-            )
-        })
+        .unwrap_or_else(|e| panic!("{}: {e} (run `cargo run --release --example make_samples`)", path.display()))
         .into_luma16();
     let (w, h) = (img.width() as usize, img.height() as usize);
     (img.into_raw().into_iter().map(f64::from).collect(), w, h)
@@ -43,16 +36,11 @@ struct Seam {
 /// `lines` lines of `len` texels; `step(k, i)` is the absolute step between
 /// line k and line k + 1 (wrapping) at position i along them.
 fn seam(lines: usize, len: usize, step: impl Fn(usize, usize) -> f64) -> Seam {
-    let pair: Vec<f64> = (0..lines)
-        .map(|k| (0..len).map(|i| step(k, i)).sum::<f64>() / len as f64)
-        .collect();
+    let pair: Vec<f64> = (0..lines).map(|k| (0..len).map(|i| step(k, i)).sum::<f64>() / len as f64).collect();
     let interior = &pair[..lines - 1];
     let mean = interior.iter().sum::<f64>() / interior.len() as f64;
     let worst = interior.iter().copied().fold(0.0, f64::max);
-    Seam {
-        seam: pair[lines - 1] / mean,
-        worst_interior: worst / mean,
-    }
+    Seam { seam: pair[lines - 1] / mean, worst_interior: worst / mean }
 }
 
 /// (columns, rows) seam statistics of a sample.
@@ -68,15 +56,8 @@ fn seams(name: &str) -> (Seam, Seam) {
 fn assert_tiles(name: &str) {
     let (x, y) = seams(name);
     for (axis, s) in [("x", x), ("y", y)] {
-        assert!(
-            s.seam < 2.0,
-            "{name} {axis}: seam step {:.2}× the interior mean",
-            s.seam
-        );
-        assert!(
-            s.seam <= s.worst_interior,
-            "{name} {axis}: seam worse than every interior pair: {s:?}"
-        );
+        assert!(s.seam < 2.0, "{name} {axis}: seam step {:.2}× the interior mean", s.seam);
+        assert!(s.seam <= s.worst_interior, "{name} {axis}: seam worse than every interior pair: {s:?}");
     }
 }
 
@@ -94,11 +75,7 @@ fn rock_tiles_on_both_axes() {
 fn terrain_does_not_tile() {
     let (x, y) = seams("terrain");
     for (axis, s) in [("x", x), ("y", y)] {
-        assert!(
-            s.seam > 8.0,
-            "terrain {axis}: seam step only {:.2}× the interior mean",
-            s.seam
-        );
+        assert!(s.seam > 8.0, "terrain {axis}: seam step only {:.2}× the interior mean", s.seam);
         assert!(s.seam > 3.0 * s.worst_interior, "terrain {axis}: {s:?}");
     }
 }

@@ -91,7 +91,8 @@ impl Plan {
             if dir.exists() && !dir.is_dir() {
                 return Err(Failure::file(dir, "is not a folder: with many inputs, -o names the output folder"));
             }
-            std::fs::create_dir_all(dir).map_err(|e| Failure::file(dir, format!("cannot create the output folder: {}", e)))?;
+            std::fs::create_dir_all(dir)
+                .map_err(|e| Failure::file(dir, format!("cannot create the output folder: {}", e)))?;
         }
         Ok(Plan {
             fit,
@@ -116,14 +117,16 @@ impl Plan {
             ids.refuse_overwrite(path)?;
             let key = std::path::absolute(path).unwrap_or_else(|_| path.clone());
             if !written.insert(key) {
-                return Err(Failure::file(path, "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders"));
+                return Err(Failure::file(
+                    path,
+                    "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders",
+                ));
             }
         }
         let (width, height) = (raster.width, raster.height);
         let heights = raster.into_heights(self.channel).map_err(|e| Failure::file(input.name(), e))?;
-        let encoded = |out: &mut dyn Write| -> normalfit::Result<()> {
-            encode(&heights, width, height, &self.fit, &target, out)
-        };
+        let encoded =
+            |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &self.fit, &target, out) };
         match &target.path {
             Some(path) => io::write_atomically(path, encoded).map_err(|e| Failure::file(path, e)),
             None => {
@@ -187,10 +190,14 @@ impl Plan {
             }
             (FormatArg::Png, Some(8)) => Encoding::Png8,
             (FormatArg::Png, Some(16)) => Encoding::Png16,
-            (FormatArg::Png, Some(_)) => return Err(Failure::file(name, "PNG holds 8 or 16 bits: --bits 32 needs EXR output")),
+            (FormatArg::Png, Some(_)) => {
+                return Err(Failure::file(name, "PNG holds 8 or 16 bits: --bits 32 needs EXR output"));
+            }
             (FormatArg::Exr, None | Some(32)) => Encoding::Exr(ExrDepth::Float),
             (FormatArg::Exr, Some(16)) => Encoding::Exr(ExrDepth::Half),
-            (FormatArg::Exr, Some(_)) => return Err(Failure::file(name, "EXR holds 16- or 32-bit floats: --bits 8 needs PNG output")),
+            (FormatArg::Exr, Some(_)) => {
+                return Err(Failure::file(name, "EXR holds 16- or 32-bit floats: --bits 8 needs PNG output"));
+            }
         };
         if self.signed && !matches!(encoding, Encoding::Exr(_)) {
             return Err(Failure::file(name, "--signed needs a float output (EXR): PNG stores only [0, 1]"));
@@ -214,7 +221,14 @@ enum Encoding {
 }
 
 /// Fits the normals straight into the output's texel type and encodes them.
-fn encode(heights: &[f32], w: usize, h: usize, opts: &Options, target: &Target, out: &mut dyn Write) -> normalfit::Result<()> {
+fn encode(
+    heights: &[f32],
+    w: usize,
+    h: usize,
+    opts: &Options,
+    target: &Target,
+    out: &mut dyn Write,
+) -> normalfit::Result<()> {
     let compression = PngCompression::default();
     match target.encoding {
         Encoding::Png8 => {

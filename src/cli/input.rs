@@ -67,9 +67,10 @@ impl InputIds {
     /// Refuses `output` if it is (or links to) one of the inputs.
     pub fn refuse_overwrite(&self, output: &Path) -> Result<(), Failure> {
         match std::fs::metadata(output) {
-            Ok(m) if self.0.contains(&(m.dev(), m.ino())) => {
-                Err(Failure::file(output, "is one of the inputs (or a link to one): normalfit never writes over an input"))
-            }
+            Ok(m) if self.0.contains(&(m.dev(), m.ino())) => Err(Failure::file(
+                output,
+                "is one of the inputs (or a link to one): normalfit never writes over an input",
+            )),
             Ok(m) if m.is_dir() => Err(Failure::file(output, "is a folder: cannot write the output there")),
             _ => Ok(()),
         }

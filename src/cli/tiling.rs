@@ -125,7 +125,8 @@ fn text_line(input: &Input, r: &TilingReport) -> String {
 }
 
 fn json_line(input: &Input, (w, h): (usize, usize), r: &TilingReport) -> String {
-    let axis = |a: &tiling::AxisReport| format!("{{\"score\": {}, \"seamless\": {}}}", json_number(a.score), a.seamless);
+    let axis =
+        |a: &tiling::AxisReport| format!("{{\"score\": {}, \"seamless\": {}}}", json_number(a.score), a.seamless);
     format!(
         "{{\"path\": {}, \"width\": {w}, \"height\": {h}, \"kind\": \"{}\", \"x\": {}, \"y\": {}, \"seamless\": {}}}",
         json_string(&input.name().display().to_string()),

@@ -5,6 +5,8 @@
 //! assumed zero), a Jacobi eigen-solver for the orthogonal fit and the
 //! normal equations solved by Gaussian elimination for the vertical fit.
 #![allow(dead_code)]
+// Matrix code reads best with explicit indices.
+#![allow(clippy::needless_range_loop)]
 
 use normalfit::{Border, Convention, Fit, Options};
 
