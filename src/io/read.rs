@@ -43,7 +43,6 @@ pub enum Channel {
 
 /// The file format the bytes were decoded as, found from their content.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
-#[non_exhaustive]
 pub enum InputFormat {
     /// Portable Network Graphics.
     Png,
@@ -136,7 +135,6 @@ pub struct Raster {
 
 /// Limits for a read of untrusted bytes.
 #[derive(Clone, Debug, PartialEq, Eq)]
-#[non_exhaustive]
 pub struct ReadOptions {
     /// The largest width × height accepted, checked from the header before
     /// any pixel buffer is allocated. Default: 2^30 (32768²), which is
