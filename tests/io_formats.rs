@@ -462,8 +462,10 @@ fn exr_bytes(
     position: (i32, i32),
     channels: Vec<AnyChannel<FlatSamples>>,
 ) -> Vec<u8> {
-    let mut attributes = LayerAttributes::default();
-    attributes.layer_position = Vec2(position.0, position.1);
+    let attributes = LayerAttributes {
+        layer_position: Vec2(position.0, position.1),
+        ..LayerAttributes::default()
+    };
     let layer = Layer::new(
         size,
         attributes,
@@ -655,7 +657,10 @@ fn empty_text_and_truncated_inputs_are_errors() {
 
 #[test]
 fn png_header_claiming_huge_size_fails_fast_on_limits() {
-    let png = PngSpec::new(100_000, 100_000, 0, 8).encode(|_, _| vec![]);
+    // The header claims 10^10 texels; the data is a few bytes.
+    let mut png = PngSpec::new(100_000, 100_000, 0, 8).header();
+    chunk(&mut png, b"IDAT", &zlib_stored(&[0; 64]));
+    chunk(&mut png, b"IEND", &[]);
     let start = Instant::now();
     let e = decode(&png, &ReadOptions::default()).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
@@ -901,4 +906,32 @@ fn write_atomically_gives_ordinary_permissions() {
     let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, ordinary, "{mode:o} vs {ordinary:o}");
     assert_ne!(mode, 0o600);
+}
+
+#[test]
+fn corrupted_files_of_every_format_do_not_panic() {
+    let rgb: Vec<u8> = (0..8 * 8 * 3).map(|i| (i * 13) as u8).collect();
+    let mut files: Vec<Vec<u8>> = ["tiff", "jpeg", "tga", "bmp", "webp"]
+        .iter()
+        .map(|f| encoded(image::ExtendedColorType::Rgb8, 8, 8, &rgb, f))
+        .collect();
+    files.push(PngSpec::new(8, 8, 2, 8).encode(|x, y| vec![x as u8, y as u8, 3]));
+    files.push(exr_bytes(
+        (8, 8),
+        (0, 0),
+        vec![f32_channel("Y", &[0.5; 64])],
+    ));
+    for file in &files {
+        for pos in (0..file.len()).step_by(3) {
+            for byte in [0x00, 0xff, 0x7f] {
+                let mut bad = file.clone();
+                bad[pos] = byte;
+                // Ok or Err are both fine; a panic fails the test.
+                let _ = decode(&bad, &ReadOptions::default());
+            }
+        }
+        for len in (1..file.len()).step_by(7) {
+            let _ = decode(&file[..len], &ReadOptions::default());
+        }
+    }
 }
