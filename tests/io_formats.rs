@@ -882,8 +882,7 @@ fn write_atomically_panic_leaves_no_temp() {
 }
 
 #[test]
-fn write_atomically_relative_path_without_folder() {
-    // "name" alone means the current folder; only checks it is accepted.
+fn write_atomically_missing_folder_is_io_error() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sub").join("x.png");
     let e = write_atomically(&path, |_| Ok(())).unwrap_err();
