@@ -1,1 +1,15 @@
 //! Reading height maps and writing normal maps: image files, bytes, atomic writes.
+//!
+//! [`read`] turns the bytes of any supported format into planes of `f32`
+//! in the contract's height units (SPEC §1) and picks the height channel;
+//! [`write`] encodes normal maps (SPEC §3) and puts files in place
+//! atomically (SPEC §4). Neither knows about the fit, and the fit knows
+//! nothing of files.
+
+pub mod read;
+pub mod write;
+
+pub use read::{Channel, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
+pub use write::{
+    ExrDepth, PngCompression, encode_exr, encode_png_rgb8, encode_png_rgb16, write_atomically,
+};

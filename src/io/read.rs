@@ -1,0 +1,674 @@
+//! Reading height maps: bytes in, planes of `f32` in contract units out.
+//!
+//! Rules this module keeps, and why:
+//! * The decoder is chosen from the content, never the file name: a `.png`
+//!   that is really a JPEG still reads, and a renamed file cannot pick a
+//!   decoder that then misreads it.
+//! * The size a header claims is checked against [`ReadOptions::max_texels`]
+//!   before any pixel buffer exists. A 100-byte file can claim
+//!   100000 × 100000 texels, and both `image` and `exr` would otherwise try
+//!   to allocate for it (the `exr` crate can abort the process on a failed
+//!   allocation, which no `Result` can catch).
+//! * Large buffers are reserved with `try_reserve_exact`, so running out of
+//!   memory for an image under the limit is an error, not an abort.
+//! * Values are stored already in contract units (SPEC §1): integer samples
+//!   divided by 2^bits − 1, float samples as stored. NaN and infinities are
+//!   kept in the planes; only [`Raster::heights`] rejects them, because only
+//!   the channel that becomes the height matters.
+
+use std::fmt;
+use std::io::Cursor;
+use std::path::Path;
+
+use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result, one_line};
+
+/// Which channel of the image gives the height (SPEC §1, `--channel`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Channel {
+    /// 0.2126 R + 0.7152 G + 0.0722 B of the stored values; the gray
+    /// channel of a gray image.
+    Luma,
+    /// Red (the gray channel of a gray image).
+    R,
+    /// Green (the gray channel of a gray image).
+    G,
+    /// Blue (the gray channel of a gray image).
+    B,
+    /// Alpha; an error when the image has none.
+    A,
+}
+
+/// The file format the bytes were decoded as, found from their content.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum InputFormat {
+    /// Portable Network Graphics.
+    Png,
+    /// OpenEXR.
+    Exr,
+    /// JPEG.
+    Jpeg,
+    /// TIFF.
+    Tiff,
+    /// Truevision TGA.
+    Tga,
+    /// Windows bitmap.
+    Bmp,
+    /// WebP.
+    WebP,
+    /// Another format `image` reads (gif, hdr, pnm, qoi), by its lower-case
+    /// name.
+    Other(String),
+}
+
+impl fmt::Display for InputFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            InputFormat::Png => "png",
+            InputFormat::Exr => "exr",
+            InputFormat::Jpeg => "jpeg",
+            InputFormat::Tiff => "tiff",
+            InputFormat::Tga => "tga",
+            InputFormat::Bmp => "bmp",
+            InputFormat::WebP => "webp",
+            InputFormat::Other(name) => name,
+        })
+    }
+}
+
+/// How the samples were stored in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SampleType {
+    /// Unsigned integers of `bits` bits per channel, as decoded (a 1-, 2- or
+    /// 4-bit gray PNG arrives expanded to 8 bits, scaled so that the top
+    /// value stays 1.0).
+    Int {
+        /// Bits per channel.
+        bits: u8,
+    },
+    /// Floating point (half, float, or EXR's u32, all taken as numbers).
+    Float,
+}
+
+impl SampleType {
+    /// Whether a channel holds more than 8 bits; floats count as more.
+    ///
+    /// SPEC §3 picks the default PNG output depth with it: 16 bits when the
+    /// input has more than 8, so precision the input has is not thrown away.
+    #[must_use]
+    pub fn more_than_8_bits(self) -> bool {
+        match self {
+            SampleType::Int { bits } => bits > 8,
+            SampleType::Float => true,
+        }
+    }
+}
+
+/// One channel of an image: row-major, `width * height` values in contract
+/// units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plane {
+    /// The channel's name: "Y" (gray), "R", "G", "B", "A" for the formats
+    /// `image` reads; the file's own channel names for EXR ("height",
+    /// "diffuse.R", …).
+    pub name: String,
+    /// The values, row 0 first.
+    pub data: Vec<f32>,
+}
+
+/// A decoded image, one plane per channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Raster {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// The format the content was decoded as.
+    pub format: InputFormat,
+    /// How the samples were stored.
+    pub sample: SampleType,
+    /// The channels, in the file's order.
+    pub planes: Vec<Plane>,
+}
+
+/// Limits for a read of untrusted bytes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// The largest width × height accepted, checked from the header before
+    /// any pixel buffer is allocated. Default: 2^30 (32768²), which is
+    /// 4 GiB for one `f32` plane: larger than any texture a GPU takes,
+    /// small enough that a forged header cannot exhaust memory.
+    pub max_texels: u64,
+}
+
+impl Default for ReadOptions {
+    fn default() -> Self {
+        ReadOptions {
+            max_texels: 1 << 30,
+        }
+    }
+}
+
+/// The four bytes every OpenEXR file starts with.
+const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// Rec. 709 luma weights of R, G and B (SPEC §1).
+const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// Decodes an image from its bytes, choosing the decoder from the content.
+///
+/// Errors: [`Error::Decode`] for empty, unknown, corrupt, truncated or
+/// zero-size data; [`Error::Limits`] when the header claims more than
+/// `opts.max_texels` texels; [`Error::Unsupported`] for a layout normalfit
+/// does not read.
+pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    if bytes.is_empty() {
+        return Err(Error::Decode("file is empty".into()));
+    }
+    if bytes.starts_with(&EXR_MAGIC) {
+        decode_exr(bytes, opts)
+    } else {
+        decode_with_image(bytes, opts)
+    }
+}
+
+/// Reads the file at `path` and [`decode`]s it. Failing to read the file is
+/// [`Error::Io`].
+pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    let bytes = std::fs::read(path)?;
+    decode(&bytes, opts)
+}
+
+impl Raster {
+    /// The heights in contract units, row-major, chosen by `channel` as
+    /// SPEC §1 says (`None` is the default rule).
+    ///
+    /// * A gray image (a "Y" plane, or an EXR's only channel) gives its gray
+    ///   channel for `None`, `Luma`, `R`, `G` and `B`.
+    /// * A colour image gives luma of R, G, B for `None` and `Luma`, else
+    ///   the channel asked for.
+    /// * An EXR prefers "Y", then its only channel, then luma of R, G, B.
+    ///   Channel names match case-insensitively, also by their last
+    ///   dot-separated part ("diffuse.R" is R).
+    /// * `A` gives alpha, an error when there is none.
+    ///
+    /// Errors: [`Error::Unsupported`] when the channel is missing,
+    /// [`Error::NonFiniteHeight`] naming the first NaN or infinite height in
+    /// row order.
+    pub fn heights(&self, channel: Option<Channel>) -> Result<Vec<f32>> {
+        let heights = match self.select(channel)? {
+            Source::Plane(i) => copy_plane(&self.planes[i].data)?,
+            Source::Luma(rgb) => self.luma(rgb)?,
+        };
+        self.check_finite(&heights)?;
+        Ok(heights)
+    }
+
+    /// Like [`Raster::heights`], but moves the chosen plane out instead of
+    /// copying it when the heights are one stored channel.
+    pub fn into_heights(mut self, channel: Option<Channel>) -> Result<Vec<f32>> {
+        let heights = match self.select(channel)? {
+            Source::Plane(i) => self.planes.swap_remove(i).data,
+            Source::Luma(rgb) => self.luma(rgb)?,
+        };
+        self.check_finite(&heights)?;
+        Ok(heights)
+    }
+
+    /// The plane with exactly this name, if any.
+    #[must_use]
+    pub fn plane(&self, name: &str) -> Option<&Plane> {
+        self.planes.iter().find(|p| p.name == name)
+    }
+
+    /// Applies SPEC §1's channel rule to this raster's plane names.
+    fn select(&self, channel: Option<Channel>) -> Result<Source> {
+        let wanted = match channel {
+            None | Some(Channel::Luma) => None,
+            Some(Channel::R) => Some("r"),
+            Some(Channel::G) => Some("g"),
+            Some(Channel::B) => Some("b"),
+            Some(Channel::A) => {
+                return self
+                    .find("a")?
+                    .map(Source::Plane)
+                    .ok_or_else(|| Error::Unsupported("image has no alpha channel".into()));
+            }
+        };
+        // An explicit R, G or B names a stored channel when there is one,
+        // overriding an EXR's "Y"; a gray image has none and gives gray.
+        if let Some(name) = wanted {
+            if let Some(i) = self.find(name)? {
+                return Ok(Source::Plane(i));
+            }
+        }
+        match (self.gray_plane()?, wanted) {
+            (Some(i), _) => Ok(Source::Plane(i)),
+            (None, Some(name)) => Err(Error::Unsupported(format!(
+                "image has no {name} channel (channels: {})",
+                self.channel_list()
+            ))),
+            (None, None) => self.rgb().map(Source::Luma),
+        }
+    }
+
+    /// The gray channel: "Y" if present, else the only channel there is.
+    fn gray_plane(&self) -> Result<Option<usize>> {
+        if let Some(i) = self.find("y")? {
+            return Ok(Some(i));
+        }
+        Ok((self.planes.len() == 1).then_some(0))
+    }
+
+    /// The R, G and B planes that luma is made of.
+    fn rgb(&self) -> Result<[usize; 3]> {
+        match (self.find("r")?, self.find("g")?, self.find("b")?) {
+            (Some(r), Some(g), Some(b)) => Ok([r, g, b]),
+            _ => Err(Error::Unsupported(format!(
+                "no usable height channel: need y, a single channel, or r, g and b (channels: {})",
+                self.channel_list()
+            ))),
+        }
+    }
+
+    /// Finds the plane for a channel letter (lower case): the name itself
+    /// in any case, or a layer's channel whose last dot-separated part is
+    /// the letter. An exact match wins; several layer matches are ambiguous,
+    /// an error rather than a silent guess.
+    fn find(&self, letter: &str) -> Result<Option<usize>> {
+        let matches: Vec<usize> = (0..self.planes.len())
+            .filter(|&i| {
+                let name = &self.planes[i].name;
+                let last = name.rsplit('.').next().unwrap_or(name);
+                last.eq_ignore_ascii_case(letter)
+            })
+            .collect();
+        let exact = matches
+            .iter()
+            .copied()
+            .find(|&i| self.planes[i].name.eq_ignore_ascii_case(letter));
+        match (exact, matches.as_slice()) {
+            (Some(i), _) => Ok(Some(i)),
+            (None, []) => Ok(None),
+            (None, [i]) => Ok(Some(*i)),
+            (None, _) => Err(Error::Unsupported(format!(
+                "channel {letter} is ambiguous: {}",
+                matches
+                    .iter()
+                    .map(|&i| self.planes[i].name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))),
+        }
+    }
+
+    /// The channel names, for messages.
+    fn channel_list(&self) -> String {
+        if self.planes.is_empty() {
+            return "none".into();
+        }
+        let names: Vec<&str> = self.planes.iter().map(|p| p.name.as_str()).collect();
+        names.join(", ")
+    }
+
+    /// Luma of three planes, each texel computed in f64 and rounded to f32
+    /// once, so the result does not depend on f32 summation order.
+    fn luma(&self, [r, g, b]: [usize; 3]) -> Result<Vec<f32>> {
+        let (r, g, b) = (
+            &self.planes[r].data,
+            &self.planes[g].data,
+            &self.planes[b].data,
+        );
+        let mut out = try_vec(r.len())?;
+        out.par_extend(
+            r.par_iter()
+                .zip(g.par_iter())
+                .zip(b.par_iter())
+                .map(|((&r, &g), &b)| {
+                    (LUMA[0] * f64::from(r) + LUMA[1] * f64::from(g) + LUMA[2] * f64::from(b))
+                        as f32
+                }),
+        );
+        Ok(out)
+    }
+
+    /// SPEC §1: a NaN or infinite height is an error naming the first such
+    /// texel in row order.
+    fn check_finite(&self, heights: &[f32]) -> Result<()> {
+        match heights.par_iter().position_first(|h| !h.is_finite()) {
+            None => Ok(()),
+            Some(i) => Err(Error::NonFiniteHeight {
+                x: i % self.width.max(1),
+                y: i / self.width.max(1),
+            }),
+        }
+    }
+}
+
+/// Where the heights come from.
+enum Source {
+    /// One stored plane, by index.
+    Plane(usize),
+    /// Luma of the R, G, B planes at these indices.
+    Luma([usize; 3]),
+}
+
+/// A vector with room for `len` values, or [`Error::Limits`] if the memory
+/// is not there (instead of the abort a plain allocation would give).
+fn try_vec<T>(len: usize) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| {
+        Error::Limits(format!(
+            "cannot allocate {len} values of {} bytes",
+            size_of::<T>()
+        ))
+    })?;
+    Ok(v)
+}
+
+/// A copy of a plane, allocated fallibly.
+fn copy_plane(data: &[f32]) -> Result<Vec<f32>> {
+    let mut out = try_vec(data.len())?;
+    out.extend_from_slice(data);
+    Ok(out)
+}
+
+/// Checks a header's claimed size: not zero, not above the limit.
+fn check_size(width: u64, height: u64, opts: &ReadOptions) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::Decode(format!(
+            "image has zero size ({width} × {height})"
+        )));
+    }
+    let texels = width.saturating_mul(height);
+    if texels > opts.max_texels {
+        return Err(Error::Limits(format!(
+            "{width} × {height} is {texels} texels, the limit is {}",
+            opts.max_texels
+        )));
+    }
+    Ok(())
+}
+
+/// Lower-cases the first letter of a dependency's message and puts it on
+/// one line, so it reads as part of ours.
+fn message(s: &str) -> String {
+    let s = one_line(s);
+    let mut chars = s.chars();
+    match chars.next() {
+        Some(c) => c.to_lowercase().chain(chars).collect(),
+        None => s,
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Formats `image` reads.
+
+/// Decodes with the `image` crate: header first, size check, then pixels.
+fn decode_with_image(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    let format = guess_format(bytes)?;
+    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+    reader.limits(image_limits(opts));
+    let decoder = reader.into_decoder().map_err(from_image_error)?;
+    let (width, height) = decoder.dimensions();
+    check_size(u64::from(width), u64::from(height), opts)?;
+    let color = decoder.color_type();
+    let (names, sample) = layout(color)?;
+    let texels = to_usize(u64::from(width) * u64::from(height))?;
+    let len = to_usize(decoder.total_bytes())?;
+    let mut buf = try_vec::<u8>(len)?;
+    buf.resize(len, 0);
+    decoder.read_image(&mut buf).map_err(from_image_error)?;
+    let planes = deinterleave(&buf, names, sample, texels)?;
+    Ok(Raster {
+        width: to_usize(width.into())?,
+        height: to_usize(height.into())?,
+        format: input_format(format),
+        sample,
+        planes,
+    })
+}
+
+/// The format from the magic bytes. TGA has none, so bytes no signature
+/// matches are tried as TGA, and accepted only if its header parses (its
+/// header has enough fixed fields, image type and pixel depth, that text
+/// and most other data fail it).
+fn guess_format(bytes: &[u8]) -> Result<ImageFormat> {
+    let reader = ImageReader::new(Cursor::new(bytes)).with_guessed_format()?;
+    if let Some(format) = reader.format() {
+        return Ok(format);
+    }
+    let tga = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Tga);
+    if tga.into_decoder().is_ok() {
+        return Ok(ImageFormat::Tga);
+    }
+    let start: String = bytes
+        .iter()
+        .take(8)
+        .map(|b| format!("{b:02x}"))
+        .collect::<Vec<_>>()
+        .join(" ");
+    Err(Error::Decode(format!(
+        "not a recognised image format (starts with bytes {start})"
+    )))
+}
+
+/// Limits handed to `image`, so its own allocations (PNG chunks, decoder
+/// state) are bounded too: per side no more than `max_texels`, and memory
+/// for the largest pixel (RGBA f32, 16 bytes) of every texel plus slack.
+fn image_limits(opts: &ReadOptions) -> Limits {
+    let side = u32::try_from(opts.max_texels).unwrap_or(u32::MAX);
+    let mut limits = Limits::default();
+    limits.max_image_width = Some(side);
+    limits.max_image_height = Some(side);
+    limits.max_alloc = Some(opts.max_texels.saturating_mul(16).saturating_add(64 << 20));
+    limits
+}
+
+/// Plane names and sample type of a decoded colour type.
+fn layout(color: ColorType) -> Result<(&'static [&'static str], SampleType)> {
+    use ColorType::*;
+    const Y: &[&str] = &["Y"];
+    const YA: &[&str] = &["Y", "A"];
+    const RGB: &[&str] = &["R", "G", "B"];
+    const RGBA: &[&str] = &["R", "G", "B", "A"];
+    let eight = SampleType::Int { bits: 8 };
+    let sixteen = SampleType::Int { bits: 16 };
+    Ok(match color {
+        L8 => (Y, eight),
+        La8 => (YA, eight),
+        Rgb8 => (RGB, eight),
+        Rgba8 => (RGBA, eight),
+        L16 => (Y, sixteen),
+        La16 => (YA, sixteen),
+        Rgb16 => (RGB, sixteen),
+        Rgba16 => (RGBA, sixteen),
+        Rgb32F => (RGB, SampleType::Float),
+        Rgba32F => (RGBA, SampleType::Float),
+        other => {
+            return Err(Error::Unsupported(format!(
+                "pixel layout {other:?} is not supported"
+            )));
+        }
+    })
+}
+
+/// Splits interleaved native-endian samples into planes in contract units.
+fn deinterleave(
+    buf: &[u8],
+    names: &[&str],
+    sample: SampleType,
+    texels: usize,
+) -> Result<Vec<Plane>> {
+    let bytes = match sample {
+        SampleType::Int { bits } => usize::from(bits / 8),
+        SampleType::Float => 4,
+    };
+    let stride = bytes * names.len();
+    if buf.len() != texels.saturating_mul(stride) {
+        return Err(Error::Decode(format!(
+            "decoder gave {} bytes for {texels} texels of {stride} bytes",
+            buf.len()
+        )));
+    }
+    names
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let o = c * bytes;
+            let mut data = try_vec(texels)?;
+            let px = buf.par_chunks_exact(stride);
+            match bytes {
+                1 => data.par_extend(px.map(|p| f32::from(p[o]) / 255.0)),
+                2 => data.par_extend(
+                    px.map(|p| f32::from(u16::from_ne_bytes([p[o], p[o + 1]])) / 65535.0),
+                ),
+                _ => data.par_extend(
+                    px.map(|p| f32::from_ne_bytes([p[o], p[o + 1], p[o + 2], p[o + 3]])),
+                ),
+            }
+            Ok(Plane {
+                name: (*name).to_string(),
+                data,
+            })
+        })
+        .collect()
+}
+
+/// Our name for one of `image`'s formats.
+fn input_format(format: ImageFormat) -> InputFormat {
+    match format {
+        ImageFormat::Png => InputFormat::Png,
+        ImageFormat::Jpeg => InputFormat::Jpeg,
+        ImageFormat::Tiff => InputFormat::Tiff,
+        ImageFormat::Tga => InputFormat::Tga,
+        ImageFormat::Bmp => InputFormat::Bmp,
+        ImageFormat::WebP => InputFormat::WebP,
+        ImageFormat::OpenExr => InputFormat::Exr,
+        other => InputFormat::Other(format!("{other:?}").to_lowercase()),
+    }
+}
+
+/// Maps `image`'s errors onto ours. Reading from memory cannot fail at the
+/// operating system, so its I/O errors mean the data ended early.
+fn from_image_error(e: ImageError) -> Error {
+    match e {
+        ImageError::Limits(e) => Error::Limits(message(&e.to_string())),
+        ImageError::Unsupported(e) => Error::Unsupported(message(&e.to_string())),
+        ImageError::IoError(e) => {
+            Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string())))
+        }
+        other => Error::Decode(message(&other.to_string())),
+    }
+}
+
+/// A size from a header as `usize`, or [`Error::Limits`] on a platform
+/// where it does not fit.
+fn to_usize(n: u64) -> Result<usize> {
+    usize::try_from(n).map_err(|_| Error::Limits(format!("{n} does not fit in memory")))
+}
+
+// ---------------------------------------------------------------------------
+// OpenEXR, read with the `exr` crate: `image`'s EXR path only gives RGB(A)
+// and rejects single-channel files, the common height map layout.
+
+/// Decodes an EXR: meta data first (sizes checked), then the first valid
+/// layer at its largest resolution level, all channels.
+fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    check_exr_header(bytes, opts)?;
+    use exr::prelude::{ReadChannels, ReadLayers};
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(from_exr_error)?;
+    let layer = image.layer_data;
+    let (width, height) = (layer.size.0, layer.size.1);
+    check_size(width as u64, height as u64, opts)?;
+    let texels = width * height;
+    let planes = layer
+        .channel_data
+        .list
+        .into_iter()
+        .map(|channel| exr_plane(channel, texels))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Raster {
+        width,
+        height,
+        format: InputFormat::Exr,
+        sample: SampleType::Float,
+        planes,
+    })
+}
+
+/// Checks every layer's data window against the limit before `exr`
+/// allocates anything for it. Every layer, not just the first: `exr` reads
+/// all offset tables, whose length follows from each layer's size. The
+/// offset tables are stored in the file, so an honest file holds 8 bytes
+/// per chunk; a header claiming more chunks than that is forged.
+fn check_exr_header(bytes: &[u8], opts: &ReadOptions) -> Result<()> {
+    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
+        .map_err(from_exr_error)?;
+    if meta.headers.is_empty() {
+        return Err(Error::Decode("exr file has no layers".into()));
+    }
+    let mut chunks: u64 = 0;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        check_size(size.0 as u64, size.1 as u64, opts)?;
+        chunks = chunks.saturating_add(header.chunk_count as u64);
+    }
+    if chunks.saturating_mul(8) > bytes.len() as u64 {
+        return Err(Error::Decode(format!(
+            "truncated or corrupt: header claims {chunks} chunks, more than the file holds"
+        )));
+    }
+    Ok(())
+}
+
+/// One EXR channel as a plane: half and float as stored, u32 as its number.
+fn exr_plane(
+    channel: exr::prelude::AnyChannel<exr::prelude::FlatSamples>,
+    texels: usize,
+) -> Result<Plane> {
+    use exr::prelude::FlatSamples;
+    let name = channel.name.to_string();
+    let data = match channel.sample_data {
+        FlatSamples::F32(v) => v,
+        FlatSamples::F16(v) => {
+            let mut out = try_vec(v.len())?;
+            out.par_extend(v.par_iter().map(|h| h.to_f32()));
+            out
+        }
+        FlatSamples::U32(v) => {
+            let mut out = try_vec(v.len())?;
+            // u32 → f32 rounds above 2^24; SPEC treats EXR as a float image.
+            out.par_extend(v.par_iter().map(|&n| n as f32));
+            out
+        }
+    };
+    if data.len() != texels {
+        return Err(Error::Unsupported(format!(
+            "channel {name} is subsampled ({} samples for {texels} texels)",
+            data.len()
+        )));
+    }
+    Ok(Plane { name, data })
+}
+
+/// Maps `exr`'s errors onto ours; reading from memory cannot fail at the
+/// operating system, so its I/O errors mean the data ended early.
+fn from_exr_error(e: exr::error::Error) -> Error {
+    use exr::error::Error as E;
+    match e {
+        E::NotSupported(m) => Error::Unsupported(message(&m)),
+        E::Invalid(m) => Error::Decode(message(&m)),
+        E::Io(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
+        E::Aborted => Error::Decode("reading was aborted".into()),
+    }
+}

@@ -1,0 +1,317 @@
+//! Writing normal maps: PNG (8/16-bit RGB), OpenEXR (half/float RGB), and
+//! files that appear whole or not at all.
+//!
+//! The encoders take texels as the fit produces them (`[u8; 3]`,
+//! `[u16; 3]`, `[f32; 3]`, see [`crate::FromNormal`]), so no float copy of
+//! the image is made between the fit and the file.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter, Seek, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use exr::prelude::{
+    Encoding, Image, Layer, LayerAttributes, SpecificChannels, Vec2, WritableImage, f16,
+};
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, ImageEncoder, ImageError};
+
+use crate::error::{Error, Result, one_line};
+
+/// How hard the PNG encoder compresses.
+///
+/// The default is [`PngCompression::Fast`]: normal maps (16-bit ones most
+/// of all) are noisy in their low bits and gain little from slow deflate,
+/// while deflate runs on one thread and would otherwise take longer than
+/// the whole parallel fit. It is also `image`'s own default.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PngCompression {
+    /// Fast deflate; somewhat larger files.
+    #[default]
+    Fast,
+    /// Balanced speed and size.
+    Default,
+    /// Smallest files, slowest.
+    Best,
+}
+
+impl PngCompression {
+    /// The `image` setting this stands for.
+    fn to_image(self) -> CompressionType {
+        match self {
+            PngCompression::Fast => CompressionType::Fast,
+            PngCompression::Default => CompressionType::Default,
+            PngCompression::Best => CompressionType::Best,
+        }
+    }
+}
+
+/// Sample type of an EXR output (SPEC §3: `--bits 16` or `--bits 32`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ExrDepth {
+    /// 16-bit half floats.
+    Half,
+    /// 32-bit floats, the EXR default.
+    #[default]
+    Float,
+}
+
+/// Writes an 8-bit RGB PNG of `width` × `height` texels, row-major.
+///
+/// Errors: [`Error::BufferSize`] if `texels` does not hold
+/// `width * height`, [`Error::Encode`] for sizes PNG cannot hold,
+/// [`Error::Io`] if `out` fails.
+pub fn encode_png_rgb8(
+    texels: &[[u8; 3]],
+    width: usize,
+    height: usize,
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<()> {
+    let (w, h) = png_size(texels.len(), width, height)?;
+    png_encoder(out, compression)
+        .write_image(texels.as_flattened(), w, h, ExtendedColorType::Rgb8)
+        .map_err(from_image_error)
+}
+
+/// Writes a 16-bit RGB PNG of `width` × `height` texels, row-major.
+///
+/// `image`'s `PngEncoder::write_image` takes 16-bit samples as
+/// native-endian bytes and swaps them to PNG's big-endian order itself.
+///
+/// Errors: as [`encode_png_rgb8`].
+pub fn encode_png_rgb16(
+    texels: &[[u16; 3]],
+    width: usize,
+    height: usize,
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<()> {
+    let (w, h) = png_size(texels.len(), width, height)?;
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(texels.len() * 6)
+        .map_err(|_| Error::Encode("out of memory for the png rows".into()))?;
+    bytes.extend(texels.as_flattened().iter().flat_map(|v| v.to_ne_bytes()));
+    png_encoder(out, compression)
+        .write_image(&bytes, w, h, ExtendedColorType::Rgb16)
+        .map_err(from_image_error)
+}
+
+/// Writes an OpenEXR file with channels R, G, B of `width` × `height`
+/// texels, values as given (`Half` rounds them to half floats).
+///
+/// ZIP compression in blocks of 16 rows, what most tools write by default:
+/// lossless, small, and read by every EXR reader. The EXR layout puts an
+/// offset table before the pixel data, filled in at the end, so `out` must
+/// seek; to write to a pipe, encode into a `Cursor<Vec<u8>>` first.
+///
+/// Errors: [`Error::BufferSize`] if `texels` does not hold
+/// `width * height`, [`Error::Encode`] for a zero size or an encoder
+/// failure, [`Error::Io`] if `out` fails.
+pub fn encode_exr(
+    texels: &[[f32; 3]],
+    width: usize,
+    height: usize,
+    depth: ExrDepth,
+    out: impl Write + Seek,
+) -> Result<()> {
+    check_buffer(texels.len(), width, height)?;
+    if width == 0 || height == 0 {
+        return Err(Error::Encode("image has zero size".into()));
+    }
+    // The closures index `texels` only at positions inside `width` ×
+    // `height`, whose length was just checked.
+    let at = move |Vec2(x, y): Vec2<usize>| texels[y * width + x];
+    let result = match depth {
+        ExrDepth::Float => exr_image(width, height, move |p| {
+            let [r, g, b] = at(p);
+            (r, g, b)
+        })
+        .write()
+        .to_buffered(out),
+        ExrDepth::Half => exr_image(width, height, move |p| {
+            let [r, g, b] = at(p).map(f16::from_f32);
+            (r, g, b)
+        })
+        .write()
+        .to_buffered(out),
+    };
+    result.map_err(from_exr_error)
+}
+
+/// A one-layer RGB EXR image whose pixels come from `pixel`.
+fn exr_image<T, F>(
+    width: usize,
+    height: usize,
+    pixel: F,
+) -> Image<Layer<SpecificChannels<F, exr::prelude::RgbChannels>>>
+where
+    T: exr::prelude::IntoSample,
+    F: Sync + Fn(Vec2<usize>) -> (T, T, T),
+{
+    Image::from_layer(Layer::new(
+        (width, height),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        SpecificChannels::rgb(pixel),
+    ))
+}
+
+/// Creates `path` with the bytes `write` produces, so that it appears
+/// whole or not at all (SPEC §4).
+///
+/// The bytes go to a new temporary file in the same folder (a rename is
+/// atomic only within one file system), named
+/// `.<file name>.<pid>-<counter>.normalfit-tmp`, which is flushed and
+/// synced to disk, then renamed onto `path`. `path` itself is never opened,
+/// so an interrupted or failed write leaves its old content in place.
+/// The temporary file is created like any new file, with the permissions
+/// 0666 minus the umask, so the result does not end up private (0600) as
+/// a temp-file crate would make it. On any error, and if `write` panics,
+/// the temporary file is removed.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> Result<()>,
+) -> Result<()> {
+    let (file, guard) = TempFile::create(path)?;
+    let mut out = BufWriter::new(file);
+    write(&mut out)?;
+    let file = out.into_inner().map_err(|e| Error::Io(e.into_error()))?;
+    file.sync_all()?;
+    // Closed before the rename: some systems (Windows) refuse to rename an
+    // open file.
+    drop(file);
+    fs::rename(&guard.path, path)?;
+    guard.keep();
+    sync_folder(path);
+    Ok(())
+}
+
+/// Tells temporary files of one process apart.
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// A temporary file that is removed when dropped, unless kept.
+struct TempFile {
+    path: PathBuf,
+    armed: bool,
+}
+
+impl TempFile {
+    /// Creates a new, empty temporary file beside `target`. `create_new`
+    /// never opens an existing file, so a name already taken (another
+    /// process, a leftover) moves on to the next counter.
+    fn create(target: &Path) -> Result<(File, TempFile)> {
+        let name = target.file_name().ok_or_else(|| {
+            Error::Io(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "output path has no file name",
+            ))
+        })?;
+        let folder = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let mut last = None;
+        for _ in 0..100 {
+            let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+            let mut temp_name = std::ffi::OsString::from(".");
+            temp_name.push(name);
+            temp_name.push(format!(".{}-{n}.normalfit-tmp", std::process::id()));
+            let path = folder.join(temp_name);
+            match OpenOptions::new().write(true).create_new(true).open(&path) {
+                Ok(file) => return Ok((file, TempFile { path, armed: true })),
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
+                Err(e) => return Err(Error::Io(e)),
+            }
+        }
+        Err(Error::Io(last.unwrap_or_else(|| {
+            io::Error::new(io::ErrorKind::AlreadyExists, "no free temporary name")
+        })))
+    }
+
+    /// The file was renamed into place: nothing left to remove.
+    fn keep(mut self) {
+        self.armed = false;
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if self.armed {
+            // Best effort: the original error is the one worth reporting.
+            let _ = fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// Syncs the folder holding `path`, so the rename itself survives a crash.
+/// Best effort: some file systems refuse to open or sync a folder, and the
+/// file is already complete either way.
+fn sync_folder(path: &Path) {
+    #[cfg(unix)]
+    {
+        let folder = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        if let Ok(dir) = File::open(folder) {
+            let _ = dir.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
+/// A PNG encoder with the adaptive filter, which suits smooth gradients.
+fn png_encoder<W: Write>(out: W, compression: PngCompression) -> PngEncoder<W> {
+    PngEncoder::new_with_quality(out, compression.to_image(), FilterType::Adaptive)
+}
+
+/// Checks the buffer and the PNG size limits before `image`, which panics
+/// on a buffer of the wrong length.
+fn png_size(len: usize, width: usize, height: usize) -> Result<(u32, u32)> {
+    check_buffer(len, width, height)?;
+    let side = |n: usize| {
+        u32::try_from(n)
+            .ok()
+            .filter(|&n| n > 0 && n <= i32::MAX as u32)
+    };
+    match (side(width), side(height)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(Error::Encode(format!(
+            "png cannot hold {width} × {height} texels"
+        ))),
+    }
+}
+
+/// Checks that a buffer holds `width * height` texels.
+fn check_buffer(len: usize, width: usize, height: usize) -> Result<()> {
+    let expected = width
+        .checked_mul(height)
+        .ok_or_else(|| Error::Encode(format!("{width} × {height} texels do not fit in memory")))?;
+    if len != expected {
+        return Err(Error::BufferSize {
+            expected,
+            actual: len,
+        });
+    }
+    Ok(())
+}
+
+/// Maps `image`'s errors: I/O stays I/O (the caller's writer failed),
+/// everything else is an encoding failure.
+fn from_image_error(e: ImageError) -> Error {
+    match e {
+        ImageError::IoError(e) => Error::Io(e),
+        other => Error::Encode(one_line(&other.to_string()).to_lowercase()),
+    }
+}
+
+/// Maps `exr`'s errors like [`from_image_error`].
+fn from_exr_error(e: exr::error::Error) -> Error {
+    match e {
+        exr::error::Error::Io(e) => Error::Io(e),
+        other => Error::Encode(one_line(&other.to_string()).to_lowercase()),
+    }
+}

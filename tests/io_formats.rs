@@ -1,0 +1,936 @@
+//! File formats: every input is made here, PNGs by hand (so the decoder is
+//! checked against the PNG spec, not against `image`'s own encoder), the
+//! rest with `image` and `exr`.
+
+use std::io::Cursor;
+use std::time::{Duration, Instant};
+
+use exr::prelude::{
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Vec2,
+    WritableImage, f16,
+};
+use image::ImageEncoder;
+use normalfit::Error;
+use normalfit::io::{
+    Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions, SampleType, decode,
+    encode_exr, encode_png_rgb8, encode_png_rgb16, read_path, write_atomically,
+};
+
+// ---------------------------------------------------------------------------
+// A minimal PNG writer: stored (uncompressed) deflate, CRC-32, Adler-32.
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xffff_ffff_u32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xedb8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+fn adler32(bytes: &[u8]) -> u32 {
+    let (mut a, mut b) = (1u32, 0u32);
+    for &x in bytes {
+        a = (a + u32::from(x)) % 65521;
+        b = (b + a) % 65521;
+    }
+    (b << 16) | a
+}
+
+/// zlib stream of stored deflate blocks.
+fn zlib_stored(data: &[u8]) -> Vec<u8> {
+    let mut out = vec![0x78, 0x01];
+    let blocks: Vec<&[u8]> = if data.is_empty() {
+        vec![&[]]
+    } else {
+        data.chunks(65535).collect()
+    };
+    for (i, block) in blocks.iter().enumerate() {
+        out.push(u8::from(i + 1 == blocks.len()));
+        let len = block.len() as u16;
+        out.extend(len.to_le_bytes());
+        out.extend((!len).to_le_bytes());
+        out.extend(*block);
+    }
+    out.extend(adler32(data).to_be_bytes());
+    out
+}
+
+fn chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    out.extend((data.len() as u32).to_be_bytes());
+    let mut body = kind.to_vec();
+    body.extend(data);
+    out.extend(&body);
+    out.extend(crc32(&body).to_be_bytes());
+}
+
+/// What a hand-made PNG holds.
+struct PngSpec {
+    width: u32,
+    height: u32,
+    color_type: u8,
+    bit_depth: u8,
+    interlaced: bool,
+    plte: Option<Vec<u8>>,
+    trns: Option<Vec<u8>>,
+}
+
+impl PngSpec {
+    fn new(width: u32, height: u32, color_type: u8, bit_depth: u8) -> Self {
+        PngSpec {
+            width,
+            height,
+            color_type,
+            bit_depth,
+            interlaced: false,
+            plte: None,
+            trns: None,
+        }
+    }
+
+    fn header(&self) -> Vec<u8> {
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        let mut ihdr = Vec::new();
+        ihdr.extend(self.width.to_be_bytes());
+        ihdr.extend(self.height.to_be_bytes());
+        ihdr.extend([
+            self.bit_depth,
+            self.color_type,
+            0,
+            0,
+            u8::from(self.interlaced),
+        ]);
+        chunk(&mut out, b"IHDR", &ihdr);
+        if let Some(p) = &self.plte {
+            chunk(&mut out, b"PLTE", p);
+        }
+        if let Some(t) = &self.trns {
+            chunk(&mut out, b"tRNS", t);
+        }
+        out
+    }
+
+    /// The file, pixel (x, y) given as its bytes (big-endian for 16 bits),
+    /// every row with filter type 0.
+    fn encode(&self, pixel: impl Fn(usize, usize) -> Vec<u8>) -> Vec<u8> {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let passes: &[(usize, usize, usize, usize)] = if self.interlaced {
+            &[
+                (0, 0, 8, 8),
+                (4, 0, 8, 8),
+                (0, 4, 4, 8),
+                (2, 0, 4, 4),
+                (0, 2, 2, 4),
+                (1, 0, 2, 2),
+                (0, 1, 1, 2),
+            ]
+        } else {
+            &[(0, 0, 1, 1)]
+        };
+        let mut raw = Vec::new();
+        for &(x0, y0, dx, dy) in passes {
+            if x0 >= w || y0 >= h {
+                continue; // an empty pass has no rows at all
+            }
+            for y in (y0..h).step_by(dy) {
+                raw.push(0);
+                for x in (x0..w).step_by(dx) {
+                    raw.extend(pixel(x, y));
+                }
+            }
+        }
+        let mut out = self.header();
+        chunk(&mut out, b"IDAT", &zlib_stored(&raw));
+        chunk(&mut out, b"IEND", &[]);
+        out
+    }
+}
+
+fn read(bytes: &[u8]) -> Raster {
+    match decode(bytes, &ReadOptions::default()) {
+        Ok(r) => r,
+        Err(e) => panic!("decode failed: {e}"),
+    }
+}
+
+fn names(r: &Raster) -> Vec<&str> {
+    r.planes.iter().map(|p| p.name.as_str()).collect()
+}
+
+fn data<'a>(r: &'a Raster, name: &str) -> &'a [f32] {
+    &r.plane(name)
+        .unwrap_or_else(|| panic!("no plane {name}"))
+        .data
+}
+
+fn luma(r: f32, g: f32, b: f32) -> f32 {
+    (0.2126 * f64::from(r) + 0.7152 * f64::from(g) + 0.0722 * f64::from(b)) as f32
+}
+
+fn is_unsupported(e: &Error) -> bool {
+    matches!(e, Error::Unsupported(_))
+}
+
+// ---------------------------------------------------------------------------
+// PNG
+
+#[test]
+fn png_gray8_values_and_channels() {
+    let v = [0u8, 1, 128, 200, 254, 255];
+    let bytes = PngSpec::new(3, 2, 0, 8).encode(|x, y| vec![v[y * 3 + x]]);
+    let r = read(&bytes);
+    assert_eq!((r.width, r.height), (3, 2));
+    assert_eq!(r.format, InputFormat::Png);
+    assert_eq!(r.format.to_string(), "png");
+    assert_eq!(r.sample, SampleType::Int { bits: 8 });
+    assert!(!r.sample.more_than_8_bits());
+    assert_eq!(names(&r), ["Y"]);
+    let expected: Vec<f32> = v.iter().map(|&b| f32::from(b) / 255.0).collect();
+    assert_eq!(data(&r, "Y"), expected);
+    assert_eq!(data(&r, "Y")[5], 1.0);
+    for c in [
+        None,
+        Some(Channel::Luma),
+        Some(Channel::R),
+        Some(Channel::G),
+        Some(Channel::B),
+    ] {
+        assert_eq!(r.heights(c).unwrap(), expected, "{c:?}");
+    }
+    assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
+    assert_eq!(r.into_heights(None).unwrap(), expected);
+}
+
+#[test]
+fn png_gray16_exact_values() {
+    let v = [0u16, 1, 32768, 65535];
+    let bytes = PngSpec::new(2, 2, 0, 16).encode(|x, y| v[y * 2 + x].to_be_bytes().to_vec());
+    let r = read(&bytes);
+    assert_eq!(r.sample, SampleType::Int { bits: 16 });
+    assert!(r.sample.more_than_8_bits());
+    let h = r.heights(None).unwrap();
+    assert_eq!(h[0], 0.0);
+    assert_eq!(h[1], 1.0 / 65535.0);
+    assert_eq!(h[2], 32768.0 / 65535.0);
+    assert_eq!(h[3], 1.0);
+}
+
+#[test]
+fn png_gray_alpha_8_and_16() {
+    let r8 = read(&PngSpec::new(2, 1, 4, 8).encode(|x, _| vec![10 + x as u8, 250 - x as u8]));
+    assert_eq!(names(&r8), ["Y", "A"]);
+    assert_eq!(r8.heights(None).unwrap(), [10.0 / 255.0, 11.0 / 255.0]);
+    assert_eq!(
+        r8.heights(Some(Channel::R)).unwrap(),
+        [10.0 / 255.0, 11.0 / 255.0]
+    );
+    assert_eq!(
+        r8.heights(Some(Channel::A)).unwrap(),
+        [250.0 / 255.0, 249.0 / 255.0]
+    );
+
+    let r16 = read(&PngSpec::new(2, 1, 4, 16).encode(|x, _| {
+        let (g, a) = if x == 0 {
+            (300u16, 65535u16)
+        } else {
+            (65535, 32768)
+        };
+        [g.to_be_bytes(), a.to_be_bytes()].concat()
+    }));
+    assert_eq!(r16.sample, SampleType::Int { bits: 16 });
+    assert_eq!(names(&r16), ["Y", "A"]);
+    assert_eq!(r16.heights(None).unwrap(), [300.0 / 65535.0, 1.0]);
+    assert_eq!(
+        r16.heights(Some(Channel::A)).unwrap(),
+        [1.0, 32768.0 / 65535.0]
+    );
+}
+
+/// Pixel (x, y) of the colour test images: every channel differs.
+fn rgba8(x: usize, y: usize) -> [u8; 4] {
+    let i = (y * 3 + x) as u8;
+    [10 + i, 100 + 3 * i, 200 + 5 * i, 7 * i]
+}
+
+#[test]
+fn png_rgb8_luma_and_channels() {
+    let r = read(&PngSpec::new(3, 2, 2, 8).encode(|x, y| rgba8(x, y)[..3].to_vec()));
+    assert_eq!(names(&r), ["R", "G", "B"]);
+    let f = |v: u8| f32::from(v) / 255.0;
+    let expect = |c: usize| {
+        (0..6)
+            .map(|i| f(rgba8(i % 3, i / 3)[c]))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(r.heights(Some(Channel::R)).unwrap(), expect(0));
+    assert_eq!(r.heights(Some(Channel::G)).unwrap(), expect(1));
+    assert_eq!(r.heights(Some(Channel::B)).unwrap(), expect(2));
+    let lum: Vec<f32> = (0..6)
+        .map(|i| luma(expect(0)[i], expect(1)[i], expect(2)[i]))
+        .collect();
+    assert_eq!(r.heights(None).unwrap(), lum);
+    assert_eq!(r.heights(Some(Channel::Luma)).unwrap(), lum);
+    // The weights, not an average: pure green is 0.7152.
+    let g = read(&PngSpec::new(1, 1, 2, 8).encode(|_, _| vec![0, 255, 0]));
+    assert_eq!(g.heights(None).unwrap(), [0.7152]);
+    let e = r.heights(Some(Channel::A)).unwrap_err();
+    assert!(is_unsupported(&e), "{e}");
+    assert!(e.to_string().contains("alpha"), "{e}");
+}
+
+#[test]
+fn png_rgba8_and_rgb16_rgba16() {
+    let r = read(&PngSpec::new(3, 2, 6, 8).encode(|x, y| rgba8(x, y).to_vec()));
+    assert_eq!(names(&r), ["R", "G", "B", "A"]);
+    assert_eq!(data(&r, "A")[4], f32::from(rgba8(1, 1)[3]) / 255.0);
+    assert_eq!(r.heights(Some(Channel::A)).unwrap(), data(&r, "A"));
+    assert_eq!(
+        r.heights(None).unwrap()[0],
+        luma(10.0 / 255.0, 100.0 / 255.0, 200.0 / 255.0)
+    );
+
+    let px16 = [1u16, 32768, 65535, 4660];
+    let r = read(
+        &PngSpec::new(1, 1, 2, 16)
+            .encode(|_, _| px16[..3].iter().flat_map(|v| v.to_be_bytes()).collect()),
+    );
+    assert_eq!(names(&r), ["R", "G", "B"]);
+    assert_eq!(r.sample, SampleType::Int { bits: 16 });
+    assert_eq!(data(&r, "R"), [1.0 / 65535.0]);
+    assert_eq!(data(&r, "G"), [32768.0 / 65535.0]);
+    assert_eq!(data(&r, "B"), [1.0]);
+
+    let r = read(
+        &PngSpec::new(1, 1, 6, 16)
+            .encode(|_, _| px16.iter().flat_map(|v| v.to_be_bytes()).collect()),
+    );
+    assert_eq!(names(&r), ["R", "G", "B", "A"]);
+    assert_eq!(r.heights(Some(Channel::A)).unwrap(), [4660.0 / 65535.0]);
+}
+
+#[test]
+fn png_palette_expands_to_rgb_and_rgba() {
+    let mut spec = PngSpec::new(2, 2, 3, 8);
+    spec.plte = Some(vec![255, 0, 0, 0, 255, 0, 0, 0, 255, 10, 20, 30]);
+    let bytes = spec.encode(|x, y| vec![(y * 2 + x) as u8]);
+    let r = read(&bytes);
+    assert_eq!(names(&r), ["R", "G", "B"]);
+    assert_eq!(r.sample, SampleType::Int { bits: 8 });
+    let h = r.heights(None).unwrap();
+    assert_eq!(h[..3], [0.2126, 0.7152, 0.0722]);
+    assert_eq!(h[3], luma(10.0 / 255.0, 20.0 / 255.0, 30.0 / 255.0));
+    assert_eq!(
+        r.heights(Some(Channel::B)).unwrap(),
+        [0.0, 0.0, 1.0, 30.0 / 255.0]
+    );
+
+    spec.trns = Some(vec![0, 51, 255]);
+    let r = read(&spec.encode(|x, y| vec![(y * 2 + x) as u8]));
+    assert_eq!(names(&r), ["R", "G", "B", "A"]);
+    assert_eq!(r.heights(Some(Channel::A)).unwrap(), [0.0, 0.2, 1.0, 1.0]);
+}
+
+#[test]
+fn png_interlaced_reads_like_plain() {
+    let pixel = |x: usize, y: usize| vec![(x * 17 + y * 31) as u8];
+    let mut spec = PngSpec::new(13, 11, 0, 8);
+    let plain = read(&spec.encode(pixel));
+    spec.interlaced = true;
+    let adam7 = spec.encode(pixel);
+    assert_ne!(
+        adam7,
+        spec.encode(|_, _| vec![0]),
+        "test image is not constant"
+    );
+    let interlaced = read(&adam7);
+    assert_eq!(interlaced, plain);
+    assert_eq!(
+        data(&interlaced, "Y")[5 * 13 + 7],
+        f32::from(pixel(7, 5)[0]) / 255.0
+    );
+}
+
+// ---------------------------------------------------------------------------
+// Other formats `image` reads
+
+fn encoded(color: image::ExtendedColorType, w: u32, h: u32, buf: &[u8], format: &str) -> Vec<u8> {
+    let mut out = Cursor::new(Vec::new());
+    match format {
+        "tiff" => image::codecs::tiff::TiffEncoder::new(&mut out).write_image(buf, w, h, color),
+        "jpeg" => image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 100)
+            .write_image(buf, w, h, color),
+        "tga" => image::codecs::tga::TgaEncoder::new(&mut out).write_image(buf, w, h, color),
+        "bmp" => image::codecs::bmp::BmpEncoder::new(&mut out).write_image(buf, w, h, color),
+        "webp" => {
+            image::codecs::webp::WebPEncoder::new_lossless(&mut out).write_image(buf, w, h, color)
+        }
+        _ => unreachable!(),
+    }
+    .unwrap();
+    out.into_inner()
+}
+
+#[test]
+fn tiff_16_bit_gray() {
+    let v = [0u16, 32768, 65535, 12345];
+    let buf: Vec<u8> = v.iter().flat_map(|s| s.to_ne_bytes()).collect();
+    let r = read(&encoded(image::ExtendedColorType::L16, 2, 2, &buf, "tiff"));
+    assert_eq!(r.format, InputFormat::Tiff);
+    assert_eq!(r.sample, SampleType::Int { bits: 16 });
+    assert_eq!(names(&r), ["Y"]);
+    let expected: Vec<f32> = v.iter().map(|&s| f32::from(s) / 65535.0).collect();
+    assert_eq!(r.heights(None).unwrap(), expected);
+}
+
+/// `image` writes and reads RGB float TIFF, but not one-channel float TIFF
+/// (its decoder rejects `Gray(32)`), so only the RGB case is tested here.
+#[test]
+fn tiff_float_rgb_values_unchanged() {
+    let v = [-2.5f32, 0.125, 1000.0, 1e-7, 3.0, -0.0];
+    let buf: Vec<u8> = v.iter().flat_map(|s| s.to_ne_bytes()).collect();
+    let r = read(&encoded(
+        image::ExtendedColorType::Rgb32F,
+        2,
+        1,
+        &buf,
+        "tiff",
+    ));
+    assert_eq!(r.sample, SampleType::Float);
+    assert!(r.sample.more_than_8_bits());
+    assert_eq!(data(&r, "R"), [-2.5, 1e-7]);
+    assert_eq!(data(&r, "G"), [0.125, 3.0]);
+    assert_eq!(data(&r, "B"), [1000.0, -0.0]);
+}
+
+#[test]
+fn jpeg_named_png_is_read_by_content() {
+    let buf = vec![100u8; 16 * 16];
+    let bytes = encoded(image::ExtendedColorType::L8, 16, 16, &buf, "jpeg");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("height.png");
+    std::fs::write(&path, &bytes).unwrap();
+    let r = read_path(&path, &ReadOptions::default()).unwrap();
+    assert_eq!(r.format, InputFormat::Jpeg);
+    assert_eq!(r.format.to_string(), "jpeg");
+    assert_eq!(names(&r), ["Y"]);
+    assert_eq!(r.sample, SampleType::Int { bits: 8 });
+    for h in r.heights(None).unwrap() {
+        assert!((h - 100.0 / 255.0).abs() <= 1.5 / 255.0, "{h}");
+    }
+}
+
+#[test]
+fn read_path_missing_file_is_io_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = read_path(&dir.path().join("none.png"), &ReadOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::Io(_)), "{e}");
+}
+
+#[test]
+fn tga_bmp_webp_lossless_values() {
+    let buf: Vec<u8> = (0..4 * 3 * 3).map(|i| (i * 7) as u8).collect();
+    for (format, expect) in [
+        ("tga", InputFormat::Tga),
+        ("bmp", InputFormat::Bmp),
+        ("webp", InputFormat::WebP),
+    ] {
+        let r = read(&encoded(image::ExtendedColorType::Rgb8, 4, 3, &buf, format));
+        assert_eq!(r.format, expect);
+        assert_eq!((r.width, r.height), (4, 3));
+        assert_eq!(names(&r), ["R", "G", "B"], "{format}");
+        let g: Vec<f32> = buf
+            .iter()
+            .skip(1)
+            .step_by(3)
+            .map(|&v| f32::from(v) / 255.0)
+            .collect();
+        assert_eq!(r.heights(Some(Channel::G)).unwrap(), g, "{format}");
+    }
+}
+
+// ---------------------------------------------------------------------------
+// OpenEXR
+
+fn exr_bytes(
+    size: (usize, usize),
+    position: (i32, i32),
+    channels: Vec<AnyChannel<FlatSamples>>,
+) -> Vec<u8> {
+    let attributes = LayerAttributes {
+        layer_position: Vec2(position.0, position.1),
+        ..LayerAttributes::default()
+    };
+    let layer = Layer::new(
+        size,
+        attributes,
+        Encoding::UNCOMPRESSED,
+        AnyChannels::sort(SmallVec::from_vec(channels)),
+    );
+    let mut out = Cursor::new(Vec::new());
+    Image::from_layer(layer)
+        .write()
+        .to_buffered(&mut out)
+        .unwrap();
+    out.into_inner()
+}
+
+fn f32_channel(name: &str, v: &[f32]) -> AnyChannel<FlatSamples> {
+    AnyChannel::new(name, FlatSamples::F32(v.to_vec()))
+}
+
+#[test]
+fn exr_single_channel_half_float_u32() {
+    let v = [0.5f32, -1.25, 1000.0, 0.0, 2.0, 0.099_975_586];
+    for samples in [
+        FlatSamples::F32(v.to_vec()),
+        FlatSamples::F16(v.iter().map(|&x| f16::from_f32(x)).collect()),
+        FlatSamples::U32(vec![0, 1, 65535, 16_777_216, 7, 3]),
+    ] {
+        let expected: Vec<f32> = match &samples {
+            FlatSamples::F32(s) => s.clone(),
+            FlatSamples::F16(s) => s.iter().map(|h| h.to_f32()).collect(),
+            FlatSamples::U32(s) => s.iter().map(|&n| n as f32).collect(),
+        };
+        let r = read(&exr_bytes(
+            (3, 2),
+            (0, 0),
+            vec![AnyChannel::new("height", samples)],
+        ));
+        assert_eq!(r.format, InputFormat::Exr);
+        assert_eq!(r.format.to_string(), "exr");
+        assert_eq!(r.sample, SampleType::Float);
+        assert_eq!(names(&r), ["height"]);
+        assert_eq!(r.heights(None).unwrap(), expected);
+        assert_eq!(r.heights(Some(Channel::R)).unwrap(), expected);
+        assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
+    }
+    // Half really is half: 0.1 is stored as the nearest half.
+    let r = read(&exr_bytes(
+        (1, 1),
+        (0, 0),
+        vec![AnyChannel::new(
+            "height",
+            FlatSamples::F16(vec![f16::from_f32(0.1)]),
+        )],
+    ));
+    assert_eq!(r.heights(None).unwrap(), [0.099_975_586]);
+}
+
+#[test]
+fn exr_prefers_y_and_explicit_channel_overrides() {
+    let r = read(&exr_bytes(
+        (2, 1),
+        (0, 0),
+        vec![
+            f32_channel("R", &[1.0, 2.0]),
+            f32_channel("G", &[3.0, 4.0]),
+            f32_channel("B", &[5.0, 6.0]),
+            f32_channel("Y", &[7.0, 8.0]),
+        ],
+    ));
+    assert_eq!(r.heights(None).unwrap(), [7.0, 8.0]);
+    assert_eq!(r.heights(Some(Channel::Luma)).unwrap(), [7.0, 8.0]);
+    assert_eq!(r.heights(Some(Channel::R)).unwrap(), [1.0, 2.0]);
+    assert_eq!(r.heights(Some(Channel::B)).unwrap(), [5.0, 6.0]);
+}
+
+#[test]
+fn exr_rgb_uses_luma_and_layer_names_match() {
+    let (red, green, blue) = ([1.0f32, 0.3, -2.0], [0.0f32, 0.6, 10.0], [0.0f32, 0.9, 0.5]);
+    let expected: Vec<f32> = (0..3).map(|i| luma(red[i], green[i], blue[i])).collect();
+    let r = read(&exr_bytes(
+        (3, 1),
+        (0, 0),
+        vec![
+            f32_channel("R", &red),
+            f32_channel("G", &green),
+            f32_channel("B", &blue),
+        ],
+    ));
+    assert_eq!(r.heights(None).unwrap(), expected);
+    assert_eq!(r.heights(None).unwrap()[0], 0.2126);
+
+    let r = read(&exr_bytes(
+        (3, 1),
+        (0, 0),
+        vec![
+            f32_channel("diffuse.r", &red),
+            f32_channel("diffuse.g", &green),
+            f32_channel("diffuse.b", &blue),
+            f32_channel("diffuse.A", &[0.25, 0.5, 0.75]),
+        ],
+    ));
+    assert_eq!(r.heights(None).unwrap(), expected);
+    assert_eq!(r.heights(Some(Channel::G)).unwrap(), green);
+    assert_eq!(r.heights(Some(Channel::A)).unwrap(), [0.25, 0.5, 0.75]);
+    assert_eq!(r.into_heights(Some(Channel::B)).unwrap(), blue);
+}
+
+#[test]
+fn exr_without_usable_channels_names_them() {
+    let r = read(&exr_bytes(
+        (1, 1),
+        (0, 0),
+        vec![f32_channel("depth", &[1.0]), f32_channel("mask", &[0.0])],
+    ));
+    let e = r.heights(None).unwrap_err();
+    assert!(is_unsupported(&e), "{e}");
+    let m = e.to_string();
+    assert!(m.contains("depth") && m.contains("mask"), "{m}");
+    assert!(r.heights(Some(Channel::G)).is_err());
+}
+
+#[test]
+fn exr_offset_data_window_is_the_image() {
+    let v: Vec<f32> = (0..12).map(|i| i as f32 * 0.5).collect();
+    let r = read(&exr_bytes((4, 3), (10, -7), vec![f32_channel("Y", &v)]));
+    assert_eq!((r.width, r.height), (4, 3));
+    assert_eq!(r.heights(None).unwrap(), v);
+}
+
+#[test]
+fn exr_nan_and_inf_name_the_first_texel() {
+    let mut v = vec![0.0f32; 12];
+    v[2 * 4] = f32::INFINITY; // (0, 2)
+    v[4 + 3] = f32::NAN; // (3, 1), first in row order
+    let r = read(&exr_bytes((4, 3), (0, 0), vec![f32_channel("height", &v)]));
+    assert!(data(&r, "height")[7].is_nan(), "planes keep the NaN");
+    for e in [
+        r.heights(None).unwrap_err(),
+        r.clone().into_heights(None).unwrap_err(),
+    ] {
+        assert!(matches!(e, Error::NonFiniteHeight { x: 3, y: 1 }), "{e}");
+    }
+    // A NaN in a channel that is not the height does not matter.
+    let r = read(&exr_bytes(
+        (1, 1),
+        (0, 0),
+        vec![f32_channel("Y", &[1.0]), f32_channel("A", &[f32::NAN])],
+    ));
+    assert_eq!(r.heights(None).unwrap(), [1.0]);
+    assert!(matches!(
+        r.heights(Some(Channel::A)).unwrap_err(),
+        Error::NonFiniteHeight { x: 0, y: 0 }
+    ));
+}
+
+// ---------------------------------------------------------------------------
+// Bad input: always an error, never a panic, never a huge allocation
+
+#[test]
+fn empty_text_and_truncated_inputs_are_errors() {
+    let e = decode(&[], &ReadOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, Error::Decode(m) if m == "file is empty"),
+        "{e}"
+    );
+    let e = decode(b"just some text, not an image\n", &ReadOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, Error::Decode(m) if m.starts_with("not a recognised image format")),
+        "{e}"
+    );
+
+    let png = PngSpec::new(5, 4, 2, 8).encode(|x, y| vec![x as u8, y as u8, 9]);
+    read(&png);
+    for len in 1..png.len() - 12 {
+        // Everything short of the IEND chunk lacks pixel data.
+        assert!(
+            decode(&png[..len], &ReadOptions::default()).is_err(),
+            "prefix {len}"
+        );
+    }
+    let exr = exr_bytes((3, 3), (0, 0), vec![f32_channel("Y", &[0.5; 9])]);
+    read(&exr);
+    for len in 1..exr.len() {
+        assert!(
+            decode(&exr[..len], &ReadOptions::default()).is_err(),
+            "exr prefix {len}"
+        );
+    }
+}
+
+#[test]
+fn png_header_claiming_huge_size_fails_fast_on_limits() {
+    // The header claims 10^10 texels; the data is a few bytes.
+    let mut png = PngSpec::new(100_000, 100_000, 0, 8).header();
+    chunk(&mut png, b"IDAT", &zlib_stored(&[0; 64]));
+    chunk(&mut png, b"IEND", &[]);
+    let start = Instant::now();
+    let e = decode(&png, &ReadOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::Limits(_)), "{e}");
+    assert!(start.elapsed() < Duration::from_secs(1));
+}
+
+#[test]
+fn exr_header_claiming_huge_size_fails_on_limits() {
+    let mut exr = exr_bytes((2, 2), (0, 0), vec![f32_channel("Y", &[0.0; 4])]);
+    let key = b"dataWindow\0box2i\0";
+    let at = exr.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    exr[at + 8..at + 12].copy_from_slice(&99_999i32.to_le_bytes());
+    exr[at + 12..at + 16].copy_from_slice(&99_999i32.to_le_bytes());
+    let e = decode(&exr, &ReadOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::Limits(_)), "{e}");
+}
+
+#[test]
+fn max_texels_option_is_the_limit() {
+    let png = PngSpec::new(4, 4, 0, 8).encode(|_, _| vec![1]);
+    let e = decode(&png, &ReadOptions { max_texels: 15 }).unwrap_err();
+    assert!(matches!(e, Error::Limits(_)), "{e}");
+    assert!(decode(&png, &ReadOptions { max_texels: 16 }).is_ok());
+    let exr = exr_bytes((4, 4), (0, 0), vec![f32_channel("Y", &[0.0; 16])]);
+    let e = decode(&exr, &ReadOptions { max_texels: 15 }).unwrap_err();
+    assert!(matches!(e, Error::Limits(_)), "{e}");
+    assert_eq!(ReadOptions::default().max_texels, 1 << 30);
+}
+
+#[test]
+fn zero_size_png_is_an_error() {
+    for (w, h) in [(0, 4), (4, 0)] {
+        let png = PngSpec::new(w, h, 0, 8).encode(|_, _| vec![0]);
+        assert!(decode(&png, &ReadOptions::default()).is_err(), "{w}×{h}");
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Encoders, checked through the (independently tested) decoder
+
+#[test]
+fn png_rgb8_round_trip() {
+    let texels: Vec<[u8; 3]> = (0..15).map(|i| [i * 17, 255 - i, 128]).collect();
+    for compression in [
+        PngCompression::Fast,
+        PngCompression::Default,
+        PngCompression::Best,
+    ] {
+        let mut out = Vec::new();
+        encode_png_rgb8(&texels, 5, 3, compression, &mut out).unwrap();
+        let r = read(&out);
+        assert_eq!(
+            (r.format.clone(), r.width, r.height),
+            (InputFormat::Png, 5, 3)
+        );
+        assert_eq!(r.sample, SampleType::Int { bits: 8 });
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            let expected: Vec<f32> = texels.iter().map(|t| f32::from(t[c]) / 255.0).collect();
+            assert_eq!(data(&r, name), expected);
+        }
+    }
+}
+
+#[test]
+fn png_rgb16_round_trip_keeps_byte_order() {
+    let texels: Vec<[u16; 3]> = vec![
+        [0x0102, 32768, 65535],
+        [0, 1, 0xff00],
+        [0x00ff, 12345, 54321],
+    ];
+    let mut out = Vec::new();
+    encode_png_rgb16(&texels, 3, 1, PngCompression::default(), &mut out).unwrap();
+    let r = read(&out);
+    assert_eq!(r.sample, SampleType::Int { bits: 16 });
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        let back: Vec<u16> = data(&r, name)
+            .iter()
+            .map(|&h| (h * 65535.0).round() as u16)
+            .collect();
+        let expected: Vec<u16> = texels.iter().map(|t| t[c]).collect();
+        assert_eq!(back, expected, "{name}");
+    }
+}
+
+#[test]
+fn encoders_reject_wrong_buffer_sizes() {
+    let e = encode_png_rgb8(&[[0; 3]; 5], 2, 3, PngCompression::Fast, Vec::new()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::BufferSize {
+                expected: 6,
+                actual: 5
+            }
+        ),
+        "{e}"
+    );
+    let e = encode_png_rgb16(&[[0; 3]; 7], 2, 3, PngCompression::Fast, Vec::new()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::BufferSize {
+                expected: 6,
+                actual: 7
+            }
+        ),
+        "{e}"
+    );
+    let e = encode_exr(
+        &[[0.0; 3]; 1],
+        2,
+        3,
+        ExrDepth::Float,
+        Cursor::new(Vec::new()),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::BufferSize {
+                expected: 6,
+                actual: 1
+            }
+        ),
+        "{e}"
+    );
+    assert!(encode_png_rgb8(&[], 0, 0, PngCompression::Fast, Vec::new()).is_err());
+}
+
+#[test]
+fn exr_round_trip_float_and_half() {
+    let texels: Vec<[f32; 3]> = (0..6)
+        .map(|i| [i as f32 * 0.1 - 0.3, -0.999, 1.0 / (i as f32 + 3.0)])
+        .collect();
+    for depth in [ExrDepth::Float, ExrDepth::Half] {
+        let mut out = Cursor::new(Vec::new());
+        encode_exr(&texels, 3, 2, depth, &mut out).unwrap();
+        let r = read(&out.into_inner());
+        assert_eq!((r.width, r.height), (3, 2));
+        assert_eq!(names(&r), ["B", "G", "R"]);
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            let expected: Vec<f32> = texels
+                .iter()
+                .map(|t| match depth {
+                    ExrDepth::Float => t[c],
+                    ExrDepth::Half => f16::from_f32(t[c]).to_f32(),
+                })
+                .collect();
+            assert_eq!(data(&r, name), expected, "{depth:?} {name}");
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Atomic writes
+
+fn folder_listing(dir: &std::path::Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn write_atomically_replaces_whole_and_cleans_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.png");
+    std::fs::write(&path, b"old").unwrap();
+    let big = vec![7u8; 1 << 20];
+    write_atomically(&path, |w| {
+        w.write_all(&big)?;
+        w.write_all(b"end")?;
+        Ok(())
+    })
+    .unwrap();
+    let got = std::fs::read(&path).unwrap();
+    assert_eq!(got.len(), big.len() + 3);
+    assert!(got.ends_with(b"end"));
+    assert_eq!(folder_listing(dir.path()), ["out.png"]);
+}
+
+#[test]
+fn write_atomically_error_keeps_old_content_and_no_temp() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.exr");
+    std::fs::write(&path, b"old content").unwrap();
+    let e = write_atomically(&path, |w| {
+        w.write_all(b"partial")?;
+        // While writing, the new bytes sit in a temporary file beside it.
+        assert_eq!(std::fs::read(&path).unwrap(), b"old content");
+        Err(Error::Encode("stop".into()))
+    })
+    .unwrap_err();
+    assert!(matches!(e, Error::Encode(_)), "{e}");
+    assert_eq!(std::fs::read(&path).unwrap(), b"old content");
+    assert_eq!(folder_listing(dir.path()), ["out.exr"]);
+
+    // A new file that fails is not created at all.
+    let fresh = dir.path().join("fresh.png");
+    assert!(write_atomically(&fresh, |_| Err(Error::Encode("no".into()))).is_err());
+    assert!(!fresh.exists());
+    assert_eq!(folder_listing(dir.path()), ["out.exr"]);
+}
+
+#[test]
+fn write_atomically_panic_leaves_no_temp() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.png");
+    let result = std::panic::catch_unwind(|| {
+        let _ = write_atomically(&path, |w| {
+            w.write_all(b"x")?;
+            panic!("writer panicked");
+        });
+    });
+    assert!(result.is_err());
+    assert!(folder_listing(dir.path()).is_empty());
+}
+
+#[test]
+fn write_atomically_missing_folder_is_io_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sub").join("x.png");
+    let e = write_atomically(&path, |_| Ok(())).unwrap_err();
+    assert!(
+        matches!(e, Error::Io(_)),
+        "missing folder is an io error: {e}"
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn write_atomically_gives_ordinary_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain");
+    std::fs::File::create(&plain).unwrap();
+    let ordinary = std::fs::metadata(&plain).unwrap().permissions().mode() & 0o777;
+    let path = dir.path().join("n.png");
+    write_atomically(&path, |w| Ok(w.write_all(b"data")?)).unwrap();
+    let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, ordinary, "{mode:o} vs {ordinary:o}");
+    assert_ne!(mode, 0o600);
+}
+
+#[test]
+fn corrupted_files_of_every_format_do_not_panic() {
+    let rgb: Vec<u8> = (0..8 * 8 * 3).map(|i| (i * 13) as u8).collect();
+    let mut files: Vec<Vec<u8>> = ["tiff", "jpeg", "tga", "bmp", "webp"]
+        .iter()
+        .map(|f| encoded(image::ExtendedColorType::Rgb8, 8, 8, &rgb, f))
+        .collect();
+    files.push(PngSpec::new(8, 8, 2, 8).encode(|x, y| vec![x as u8, y as u8, 3]));
+    files.push(exr_bytes(
+        (8, 8),
+        (0, 0),
+        vec![f32_channel("Y", &[0.5; 64])],
+    ));
+    for file in &files {
+        for pos in (0..file.len()).step_by(3) {
+            for byte in [0x00, 0xff, 0x7f] {
+                let mut bad = file.clone();
+                bad[pos] = byte;
+                // Ok or Err are both fine; a panic fails the test.
+                let _ = decode(&bad, &ReadOptions::default());
+            }
+        }
+        for len in (1..file.len()).step_by(7) {
+            let _ = decode(&file[..len], &ReadOptions::default());
+        }
+    }
+}
