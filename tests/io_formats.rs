@@ -6,14 +6,13 @@ use std::io::Cursor;
 use std::time::{Duration, Instant};
 
 use exr::prelude::{
-    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Vec2,
-    WritableImage, f16,
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Vec2, WritableImage, f16,
 };
 use image::ImageEncoder;
 use normalfit::Error;
 use normalfit::io::{
-    Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions, SampleType, decode,
-    encode_exr, encode_png_rgb8, encode_png_rgb16, read_path, write_atomically,
+    Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions, SampleType, decode, encode_exr,
+    encode_png_rgb8, encode_png_rgb16, read_path, write_atomically,
 };
 
 // ---------------------------------------------------------------------------
@@ -24,11 +23,7 @@ fn crc32(bytes: &[u8]) -> u32 {
     for &b in bytes {
         c ^= u32::from(b);
         for _ in 0..8 {
-            c = if c & 1 != 0 {
-                0xedb8_8320 ^ (c >> 1)
-            } else {
-                c >> 1
-            };
+            c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
         }
     }
     !c
@@ -46,11 +41,7 @@ fn adler32(bytes: &[u8]) -> u32 {
 /// zlib stream of stored deflate blocks.
 fn zlib_stored(data: &[u8]) -> Vec<u8> {
     let mut out = vec![0x78, 0x01];
-    let blocks: Vec<&[u8]> = if data.is_empty() {
-        vec![&[]]
-    } else {
-        data.chunks(65535).collect()
-    };
+    let blocks: Vec<&[u8]> = if data.is_empty() { vec![&[]] } else { data.chunks(65535).collect() };
     for (i, block) in blocks.iter().enumerate() {
         out.push(u8::from(i + 1 == blocks.len()));
         let len = block.len() as u16;
@@ -83,15 +74,7 @@ struct PngSpec {
 
 impl PngSpec {
     fn new(width: u32, height: u32, color_type: u8, bit_depth: u8) -> Self {
-        PngSpec {
-            width,
-            height,
-            color_type,
-            bit_depth,
-            interlaced: false,
-            plte: None,
-            trns: None,
-        }
+        PngSpec { width, height, color_type, bit_depth, interlaced: false, plte: None, trns: None }
     }
 
     fn header(&self) -> Vec<u8> {
@@ -99,13 +82,7 @@ impl PngSpec {
         let mut ihdr = Vec::new();
         ihdr.extend(self.width.to_be_bytes());
         ihdr.extend(self.height.to_be_bytes());
-        ihdr.extend([
-            self.bit_depth,
-            self.color_type,
-            0,
-            0,
-            u8::from(self.interlaced),
-        ]);
+        ihdr.extend([self.bit_depth, self.color_type, 0, 0, u8::from(self.interlaced)]);
         chunk(&mut out, b"IHDR", &ihdr);
         if let Some(p) = &self.plte {
             chunk(&mut out, b"PLTE", p);
@@ -121,15 +98,7 @@ impl PngSpec {
     fn encode(&self, pixel: impl Fn(usize, usize) -> Vec<u8>) -> Vec<u8> {
         let (w, h) = (self.width as usize, self.height as usize);
         let passes: &[(usize, usize, usize, usize)] = if self.interlaced {
-            &[
-                (0, 0, 8, 8),
-                (4, 0, 8, 8),
-                (0, 4, 4, 8),
-                (2, 0, 4, 4),
-                (0, 2, 2, 4),
-                (1, 0, 2, 2),
-                (0, 1, 1, 2),
-            ]
+            &[(0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2)]
         } else {
             &[(0, 0, 1, 1)]
         };
@@ -164,9 +133,7 @@ fn names(r: &Raster) -> Vec<&str> {
 }
 
 fn data<'a>(r: &'a Raster, name: &str) -> &'a [f32] {
-    &r.plane(name)
-        .unwrap_or_else(|| panic!("no plane {name}"))
-        .data
+    &r.plane(name).unwrap_or_else(|| panic!("no plane {name}")).data
 }
 
 fn luma(r: f32, g: f32, b: f32) -> f32 {
@@ -194,13 +161,7 @@ fn png_gray8_values_and_channels() {
     let expected: Vec<f32> = v.iter().map(|&b| f32::from(b) / 255.0).collect();
     assert_eq!(data(&r, "Y"), expected);
     assert_eq!(data(&r, "Y")[5], 1.0);
-    for c in [
-        None,
-        Some(Channel::Luma),
-        Some(Channel::R),
-        Some(Channel::G),
-        Some(Channel::B),
-    ] {
+    for c in [None, Some(Channel::Luma), Some(Channel::R), Some(Channel::G), Some(Channel::B)] {
         assert_eq!(r.heights(c).unwrap(), expected, "{c:?}");
     }
     assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
@@ -226,30 +187,17 @@ fn png_gray_alpha_8_and_16() {
     let r8 = read(&PngSpec::new(2, 1, 4, 8).encode(|x, _| vec![10 + x as u8, 250 - x as u8]));
     assert_eq!(names(&r8), ["Y", "A"]);
     assert_eq!(r8.heights(None).unwrap(), [10.0 / 255.0, 11.0 / 255.0]);
-    assert_eq!(
-        r8.heights(Some(Channel::R)).unwrap(),
-        [10.0 / 255.0, 11.0 / 255.0]
-    );
-    assert_eq!(
-        r8.heights(Some(Channel::A)).unwrap(),
-        [250.0 / 255.0, 249.0 / 255.0]
-    );
+    assert_eq!(r8.heights(Some(Channel::R)).unwrap(), [10.0 / 255.0, 11.0 / 255.0]);
+    assert_eq!(r8.heights(Some(Channel::A)).unwrap(), [250.0 / 255.0, 249.0 / 255.0]);
 
     let r16 = read(&PngSpec::new(2, 1, 4, 16).encode(|x, _| {
-        let (g, a) = if x == 0 {
-            (300u16, 65535u16)
-        } else {
-            (65535, 32768)
-        };
+        let (g, a) = if x == 0 { (300u16, 65535u16) } else { (65535, 32768) };
         [g.to_be_bytes(), a.to_be_bytes()].concat()
     }));
     assert_eq!(r16.sample, SampleType::Int { bits: 16 });
     assert_eq!(names(&r16), ["Y", "A"]);
     assert_eq!(r16.heights(None).unwrap(), [300.0 / 65535.0, 1.0]);
-    assert_eq!(
-        r16.heights(Some(Channel::A)).unwrap(),
-        [1.0, 32768.0 / 65535.0]
-    );
+    assert_eq!(r16.heights(Some(Channel::A)).unwrap(), [1.0, 32768.0 / 65535.0]);
 }
 
 /// Pixel (x, y) of the colour test images: every channel differs.
@@ -263,17 +211,11 @@ fn png_rgb8_luma_and_channels() {
     let r = read(&PngSpec::new(3, 2, 2, 8).encode(|x, y| rgba8(x, y)[..3].to_vec()));
     assert_eq!(names(&r), ["R", "G", "B"]);
     let f = |v: u8| f32::from(v) / 255.0;
-    let expect = |c: usize| {
-        (0..6)
-            .map(|i| f(rgba8(i % 3, i / 3)[c]))
-            .collect::<Vec<_>>()
-    };
+    let expect = |c: usize| (0..6).map(|i| f(rgba8(i % 3, i / 3)[c])).collect::<Vec<_>>();
     assert_eq!(r.heights(Some(Channel::R)).unwrap(), expect(0));
     assert_eq!(r.heights(Some(Channel::G)).unwrap(), expect(1));
     assert_eq!(r.heights(Some(Channel::B)).unwrap(), expect(2));
-    let lum: Vec<f32> = (0..6)
-        .map(|i| luma(expect(0)[i], expect(1)[i], expect(2)[i]))
-        .collect();
+    let lum: Vec<f32> = (0..6).map(|i| luma(expect(0)[i], expect(1)[i], expect(2)[i])).collect();
     assert_eq!(r.heights(None).unwrap(), lum);
     assert_eq!(r.heights(Some(Channel::Luma)).unwrap(), lum);
     // The weights, not an average: pure green is 0.7152.
@@ -290,26 +232,17 @@ fn png_rgba8_and_rgb16_rgba16() {
     assert_eq!(names(&r), ["R", "G", "B", "A"]);
     assert_eq!(data(&r, "A")[4], f32::from(rgba8(1, 1)[3]) / 255.0);
     assert_eq!(r.heights(Some(Channel::A)).unwrap(), data(&r, "A"));
-    assert_eq!(
-        r.heights(None).unwrap()[0],
-        luma(10.0 / 255.0, 100.0 / 255.0, 200.0 / 255.0)
-    );
+    assert_eq!(r.heights(None).unwrap()[0], luma(10.0 / 255.0, 100.0 / 255.0, 200.0 / 255.0));
 
     let px16 = [1u16, 32768, 65535, 4660];
-    let r = read(
-        &PngSpec::new(1, 1, 2, 16)
-            .encode(|_, _| px16[..3].iter().flat_map(|v| v.to_be_bytes()).collect()),
-    );
+    let r = read(&PngSpec::new(1, 1, 2, 16).encode(|_, _| px16[..3].iter().flat_map(|v| v.to_be_bytes()).collect()));
     assert_eq!(names(&r), ["R", "G", "B"]);
     assert_eq!(r.sample, SampleType::Int { bits: 16 });
     assert_eq!(data(&r, "R"), [1.0 / 65535.0]);
     assert_eq!(data(&r, "G"), [32768.0 / 65535.0]);
     assert_eq!(data(&r, "B"), [1.0]);
 
-    let r = read(
-        &PngSpec::new(1, 1, 6, 16)
-            .encode(|_, _| px16.iter().flat_map(|v| v.to_be_bytes()).collect()),
-    );
+    let r = read(&PngSpec::new(1, 1, 6, 16).encode(|_, _| px16.iter().flat_map(|v| v.to_be_bytes()).collect()));
     assert_eq!(names(&r), ["R", "G", "B", "A"]);
     assert_eq!(r.heights(Some(Channel::A)).unwrap(), [4660.0 / 65535.0]);
 }
@@ -325,10 +258,7 @@ fn png_palette_expands_to_rgb_and_rgba() {
     let h = r.heights(None).unwrap();
     assert_eq!(h[..3], [0.2126, 0.7152, 0.0722]);
     assert_eq!(h[3], luma(10.0 / 255.0, 20.0 / 255.0, 30.0 / 255.0));
-    assert_eq!(
-        r.heights(Some(Channel::B)).unwrap(),
-        [0.0, 0.0, 1.0, 30.0 / 255.0]
-    );
+    assert_eq!(r.heights(Some(Channel::B)).unwrap(), [0.0, 0.0, 1.0, 30.0 / 255.0]);
 
     spec.trns = Some(vec![0, 51, 255]);
     let r = read(&spec.encode(|x, y| vec![(y * 2 + x) as u8]));
@@ -343,17 +273,10 @@ fn png_interlaced_reads_like_plain() {
     let plain = read(&spec.encode(pixel));
     spec.interlaced = true;
     let adam7 = spec.encode(pixel);
-    assert_ne!(
-        adam7,
-        spec.encode(|_, _| vec![0]),
-        "test image is not constant"
-    );
+    assert_ne!(adam7, spec.encode(|_, _| vec![0]), "test image is not constant");
     let interlaced = read(&adam7);
     assert_eq!(interlaced, plain);
-    assert_eq!(
-        data(&interlaced, "Y")[5 * 13 + 7],
-        f32::from(pixel(7, 5)[0]) / 255.0
-    );
+    assert_eq!(data(&interlaced, "Y")[5 * 13 + 7], f32::from(pixel(7, 5)[0]) / 255.0);
 }
 
 // ---------------------------------------------------------------------------
@@ -363,13 +286,10 @@ fn encoded(color: image::ExtendedColorType, w: u32, h: u32, buf: &[u8], format: 
     let mut out = Cursor::new(Vec::new());
     match format {
         "tiff" => image::codecs::tiff::TiffEncoder::new(&mut out).write_image(buf, w, h, color),
-        "jpeg" => image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 100)
-            .write_image(buf, w, h, color),
+        "jpeg" => image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 100).write_image(buf, w, h, color),
         "tga" => image::codecs::tga::TgaEncoder::new(&mut out).write_image(buf, w, h, color),
         "bmp" => image::codecs::bmp::BmpEncoder::new(&mut out).write_image(buf, w, h, color),
-        "webp" => {
-            image::codecs::webp::WebPEncoder::new_lossless(&mut out).write_image(buf, w, h, color)
-        }
+        "webp" => image::codecs::webp::WebPEncoder::new_lossless(&mut out).write_image(buf, w, h, color),
         _ => unreachable!(),
     }
     .unwrap();
@@ -394,13 +314,7 @@ fn tiff_16_bit_gray() {
 fn tiff_float_rgb_values_unchanged() {
     let v = [-2.5f32, 0.125, 1000.0, 1e-7, 3.0, -0.0];
     let buf: Vec<u8> = v.iter().flat_map(|s| s.to_ne_bytes()).collect();
-    let r = read(&encoded(
-        image::ExtendedColorType::Rgb32F,
-        2,
-        1,
-        &buf,
-        "tiff",
-    ));
+    let r = read(&encoded(image::ExtendedColorType::Rgb32F, 2, 1, &buf, "tiff"));
     assert_eq!(r.sample, SampleType::Float);
     assert!(r.sample.more_than_8_bits());
     assert_eq!(data(&r, "R"), [-2.5, 1e-7]);
@@ -435,21 +349,12 @@ fn read_path_missing_file_is_io_error() {
 #[test]
 fn tga_bmp_webp_lossless_values() {
     let buf: Vec<u8> = (0..4 * 3 * 3).map(|i| (i * 7) as u8).collect();
-    for (format, expect) in [
-        ("tga", InputFormat::Tga),
-        ("bmp", InputFormat::Bmp),
-        ("webp", InputFormat::WebP),
-    ] {
+    for (format, expect) in [("tga", InputFormat::Tga), ("bmp", InputFormat::Bmp), ("webp", InputFormat::WebP)] {
         let r = read(&encoded(image::ExtendedColorType::Rgb8, 4, 3, &buf, format));
         assert_eq!(r.format, expect);
         assert_eq!((r.width, r.height), (4, 3));
         assert_eq!(names(&r), ["R", "G", "B"], "{format}");
-        let g: Vec<f32> = buf
-            .iter()
-            .skip(1)
-            .step_by(3)
-            .map(|&v| f32::from(v) / 255.0)
-            .collect();
+        let g: Vec<f32> = buf.iter().skip(1).step_by(3).map(|&v| f32::from(v) / 255.0).collect();
         assert_eq!(r.heights(Some(Channel::G)).unwrap(), g, "{format}");
     }
 }
@@ -457,26 +362,11 @@ fn tga_bmp_webp_lossless_values() {
 // ---------------------------------------------------------------------------
 // OpenEXR
 
-fn exr_bytes(
-    size: (usize, usize),
-    position: (i32, i32),
-    channels: Vec<AnyChannel<FlatSamples>>,
-) -> Vec<u8> {
-    let attributes = LayerAttributes {
-        layer_position: Vec2(position.0, position.1),
-        ..LayerAttributes::default()
-    };
-    let layer = Layer::new(
-        size,
-        attributes,
-        Encoding::UNCOMPRESSED,
-        AnyChannels::sort(SmallVec::from_vec(channels)),
-    );
+fn exr_bytes(size: (usize, usize), position: (i32, i32), channels: Vec<AnyChannel<FlatSamples>>) -> Vec<u8> {
+    let attributes = LayerAttributes { layer_position: Vec2(position.0, position.1), ..LayerAttributes::default() };
+    let layer = Layer::new(size, attributes, Encoding::UNCOMPRESSED, AnyChannels::sort(SmallVec::from_vec(channels)));
     let mut out = Cursor::new(Vec::new());
-    Image::from_layer(layer)
-        .write()
-        .to_buffered(&mut out)
-        .unwrap();
+    Image::from_layer(layer).write().to_buffered(&mut out).unwrap();
     out.into_inner()
 }
 
@@ -497,11 +387,7 @@ fn exr_single_channel_half_float_u32() {
             FlatSamples::F16(s) => s.iter().map(|h| h.to_f32()).collect(),
             FlatSamples::U32(s) => s.iter().map(|&n| n as f32).collect(),
         };
-        let r = read(&exr_bytes(
-            (3, 2),
-            (0, 0),
-            vec![AnyChannel::new("height", samples)],
-        ));
+        let r = read(&exr_bytes((3, 2), (0, 0), vec![AnyChannel::new("height", samples)]));
         assert_eq!(r.format, InputFormat::Exr);
         assert_eq!(r.format.to_string(), "exr");
         assert_eq!(r.sample, SampleType::Float);
@@ -511,14 +397,8 @@ fn exr_single_channel_half_float_u32() {
         assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
     }
     // Half really is half: 0.1 is stored as the nearest half.
-    let r = read(&exr_bytes(
-        (1, 1),
-        (0, 0),
-        vec![AnyChannel::new(
-            "height",
-            FlatSamples::F16(vec![f16::from_f32(0.1)]),
-        )],
-    ));
+    let r =
+        read(&exr_bytes((1, 1), (0, 0), vec![AnyChannel::new("height", FlatSamples::F16(vec![f16::from_f32(0.1)]))]));
     assert_eq!(r.heights(None).unwrap(), [0.099_975_586]);
 }
 
@@ -547,11 +427,7 @@ fn exr_rgb_uses_luma_and_layer_names_match() {
     let r = read(&exr_bytes(
         (3, 1),
         (0, 0),
-        vec![
-            f32_channel("R", &red),
-            f32_channel("G", &green),
-            f32_channel("B", &blue),
-        ],
+        vec![f32_channel("R", &red), f32_channel("G", &green), f32_channel("B", &blue)],
     ));
     assert_eq!(r.heights(None).unwrap(), expected);
     assert_eq!(r.heights(None).unwrap()[0], 0.2126);
@@ -574,11 +450,7 @@ fn exr_rgb_uses_luma_and_layer_names_match() {
 
 #[test]
 fn exr_without_usable_channels_names_them() {
-    let r = read(&exr_bytes(
-        (1, 1),
-        (0, 0),
-        vec![f32_channel("depth", &[1.0]), f32_channel("mask", &[0.0])],
-    ));
+    let r = read(&exr_bytes((1, 1), (0, 0), vec![f32_channel("depth", &[1.0]), f32_channel("mask", &[0.0])]));
     let e = r.heights(None).unwrap_err();
     assert!(is_unsupported(&e), "{e}");
     let m = e.to_string();
@@ -601,23 +473,13 @@ fn exr_nan_and_inf_name_the_first_texel() {
     v[4 + 3] = f32::NAN; // (3, 1), first in row order
     let r = read(&exr_bytes((4, 3), (0, 0), vec![f32_channel("height", &v)]));
     assert!(data(&r, "height")[7].is_nan(), "planes keep the NaN");
-    for e in [
-        r.heights(None).unwrap_err(),
-        r.clone().into_heights(None).unwrap_err(),
-    ] {
+    for e in [r.heights(None).unwrap_err(), r.clone().into_heights(None).unwrap_err()] {
         assert!(matches!(e, Error::NonFiniteHeight { x: 3, y: 1 }), "{e}");
     }
     // A NaN in a channel that is not the height does not matter.
-    let r = read(&exr_bytes(
-        (1, 1),
-        (0, 0),
-        vec![f32_channel("Y", &[1.0]), f32_channel("A", &[f32::NAN])],
-    ));
+    let r = read(&exr_bytes((1, 1), (0, 0), vec![f32_channel("Y", &[1.0]), f32_channel("A", &[f32::NAN])]));
     assert_eq!(r.heights(None).unwrap(), [1.0]);
-    assert!(matches!(
-        r.heights(Some(Channel::A)).unwrap_err(),
-        Error::NonFiniteHeight { x: 0, y: 0 }
-    ));
+    assert!(matches!(r.heights(Some(Channel::A)).unwrap_err(), Error::NonFiniteHeight { x: 0, y: 0 }));
 }
 
 // ---------------------------------------------------------------------------
@@ -626,32 +488,20 @@ fn exr_nan_and_inf_name_the_first_texel() {
 #[test]
 fn empty_text_and_truncated_inputs_are_errors() {
     let e = decode(&[], &ReadOptions::default()).unwrap_err();
-    assert!(
-        matches!(&e, Error::Decode(m) if m == "file is empty"),
-        "{e}"
-    );
+    assert!(matches!(&e, Error::Decode(m) if m == "file is empty"), "{e}");
     let e = decode(b"just some text, not an image\n", &ReadOptions::default()).unwrap_err();
-    assert!(
-        matches!(&e, Error::Decode(m) if m.starts_with("not a recognised image format")),
-        "{e}"
-    );
+    assert!(matches!(&e, Error::Decode(m) if m.starts_with("not a recognised image format")), "{e}");
 
     let png = PngSpec::new(5, 4, 2, 8).encode(|x, y| vec![x as u8, y as u8, 9]);
     read(&png);
     for len in 1..png.len() - 12 {
         // Everything short of the IEND chunk lacks pixel data.
-        assert!(
-            decode(&png[..len], &ReadOptions::default()).is_err(),
-            "prefix {len}"
-        );
+        assert!(decode(&png[..len], &ReadOptions::default()).is_err(), "prefix {len}");
     }
     let exr = exr_bytes((3, 3), (0, 0), vec![f32_channel("Y", &[0.5; 9])]);
     read(&exr);
     for len in 1..exr.len() {
-        assert!(
-            decode(&exr[..len], &ReadOptions::default()).is_err(),
-            "exr prefix {len}"
-        );
+        assert!(decode(&exr[..len], &ReadOptions::default()).is_err(), "exr prefix {len}");
     }
 }
 
@@ -704,18 +554,11 @@ fn zero_size_png_is_an_error() {
 #[test]
 fn png_rgb8_round_trip() {
     let texels: Vec<[u8; 3]> = (0..15).map(|i| [i * 17, 255 - i, 128]).collect();
-    for compression in [
-        PngCompression::Fast,
-        PngCompression::Default,
-        PngCompression::Best,
-    ] {
+    for compression in [PngCompression::Fast, PngCompression::Default, PngCompression::Best] {
         let mut out = Vec::new();
         encode_png_rgb8(&texels, 5, 3, compression, &mut out).unwrap();
         let r = read(&out);
-        assert_eq!(
-            (r.format.clone(), r.width, r.height),
-            (InputFormat::Png, 5, 3)
-        );
+        assert_eq!((r.format.clone(), r.width, r.height), (InputFormat::Png, 5, 3));
         assert_eq!(r.sample, SampleType::Int { bits: 8 });
         for (c, name) in ["R", "G", "B"].iter().enumerate() {
             let expected: Vec<f32> = texels.iter().map(|t| f32::from(t[c]) / 255.0).collect();
@@ -726,20 +569,13 @@ fn png_rgb8_round_trip() {
 
 #[test]
 fn png_rgb16_round_trip_keeps_byte_order() {
-    let texels: Vec<[u16; 3]> = vec![
-        [0x0102, 32768, 65535],
-        [0, 1, 0xff00],
-        [0x00ff, 12345, 54321],
-    ];
+    let texels: Vec<[u16; 3]> = vec![[0x0102, 32768, 65535], [0, 1, 0xff00], [0x00ff, 12345, 54321]];
     let mut out = Vec::new();
     encode_png_rgb16(&texels, 3, 1, PngCompression::default(), &mut out).unwrap();
     let r = read(&out);
     assert_eq!(r.sample, SampleType::Int { bits: 16 });
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
-        let back: Vec<u16> = data(&r, name)
-            .iter()
-            .map(|&h| (h * 65535.0).round() as u16)
-            .collect();
+        let back: Vec<u16> = data(&r, name).iter().map(|&h| (h * 65535.0).round() as u16).collect();
         let expected: Vec<u16> = texels.iter().map(|t| t[c]).collect();
         assert_eq!(back, expected, "{name}");
     }
@@ -748,53 +584,17 @@ fn png_rgb16_round_trip_keeps_byte_order() {
 #[test]
 fn encoders_reject_wrong_buffer_sizes() {
     let e = encode_png_rgb8(&[[0; 3]; 5], 2, 3, PngCompression::Fast, Vec::new()).unwrap_err();
-    assert!(
-        matches!(
-            e,
-            Error::BufferSize {
-                expected: 6,
-                actual: 5
-            }
-        ),
-        "{e}"
-    );
+    assert!(matches!(e, Error::BufferSize { expected: 6, actual: 5 }), "{e}");
     let e = encode_png_rgb16(&[[0; 3]; 7], 2, 3, PngCompression::Fast, Vec::new()).unwrap_err();
-    assert!(
-        matches!(
-            e,
-            Error::BufferSize {
-                expected: 6,
-                actual: 7
-            }
-        ),
-        "{e}"
-    );
-    let e = encode_exr(
-        &[[0.0; 3]; 1],
-        2,
-        3,
-        ExrDepth::Float,
-        Cursor::new(Vec::new()),
-    )
-    .unwrap_err();
-    assert!(
-        matches!(
-            e,
-            Error::BufferSize {
-                expected: 6,
-                actual: 1
-            }
-        ),
-        "{e}"
-    );
+    assert!(matches!(e, Error::BufferSize { expected: 6, actual: 7 }), "{e}");
+    let e = encode_exr(&[[0.0; 3]; 1], 2, 3, ExrDepth::Float, Cursor::new(Vec::new())).unwrap_err();
+    assert!(matches!(e, Error::BufferSize { expected: 6, actual: 1 }), "{e}");
     assert!(encode_png_rgb8(&[], 0, 0, PngCompression::Fast, Vec::new()).is_err());
 }
 
 #[test]
 fn exr_round_trip_float_and_half() {
-    let texels: Vec<[f32; 3]> = (0..6)
-        .map(|i| [i as f32 * 0.1 - 0.3, -0.999, 1.0 / (i as f32 + 3.0)])
-        .collect();
+    let texels: Vec<[f32; 3]> = (0..6).map(|i| [i as f32 * 0.1 - 0.3, -0.999, 1.0 / (i as f32 + 3.0)]).collect();
     for depth in [ExrDepth::Float, ExrDepth::Half] {
         let mut out = Cursor::new(Vec::new());
         encode_exr(&texels, 3, 2, depth, &mut out).unwrap();
@@ -818,10 +618,8 @@ fn exr_round_trip_float_and_half() {
 // Atomic writes
 
 fn folder_listing(dir: &std::path::Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
+    let mut names: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     names.sort();
     names
 }
@@ -886,10 +684,7 @@ fn write_atomically_missing_folder_is_io_error() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sub").join("x.png");
     let e = write_atomically(&path, |_| Ok(())).unwrap_err();
-    assert!(
-        matches!(e, Error::Io(_)),
-        "missing folder is an io error: {e}"
-    );
+    assert!(matches!(e, Error::Io(_)), "missing folder is an io error: {e}");
 }
 
 #[cfg(unix)]
@@ -915,11 +710,7 @@ fn corrupted_files_of_every_format_do_not_panic() {
         .map(|f| encoded(image::ExtendedColorType::Rgb8, 8, 8, &rgb, f))
         .collect();
     files.push(PngSpec::new(8, 8, 2, 8).encode(|x, y| vec![x as u8, y as u8, 3]));
-    files.push(exr_bytes(
-        (8, 8),
-        (0, 0),
-        vec![f32_channel("Y", &[0.5; 64])],
-    ));
+    files.push(exr_bytes((8, 8), (0, 0), vec![f32_channel("Y", &[0.5; 64])]));
     for file in &files {
         for pos in (0..file.len()).step_by(3) {
             for byte in [0x00, 0xff, 0x7f] {

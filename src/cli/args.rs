@@ -75,7 +75,7 @@ pub struct ConvertArgs {
 
     /// Bits per output channel: 8 or 16 for PNG, 16 (half) or 32 (float) for
     /// EXR. Default: 16 for inputs of more than 8 bits, else 8; 32 for EXR.
-    #[arg(long, value_name = "BITS", value_parser = clap::builder::PossibleValuesParser::new(["8", "16", "32"]).map(|s| s.parse::<u8>().unwrap_or(8)))]
+    #[arg(long, value_name = "BITS", value_parser = parse_bits)]
     pub bits: Option<u8>,
 
     /// Output format; default: the output file's extension, else the input's
@@ -153,6 +153,15 @@ fn parse_patch(s: &str) -> Result<usize, String> {
         return Err(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"));
     }
     Ok(n)
+}
+
+fn parse_bits(s: &str) -> Result<u8, String> {
+    match s {
+        "8" => Ok(8),
+        "16" => Ok(16),
+        "32" => Ok(32),
+        _ => Err(format!("bits must be 8, 16 or 32, got '{s}'")),
+    }
 }
 
 fn parse_finite(s: &str) -> Result<f64, String> {

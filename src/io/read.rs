@@ -145,9 +145,7 @@ pub struct ReadOptions {
 
 impl Default for ReadOptions {
     fn default() -> Self {
-        ReadOptions {
-            max_texels: 1 << 30,
-        }
+        ReadOptions { max_texels: 1 << 30 }
     }
 }
 
@@ -167,11 +165,7 @@ pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     if bytes.is_empty() {
         return Err(Error::Decode("file is empty".into()));
     }
-    if bytes.starts_with(&EXR_MAGIC) {
-        decode_exr(bytes, opts)
-    } else {
-        decode_with_image(bytes, opts)
-    }
+    if bytes.starts_with(&EXR_MAGIC) { decode_exr(bytes, opts) } else { decode_with_image(bytes, opts) }
 }
 
 /// Reads the file at `path` and [`decode`]s it. Failing to read the file is
@@ -246,10 +240,9 @@ impl Raster {
         }
         match (self.gray_plane()?, wanted) {
             (Some(i), _) => Ok(Source::Plane(i)),
-            (None, Some(name)) => Err(Error::Unsupported(format!(
-                "image has no {name} channel (channels: {})",
-                self.channel_list()
-            ))),
+            (None, Some(name)) => {
+                Err(Error::Unsupported(format!("image has no {name} channel (channels: {})", self.channel_list())))
+            }
             (None, None) => self.rgb().map(Source::Luma),
         }
     }
@@ -285,21 +278,14 @@ impl Raster {
                 last.eq_ignore_ascii_case(letter)
             })
             .collect();
-        let exact = matches
-            .iter()
-            .copied()
-            .find(|&i| self.planes[i].name.eq_ignore_ascii_case(letter));
+        let exact = matches.iter().copied().find(|&i| self.planes[i].name.eq_ignore_ascii_case(letter));
         match (exact, matches.as_slice()) {
             (Some(i), _) => Ok(Some(i)),
             (None, []) => Ok(None),
             (None, [i]) => Ok(Some(*i)),
             (None, _) => Err(Error::Unsupported(format!(
                 "channel {letter} is ambiguous: {}",
-                matches
-                    .iter()
-                    .map(|&i| self.planes[i].name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                matches.iter().map(|&i| self.planes[i].name.as_str()).collect::<Vec<_>>().join(", ")
             ))),
         }
     }
@@ -316,20 +302,12 @@ impl Raster {
     /// Luma of three planes, each texel computed in f64 and rounded to f32
     /// once, so the result does not depend on f32 summation order.
     fn luma(&self, [r, g, b]: [usize; 3]) -> Result<Vec<f32>> {
-        let (r, g, b) = (
-            &self.planes[r].data,
-            &self.planes[g].data,
-            &self.planes[b].data,
-        );
+        let (r, g, b) = (&self.planes[r].data, &self.planes[g].data, &self.planes[b].data);
         let mut out = try_vec(r.len())?;
         out.par_extend(
-            r.par_iter()
-                .zip(g.par_iter())
-                .zip(b.par_iter())
-                .map(|((&r, &g), &b)| {
-                    (LUMA[0] * f64::from(r) + LUMA[1] * f64::from(g) + LUMA[2] * f64::from(b))
-                        as f32
-                }),
+            r.par_iter().zip(g.par_iter()).zip(b.par_iter()).map(|((&r, &g), &b)| {
+                (LUMA[0] * f64::from(r) + LUMA[1] * f64::from(g) + LUMA[2] * f64::from(b)) as f32
+            }),
         );
         Ok(out)
     }
@@ -339,10 +317,7 @@ impl Raster {
     fn check_finite(&self, heights: &[f32]) -> Result<()> {
         match heights.par_iter().position_first(|h| !h.is_finite()) {
             None => Ok(()),
-            Some(i) => Err(Error::NonFiniteHeight {
-                x: i % self.width.max(1),
-                y: i / self.width.max(1),
-            }),
+            Some(i) => Err(Error::NonFiniteHeight { x: i % self.width.max(1), y: i / self.width.max(1) }),
         }
     }
 }
@@ -359,12 +334,8 @@ enum Source {
 /// is not there (instead of the abort a plain allocation would give).
 fn try_vec<T>(len: usize) -> Result<Vec<T>> {
     let mut v = Vec::new();
-    v.try_reserve_exact(len).map_err(|_| {
-        Error::Limits(format!(
-            "cannot allocate {len} values of {} bytes",
-            size_of::<T>()
-        ))
-    })?;
+    v.try_reserve_exact(len)
+        .map_err(|_| Error::Limits(format!("cannot allocate {len} values of {} bytes", size_of::<T>())))?;
     Ok(v)
 }
 
@@ -378,16 +349,11 @@ fn copy_plane(data: &[f32]) -> Result<Vec<f32>> {
 /// Checks a header's claimed size: not zero, not above the limit.
 fn check_size(width: u64, height: u64, opts: &ReadOptions) -> Result<()> {
     if width == 0 || height == 0 {
-        return Err(Error::Decode(format!(
-            "image has zero size ({width} × {height})"
-        )));
+        return Err(Error::Decode(format!("image has zero size ({width} × {height})")));
     }
     let texels = width.saturating_mul(height);
     if texels > opts.max_texels {
-        return Err(Error::Limits(format!(
-            "{width} × {height} is {texels} texels, the limit is {}",
-            opts.max_texels
-        )));
+        return Err(Error::Limits(format!("{width} × {height} is {texels} texels, the limit is {}", opts.max_texels)));
     }
     Ok(())
 }
@@ -444,15 +410,8 @@ fn guess_format(bytes: &[u8]) -> Result<ImageFormat> {
     if tga.into_decoder().is_ok() {
         return Ok(ImageFormat::Tga);
     }
-    let start: String = bytes
-        .iter()
-        .take(8)
-        .map(|b| format!("{b:02x}"))
-        .collect::<Vec<_>>()
-        .join(" ");
-    Err(Error::Decode(format!(
-        "not a recognised image format (starts with bytes {start})"
-    )))
+    let start: String = bytes.iter().take(8).map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" ");
+    Err(Error::Decode(format!("not a recognised image format (starts with bytes {start})")))
 }
 
 /// Limits handed to `image`, so its own allocations (PNG chunks, decoder
@@ -488,30 +447,20 @@ fn layout(color: ColorType) -> Result<(&'static [&'static str], SampleType)> {
         Rgb32F => (RGB, SampleType::Float),
         Rgba32F => (RGBA, SampleType::Float),
         other => {
-            return Err(Error::Unsupported(format!(
-                "pixel layout {other:?} is not supported"
-            )));
+            return Err(Error::Unsupported(format!("pixel layout {other:?} is not supported")));
         }
     })
 }
 
 /// Splits interleaved native-endian samples into planes in contract units.
-fn deinterleave(
-    buf: &[u8],
-    names: &[&str],
-    sample: SampleType,
-    texels: usize,
-) -> Result<Vec<Plane>> {
+fn deinterleave(buf: &[u8], names: &[&str], sample: SampleType, texels: usize) -> Result<Vec<Plane>> {
     let bytes = match sample {
         SampleType::Int { bits } => usize::from(bits / 8),
         SampleType::Float => 4,
     };
     let stride = bytes * names.len();
     if buf.len() != texels.saturating_mul(stride) {
-        return Err(Error::Decode(format!(
-            "decoder gave {} bytes for {texels} texels of {stride} bytes",
-            buf.len()
-        )));
+        return Err(Error::Decode(format!("decoder gave {} bytes for {texels} texels of {stride} bytes", buf.len())));
     }
     names
         .iter()
@@ -522,17 +471,10 @@ fn deinterleave(
             let px = buf.par_chunks_exact(stride);
             match bytes {
                 1 => data.par_extend(px.map(|p| f32::from(p[o]) / 255.0)),
-                2 => data.par_extend(
-                    px.map(|p| f32::from(u16::from_ne_bytes([p[o], p[o + 1]])) / 65535.0),
-                ),
-                _ => data.par_extend(
-                    px.map(|p| f32::from_ne_bytes([p[o], p[o + 1], p[o + 2], p[o + 3]])),
-                ),
+                2 => data.par_extend(px.map(|p| f32::from(u16::from_ne_bytes([p[o], p[o + 1]])) / 65535.0)),
+                _ => data.par_extend(px.map(|p| f32::from_ne_bytes([p[o], p[o + 1], p[o + 2], p[o + 3]]))),
             }
-            Ok(Plane {
-                name: (*name).to_string(),
-                data,
-            })
+            Ok(Plane { name: (*name).to_string(), data })
         })
         .collect()
 }
@@ -557,9 +499,7 @@ fn from_image_error(e: ImageError) -> Error {
     match e {
         ImageError::Limits(e) => Error::Limits(message(&e.to_string())),
         ImageError::Unsupported(e) => Error::Unsupported(message(&e.to_string())),
-        ImageError::IoError(e) => {
-            Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string())))
-        }
+        ImageError::IoError(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
         other => Error::Decode(message(&other.to_string())),
     }
 }
@@ -591,19 +531,9 @@ fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let (width, height) = (layer.size.0, layer.size.1);
     check_size(width as u64, height as u64, opts)?;
     let texels = width * height;
-    let planes = layer
-        .channel_data
-        .list
-        .into_iter()
-        .map(|channel| exr_plane(channel, texels))
-        .collect::<Result<Vec<_>>>()?;
-    Ok(Raster {
-        width,
-        height,
-        format: InputFormat::Exr,
-        sample: SampleType::Float,
-        planes,
-    })
+    let planes =
+        layer.channel_data.list.into_iter().map(|channel| exr_plane(channel, texels)).collect::<Result<Vec<_>>>()?;
+    Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
 }
 
 /// Checks every layer's data window against the limit before `exr`
@@ -612,8 +542,7 @@ fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 /// offset tables are stored in the file, so an honest file holds 8 bytes
 /// per chunk; a header claiming more chunks than that is forged.
 fn check_exr_header(bytes: &[u8], opts: &ReadOptions) -> Result<()> {
-    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
-        .map_err(from_exr_error)?;
+    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(from_exr_error)?;
     if meta.headers.is_empty() {
         return Err(Error::Decode("exr file has no layers".into()));
     }
@@ -632,10 +561,7 @@ fn check_exr_header(bytes: &[u8], opts: &ReadOptions) -> Result<()> {
 }
 
 /// One EXR channel as a plane: half and float as stored, u32 as its number.
-fn exr_plane(
-    channel: exr::prelude::AnyChannel<exr::prelude::FlatSamples>,
-    texels: usize,
-) -> Result<Plane> {
+fn exr_plane(channel: exr::prelude::AnyChannel<exr::prelude::FlatSamples>, texels: usize) -> Result<Plane> {
     use exr::prelude::FlatSamples;
     let name = channel.name.to_string();
     let data = match channel.sample_data {

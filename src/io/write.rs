@@ -10,9 +10,7 @@ use std::io::{self, BufWriter, Seek, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use exr::prelude::{
-    Encoding, Image, Layer, LayerAttributes, SpecificChannels, Vec2, WritableImage, f16,
-};
+use exr::prelude::{Encoding, Image, Layer, LayerAttributes, SpecificChannels, Vec2, WritableImage, f16};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder, ImageError};
 
@@ -89,13 +87,9 @@ pub fn encode_png_rgb16(
 ) -> Result<()> {
     let (w, h) = png_size(texels.len(), width, height)?;
     let mut bytes = Vec::new();
-    bytes
-        .try_reserve_exact(texels.len() * 6)
-        .map_err(|_| Error::Encode("out of memory for the png rows".into()))?;
+    bytes.try_reserve_exact(texels.len() * 6).map_err(|_| Error::Encode("out of memory for the png rows".into()))?;
     bytes.extend(texels.as_flattened().iter().flat_map(|v| v.to_ne_bytes()));
-    png_encoder(out, compression)
-        .write_image(&bytes, w, h, ExtendedColorType::Rgb16)
-        .map_err(from_image_error)
+    png_encoder(out, compression).write_image(&bytes, w, h, ExtendedColorType::Rgb16).map_err(from_image_error)
 }
 
 /// Writes an OpenEXR file with channels R, G, B of `width` × `height`
@@ -170,10 +164,7 @@ where
 /// 0666 minus the umask, so the result does not end up private (0600) as
 /// a temp-file crate would make it. On any error, and if `write` panics,
 /// the temporary file is removed.
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut dyn Write) -> Result<()>,
-) -> Result<()> {
+pub fn write_atomically(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
     let (file, guard) = TempFile::create(path)?;
     let mut out = BufWriter::new(file);
     write(&mut out)?;
@@ -202,12 +193,9 @@ impl TempFile {
     /// never opens an existing file, so a name already taken (another
     /// process, a leftover) moves on to the next counter.
     fn create(target: &Path) -> Result<(File, TempFile)> {
-        let name = target.file_name().ok_or_else(|| {
-            Error::Io(io::Error::new(
-                io::ErrorKind::InvalidInput,
-                "output path has no file name",
-            ))
-        })?;
+        let name = target
+            .file_name()
+            .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;
         let folder = match target.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
@@ -225,9 +213,7 @@ impl TempFile {
                 Err(e) => return Err(Error::Io(e)),
             }
         }
-        Err(Error::Io(last.unwrap_or_else(|| {
-            io::Error::new(io::ErrorKind::AlreadyExists, "no free temporary name")
-        })))
+        Err(Error::Io(last.unwrap_or_else(|| io::Error::new(io::ErrorKind::AlreadyExists, "no free temporary name"))))
     }
 
     /// The file was renamed into place: nothing left to remove.
@@ -272,16 +258,10 @@ fn png_encoder<W: Write>(out: W, compression: PngCompression) -> PngEncoder<W> {
 /// on a buffer of the wrong length.
 fn png_size(len: usize, width: usize, height: usize) -> Result<(u32, u32)> {
     check_buffer(len, width, height)?;
-    let side = |n: usize| {
-        u32::try_from(n)
-            .ok()
-            .filter(|&n| n > 0 && n <= i32::MAX as u32)
-    };
+    let side = |n: usize| u32::try_from(n).ok().filter(|&n| n > 0 && n <= i32::MAX as u32);
     match (side(width), side(height)) {
         (Some(w), Some(h)) => Ok((w, h)),
-        _ => Err(Error::Encode(format!(
-            "png cannot hold {width} × {height} texels"
-        ))),
+        _ => Err(Error::Encode(format!("png cannot hold {width} × {height} texels"))),
     }
 }
 
@@ -291,10 +271,7 @@ fn check_buffer(len: usize, width: usize, height: usize) -> Result<()> {
         .checked_mul(height)
         .ok_or_else(|| Error::Encode(format!("{width} × {height} texels do not fit in memory")))?;
     if len != expected {
-        return Err(Error::BufferSize {
-            expected,
-            actual: len,
-        });
+        return Err(Error::BufferSize { expected, actual: len });
     }
     Ok(())
 }
