@@ -1,0 +1,169 @@
+//! Helpers for the tiling tests and the `tiling_table` example: reading the
+//! shared real textures (without `normalfit::io`, written elsewhere) and
+//! making the generated cases.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+/// An image as the tiling check takes it: f32 planes in contract units.
+pub struct Planes {
+    /// One plane per channel, row-major.
+    pub planes: Vec<Vec<f32>>,
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+}
+
+impl Planes {
+    /// The planes as the slices `check` takes.
+    pub fn refs(&self) -> Vec<&[f32]> {
+        self.planes.iter().map(Vec::as_slice).collect()
+    }
+
+    /// A one-plane image.
+    pub fn gray(plane: Vec<f32>, width: usize, height: usize) -> Self {
+        assert_eq!(plane.len(), width * height);
+        Planes { planes: vec![plane], width, height }
+    }
+}
+
+/// `../shared/data` beside the crate, if it is there.
+pub fn data_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    dir.is_dir().then_some(dir)
+}
+
+/// Reads a PNG/JPEG with `image` or an EXR with `exr`, into contract units:
+/// integers divided by 2^bits − 1, floats unchanged.
+pub fn load(path: &Path) -> Planes {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        return load_exr(path);
+    }
+    let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let (width, height) = (img.width() as usize, img.height() as usize);
+    let channels = usize::from(img.color().channel_count());
+    // `to_*32f` divides integers by their maximum and copies floats: the
+    // contract's units, no gamma.
+    let interleaved: Vec<f32> = match channels {
+        1 => img.to_luma32f().into_raw(),
+        2 => img.to_luma_alpha32f().into_raw(),
+        3 => img.to_rgb32f().into_raw(),
+        _ => img.to_rgba32f().into_raw(),
+    };
+    let c = channels.min(4);
+    let planes = (0..c).map(|k| interleaved.iter().skip(k).step_by(c).copied().collect()).collect();
+    Planes { planes, width, height }
+}
+
+fn load_exr(path: &Path) -> Planes {
+    let img = exr::prelude::read_first_flat_layer_from_file(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let layer = img.layer_data;
+    let (width, height) = (layer.size.width(), layer.size.height());
+    let channel = |name: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .map(|c| c.sample_data.values_as_f32().collect::<Vec<f32>>())
+    };
+    let list = &layer.channel_data.list;
+    let planes = if let Some(y) = channel("Y") {
+        vec![y]
+    } else if list.len() == 1 {
+        vec![list[0].sample_data.values_as_f32().collect()]
+    } else {
+        ["R", "G", "B", "A"].iter().filter_map(|n| channel(n)).collect()
+    };
+    Planes { planes, width, height }
+}
+
+/// Deterministic pseudo-random numbers in [0, 1) (splitmix64), so the
+/// generated cases are the same on every run without a dependency.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// One octave of smooth value noise on a lattice of `cells_x` × `cells_y`
+/// cells, periodic with period `width` × `height` (the lattice wraps), each
+/// cell `width / cells_x` texels wide. Smoothstep interpolation keeps the
+/// slope continuous, so the only creases are ones a test puts there.
+fn octave(width: usize, height: usize, cells_x: usize, cells_y: usize, rng: &mut Rng) -> Vec<f64> {
+    let lattice: Vec<f64> = (0..cells_x * cells_y).map(|_| rng.next() * 2.0 - 1.0).collect();
+    let at = |i: usize, j: usize| lattice[(j % cells_y) * cells_x + i % cells_x];
+    let smooth = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
+    let mut out = Vec::with_capacity(width * height);
+    for y in 0..height {
+        let fy = y as f64 * cells_y as f64 / height as f64;
+        let (j, ty) = (fy.floor() as usize, smooth(fy.fract()));
+        for x in 0..width {
+            let fx = x as f64 * cells_x as f64 / width as f64;
+            let (i, tx) = (fx.floor() as usize, smooth(fx.fract()));
+            let top = at(i, j) + tx * (at(i + 1, j) - at(i, j));
+            let bottom = at(i, j + 1) + tx * (at(i + 1, j + 1) - at(i, j + 1));
+            out.push(top + ty * (bottom - top));
+        }
+    }
+    out
+}
+
+/// Value noise periodic with period `width` × `height`: `octaves` octaves,
+/// the first with `cells` lattice cells across each axis, each next one
+/// twice as fine at half the amplitude. Mapped into [0, 1].
+pub fn periodic_noise(width: usize, height: usize, cells: usize, octaves: usize, seed: u64) -> Vec<f32> {
+    periodic_noise_xy(width, height, cells, cells, octaves, seed)
+}
+
+/// Like [`periodic_noise`] with separate cell counts per axis.
+pub fn periodic_noise_xy(width: usize, height: usize, cx: usize, cy: usize, octaves: usize, seed: u64) -> Vec<f32> {
+    let mut rng = Rng(seed);
+    let mut sum = vec![0.0f64; width * height];
+    let mut amp = 1.0;
+    for o in 0..octaves {
+        let layer = octave(width, height, cx << o, cy << o, &mut rng);
+        for (s, v) in sum.iter_mut().zip(layer) {
+            *s += amp * v;
+        }
+        amp *= 0.5;
+    }
+    normalize(&sum)
+}
+
+/// Maps values linearly onto [0, 1].
+pub fn normalize(v: &[f64]) -> Vec<f32> {
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    v.iter().map(|&x| ((x - lo) / span) as f32).collect()
+}
+
+/// A `w` × `h` window at (x0, y0) of a `big_w`-wide image.
+pub fn crop(src: &[f32], big_w: usize, x0: usize, y0: usize, w: usize, h: usize) -> Vec<f32> {
+    (y0..y0 + h).flat_map(|y| src[y * big_w + x0..][..w].iter().copied()).collect()
+}
+
+/// Rounds to `bits`-bit integers and back to contract units, as a file would.
+pub fn quantize(v: &[f32], bits: u32) -> Vec<f32> {
+    let max = ((1u64 << bits) - 1) as f32;
+    v.iter().map(|&x| (x.clamp(0.0, 1.0) * max).round() / max).collect()
+}
+
+/// The encoded normal map (c = (n + 1)/2, three planes) of a height map,
+/// fitted with `normalfit::normals` and wrap borders.
+pub fn normal_map_planes(heights: &[f32], w: usize, h: usize, scale: f64) -> Planes {
+    let opts = normalfit::Options::default().with_strength(normalfit::Strength::Scale(scale));
+    let n = normalfit::normals(heights, w, h, &opts).expect("fit");
+    let planes = (0..3).map(|c| n.iter().map(|t| (t[c] + 1.0) * 0.5).collect()).collect();
+    Planes { planes, width: w, height: h }
+}
