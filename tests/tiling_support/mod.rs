@@ -101,14 +101,18 @@ impl Rng {
 /// slope continuous, so the only creases are ones a test puts there.
 fn octave(width: usize, height: usize, cells_x: usize, cells_y: usize, rng: &mut Rng) -> Vec<f64> {
     let lattice: Vec<f64> = (0..cells_x * cells_y).map(|_| rng.next() * 2.0 - 1.0).collect();
+    // A random shift of the lattice, so that the wrap does not always fall on
+    // a lattice line, where smoothstep's slope is zero and every seam would
+    // look unusually quiet.
+    let (ox, oy) = (rng.next(), rng.next());
     let at = |i: usize, j: usize| lattice[(j % cells_y) * cells_x + i % cells_x];
     let smooth = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
     let mut out = Vec::with_capacity(width * height);
     for y in 0..height {
-        let fy = y as f64 * cells_y as f64 / height as f64;
+        let fy = y as f64 * cells_y as f64 / height as f64 + oy;
         let (j, ty) = (fy.floor() as usize, smooth(fy.fract()));
         for x in 0..width {
-            let fx = x as f64 * cells_x as f64 / width as f64;
+            let fx = x as f64 * cells_x as f64 / width as f64 + ox;
             let (i, tx) = (fx.floor() as usize, smooth(fx.fract()));
             let top = at(i, j) + tx * (at(i + 1, j) - at(i, j));
             let bottom = at(i, j + 1) + tx * (at(i + 1, j + 1) - at(i, j + 1));
@@ -160,9 +164,14 @@ pub fn quantize(v: &[f32], bits: u32) -> Vec<f32> {
 }
 
 /// The encoded normal map (c = (n + 1)/2, three planes) of a height map,
-/// fitted with `normalfit::normals` and wrap borders.
-pub fn normal_map_planes(heights: &[f32], w: usize, h: usize, scale: f64) -> Planes {
-    let opts = normalfit::Options::default().with_strength(normalfit::Strength::Scale(scale));
+/// fitted with `normalfit::normals`: wrap borders for a map meant to tile,
+/// clamp borders for one that is not (wrapping a crop's fit would carry its
+/// seam into a smooth ridge across the wrap instead of a jump).
+pub fn normal_map_planes(heights: &[f32], w: usize, h: usize, scale: f64, wrap: bool) -> Planes {
+    let border = if wrap { normalfit::Border::Wrap } else { normalfit::Border::Clamp };
+    let opts = normalfit::Options::default()
+        .with_strength(normalfit::Strength::Scale(scale))
+        .with_borders(normalfit::Borders::both(border));
     let n = normalfit::normals(heights, w, h, &opts).expect("fit");
     let planes = (0..3).map(|c| n.iter().map(|t| (t[c] + 1.0) * 0.5).collect()).collect();
     Planes { planes, width: w, height: h }
