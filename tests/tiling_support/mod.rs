@@ -176,3 +176,115 @@ pub fn normal_map_planes(heights: &[f32], w: usize, h: usize, scale: f64, wrap: 
     let planes = (0..3).map(|c| n.iter().map(|t| (t[c] + 1.0) * 0.5).collect()).collect();
     Planes { planes, width: w, height: h }
 }
+
+/// A test image with the verdict it must get.
+pub struct Case {
+    /// Short description, for the table.
+    pub name: String,
+    /// The image.
+    pub image: Planes,
+    /// Must it tile along x, along y?
+    pub expect: (bool, bool),
+    /// The kind `Auto` must find.
+    pub kind: normalfit::tiling::ImageKind,
+}
+
+/// The shared real textures with their verdicts, when `../shared/data` is there.
+pub fn real_cases() -> Option<Vec<Case>> {
+    use normalfit::tiling::ImageKind::{Height, Normal};
+    let dir = data_dir()?;
+    let files = [
+        ("tileable/ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg", true, Height),
+        ("tileable/ambientcg_Bricks061/Bricks061_1K-JPG_NormalGL.jpg", true, Normal),
+        ("tileable/ambientcg_Bricks061/Bricks061_1K-JPG_NormalDX.jpg", true, Normal),
+        ("tileable/polyhaven_denim_fabric/denim_fabric_disp_1k.png", true, Height),
+        ("tileable/polyhaven_denim_fabric/denim_fabric_nor_gl_1k.png", true, Normal),
+        ("tileable/materialx_adsk_bricks_02/bricks_02_height_2k_raw.exr", true, Height),
+        ("tileable/materialx_adsk_bricks_02/bricks_02_normal_2k_raw.exr", true, Normal),
+        ("tileable/materialx_adsk_bricks_02/bricks_02_normal_2k_raw.png", true, Normal),
+        ("non_tiling/skimage_camera.png", false, Height),
+        ("non_tiling/skimage_coffee.png", false, Height),
+    ];
+    Some(
+        files
+            .iter()
+            .map(|&(f, tiles, kind)| Case {
+                name: f.rsplit('/').next().unwrap_or(f).to_string(),
+                image: load(&dir.join(f)),
+                expect: (tiles, tiles),
+                kind,
+            })
+            .collect(),
+    )
+}
+
+fn gray_case(name: String, v: Vec<f32>, n: usize, expect: (bool, bool)) -> Case {
+    Case { name, image: Planes::gray(v, n, n), expect, kind: normalfit::tiling::ImageKind::Height }
+}
+
+/// The generated cases, at side `n`, quantised to 16 bits as a PNG would
+/// hold them (the normal maps stay float).
+pub fn generated_cases(n: usize) -> Vec<Case> {
+    use normalfit::tiling::ImageKind::Normal;
+    let mut cases = Vec::new();
+    // Noise at several frequencies: (cells of the first octave, octaves).
+    // The finest octave keeps cells of at least 8 texels: white noise
+    // tiles whatever is done to it, so a crop of it is no test.
+    for (cells, octaves) in [(2, 1), (3, 3), (4, 2), (n / 16, 1)] {
+        let seed = (n * 31 + cells * 7 + octaves) as u64;
+        let t = periodic_noise(n, n, cells, octaves, seed);
+        cases.push(gray_case(format!("noise {cells}×{octaves}oct n{n}"), quantize(&t, 16), n, (true, true)));
+        // A window of a periodic noise three times as large, off its period.
+        let big = periodic_noise(3 * n, 3 * n, 3 * cells, octaves, seed + 1);
+        let c = crop(&big, 3 * n, n / 3 + 5, n / 2 + 7, n, n);
+        cases.push(gray_case(format!("crop of noise {cells}×{octaves}oct n{n}"), quantize(&c, 16), n, (false, false)));
+    }
+    // Periodic along x only: a crop in y of noise periodic in x.
+    let tall = periodic_noise_xy(n, 3 * n, 4, 12, 2, n as u64);
+    let c = crop(&tall, n, 0, n / 2 + 3, n, n);
+    cases.push(gray_case(format!("noise periodic in x only n{n}"), quantize(&c, 16), n, (true, false)));
+
+    // Value-continuous, slope-creased wraps: a smooth noise plus a profile
+    // along x whose ends meet in value but not in slope.
+    let base = periodic_noise(n, n, 2, 2, 77 + n as u64);
+    let nf = n as f64;
+    let profiles: [(&str, Box<dyn Fn(f64) -> f64>); 3] = [
+        ("half sine", Box::new(|x: f64| (std::f64::consts::PI * x / nf).sin())),
+        ("parabola", Box::new(|x: f64| 4.0 * (x / nf) * (1.0 - x / nf))),
+        ("triangle |x − W/2|", Box::new(|x: f64| 1.0 - (x - nf / 2.0).abs() / (nf / 2.0))),
+    ];
+    for (label, f) in &profiles {
+        let v: Vec<f64> = (0..n * n).map(|k| 0.5 * f((k % n) as f64) + 0.5 * f64::from(base[k])).collect();
+        cases.push(gray_case(format!("{label} crease + noise n{n}"), quantize(&normalize(&v), 16), n, (false, true)));
+    }
+
+    // Normal maps fitted from a tileable height and from a crop.
+    let t = periodic_noise(n, n, 4, 3, 5 + n as u64);
+    let mut m = normal_map_planes(&t, n, n, 8.0, true);
+    cases.push(Case { name: format!("normal map of noise n{n}"), image: m, expect: (true, true), kind: Normal });
+    let big = periodic_noise(3 * n, 3 * n, 12, 3, 6 + n as u64);
+    let c = crop(&big, 3 * n, n / 3 + 5, n / 2 + 7, n, n);
+    m = normal_map_planes(&c, n, n, 8.0, false);
+    cases.push(Case { name: format!("normal map of crop n{n}"), image: m, expect: (false, false), kind: Normal });
+    cases
+}
+
+/// The contract's public cases (SPEC section 4 conformance): a 16-bit sine
+/// that tiles, a ramp along x that tiles only along y; and a constant.
+pub fn spec_cases() -> Vec<Case> {
+    let n = 96;
+    let nf = n as f64;
+    let sine: Vec<f32> = (0..n * n)
+        .map(|k| {
+            let (x, y) = ((k % n) as f64, (k / n) as f64);
+            let v = (32767.5 + 30000.0 * (2.0 * std::f64::consts::PI * (2.0 * x / nf + y / nf)).sin()).trunc();
+            (v / 65535.0) as f32
+        })
+        .collect();
+    let ramp: Vec<f32> = (0..n * n).map(|k| ((65535.0 * (k % n) as f64 / (nf - 1.0)).trunc() / 65535.0) as f32).collect();
+    vec![
+        gray_case("SPEC sine 96² 16-bit".into(), sine, n, (true, true)),
+        gray_case("SPEC ramp along x 96² 16-bit".into(), ramp, n, (false, true)),
+        gray_case("constant 0.4 32²".into(), vec![0.4; 32 * 32], 32, (true, true)),
+    ]
+}
