@@ -7,7 +7,7 @@
 #[path = "../tests/tiling_support/mod.rs"]
 mod support;
 
-use normalfit::tiling::{check, TilingOptions};
+use normalfit::tiling::{TilingOptions, check};
 
 fn main() {
     let opts = TilingOptions::default();
