@@ -132,8 +132,8 @@
 //!
 //! One pass over the texels, rows in parallel (rayon), each row read once
 //! for both axes; the colour-to-luma conversion happens on the fly per
-//! block of rows, so no full-size copy is made. A 4096² gray image takes a
-//! few tens of milliseconds, far below decoding it.
+//! block of rows, so no full-size copy is made. A 4096² gray image took
+//! 25 ms on 2 cores (`a_4096_square_check_is_cheap`), far below decoding it.
 
 use rayon::prelude::*;
 
