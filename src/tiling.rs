@@ -189,10 +189,7 @@ pub struct TilingOptions {
 
 impl Default for TilingOptions {
     fn default() -> Self {
-        TilingOptions {
-            threshold: DEFAULT_THRESHOLD,
-            kind: KindChoice::Auto,
-        }
+        TilingOptions { threshold: DEFAULT_THRESHOLD, kind: KindChoice::Auto }
     }
 }
 
@@ -290,11 +287,7 @@ impl ImageKind {
             let [mx, my, mz] = mean.map(|m| m / n);
             unit as f64 >= 0.9 * n && mz >= 0.5 && mx.hypot(my) <= 0.3
         });
-        if normal {
-            ImageKind::Normal
-        } else {
-            ImageKind::Height
-        }
+        if normal { ImageKind::Normal } else { ImageKind::Height }
     }
 }
 
@@ -322,31 +315,18 @@ impl ImageKind {
 #[must_use]
 pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOptions) -> TilingReport {
     assert!(!planes.is_empty(), "tiling::check needs at least one plane");
-    let len = width
-        .checked_mul(height)
-        .expect("image size overflows usize");
+    let len = width.checked_mul(height).expect("image size overflows usize");
     for (i, p) in planes.iter().enumerate() {
-        assert!(
-            p.len() >= len,
-            "plane {i} holds {} values, {width}×{height} needs {len}",
-            p.len()
-        );
+        assert!(p.len() >= len, "plane {i} holds {} values, {width}×{height} needs {len}", p.len());
     }
     let kind = match opts.kind {
         KindChoice::Auto => ImageKind::detect(planes, width, height),
         KindChoice::Height => ImageKind::Height,
         KindChoice::Normal => ImageKind::Normal,
     };
-    let axis = |score: f64| AxisReport {
-        score,
-        seamless: score <= opts.threshold,
-    };
+    let axis = |score: f64| AxisReport { score, seamless: score <= opts.threshold };
     if len == 0 {
-        return TilingReport {
-            kind,
-            x: axis(1.0),
-            y: axis(1.0),
-        };
+        return TilingReport { kind, x: axis(1.0), y: axis(1.0) };
     }
     let p = Profiles::measure(planes, width, height, kind);
     // ε from the mean |Δ| per texel over both axes (2·W·H differences),
@@ -379,10 +359,7 @@ fn axis_score(value: &[f64], crease: &[f64], with_crease: bool, eps: f64) -> f64
 /// (seam + ε) / (R + ε), R the k-th largest of `interior` (see module docs).
 fn seam_ratio(seam: f64, interior: &[f64], eps: f64) -> f64 {
     let n = interior.len();
-    let k = MIN_RANK
-        .max((n as f64 * RANK_FRACTION).ceil() as usize)
-        .min(n.div_ceil(2))
-        .max(1);
+    let k = MIN_RANK.max((n as f64 * RANK_FRACTION).ceil() as usize).min(n.div_ceil(2)).max(1);
     let mut scratch = interior.to_vec();
     // The k-th largest is the (n − k)-th smallest: linear-time selection.
     let (_, reference, _) = scratch.select_nth_unstable_by(n - k, f64::total_cmp);
@@ -409,10 +386,7 @@ impl Signal<'_> {
                 }
             }
             Signal::Luma(r, g, b) => {
-                let rows = r[y * w..][..w]
-                    .iter()
-                    .zip(&g[y * w..][..w])
-                    .zip(&b[y * w..][..w]);
+                let rows = r[y * w..][..w].iter().zip(&g[y * w..][..w]).zip(&b[y * w..][..w]);
                 for (o, ((&r, &g), &b)) in out.iter_mut().zip(rows) {
                     *o = finite(0.2126 * r + 0.7152 * g + 0.0722 * b);
                 }
@@ -437,9 +411,7 @@ impl Profiles {
             ImageKind::Height if planes.len() >= 3 => {
                 vec![Signal::Luma(planes[0], planes[1], planes[2])]
             }
-            ImageKind::Normal if planes.len() >= 3 => {
-                planes[..3].iter().map(|p| Signal::Plane(p)).collect()
-            }
+            ImageKind::Normal if planes.len() >= 3 => planes[..3].iter().map(|p| Signal::Plane(p)).collect(),
             _ => vec![Signal::Plane(planes[0])],
         };
         let crease = kind == ImageKind::Height;
@@ -540,12 +512,7 @@ impl Block {
             padded[w + 1] = r[0];
             padded[w + 2] = r[1 % w];
             // a, b, c, d = h(k−1), h(k), h(k+1), h(k+2) for k = 0 … W−1.
-            let (a, b, c, d) = (
-                &padded[..w],
-                &padded[1..=w],
-                &padded[2..w + 2],
-                &padded[3..w + 3],
-            );
+            let (a, b, c, d) = (&padded[..w], &padded[1..=w], &padded[2..w + 2], &padded[3..w + 3]);
             for (k, v) in self.vx.iter_mut().enumerate() {
                 *v += (c[k] - b[k]).abs();
             }
@@ -562,11 +529,7 @@ impl Block {
             // Rows y − 1, y, y + 1, y + 2 for the pair y → y + 1.
             let (a, b, c, d) = (row(i), row(i + 1), row(i + 2), row(i + 3));
             self.vy.push(lane_sum(w, |x| (c[x] - b[x]).abs()));
-            self.cy.push(if crease {
-                lane_sum(w, |x| ((d[x] - c[x]) - (b[x] - a[x])).abs())
-            } else {
-                0.0
-            });
+            self.cy.push(if crease { lane_sum(w, |x| ((d[x] - c[x]) - (b[x] - a[x])).abs()) } else { 0.0 });
         }
     }
 }

@@ -12,19 +12,11 @@ fn assert_cases(cases: &[Case]) {
     let mut wrong = Vec::new();
     for c in cases {
         let r = check(&c.image.refs(), c.image.width, c.image.height, &opts);
-        println!(
-            "{:45} {:?} x {:7.2} y {:7.2}",
-            c.name, r.kind, r.x.score, r.y.score
-        );
+        println!("{:45} {:?} x {:7.2} y {:7.2}", c.name, r.kind, r.x.score, r.y.score);
         if (r.x.seamless, r.y.seamless) != c.expect || r.kind != c.kind {
-            wrong.push(format!(
-                "{}: {r:?}, expected {:?} {:?}",
-                c.name, c.expect, c.kind
-            ));
+            wrong.push(format!("{}: {r:?}, expected {:?} {:?}", c.name, c.expect, c.kind));
         }
-        assert!(
-            r.x.score.is_finite() && r.y.score.is_finite() && r.x.score > 0.0 && r.y.score > 0.0
-        );
+        assert!(r.x.score.is_finite() && r.y.score.is_finite() && r.x.score > 0.0 && r.y.score > 0.0);
         assert_eq!(r.seamless(), r.x.seamless && r.y.seamless);
     }
     assert!(wrong.is_empty(), "wrong verdicts:\n{}", wrong.join("\n"));
@@ -64,11 +56,7 @@ fn constant_images_tile_with_score_one() {
             let data = vec![vec![0.25f32; w * h]; planes];
             let refs: Vec<&[f32]> = data.iter().map(Vec::as_slice).collect();
             let r = check(&refs, w, h, &TilingOptions::default());
-            assert_eq!(
-                (r.x.score, r.y.score),
-                (1.0, 1.0),
-                "{w}×{h}, {planes} planes"
-            );
+            assert_eq!((r.x.score, r.y.score), (1.0, 1.0), "{w}×{h}, {planes} planes");
             assert!(r.seamless());
         }
     }
@@ -106,9 +94,7 @@ fn non_finite_texels_give_finite_scores() {
 #[test]
 fn threshold_and_forced_kind_are_obeyed() {
     let n = 64;
-    let ramp: Vec<f32> = (0..n * n)
-        .map(|k| (k % n) as f32 / (n - 1) as f32)
-        .collect();
+    let ramp: Vec<f32> = (0..n * n).map(|k| (k % n) as f32 / (n - 1) as f32).collect();
     let lax = TilingOptions::default().with_threshold(1e9);
     assert!(check(&[&ramp], n, n, &lax).seamless());
     let strict = TilingOptions::default().with_threshold(0.5);
@@ -116,18 +102,8 @@ fn threshold_and_forced_kind_are_obeyed() {
     assert!(!check(&sine.refs(), sine.width, sine.height, &strict).seamless());
     // The same three planes, judged either way.
     let planes = [ramp.as_slice(), ramp.as_slice(), ramp.as_slice()];
-    let h = check(
-        &planes,
-        n,
-        n,
-        &TilingOptions::default().with_kind(KindChoice::Height),
-    );
-    let m = check(
-        &planes,
-        n,
-        n,
-        &TilingOptions::default().with_kind(KindChoice::Normal),
-    );
+    let h = check(&planes, n, n, &TilingOptions::default().with_kind(KindChoice::Height));
+    let m = check(&planes, n, n, &TilingOptions::default().with_kind(KindChoice::Normal));
     assert_eq!((h.kind, m.kind), (ImageKind::Height, ImageKind::Normal));
     assert!(!h.x.seamless && !m.x.seamless);
 }
@@ -142,30 +118,16 @@ fn kind_detection() {
     assert_eq!(ImageKind::detect(&[&g, &g, &g], n, n), ImageKind::Height);
     // A flat encoded normal map, 8-bit: (128, 128, 255) / 255.
     let (half, one) = (vec![128.0f32 / 255.0; n * n], vec![1.0f32; n * n]);
-    assert_eq!(
-        ImageKind::detect(&[&half, &half, &one], n, n),
-        ImageKind::Normal
-    );
+    assert_eq!(ImageKind::detect(&[&half, &half, &one], n, n), ImageKind::Normal);
     // With alpha too.
-    assert_eq!(
-        ImageKind::detect(&[&half, &half, &one, &one], n, n),
-        ImageKind::Normal
-    );
+    assert_eq!(ImageKind::detect(&[&half, &half, &one, &one], n, n), ImageKind::Normal);
     // A float normal map stored raw, n in [−1, 1].
     let (zero, up) = (vec![0.0f32; n * n], vec![1.0f32; n * n]);
-    assert_eq!(
-        ImageKind::detect(&[&zero, &zero, &up], n, n),
-        ImageKind::Normal
-    );
+    assert_eq!(ImageKind::detect(&[&zero, &zero, &up], n, n), ImageKind::Normal);
     // Random colours are a photo, a height map.
     let mut rng = tiling_support::Rng(9);
-    let rgb: Vec<Vec<f32>> = (0..3)
-        .map(|_| (0..n * n).map(|_| rng.next() as f32).collect())
-        .collect();
-    assert_eq!(
-        ImageKind::detect(&[&rgb[0], &rgb[1], &rgb[2]], n, n),
-        ImageKind::Height
-    );
+    let rgb: Vec<Vec<f32>> = (0..3).map(|_| (0..n * n).map(|_| rng.next() as f32).collect()).collect();
+    assert_eq!(ImageKind::detect(&[&rgb[0], &rgb[1], &rgb[2]], n, n), ImageKind::Height);
 }
 
 #[test]
@@ -173,9 +135,7 @@ fn a_4096_square_check_is_cheap() {
     // Not a benchmark: a guard against an accidental O(n²) or per-texel
     // allocation. The measured figure is in the module docs.
     let n = 4096;
-    let v: Vec<f32> = (0..n * n)
-        .map(|k| ((k % n) as f32 * 0.37 + (k / n) as f32 * 0.11).sin())
-        .collect();
+    let v: Vec<f32> = (0..n * n).map(|k| ((k % n) as f32 * 0.37 + (k / n) as f32 * 0.11).sin()).collect();
     let t = std::time::Instant::now();
     let r = check(&[&v], n, n, &TilingOptions::default());
     let took = t.elapsed();

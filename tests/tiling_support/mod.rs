@@ -24,11 +24,7 @@ impl Planes {
     /// A one-plane image.
     pub fn gray(plane: Vec<f32>, width: usize, height: usize) -> Self {
         assert_eq!(plane.len(), width * height);
-        Planes {
-            planes: vec![plane],
-            width,
-            height,
-        }
+        Planes { planes: vec![plane], width, height }
     }
 }
 
@@ -41,10 +37,7 @@ pub fn data_dir() -> Option<PathBuf> {
 /// Reads a PNG/JPEG with `image` or an EXR with `exr`, into contract units:
 /// integers divided by 2^bits − 1, floats unchanged.
 pub fn load(path: &Path) -> Planes {
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
-    {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         return load_exr(path);
     }
     let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -59,19 +52,12 @@ pub fn load(path: &Path) -> Planes {
         _ => img.to_rgba32f().into_raw(),
     };
     let c = channels.min(4);
-    let planes = (0..c)
-        .map(|k| interleaved.iter().skip(k).step_by(c).copied().collect())
-        .collect();
-    Planes {
-        planes,
-        width,
-        height,
-    }
+    let planes = (0..c).map(|k| interleaved.iter().skip(k).step_by(c).copied().collect()).collect();
+    Planes { planes, width, height }
 }
 
 fn load_exr(path: &Path) -> Planes {
-    let img = exr::prelude::read_first_flat_layer_from_file(path)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let img = exr::prelude::read_first_flat_layer_from_file(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let layer = img.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());
     let channel = |name: &str| {
@@ -88,16 +74,9 @@ fn load_exr(path: &Path) -> Planes {
     } else if list.len() == 1 {
         vec![list[0].sample_data.values_as_f32().collect()]
     } else {
-        ["R", "G", "B", "A"]
-            .iter()
-            .filter_map(|n| channel(n))
-            .collect()
+        ["R", "G", "B", "A"].iter().filter_map(|n| channel(n)).collect()
     };
-    Planes {
-        planes,
-        width,
-        height,
-    }
+    Planes { planes, width, height }
 }
 
 /// Deterministic pseudo-random numbers in [0, 1) (splitmix64), so the
@@ -120,9 +99,7 @@ impl Rng {
 /// cell `width / cells_x` texels wide. Smoothstep interpolation keeps the
 /// slope continuous, so the only creases are ones a test puts there.
 fn octave(width: usize, height: usize, cells_x: usize, cells_y: usize, rng: &mut Rng) -> Vec<f64> {
-    let lattice: Vec<f64> = (0..cells_x * cells_y)
-        .map(|_| rng.next() * 2.0 - 1.0)
-        .collect();
+    let lattice: Vec<f64> = (0..cells_x * cells_y).map(|_| rng.next() * 2.0 - 1.0).collect();
     // A random shift of the lattice, so that the wrap does not always fall on
     // a lattice line, where smoothstep's slope is zero and every seam would
     // look unusually quiet.
@@ -147,25 +124,12 @@ fn octave(width: usize, height: usize, cells_x: usize, cells_y: usize, rng: &mut
 /// Value noise periodic with period `width` × `height`: `octaves` octaves,
 /// the first with `cells` lattice cells across each axis, each next one
 /// twice as fine at half the amplitude. Mapped into [0, 1].
-pub fn periodic_noise(
-    width: usize,
-    height: usize,
-    cells: usize,
-    octaves: usize,
-    seed: u64,
-) -> Vec<f32> {
+pub fn periodic_noise(width: usize, height: usize, cells: usize, octaves: usize, seed: u64) -> Vec<f32> {
     periodic_noise_xy(width, height, cells, cells, octaves, seed)
 }
 
 /// Like [`periodic_noise`] with separate cell counts per axis.
-pub fn periodic_noise_xy(
-    width: usize,
-    height: usize,
-    cx: usize,
-    cy: usize,
-    octaves: usize,
-    seed: u64,
-) -> Vec<f32> {
+pub fn periodic_noise_xy(width: usize, height: usize, cx: usize, cy: usize, octaves: usize, seed: u64) -> Vec<f32> {
     let mut rng = Rng(seed);
     let mut sum = vec![0.0f64; width * height];
     let mut amp = 1.0;
@@ -189,17 +153,13 @@ pub fn normalize(v: &[f64]) -> Vec<f32> {
 
 /// A `w` × `h` window at (x0, y0) of a `big_w`-wide image.
 pub fn crop(src: &[f32], big_w: usize, x0: usize, y0: usize, w: usize, h: usize) -> Vec<f32> {
-    (y0..y0 + h)
-        .flat_map(|y| src[y * big_w + x0..][..w].iter().copied())
-        .collect()
+    (y0..y0 + h).flat_map(|y| src[y * big_w + x0..][..w].iter().copied()).collect()
 }
 
 /// Rounds to `bits`-bit integers and back to contract units, as a file would.
 pub fn quantize(v: &[f32], bits: u32) -> Vec<f32> {
     let max = ((1u64 << bits) - 1) as f32;
-    v.iter()
-        .map(|&x| (x.clamp(0.0, 1.0) * max).round() / max)
-        .collect()
+    v.iter().map(|&x| (x.clamp(0.0, 1.0) * max).round() / max).collect()
 }
 
 /// The encoded normal map (c = (n + 1)/2, three planes) of a height map,
@@ -207,23 +167,13 @@ pub fn quantize(v: &[f32], bits: u32) -> Vec<f32> {
 /// clamp borders for one that is not (wrapping a crop's fit would carry its
 /// seam into a smooth ridge across the wrap instead of a jump).
 pub fn normal_map_planes(heights: &[f32], w: usize, h: usize, scale: f64, wrap: bool) -> Planes {
-    let border = if wrap {
-        normalfit::Border::Wrap
-    } else {
-        normalfit::Border::Clamp
-    };
+    let border = if wrap { normalfit::Border::Wrap } else { normalfit::Border::Clamp };
     let opts = normalfit::Options::default()
         .with_strength(normalfit::Strength::Scale(scale))
         .with_borders(normalfit::Borders::both(border));
     let n = normalfit::normals(heights, w, h, &opts).expect("fit");
-    let planes = (0..3)
-        .map(|c| n.iter().map(|t| (t[c] + 1.0) * 0.5).collect())
-        .collect();
-    Planes {
-        planes,
-        width: w,
-        height: h,
-    }
+    let planes = (0..3).map(|c| n.iter().map(|t| (t[c] + 1.0) * 0.5).collect()).collect();
+    Planes { planes, width: w, height: h }
 }
 
 /// A profile along x, h(t) for t = x / W in [0, 1).
@@ -246,46 +196,14 @@ pub fn real_cases() -> Option<Vec<Case>> {
     use normalfit::tiling::ImageKind::{Height, Normal};
     let dir = data_dir()?;
     let files = [
-        (
-            "tileable/ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg",
-            true,
-            Height,
-        ),
-        (
-            "tileable/ambientcg_Bricks061/Bricks061_1K-JPG_NormalGL.jpg",
-            true,
-            Normal,
-        ),
-        (
-            "tileable/ambientcg_Bricks061/Bricks061_1K-JPG_NormalDX.jpg",
-            true,
-            Normal,
-        ),
-        (
-            "tileable/polyhaven_denim_fabric/denim_fabric_disp_1k.png",
-            true,
-            Height,
-        ),
-        (
-            "tileable/polyhaven_denim_fabric/denim_fabric_nor_gl_1k.png",
-            true,
-            Normal,
-        ),
-        (
-            "tileable/materialx_adsk_bricks_02/bricks_02_height_2k_raw.exr",
-            true,
-            Height,
-        ),
-        (
-            "tileable/materialx_adsk_bricks_02/bricks_02_normal_2k_raw.exr",
-            true,
-            Normal,
-        ),
-        (
-            "tileable/materialx_adsk_bricks_02/bricks_02_normal_2k_raw.png",
-            true,
-            Normal,
-        ),
+        ("tileable/ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg", true, Height),
+        ("tileable/ambientcg_Bricks061/Bricks061_1K-JPG_NormalGL.jpg", true, Normal),
+        ("tileable/ambientcg_Bricks061/Bricks061_1K-JPG_NormalDX.jpg", true, Normal),
+        ("tileable/polyhaven_denim_fabric/denim_fabric_disp_1k.png", true, Height),
+        ("tileable/polyhaven_denim_fabric/denim_fabric_nor_gl_1k.png", true, Normal),
+        ("tileable/materialx_adsk_bricks_02/bricks_02_height_2k_raw.exr", true, Height),
+        ("tileable/materialx_adsk_bricks_02/bricks_02_normal_2k_raw.exr", true, Normal),
+        ("tileable/materialx_adsk_bricks_02/bricks_02_normal_2k_raw.png", true, Normal),
         ("non_tiling/skimage_camera.png", false, Height),
         ("non_tiling/skimage_coffee.png", false, Height),
     ];
@@ -303,12 +221,7 @@ pub fn real_cases() -> Option<Vec<Case>> {
 }
 
 fn gray_case(name: String, v: Vec<f32>, n: usize, expect: (bool, bool)) -> Case {
-    Case {
-        name,
-        image: Planes::gray(v, n, n),
-        expect,
-        kind: normalfit::tiling::ImageKind::Height,
-    }
+    Case { name, image: Planes::gray(v, n, n), expect, kind: normalfit::tiling::ImageKind::Height }
 }
 
 /// The generated cases, at side `n`, quantised to 16 bits as a PNG would
@@ -322,31 +235,16 @@ pub fn generated_cases(n: usize) -> Vec<Case> {
     for (cells, octaves) in [(2, 1), (3, 3), (4, 2), (n / 16, 1)] {
         let seed = (n * 31 + cells * 7 + octaves) as u64;
         let t = periodic_noise(n, n, cells, octaves, seed);
-        cases.push(gray_case(
-            format!("noise {cells}×{octaves}oct n{n}"),
-            quantize(&t, 16),
-            n,
-            (true, true),
-        ));
+        cases.push(gray_case(format!("noise {cells}×{octaves}oct n{n}"), quantize(&t, 16), n, (true, true)));
         // A window of a periodic noise three times as large, off its period.
         let big = periodic_noise(3 * n, 3 * n, 3 * cells, octaves, seed + 1);
         let c = crop(&big, 3 * n, n / 3 + 5, n / 2 + 7, n, n);
-        cases.push(gray_case(
-            format!("crop of noise {cells}×{octaves}oct n{n}"),
-            quantize(&c, 16),
-            n,
-            (false, false),
-        ));
+        cases.push(gray_case(format!("crop of noise {cells}×{octaves}oct n{n}"), quantize(&c, 16), n, (false, false)));
     }
     // Periodic along x only: a crop in y of noise periodic in x.
     let tall = periodic_noise_xy(n, 3 * n, 4, 12, 2, n as u64);
     let c = crop(&tall, n, 0, n / 2 + 3, n, n);
-    cases.push(gray_case(
-        format!("noise periodic in x only n{n}"),
-        quantize(&c, 16),
-        n,
-        (true, false),
-    ));
+    cases.push(gray_case(format!("noise periodic in x only n{n}"), quantize(&c, 16), n, (true, false)));
 
     // Value-continuous, slope-creased wraps: a smooth noise plus a profile
     // along x whose ends meet in value but not in slope.
@@ -358,35 +256,18 @@ pub fn generated_cases(n: usize) -> Vec<Case> {
         ("triangle |x − W/2|", |t| 1.0 - (2.0 * t - 1.0).abs()),
     ];
     for (label, f) in &profiles {
-        let v: Vec<f64> = (0..n * n)
-            .map(|k| 0.5 * f((k % n) as f64 / nf) + 0.5 * f64::from(base[k]))
-            .collect();
-        cases.push(gray_case(
-            format!("{label} crease + noise n{n}"),
-            quantize(&normalize(&v), 16),
-            n,
-            (false, true),
-        ));
+        let v: Vec<f64> = (0..n * n).map(|k| 0.5 * f((k % n) as f64 / nf) + 0.5 * f64::from(base[k])).collect();
+        cases.push(gray_case(format!("{label} crease + noise n{n}"), quantize(&normalize(&v), 16), n, (false, true)));
     }
 
     // Normal maps fitted from a tileable height and from a crop.
     let t = periodic_noise(n, n, 4, 3, 5 + n as u64);
     let mut m = normal_map_planes(&t, n, n, 8.0, true);
-    cases.push(Case {
-        name: format!("normal map of noise n{n}"),
-        image: m,
-        expect: (true, true),
-        kind: Normal,
-    });
+    cases.push(Case { name: format!("normal map of noise n{n}"), image: m, expect: (true, true), kind: Normal });
     let big = periodic_noise(3 * n, 3 * n, 12, 3, 6 + n as u64);
     let c = crop(&big, 3 * n, n / 3 + 5, n / 2 + 7, n, n);
     m = normal_map_planes(&c, n, n, 8.0, false);
-    cases.push(Case {
-        name: format!("normal map of crop n{n}"),
-        image: m,
-        expect: (false, false),
-        kind: Normal,
-    });
+    cases.push(Case { name: format!("normal map of crop n{n}"), image: m, expect: (false, false), kind: Normal });
     cases
 }
 
@@ -398,28 +279,15 @@ pub fn spec_cases() -> Vec<Case> {
     let sine: Vec<f32> = (0..n * n)
         .map(|k| {
             let (x, y) = ((k % n) as f64, (k / n) as f64);
-            let v = (32767.5
-                + 30000.0 * (2.0 * std::f64::consts::PI * (2.0 * x / nf + y / nf)).sin())
-            .trunc();
+            let v = (32767.5 + 30000.0 * (2.0 * std::f64::consts::PI * (2.0 * x / nf + y / nf)).sin()).trunc();
             (v / 65535.0) as f32
         })
         .collect();
-    let ramp: Vec<f32> = (0..n * n)
-        .map(|k| ((65535.0 * (k % n) as f64 / (nf - 1.0)).trunc() / 65535.0) as f32)
-        .collect();
+    let ramp: Vec<f32> =
+        (0..n * n).map(|k| ((65535.0 * (k % n) as f64 / (nf - 1.0)).trunc() / 65535.0) as f32).collect();
     vec![
         gray_case("SPEC sine 96² 16-bit".into(), sine, n, (true, true)),
-        gray_case(
-            "SPEC ramp along x 96² 16-bit".into(),
-            ramp,
-            n,
-            (false, true),
-        ),
-        gray_case(
-            "constant 0.4 32²".into(),
-            vec![0.4; 32 * 32],
-            32,
-            (true, true),
-        ),
+        gray_case("SPEC ramp along x 96² 16-bit".into(), ramp, n, (false, true)),
+        gray_case("constant 0.4 32²".into(), vec![0.4; 32 * 32], 32, (true, true)),
     ]
 }
