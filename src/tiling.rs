@@ -137,6 +137,8 @@
 
 use rayon::prelude::*;
 
+use crate::options::{Border, Borders};
+
 /// The default [`TilingOptions::threshold`]; see the [module docs](self)
 /// for the figures it was chosen from.
 pub const DEFAULT_THRESHOLD: f64 = 1.5;
@@ -243,6 +245,31 @@ impl TilingReport {
     pub fn seamless(&self) -> bool {
         self.x.seamless && self.y.seamless
     }
+
+    /// Wrap on the axes that tile, mirror on the others: borders that add
+    /// no seam of their own (what `normalfit convert --border auto` uses).
+    /// Mirror rather than clamp, because clamping flattens the slope at the
+    /// edge while mirroring keeps the texels' own neighbourhood.
+    #[must_use]
+    pub fn suggested_borders(&self) -> Borders {
+        let pick = |axis: &AxisReport| if axis.seamless { Border::Wrap } else { Border::Mirror };
+        Borders { x: pick(&self.x), y: pick(&self.y) }
+    }
+}
+
+/// The image moved circularly by half its width and height, so both wrap
+/// seams cross its middle: the picture an artist looks at to judge tiling.
+/// Texel (x, y) of the result is texel ((x + W/2) mod W, (y + H/2) mod H).
+#[must_use]
+pub fn shift_half<T: Copy>(texels: &[T], width: usize, height: usize) -> Vec<T> {
+    let (dx, dy) = (width / 2, height / 2);
+    let mut out = Vec::with_capacity(texels.len());
+    for y in 0..height {
+        let row = &texels[((y + dy) % height) * width..][..width];
+        out.extend_from_slice(&row[dx..]);
+        out.extend_from_slice(&row[..dx]);
+    }
+    out
 }
 
 impl ImageKind {
@@ -552,6 +579,21 @@ fn lane_sum(n: usize, f: impl Fn(usize) -> f32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shift_half_moves_the_seams_to_the_middle() {
+        // 4×3: rows shift by 1, columns by 2.
+        let t: Vec<u8> = (0..12).collect();
+        assert_eq!(shift_half(&t, 4, 3), [6, 7, 4, 5, 10, 11, 8, 9, 2, 3, 0, 1]);
+        assert_eq!(shift_half(&[7u8], 1, 1), [7]);
+    }
+
+    #[test]
+    fn suggested_borders_wrap_only_what_tiles() {
+        let axis = |seamless| AxisReport { score: if seamless { 1.0 } else { 9.0 }, seamless };
+        let r = TilingReport { kind: ImageKind::Height, x: axis(true), y: axis(false) };
+        assert_eq!(r.suggested_borders(), Borders { x: Border::Wrap, y: Border::Mirror });
+    }
 
     #[test]
     fn reference_rank_is_clamped_for_short_axes() {

@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use normalfit::Border;
 use normalfit::options::MAX_PATCH;
-use normalfit::{Border, Borders};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -61,9 +61,10 @@ pub struct ConvertArgs {
     #[arg(long, value_enum, default_value_t = FitArg::Orthogonal)]
     pub fit: FitArg,
 
-    /// Border mode, one for both axes or `X,Y`: wrap (tiles), clamp, mirror.
+    /// Border mode, one for both axes or `X,Y`: wrap (tiles), clamp, mirror,
+    /// or auto (wrap where the image tiles, mirror where it does not).
     #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_borders)]
-    pub border: Borders,
+    pub border: BorderArg,
 
     /// Green up (opengl: glTF, Blender, Unity) or down (directx: Unreal).
     #[arg(long, value_enum, default_value_t = ConventionArg::Opengl)]
@@ -109,6 +110,16 @@ pub struct TilingArgs {
     /// Channel of a colour height map that holds the height.
     #[arg(long, value_enum)]
     pub channel: Option<ChannelArg>,
+
+    /// Write the image shifted by half its width and height, so both wrap
+    /// seams cross the middle (PNG; a folder when there are many images).
+    #[arg(long, value_name = "FILE")]
+    pub preview: Option<PathBuf>,
+
+    /// Height maps: write the lit view of their normal map (fitted with
+    /// wrap), shifted the same way, where slope seams show.
+    #[arg(long, value_name = "FILE")]
+    pub preview_lit: Option<PathBuf>,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug)]
@@ -171,18 +182,37 @@ fn parse_finite(s: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_border(s: &str) -> Result<Border, String> {
+/// A border mode as asked for on one axis: a fixed mode, or auto.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AxisBorder {
+    Fixed(Border),
+    /// Wrap if the image tiles along the axis, else mirror.
+    Auto,
+}
+
+/// `--border`: x then y.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BorderArg {
+    pub x: AxisBorder,
+    pub y: AxisBorder,
+}
+
+fn parse_border(s: &str) -> Result<AxisBorder, String> {
     match s.trim() {
-        "wrap" => Ok(Border::Wrap),
-        "clamp" => Ok(Border::Clamp),
-        "mirror" => Ok(Border::Mirror),
-        other => Err(format!("unknown border mode '{other}': use wrap, clamp or mirror")),
+        "wrap" => Ok(AxisBorder::Fixed(Border::Wrap)),
+        "clamp" => Ok(AxisBorder::Fixed(Border::Clamp)),
+        "mirror" => Ok(AxisBorder::Fixed(Border::Mirror)),
+        "auto" => Ok(AxisBorder::Auto),
+        other => Err(format!("unknown border mode '{other}': use wrap, clamp, mirror or auto")),
     }
 }
 
-fn parse_borders(s: &str) -> Result<Borders, String> {
+fn parse_borders(s: &str) -> Result<BorderArg, String> {
     match s.split_once(',') {
-        None => Ok(Borders::both(parse_border(s)?)),
-        Some((x, y)) => Ok(Borders { x: parse_border(x)?, y: parse_border(y)? }),
+        None => {
+            let mode = parse_border(s)?;
+            Ok(BorderArg { x: mode, y: mode })
+        }
+        Some((x, y)) => Ok(BorderArg { x: parse_border(x)?, y: parse_border(y)? }),
     }
 }

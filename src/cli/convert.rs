@@ -6,15 +6,19 @@ use std::io::{Cursor, Write};
 use std::path::{Path, PathBuf};
 
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions};
-use normalfit::{Convention, Fit, Options, Strength, normals_into};
+use normalfit::tiling::{self, KindChoice, TilingOptions};
+use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
 
-use super::args::{ChannelArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
+use super::args::{AxisBorder, BorderArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
 use super::input::{Input, InputIds, read_input};
-use super::report::Failure;
+use super::report::{Failure, warn};
+use super::tiling::channel_of;
 
 /// What `convert` does with every input, decided once from the arguments.
 struct Plan {
+    /// The fit's options; the borders are settled per image (`--border auto`).
     fit: Options,
+    border: BorderArg,
     channel: Option<Channel>,
     bits: Option<u8>,
     format: Option<FormatArg>,
@@ -62,7 +66,6 @@ impl Plan {
                 FitArg::Orthogonal => Fit::Orthogonal,
                 FitArg::Vertical => Fit::Vertical,
             })
-            .with_borders(args.border)
             .with_convention(match args.convention {
                 ConventionArg::Opengl => Convention::OpenGl,
                 ConventionArg::Directx => Convention::DirectX,
@@ -96,13 +99,8 @@ impl Plan {
         }
         Ok(Plan {
             fit,
-            channel: args.channel.map(|c| match c {
-                ChannelArg::Luma => Channel::Luma,
-                ChannelArg::R => Channel::R,
-                ChannelArg::G => Channel::G,
-                ChannelArg::B => Channel::B,
-                ChannelArg::A => Channel::A,
-            }),
+            border: args.border,
+            channel: args.channel.map(channel_of),
             bits: args.bits,
             format: args.format,
             signed: args.signed,
@@ -125,8 +123,9 @@ impl Plan {
         }
         let (width, height) = (raster.width, raster.height);
         let heights = raster.into_heights(self.channel).map_err(|e| Failure::file(input.name(), e))?;
+        let fit = self.fit.clone().with_borders(self.borders_for(&heights, width, height, input));
         let encoded =
-            |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &self.fit, &target, out) };
+            |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &fit, &target, out) };
         match &target.path {
             Some(path) => io::write_atomically(path, encoded).map_err(|e| Failure::file(path, e)),
             None => {
@@ -140,6 +139,40 @@ impl Plan {
                     .map_err(|e| Failure::file("<standard output>", e))
             }
         }
+    }
+
+    /// The border modes for one image: `auto` becomes wrap where the image
+    /// tiles and mirror where it does not, and a wrap asked for on an axis
+    /// that does not tile gets a warning, since it would draw a seam.
+    fn borders_for(&self, heights: &[f32], width: usize, height: usize, input: &Input) -> Borders {
+        let wrap = AxisBorder::Fixed(Border::Wrap);
+        let needs_check = |a: AxisBorder| a == wrap || a == AxisBorder::Auto;
+        let resolve = |asked: AxisBorder, auto: Border| match asked {
+            AxisBorder::Fixed(b) => b,
+            AxisBorder::Auto => auto,
+        };
+        if !needs_check(self.border.x) && !needs_check(self.border.y) {
+            // Only clamp and mirror: nothing to check.
+            return Borders { x: resolve(self.border.x, Border::Mirror), y: resolve(self.border.y, Border::Mirror) };
+        }
+        let opts = TilingOptions::new().with_kind(KindChoice::Height);
+        let report = tiling::check(&[heights], width, height, &opts);
+        let seams: Vec<String> = [("x", self.border.x, report.x), ("y", self.border.y, report.y)]
+            .iter()
+            .filter(|(_, asked, axis)| *asked == wrap && !axis.seamless)
+            .map(|(name, _, axis)| format!("{name} (seam score {:.2})", axis.score))
+            .collect();
+        if !seams.is_empty() {
+            warn(
+                input.name().display(),
+                format!(
+                    "does not tile along {}: wrap borders will show a seam there; use --border clamp or mirror, or --border auto",
+                    seams.join(" and ")
+                ),
+            );
+        }
+        let suggested = report.suggested_borders();
+        Borders { x: resolve(self.border.x, suggested.x), y: resolve(self.border.y, suggested.y) }
     }
 
     /// The output's path (None: standard output), format and depth.

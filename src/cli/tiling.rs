@@ -1,11 +1,15 @@
 //! `normalfit tiling`: a verdict per image and axis, as text or JSON Lines.
 
-use normalfit::io::{Channel, Raster, ReadOptions};
+use std::path::{Path, PathBuf};
+
+use normalfit::io::{self, Channel, PngCompression, Raster, ReadOptions};
+use normalfit::shade::{self, Light};
 use normalfit::tiling::{self, ImageKind, KindChoice, TilingOptions, TilingReport};
+use normalfit::{Convention, Options, Strength};
 
 use super::args::{ChannelArg, KindArg, TilingArgs};
 use super::exit;
-use super::input::{Input, read_input};
+use super::input::{Input, InputIds, read_input};
 use super::report::Failure;
 
 /// Checks every image; exit 0 if all tile, 1 if one has a seam, 2 on any error.
@@ -18,15 +22,26 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
         opts.threshold = t;
     }
     let channel = args.channel.map(channel_of);
+    let many = args.inputs.len() > 1;
+    let previews = Previews {
+        plain: args.preview.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,
+        lit: args.preview_lit.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,
+        ids: InputIds::of(&args.inputs),
+    };
     let (mut errors, mut seams) = (0, 0);
     for path in &args.inputs {
         let input = Input::from_arg(path);
-        match check_one(&input, args.kind, channel, &opts) {
-            Ok((raster_size, report)) => {
+        let checked = check_one(&input, args.kind, channel, &opts).and_then(|(raster, report)| {
+            previews.write(&input, &raster, &report, channel)?;
+            Ok((raster, report))
+        });
+        match checked {
+            Ok((raster, report)) => {
                 if !report.seamless() {
                     seams += 1;
                 }
-                let line = if args.json { json_line(&input, raster_size, &report) } else { text_line(&input, &report) };
+                let size = (raster.width, raster.height);
+                let line = if args.json { json_line(&input, size, &report) } else { text_line(&input, &report) };
                 println!("{line}");
             }
             Err(f) => {
@@ -60,10 +75,107 @@ fn check_one(
     kind: KindArg,
     channel: Option<Channel>,
     opts: &TilingOptions,
-) -> Result<((usize, usize), TilingReport), Failure> {
+) -> Result<(Raster, TilingReport), Failure> {
     let raster = read_input(input, &ReadOptions::default())?;
     let report = report_of(&raster, kind, channel, opts).map_err(|e| Failure::file(input.name(), e))?;
-    Ok(((raster.width, raster.height), report))
+    Ok((raster, report))
+}
+
+/// Where `--preview` pictures go: one file, or a folder for many images.
+enum PreviewTarget {
+    File(PathBuf),
+    Folder(PathBuf),
+}
+
+impl PreviewTarget {
+    fn new(path: &Path, many: bool) -> Result<PreviewTarget, Failure> {
+        if !many {
+            return Ok(PreviewTarget::File(path.to_path_buf()));
+        }
+        std::fs::create_dir_all(path)
+            .map_err(|e| Failure::file(path, format!("cannot create the preview folder: {e}")))?;
+        Ok(PreviewTarget::Folder(path.to_path_buf()))
+    }
+
+    fn path_for(&self, input: &Input, suffix: &str) -> PathBuf {
+        match self {
+            PreviewTarget::File(p) => p.clone(),
+            PreviewTarget::Folder(dir) => dir.join(format!("{}_{suffix}.png", input.stem())),
+        }
+    }
+}
+
+struct Previews {
+    plain: Option<PreviewTarget>,
+    lit: Option<PreviewTarget>,
+    ids: InputIds,
+}
+
+impl Previews {
+    /// Writes the asked-for previews of one image, each shifted by half its
+    /// size so that both wrap seams cross the middle.
+    fn write(
+        &self,
+        input: &Input,
+        raster: &Raster,
+        report: &TilingReport,
+        channel: Option<Channel>,
+    ) -> Result<(), Failure> {
+        let (w, h) = (raster.width, raster.height);
+        let fail = |e: normalfit::Error| Failure::file(input.name(), e);
+        if let Some(target) = &self.plain {
+            let rgb = match (report.kind, rgb_planes(raster)) {
+                (ImageKind::Normal, Some(planes)) => {
+                    (0..w * h).map(|k| planes.map(|p| (p[k].clamp(0.0, 1.0) * 255.0).round() as u8)).collect()
+                }
+                _ => stretched_gray(&raster.heights(channel).map_err(fail)?),
+            };
+            self.save(&target.path_for(input, "preview"), &tiling::shift_half(&rgb, w, h), w, h)?;
+        }
+        if let Some(target) = &self.lit {
+            let normals: Vec<[f32; 3]> = match (report.kind, rgb_planes(raster)) {
+                (ImageKind::Normal, Some(planes)) => (0..w * h).map(|k| planes.map(|p| 2.0 * p[k] - 1.0)).collect(),
+                _ => {
+                    let heights = raster.heights(channel).map_err(fail)?;
+                    let opts = Options::new().with_strength(Strength::Scale(exposure(&heights, w)));
+                    normalfit::normals(&heights, w, h, &opts).map_err(fail)?
+                }
+            };
+            let gray = shade::shade(&normals, w, h, Light::default(), Convention::OpenGl).map_err(fail)?;
+            let rgb: Vec<[u8; 3]> = gray.iter().map(|&g| [g; 3]).collect();
+            self.save(&target.path_for(input, "preview_lit"), &tiling::shift_half(&rgb, w, h), w, h)?;
+        }
+        Ok(())
+    }
+
+    fn save(&self, path: &Path, rgb: &[[u8; 3]], w: usize, h: usize) -> Result<(), Failure> {
+        self.ids.refuse_overwrite(path)?;
+        io::write_atomically(path, |out| io::encode_png_rgb8(rgb, w, h, PngCompression::default(), out))
+            .map_err(|e| Failure::file(path, e))
+    }
+}
+
+fn rgb_planes(raster: &Raster) -> Option<[&[f32]; 3]> {
+    match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
+        (Some(r), Some(g), Some(b)) => Some([&r.data, &g.data, &b.data]),
+        _ => None,
+    }
+}
+
+/// Heights stretched to the full gray range, so that any map is visible.
+fn stretched_gray(heights: &[f32]) -> Vec<[u8; 3]> {
+    let (lo, hi) = heights.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    heights.iter().map(|&v| [((v - lo) / span * 255.0).round() as u8; 3]).collect()
+}
+
+/// A gain that makes the typical step between neighbours a slope of 0.3
+/// (about 17°): enough relief to see creases whatever the map's units.
+fn exposure(heights: &[f32], width: usize) -> f64 {
+    let steps = heights.windows(2).enumerate().filter(|(k, _)| (k + 1) % width != 0);
+    let (sum, count) = steps.fold((0.0f64, 0usize), |(s, c), (_, p)| (s + f64::from((p[1] - p[0]).abs()), c + 1));
+    let mean = if count > 0 { sum / count as f64 } else { 0.0 };
+    if mean > 0.0 { 0.3 / mean } else { 1.0 }
 }
 
 /// The tiling report of a decoded image: a normal map is judged on its
@@ -75,10 +187,7 @@ pub fn report_of(
     opts: &TilingOptions,
 ) -> normalfit::Result<TilingReport> {
     let (w, h) = (raster.width, raster.height);
-    let rgb: Option<[&[f32]; 3]> = match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
-        (Some(r), Some(g), Some(b)) => Some([&r.data, &g.data, &b.data]),
-        _ => None,
-    };
+    let rgb = rgb_planes(raster);
     let kind = match (kind, rgb) {
         (KindArg::Height, _) => ImageKind::Height,
         (KindArg::Normal, Some(_)) => ImageKind::Normal,

@@ -1,0 +1,126 @@
+//! `normalfit tiling` and the tiling-aware parts of `convert`, as run from
+//! the command line: verdicts, JSON Lines, exit codes, previews, the wrap
+//! warning and `--border auto`.
+
+use std::f64::consts::TAU;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_normalfit")).args(args).output().expect("the binary runs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Periodic along x with `px` cycles; along y periodic when `tiles_y`,
+/// else a slow drift that makes the last row unlike the first.
+fn write_height(path: &Path, n: u32, tiles_y: bool) {
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(n, n, |x, y| {
+        let (u, v) = (x as f64 / n as f64, y as f64 / n as f64);
+        let mut h =
+            0.5 + 0.2 * (TAU * (3.0 * u + 2.0 * v)).sin() + 0.1 * (TAU * (7.0 * u)).cos() * (TAU * 5.0 * v).sin();
+        if !tiles_y {
+            h = 0.3 * h + 0.6 * v;
+        }
+        image::Luma([(h.clamp(0.0, 1.0) * 65535.0).round() as u16])
+    });
+    img.save(path).unwrap();
+}
+
+fn json(out: &Output) -> Vec<String> {
+    String::from_utf8_lossy(&out.stdout).lines().map(str::to_owned).collect()
+}
+
+#[test]
+fn verdicts_exit_codes_and_json_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let (good, half) = (dir.path().join("good.png"), dir.path().join("half.png"));
+    write_height(&good, 96, true);
+    write_height(&half, 96, false);
+
+    let r = run(&["tiling", "--json", s(&good)]);
+    assert_eq!(r.status.code(), Some(0), "{}", String::from_utf8_lossy(&r.stderr));
+    let lines = json(&r);
+    assert_eq!(lines.len(), 1);
+    assert!(lines[0].contains("\"width\": 96") && lines[0].contains("\"seamless\": true"), "{}", lines[0]);
+
+    let r = run(&["tiling", "--json", s(&good), s(&half)]);
+    assert_eq!(r.status.code(), Some(1), "one image has a seam");
+    let lines = json(&r);
+    assert_eq!(lines.len(), 2, "one JSON object per image, per line");
+    assert!(lines[1].contains("\"x\": {\"score\":") && lines[1].ends_with("\"seamless\": false}"), "{}", lines[1]);
+    assert!(lines[1].contains("\"y\": {\"score\":") && lines[1].contains("\"seamless\": false}, \"seamless\""));
+
+    let text = run(&["tiling", s(&half)]);
+    let line = String::from_utf8_lossy(&text.stdout);
+    assert!(line.contains("half.png") && line.contains("does not tile") && line.contains("y "), "{line}");
+
+    let missing = dir.path().join("missing.png");
+    let r = run(&["tiling", s(&good), s(&missing)]);
+    assert_eq!(r.status.code(), Some(2), "an error outranks a seam");
+    assert_eq!(json(&r).len(), 1, "the readable image is still reported");
+    assert!(String::from_utf8_lossy(&r.stderr).contains("missing.png"));
+
+    // A high enough threshold accepts the seam.
+    assert_eq!(run(&["tiling", "--threshold", "1000", s(&half)]).status.code(), Some(0));
+    assert_eq!(run(&["tiling", "--threshold", "-1", s(&half)]).status.code(), Some(2));
+}
+
+#[test]
+fn previews_put_both_seams_in_the_middle() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_height(&input, 64, false);
+    let (plain, lit) = (dir.path().join("p.png"), dir.path().join("l.png"));
+    let r = run(&["tiling", s(&input), "--preview", s(&plain), "--preview-lit", s(&lit)]);
+    assert_eq!(r.status.code(), Some(1));
+    let original = image::open(&input).unwrap().to_luma16();
+    let preview = image::open(&plain).unwrap().to_rgb8();
+    assert_eq!(preview.dimensions(), (64, 64));
+    // The preview's top-left is the original's centre, stretched to 8 bits:
+    // order is kept, so compare the ranks of a few texels.
+    let at = |x, y| original.get_pixel((x + 32) % 64, (y + 32) % 64).0[0];
+    for (a, b) in [((0, 0), (10, 40)), ((5, 31), (5, 33)), ((63, 2), (20, 20))] {
+        let (pa, pb) = (preview.get_pixel(a.0, a.1).0[0], preview.get_pixel(b.0, b.1).0[0]);
+        if at(a.0, a.1) + 600 < at(b.0, b.1) {
+            assert!(pa < pb, "{a:?} {b:?}");
+        }
+    }
+    let lit = image::open(&lit).unwrap().to_rgb8();
+    assert_eq!(lit.dimensions(), (64, 64));
+    // The y seam of a map that drifts upward is a cliff, lit unlike its
+    // neighbours: it now runs across the middle row.
+    let row_mean = |y: u32| (0..64).map(|x| lit.get_pixel(x, y).0[0] as f64).sum::<f64>() / 64.0;
+    let seam = (row_mean(31) - row_mean(32)).abs().max((row_mean(32) - row_mean(33)).abs());
+    let inside = (row_mean(10) - row_mean(11)).abs();
+    assert!(seam > 3.0 * inside + 1.0, "seam step {seam}, inside step {inside}");
+}
+
+#[test]
+fn convert_warns_about_wrap_on_a_seam_and_auto_mirrors_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_height(&input, 64, false);
+    let out = dir.path().join("n.png");
+    let r = run(&["convert", s(&input), "-o", s(&out)]);
+    assert!(r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("warning") && err.contains("along y") && !err.contains("along x"), "{err}");
+    assert!(err.contains("--border clamp") && err.contains("mirror"), "{err}");
+
+    let auto = dir.path().join("auto.png");
+    let r = run(&["convert", s(&input), "-o", s(&auto), "--border", "auto"]);
+    assert!(r.status.success() && r.stderr.is_empty(), "{}", String::from_utf8_lossy(&r.stderr));
+    let explicit = dir.path().join("explicit.png");
+    assert!(run(&["convert", s(&input), "-o", s(&explicit), "--border", "wrap,mirror"]).status.success());
+    assert_eq!(image::open(&auto).unwrap().to_rgb16(), image::open(&explicit).unwrap().to_rgb16());
+
+    // A map that tiles gets no warning.
+    let good = dir.path().join("good.png");
+    write_height(&good, 64, true);
+    let r = run(&["convert", s(&good), "-o", s(&dir.path().join("g.png"))]);
+    assert!(r.status.success() && r.stderr.is_empty(), "{}", String::from_utf8_lossy(&r.stderr));
+}
