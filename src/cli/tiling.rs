@@ -197,7 +197,7 @@ pub fn report_of(
         (KindArg::Auto, Some(planes)) if channel.is_none() => ImageKind::detect(&planes, w, h),
         (KindArg::Auto, _) => ImageKind::Height,
     };
-    let fixed = TilingOptions { kind: kind_choice(kind), ..opts.clone() };
+    let fixed = TilingOptions { kind: kind_choice(kind), ..*opts };
     Ok(match (kind, rgb) {
         (ImageKind::Normal, Some(planes)) => tiling::check(&planes, w, h, &fixed),
         _ => {
