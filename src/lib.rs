@@ -1,7 +1,88 @@
 //! # normalfit
 //!
 //! Tangent-space normal maps from height maps, by fitting a least-squares
-//! plane to the N×N patch of points (u, v, height) around every texel.
+//! plane to the N×N patch of points (u, v, height) around every texel, and a
+//! check of whether a texture tiles seamlessly.
+//!
+//! The crate has three layers, each usable without the next:
+//!
+//! * [`fit`]: the compute core. Heights in a caller's row-major `f32`
+//!   buffer, [`Options`] in, normals out ([`normals`], [`normals_into`]).
+//!   It knows nothing of files. The cost per texel does not depend on the
+//!   patch size, rows run in parallel on rayon's pool, and the result is the
+//!   same bit for bit whatever the number of threads.
+//! * [`io`]: decoding (PNG, OpenEXR, TIFF, JPEG, … chosen by content, with
+//!   size limits checked before any pixel buffer exists) and encoding (PNG,
+//!   OpenEXR), and [`io::write_atomically`] for outputs that appear whole or
+//!   not at all.
+//! * [`tiling`]: a seam score and a verdict per axis ([`tiling::check`]).
+//!
+//! Every fallible call returns the typed [`Error`].
+//!
+//! # From heights in memory to a PNG
+//!
+//! ```
+//! use normalfit::io::{PngCompression, encode_png_rgb8};
+//! use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
+//!
+//! // Heights from anywhere: here a round bump on a 64 × 48 grid, in [0, 1].
+//! let (width, height) = (64, 48);
+//! let heights: Vec<f32> = (0..width * height)
+//!     .map(|k| {
+//!         let (x, y) = ((k % width) as f32 - 32.0, (k / width) as f32 - 24.0);
+//!         (-(x * x + y * y) / 60.0).exp()
+//!     })
+//!     .collect();
+//!
+//! // The defaults are the contract's: 3×3 patch, orthogonal fit, wrap
+//! // borders, OpenGL green, scale 1. Change what the texture needs.
+//! let opts = Options::new()
+//!     .with_patch(5)
+//!     .with_fit(Fit::Orthogonal)
+//!     .with_borders(Borders { x: Border::Clamp, y: Border::Mirror })
+//!     .with_convention(Convention::OpenGl)
+//!     .with_strength(Strength::Scale(8.0));
+//!
+//! // Encoded straight to 8-bit RGB, c = round(255 (n + 1) / 2).
+//! let mut rgb = vec![[0u8; 3]; width * height];
+//! normals_into(&heights, width, height, &opts, &mut rgb)?;
+//! assert!(rgb[24 * width + 36][0] > 128, "right of the bump leans right: red above mid-grey");
+//! assert!(rgb[20 * width + 32][1] > 128, "above the bump leans up (OpenGL): green above mid-grey");
+//! assert_eq!(rgb[0], [128, 128, 255], "far from the bump the map is flat");
+//!
+//! // Any `impl Write`: a file, a socket, a buffer.
+//! let mut png = Vec::new();
+//! encode_png_rgb8(&rgb, width, height, PngCompression::Fast, &mut png)?;
+//! assert!(png.starts_with(b"\x89PNG"));
+//! # Ok::<(), normalfit::Error>(())
+//! ```
+//!
+//! To a file, use [`io::write_atomically`], which writes a temporary file
+//! beside the target and renames it only once it is complete. To read an
+//! image, [`io::read_path`] or [`io::decode`] give an [`io::Raster`], and
+//! [`io::Raster::heights`] the heights in the contract's units.
+//!
+//! # Does it tile?
+//!
+//! ```
+//! use normalfit::tiling::{self, TilingOptions};
+//!
+//! // Periodic in x (one whole sine period), a ramp in y: tiles in x only.
+//! let (width, height) = (128, 96);
+//! let heights: Vec<f32> = (0..width * height)
+//!     .map(|k| {
+//!         let (x, y) = ((k % width) as f32, (k / width) as f32);
+//!         0.5 + 0.25 * (x * std::f32::consts::TAU / width as f32).sin() + y / 400.0
+//!     })
+//!     .collect();
+//!
+//! let report = tiling::check(&[&heights], width, height, &TilingOptions::new());
+//! assert!(report.x.seamless && report.x.score < 1.5);
+//! assert!(!report.y.seamless, "the ramp's last row is far from its first");
+//! // Borders that add no seam of their own: wrap in x, mirror in y.
+//! let borders = report.suggested_borders();
+//! assert_eq!((borders.x, borders.y), (normalfit::Border::Wrap, normalfit::Border::Mirror));
+//! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 

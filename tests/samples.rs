@@ -79,3 +79,37 @@ fn terrain_does_not_tile() {
         assert!(s.seam > 3.0 * s.worst_interior, "terrain {axis}: {s:?}");
     }
 }
+
+/// The README's commands, run on the shipped samples, give exactly the
+/// shipped normal maps: the pictures show what the tool does.
+#[test]
+fn readme_commands_reproduce_the_shipped_normal_maps() {
+    let samples = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&str, &[&str]); 3] =
+        [("bricks", &["-s", "8"]), ("rock", &["-s", "16"]), ("terrain", &["-s", "40", "-n", "5", "--border", "clamp"])];
+    for (name, args) in cases {
+        let out = dir.path().join(format!("{name}.png"));
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_normalfit"))
+            .arg("convert")
+            .arg(samples.join(format!("{name}.png")))
+            .args(args)
+            .arg("-o")
+            .arg(&out)
+            .status()
+            .unwrap();
+        assert!(status.success(), "{name}");
+        let got = image::open(&out).unwrap();
+        assert_eq!(got.color(), image::ColorType::Rgb16, "{name}: a 16-bit height map gives a 16-bit normal map");
+        let want = image::open(samples.join(format!("{name}_normal.png"))).unwrap().to_rgb8();
+        // The shipped maps are 8-bit; the 16-bit output rounds to the same
+        // 8-bit values within one step (double rounding).
+        let got = got.to_rgb16();
+        for (k, (g, w)) in got.pixels().zip(want.pixels()).enumerate() {
+            for c in 0..3 {
+                let g8 = f64::from(g.0[c]) * 255.0 / 65535.0;
+                assert!((g8 - f64::from(w.0[c])).abs() <= 0.51, "{name} texel {k} channel {c}: {g8} vs {}", w.0[c]);
+            }
+        }
+    }
+}
