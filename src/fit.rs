@@ -61,17 +61,20 @@ impl FromNormal for [f32; 3] {
     }
 }
 
+// Rounding as ⌊x + ½⌋ by truncation: x ≥ 0 here, where it equals
+// `f64::round`, and it compiles to plain instructions that vectorise where
+// `round` is a library call on baseline x86-64.
 impl FromNormal for [u8; 3] {
     #[inline]
     fn from_normal(n: [f64; 3]) -> Self {
-        n.map(|c| ((c + 1.0) * 127.5).round() as u8)
+        n.map(|c| ((c + 1.0) * 127.5 + 0.5) as u8)
     }
 }
 
 impl FromNormal for [u16; 3] {
     #[inline]
     fn from_normal(n: [f64; 3]) -> Self {
-        n.map(|c| ((c + 1.0) * 32767.5).round() as u16)
+        n.map(|c| ((c + 1.0) * 32767.5 + 0.5) as u16)
     }
 }
 
@@ -278,12 +281,22 @@ impl Plan {
 
     /// Turns the window sums of one row into normals.
     fn emit<T: FromNormal>(&self, v: &WindowSums, out: &mut [T]) {
-        let n2 = (self.n * self.n) as f64;
-        for (x, texel) in out.iter_mut().enumerate() {
-            let cx = v.si[x];
-            let cy = self.sigma * v.sj[x];
-            let czz = (v.szz[x] - v.s0[x] * v.s0[x] / n2).max(0.0);
-            *texel = T::from_normal(plane_normal(self.fit, self.a, cx, cy, czz));
+        // One loop per fit, so the per-texel work has no branch and vectorises.
+        match self.fit {
+            Fit::Orthogonal => self.emit_with::<T, true>(v, out),
+            Fit::Vertical => self.emit_with::<T, false>(v, out),
+        }
+    }
+
+    fn emit_with<T: FromNormal, const ORTHOGONAL: bool>(&self, v: &WindowSums, out: &mut [T]) {
+        let inv_n2 = 1.0 / (self.n * self.n) as f64;
+        let w = out.len();
+        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+        for x in 0..w {
+            let cx = si[x];
+            let cy = self.sigma * sj[x];
+            let czz = (szz[x] - s0[x] * s0[x] * inv_n2).max(0.0);
+            out[x] = T::from_normal(normal_from_sums::<ORTHOGONAL>(self.a, cx, cy, czz));
         }
     }
 }
@@ -291,20 +304,30 @@ impl Plan {
 /// The fitted plane's unit normal from the patch sums (see the module docs).
 #[inline]
 pub(crate) fn plane_normal(fit: Fit, a: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
-    let tilt2 = cx * cx + cy * cy;
-    if tilt2 <= 1e-20 * (a + czz) * (a + czz) {
-        return [0.0, 0.0, 1.0];
+    match fit {
+        Fit::Orthogonal => normal_from_sums::<true>(a, cx, cy, czz),
+        Fit::Vertical => normal_from_sums::<false>(a, cx, cy, czz),
     }
-    let nz = match fit {
-        Fit::Vertical => a,
-        Fit::Orthogonal => {
-            let d = 0.5 * (a - czz);
-            let q = (d * d + tilt2).sqrt();
-            if d >= 0.0 { d + q } else { tilt2 / (q - d) }
-        }
+}
+
+/// [`plane_normal`] written without branches: every case is computed and
+/// the right one selected, so that a loop of it vectorises. The unused
+/// cases may divide by zero; their values are discarded.
+#[inline(always)]
+fn normal_from_sums<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
+    let tilt2 = cx * cx + cy * cy;
+    let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
+    let nz = if ORTHOGONAL {
+        let d = 0.5 * (a - czz);
+        let q = (d * d + tilt2).sqrt();
+        let sloped = tilt2 / (q - d);
+        if d >= 0.0 { d + q } else { sloped }
+    } else {
+        a
     };
     let inv = 1.0 / (tilt2 + nz * nz).sqrt();
-    [-cx * inv, -cy * inv, nz * inv]
+    let n = [-cx * inv, -cy * inv, nz * inv];
+    if flat { [0.0, 0.0, 1.0] } else { n }
 }
 
 /// One row's horizontal sums per column, as planes so the loops vectorise.
