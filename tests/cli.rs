@@ -276,6 +276,76 @@ fn exr_output_holds_the_normal_in_float() {
     }
 }
 
+/// A 32-bit float gray TIFF as terrain tools export it: heights in metres,
+/// far from zero.
+fn write_float_tiff(path: &Path, w: u32, h: u32) -> Vec<f32> {
+    let heights: Vec<f32> = (0..h)
+        .flat_map(|y| {
+            (0..w).map(move |x| {
+                let (dx, dy) = (x as f64 - w as f64 / 2.0, y as f64 - h as f64 / 3.0);
+                (812.5 + 3.0 * x as f64 / w as f64 + 6.0 * (-(dx * dx + dy * dy) / 30.0).exp()
+                    - 0.5 * ((x * 5 + y * 3) % 4) as f64) as f32
+            })
+        })
+        .collect();
+    let file = fs::File::create(path).unwrap();
+    tiff::encoder::TiffEncoder::new(file)
+        .unwrap()
+        .write_image::<tiff::encoder::colortype::Gray32Float>(w, h, &heights)
+        .unwrap();
+    heights
+}
+
+#[test]
+fn a_float_tiff_becomes_a_float_exr_by_default_as_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("terrain.tif");
+    let heights = write_float_tiff(&input, 29, 17);
+    let r = run(&["convert", s(&input), "--scale", "0.5", "--border", "clamp"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(files_in(dir.path()), ["terrain.tif", "terrain_normal.exr"], "float input gives EXR output");
+    let raster = normalfit::io::read_path(&dir.path().join("terrain_normal.exr"), &Default::default()).unwrap();
+    assert_eq!(raster.sample, normalfit::io::SampleType::Float);
+    let opts =
+        Options::new().with_borders(Borders { x: Border::Clamp, y: Border::Clamp }).with_strength(Strength::Scale(0.5));
+    let want = reference::normal_map(&heights, 29, 17, &opts);
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        let plane = raster.plane(name).unwrap();
+        assert_eq!(plane.data.len(), want.len());
+        for (k, (&got, w)) in plane.data.iter().zip(&want).enumerate() {
+            let expect = (w[c] + 1.0) / 2.0;
+            assert!((got as f64 - expect).abs() < 1e-5, "{name}[{k}]: {got} vs {expect}");
+        }
+    }
+}
+
+#[test]
+fn a_signed_16_bit_tiff_gives_a_16_bit_png_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("dem.tif");
+    let (w, h) = (13u32, 9u32);
+    let stored: Vec<i16> = (0..w * h).map(|i| ((i * 977) % 2000) as i16 - 1000).collect();
+    tiff::encoder::TiffEncoder::new(fs::File::create(&input).unwrap())
+        .unwrap()
+        .write_image::<tiff::encoder::colortype::GrayI16>(w, h, &stored)
+        .unwrap();
+    let r = run(&["convert", s(&input), "--border", "mirror", "--scale", "40"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let got = image::open(dir.path().join("dem_normal.png")).unwrap();
+    assert_eq!(got.color(), image::ColorType::Rgb16, "a 16-bit integer input gives 16-bit PNG output");
+    let heights: Vec<f32> = stored.iter().map(|&v| f32::from(v) / 65535.0).collect();
+    let opts = Options::new()
+        .with_borders(Borders { x: Border::Mirror, y: Border::Mirror })
+        .with_strength(Strength::Scale(40.0));
+    let want = reference::normal_map(&heights, w as usize, h as usize, &opts);
+    for (k, p) in got.to_rgb16().pixels().enumerate() {
+        for (c, (&got, &wc)) in p.0.iter().zip(&want[k]).enumerate() {
+            let expect = (65535.0 * (wc + 1.0) / 2.0).round();
+            assert!((got as f64 - expect).abs() <= 1.0, "texel {k} channel {c}: {got} vs {expect}");
+        }
+    }
+}
+
 #[test]
 fn many_inputs_go_into_the_output_folder() {
     let dir = tempfile::tempdir().unwrap();

@@ -360,6 +360,317 @@ fn tga_bmp_webp_lossless_values() {
 }
 
 // ---------------------------------------------------------------------------
+// Gray TIFF that `image` refuses (float, half, 32-bit and signed samples),
+// made with `tiff`'s encoder and, for what it cannot write, by hand.
+
+fn tiff_gray<C>(w: u32, h: u32, samples: &[C::Inner], compression: tiff::encoder::Compression) -> Vec<u8>
+where
+    C: tiff::encoder::colortype::ColorType,
+    [C::Inner]: tiff::encoder::TiffValue,
+{
+    let mut out = Cursor::new(Vec::new());
+    tiff::encoder::TiffEncoder::new(&mut out)
+        .unwrap()
+        .with_compression(compression)
+        .write_image::<C>(w, h, samples)
+        .unwrap();
+    out.into_inner()
+}
+
+fn bigtiff_gray<C>(w: u32, h: u32, samples: &[C::Inner]) -> Vec<u8>
+where
+    C: tiff::encoder::colortype::ColorType,
+    [C::Inner]: tiff::encoder::TiffValue,
+{
+    let mut out = Cursor::new(Vec::new());
+    tiff::encoder::TiffEncoder::new_big(&mut out).unwrap().write_image::<C>(w, h, samples).unwrap();
+    let bytes = out.into_inner();
+    assert_eq!(&bytes[..4], b"II+\0");
+    bytes
+}
+
+fn tiff_f32(w: u32, h: u32, v: &[f32]) -> Vec<u8> {
+    tiff_gray::<tiff::encoder::colortype::Gray32Float>(w, h, v, tiff::encoder::Compression::Uncompressed)
+}
+
+/// A one-strip uncompressed gray TIFF written by hand: header, the IFD,
+/// then the samples, so a cut anywhere after the IFD leaves a header that
+/// parses and pixel data that ends early.
+struct TiffSpec {
+    width: u32,
+    height: u32,
+    bits: u16,
+    /// TIFF SampleFormat: 1 unsigned, 2 signed, 3 float.
+    sample_format: u16,
+    big_endian: bool,
+}
+
+impl TiffSpec {
+    fn new(width: u32, height: u32, bits: u16, sample_format: u16, big_endian: bool) -> Self {
+        TiffSpec { width, height, bits, sample_format, big_endian }
+    }
+
+    /// The file; `data` is the samples, already in the file's byte order.
+    fn encode(&self, data: &[u8]) -> Vec<u8> {
+        let short = |v: u16| if self.big_endian { v.to_be_bytes() } else { v.to_le_bytes() };
+        let long = |v: u32| if self.big_endian { v.to_be_bytes() } else { v.to_le_bytes() };
+        const SHORT: u16 = 3;
+        const LONG: u16 = 4;
+        let entries: [(u16, u16, u32); 10] = [
+            (256, LONG, self.width),
+            (257, LONG, self.height),
+            (258, SHORT, u32::from(self.bits)),
+            (259, SHORT, 1), // no compression
+            (262, SHORT, 1), // black is zero
+            (273, LONG, 8 + 2 + 12 * 10 + 4),
+            (277, SHORT, 1), // one sample per pixel
+            (278, LONG, self.height),
+            (279, LONG, data.len() as u32),
+            (339, SHORT, u32::from(self.sample_format)),
+        ];
+        let mut out = if self.big_endian { b"MM\0*".to_vec() } else { b"II*\0".to_vec() };
+        out.extend(long(8));
+        out.extend(short(entries.len() as u16));
+        for (tag, kind, value) in entries {
+            out.extend(short(tag));
+            out.extend(short(kind));
+            out.extend(long(1));
+            if kind == SHORT {
+                out.extend(short(value as u16));
+                out.extend([0, 0]);
+            } else {
+                out.extend(long(value));
+            }
+        }
+        out.extend(long(0)); // no next IFD
+        out.extend(data);
+        out
+    }
+}
+
+#[test]
+fn tiff_float32_gray_values_as_stored() {
+    let v = [-2.5f32, 0.125, 1000.0, 1e-7, 3.0, -0.0, 123_456.79, f32::MIN_POSITIVE];
+    let plain = tiff_f32(4, 2, &v);
+    let r = read(&plain);
+    assert_eq!((r.width, r.height), (4, 2));
+    assert_eq!(r.format, InputFormat::Tiff);
+    assert_eq!(r.sample, SampleType::Float);
+    assert!(r.sample.more_than_8_bits());
+    assert_eq!(names(&r), ["Y"]);
+    assert_eq!(data(&r, "Y"), v);
+    assert!(data(&r, "Y")[5].is_sign_negative(), "-0.0 stays -0.0");
+    for c in [None, Some(Channel::Luma), Some(Channel::R), Some(Channel::G), Some(Channel::B)] {
+        assert_eq!(r.heights(c).unwrap(), v, "{c:?}");
+    }
+    assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
+    assert_eq!(r.clone().into_heights(None).unwrap(), v);
+    use tiff::encoder::{Compression, DeflateLevel, colortype::Gray32Float};
+    for compression in [Compression::Lzw, Compression::Deflate(DeflateLevel::Best), Compression::Packbits] {
+        let packed = tiff_gray::<Gray32Float>(4, 2, &v, compression);
+        assert_ne!(packed, plain);
+        assert_eq!(read(&packed), r);
+    }
+}
+
+#[test]
+fn tiff_float32_gray_many_strips_and_both_byte_orders() {
+    // 70 rows: `tiff` writes several strips of 8 KiB or less.
+    let (w, h) = (50u32, 70u32);
+    let v: Vec<f32> = (0..w * h).map(|i| (i as f32 * 0.37).sin() * 400.0 - 12.5).collect();
+    let r = read(&tiff_f32(w, h, &v));
+    assert_eq!((r.width, r.height), (50, 70));
+    assert_eq!(r.heights(None).unwrap(), v);
+    for big_endian in [false, true] {
+        let bytes: Vec<u8> =
+            v.iter().flat_map(|x| if big_endian { x.to_be_bytes() } else { x.to_le_bytes() }).collect();
+        let r = read(&TiffSpec::new(w, h, 32, 3, big_endian).encode(&bytes));
+        assert_eq!(r.heights(None).unwrap(), v, "big endian: {big_endian}");
+    }
+}
+
+#[test]
+fn tiff_float64_gray_rounds_to_f32_and_overflow_is_infinite() {
+    let v = [0.1f64, -1.0 / 3.0, 1e-30, 8848.86, -0.0, 1.0];
+    let r =
+        read(&tiff_gray::<tiff::encoder::colortype::Gray64Float>(3, 2, &v, tiff::encoder::Compression::Uncompressed));
+    assert_eq!(r.sample, SampleType::Float);
+    assert_eq!(names(&r), ["Y"]);
+    let expected: Vec<f32> = v.iter().map(|&x| x as f32).collect();
+    assert_eq!(r.heights(None).unwrap(), expected);
+
+    // Beyond f32's range a double becomes an infinite height: an error that
+    // names the texel, like any infinity.
+    let big = [0.0f64, 1.0, 2.0, -1e39, 4.0, 5.0];
+    let r =
+        read(&tiff_gray::<tiff::encoder::colortype::Gray64Float>(3, 2, &big, tiff::encoder::Compression::Uncompressed));
+    assert_eq!(data(&r, "Y")[3], f32::NEG_INFINITY);
+    let e = r.heights(None).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteHeight { x: 0, y: 1 }), "{e}");
+
+    // Big-endian doubles, by hand.
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_be_bytes()).collect();
+    assert_eq!(read(&TiffSpec::new(3, 2, 64, 3, true).encode(&bytes)).heights(None).unwrap(), expected);
+}
+
+#[test]
+fn tiff_half_float_gray_by_hand() {
+    let v = [0.5f32, -2.0, 0.099_975_586, 65504.0, -0.000_061_035_156, 0.0];
+    for big_endian in [false, true] {
+        let bytes: Vec<u8> = v
+            .iter()
+            .flat_map(|&x| {
+                let bits = f16::from_f32(x).to_bits();
+                if big_endian { bits.to_be_bytes() } else { bits.to_le_bytes() }
+            })
+            .collect();
+        let r = read(&TiffSpec::new(2, 3, 16, 3, big_endian).encode(&bytes));
+        assert_eq!(r.format, InputFormat::Tiff);
+        assert_eq!(r.sample, SampleType::Float);
+        assert_eq!(r.heights(None).unwrap(), v, "big endian: {big_endian}");
+    }
+}
+
+#[test]
+fn tiff_uint32_gray_is_value_over_2_pow_32_minus_1() {
+    let v = [0u32, 1, 1 << 31, u32::MAX, 123_456_789, 65535];
+    let r = read(&tiff_gray::<tiff::encoder::colortype::Gray32>(2, 3, &v, tiff::encoder::Compression::Uncompressed));
+    assert_eq!(r.sample, SampleType::Int { bits: 32 });
+    assert!(r.sample.more_than_8_bits());
+    assert_eq!(names(&r), ["Y"]);
+    let expected: Vec<f32> = v.iter().map(|&n| (f64::from(n) / 4_294_967_295.0) as f32).collect();
+    let h = r.heights(None).unwrap();
+    assert_eq!(h, expected);
+    assert_eq!((h[0], h[3]), (0.0, 1.0));
+    assert_eq!(h[2], 0.5, "2^31 / (2^32 − 1) rounds to 0.5 in f32");
+}
+
+#[test]
+fn tiff_signed_gray_is_value_over_2_pow_bits_minus_1() {
+    use tiff::encoder::Compression::Uncompressed;
+    use tiff::encoder::colortype::{GrayI8, GrayI16, GrayI32};
+    let r = read(&tiff_gray::<GrayI8>(4, 1, &[i8::MIN, -1, 0, i8::MAX], Uncompressed));
+    assert_eq!(r.sample, SampleType::SignedInt { bits: 8 });
+    assert!(!r.sample.more_than_8_bits());
+    assert_eq!(r.heights(None).unwrap(), [-128.0 / 255.0, -1.0 / 255.0, 0.0, 127.0 / 255.0]);
+
+    let v16 = [i16::MIN, -300, 0, 1, i16::MAX, 12345];
+    let r = read(&tiff_gray::<GrayI16>(3, 2, &v16, Uncompressed));
+    assert_eq!(r.sample, SampleType::SignedInt { bits: 16 });
+    assert!(r.sample.more_than_8_bits());
+    let expected: Vec<f32> = v16.iter().map(|&n| f32::from(n) / 65535.0).collect();
+    assert_eq!(r.heights(None).unwrap(), expected);
+    // The same map stored unsigned with an offset of 2^15 (read by `image`)
+    // differs by a constant only, so its normals are the same.
+    let shifted: Vec<u16> = v16.iter().map(|&n| (i32::from(n) + 32768) as u16).collect();
+    let u = read(&tiff_gray::<tiff::encoder::colortype::Gray16>(3, 2, &shifted, Uncompressed));
+    assert_eq!(u.sample, SampleType::Int { bits: 16 });
+    for (hu, hs) in u.heights(None).unwrap().iter().zip(r.heights(None).unwrap()) {
+        assert!((f64::from(*hu) - f64::from(hs) - 32768.0 / 65535.0).abs() < 1e-7, "{hu} {hs}");
+    }
+
+    let v32 = [i32::MIN, -1, 0, i32::MAX];
+    let r = read(&tiff_gray::<GrayI32>(2, 2, &v32, Uncompressed));
+    assert_eq!(r.sample, SampleType::SignedInt { bits: 32 });
+    let expected: Vec<f32> = v32.iter().map(|&n| (f64::from(n) / 4_294_967_295.0) as f32).collect();
+    assert_eq!(r.heights(None).unwrap(), expected);
+
+    // Big-endian signed 16-bit, by hand (a DEM layout).
+    let bytes: Vec<u8> = v16.iter().flat_map(|n| n.to_be_bytes()).collect();
+    let r = read(&TiffSpec::new(3, 2, 16, 2, true).encode(&bytes));
+    assert_eq!(r.heights(None).unwrap(), v16.iter().map(|&n| f32::from(n) / 65535.0).collect::<Vec<_>>());
+}
+
+#[test]
+fn tiff_64_bit_integers_and_bigtiff() {
+    use tiff::encoder::Compression::Uncompressed;
+    use tiff::encoder::colortype::{Gray16, Gray32Float, Gray64, GrayI64};
+    // 64-bit integers are divided in f64 (2^64 − 1 rounds to 2^64 there).
+    let r = read(&tiff_gray::<Gray64>(3, 1, &[0, 1 << 63, u64::MAX], Uncompressed));
+    assert_eq!(r.sample, SampleType::Int { bits: 64 });
+    assert_eq!(r.heights(None).unwrap(), [0.0, 0.5, 1.0]);
+    let r = read(&tiff_gray::<GrayI64>(3, 1, &[i64::MIN, 0, 1 << 62], Uncompressed));
+    assert_eq!(r.sample, SampleType::SignedInt { bits: 64 });
+    assert_eq!(r.heights(None).unwrap(), [-0.5, 0.0, 0.25]);
+
+    // BigTIFF: float gray through `tiff`, 16-bit gray through `image`.
+    let v = [1.5f32, -0.25, 1e6, 0.0];
+    let r = read(&bigtiff_gray::<Gray32Float>(2, 2, &v));
+    assert_eq!((r.format.clone(), r.sample), (InputFormat::Tiff, SampleType::Float));
+    assert_eq!(r.heights(None).unwrap(), v);
+    let r = read(&bigtiff_gray::<Gray16>(2, 1, &[0, 65535]));
+    assert_eq!((r.format.clone(), r.sample), (InputFormat::Tiff, SampleType::Int { bits: 16 }));
+    assert_eq!(r.heights(None).unwrap(), [0.0, 1.0]);
+}
+
+#[test]
+fn tiff_8_and_16_bit_gray_stay_with_image() {
+    // What `image` read before still reads the same way.
+    let r = read(&TiffSpec::new(3, 1, 8, 1, true).encode(&[0, 128, 255]));
+    assert_eq!(r.sample, SampleType::Int { bits: 8 });
+    assert_eq!(r.heights(None).unwrap(), [0.0, 128.0 / 255.0, 1.0]);
+    let r = read(&TiffSpec::new(2, 1, 16, 1, true).encode(&[0x01, 0x02, 0xff, 0xff]));
+    assert_eq!(r.sample, SampleType::Int { bits: 16 });
+    assert_eq!(r.heights(None).unwrap(), [258.0 / 65535.0, 1.0]);
+}
+
+#[test]
+fn tiff_float_nan_and_inf_name_the_first_texel() {
+    let mut v = vec![0.25f32; 12];
+    v[2 * 4] = f32::INFINITY; // (0, 2)
+    v[4 + 2] = f32::NAN; // (2, 1), first in row order
+    let r = read(&tiff_f32(4, 3, &v));
+    assert!(data(&r, "Y")[6].is_nan(), "planes keep the NaN");
+    for e in [r.heights(None).unwrap_err(), r.clone().into_heights(None).unwrap_err()] {
+        assert!(matches!(e, Error::NonFiniteHeight { x: 2, y: 1 }), "{e}");
+    }
+}
+
+#[test]
+fn tiff_float_max_texels_is_the_limit() {
+    let file = tiff_f32(4, 4, &[0.5; 16]);
+    let e = decode(&file, &ReadOptions { max_texels: 15 }).unwrap_err();
+    assert!(matches!(e, Error::Limits(_)), "{e}");
+    assert_eq!(decode(&file, &ReadOptions { max_texels: 16 }).unwrap().heights(None).unwrap(), [0.5; 16]);
+    let file =
+        tiff_gray::<tiff::encoder::colortype::Gray64Float>(4, 4, &[0.5; 16], tiff::encoder::Compression::Uncompressed);
+    assert!(matches!(decode(&file, &ReadOptions { max_texels: 15 }).unwrap_err(), Error::Limits(_)));
+    assert!(decode(&file, &ReadOptions { max_texels: 16 }).is_ok());
+}
+
+#[test]
+fn tiff_float_header_claiming_huge_size_fails_fast_on_limits() {
+    // The header claims 10^10 float texels; the data is 64 bytes.
+    for big_endian in [false, true] {
+        let file = TiffSpec::new(100_000, 100_000, 32, 3, big_endian).encode(&[0; 64]);
+        let start = Instant::now();
+        let e = decode(&file, &ReadOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Limits(_)), "{e}");
+        assert!(start.elapsed() < Duration::from_secs(1));
+    }
+    // Zero size is a decode error.
+    for (w, h) in [(0, 4), (4, 0)] {
+        let e = decode(&TiffSpec::new(w, h, 32, 3, false).encode(&[]), &ReadOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Decode(_)), "{w}×{h}: {e}");
+    }
+}
+
+#[test]
+fn truncated_float_tiff_is_a_decode_error() {
+    // The encoder writes the pixels first and the IFD last; the hand-made
+    // file has its IFD first, so cuts there end inside the pixel data.
+    let v: Vec<f32> = (0..24).map(|i| i as f32 - 7.5).collect();
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    for file in [tiff_f32(6, 4, &v), TiffSpec::new(6, 4, 32, 3, false).encode(&bytes)] {
+        assert_eq!(read(&file).heights(None).unwrap(), v);
+        for len in 1..file.len() {
+            let e = decode(&file[..len], &ReadOptions::default()).unwrap_err();
+            assert!(matches!(e, Error::Decode(_)), "prefix {len}: {e}");
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
 // OpenEXR
 
 fn exr_bytes(size: (usize, usize), position: (i32, i32), channels: Vec<AnyChannel<FlatSamples>>) -> Vec<u8> {
@@ -710,6 +1021,11 @@ fn corrupted_files_of_every_format_do_not_panic() {
         .map(|f| encoded(image::ExtendedColorType::Rgb8, 8, 8, &rgb, f))
         .collect();
     files.push(PngSpec::new(8, 8, 2, 8).encode(|x, y| vec![x as u8, y as u8, 3]));
+    let floats: Vec<f32> = (0..64).map(|i| i as f32 * 0.25 - 3.0).collect();
+    files.push(tiff_f32(8, 8, &floats));
+    files.push(tiff_gray::<tiff::encoder::colortype::Gray32Float>(8, 8, &floats, tiff::encoder::Compression::Lzw));
+    let halves: Vec<u8> = floats.iter().flat_map(|&x| f16::from_f32(x).to_bits().to_be_bytes()).collect();
+    files.push(TiffSpec::new(8, 8, 16, 3, true).encode(&halves));
     files.push(exr_bytes((8, 8), (0, 0), vec![f32_channel("Y", &[0.5; 64])]));
     for file in &files {
         for pos in (0..file.len()).step_by(3) {

@@ -177,7 +177,10 @@ impl Plan {
 
     /// The output's path (None: standard output), format and depth.
     fn target(&self, input: &Input, raster: &Raster) -> Result<Target, Failure> {
-        let float_input = !matches!(raster.sample, io::SampleType::Int { .. });
+        let float_input = match raster.sample {
+            io::SampleType::Float => true,
+            io::SampleType::Int { .. } | io::SampleType::SignedInt { .. } => false,
+        };
         let from_input = match raster.format {
             InputFormat::Exr => FormatArg::Exr,
             InputFormat::Png => FormatArg::Png,

@@ -3,7 +3,9 @@
 //! Rules this module keeps, and why:
 //! * The decoder is chosen from the content, never the file name: a `.png`
 //!   that is really a JPEG still reads, and a renamed file cannot pick a
-//!   decoder that then misreads it.
+//!   decoder that then misreads it. OpenEXR goes to the `exr` crate, gray
+//!   TIFF with samples `image` refuses (float, half, 32/64-bit and signed
+//!   integers) to the `tiff` crate, everything else to `image`.
 //! * The size a header claims is checked against [`ReadOptions::max_texels`]
 //!   before any pixel buffer exists. A 100-byte file can claim
 //!   100000 × 100000 texels, and both `image` and `exr` would otherwise try
@@ -22,6 +24,7 @@ use std::path::Path;
 
 use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
 use rayon::prelude::*;
+use tiff::tags::{SampleFormat, Tag};
 
 use crate::error::{Error, Result, one_line};
 
@@ -83,12 +86,21 @@ impl fmt::Display for InputFormat {
 pub enum SampleType {
     /// Unsigned integers of `bits` bits per channel, as decoded (a 1-, 2- or
     /// 4-bit gray PNG arrives expanded to 8 bits, scaled so that the top
-    /// value stays 1.0).
+    /// value stays 1.0); read as value / (2^bits − 1) ∈ [0, 1].
     Int {
         /// Bits per channel.
         bits: u8,
     },
-    /// Floating point (half, float, or EXR's u32, all taken as numbers).
+    /// Signed (two's complement) integers of `bits` bits per channel, from
+    /// a gray TIFF. Read as value / (2^bits − 1), the unsigned rule with the
+    /// same step per stored unit, so h ∈ [−0.5, 0.5]: a signed map and the
+    /// same map stored unsigned with an offset give the same normals.
+    SignedInt {
+        /// Bits per channel.
+        bits: u8,
+    },
+    /// Floating point (half, float, double, or EXR's u32, all taken as
+    /// numbers).
     Float,
 }
 
@@ -100,7 +112,7 @@ impl SampleType {
     #[must_use]
     pub fn more_than_8_bits(self) -> bool {
         match self {
-            SampleType::Int { bits } => bits > 8,
+            SampleType::Int { bits } | SampleType::SignedInt { bits } => bits > 8,
             SampleType::Float => true,
         }
     }
@@ -111,8 +123,8 @@ impl SampleType {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plane {
     /// The channel's name: "Y" (gray), "R", "G", "B", "A" for the formats
-    /// `image` reads; the file's own channel names for EXR ("height",
-    /// "diffuse.R", …).
+    /// `image` and `tiff` read; the file's own channel names for EXR
+    /// ("height", "diffuse.R", …).
     pub name: String,
     /// The values, row 0 first.
     pub data: Vec<f32>,
@@ -152,6 +164,10 @@ impl Default for ReadOptions {
 /// The four bytes every OpenEXR file starts with.
 const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 
+/// The four bytes a TIFF starts with: classic and BigTIFF, little- and
+/// big-endian.
+const TIFF_MAGIC: [[u8; 4]; 4] = [*b"II*\0", *b"MM\0*", *b"II+\0", *b"MM\0+"];
+
 /// Rec. 709 luma weights of R, G and B (SPEC §1).
 const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
@@ -165,7 +181,15 @@ pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     if bytes.is_empty() {
         return Err(Error::Decode("file is empty".into()));
     }
-    if bytes.starts_with(&EXR_MAGIC) { decode_exr(bytes, opts) } else { decode_with_image(bytes, opts) }
+    if bytes.starts_with(&EXR_MAGIC) {
+        return decode_exr(bytes, opts);
+    }
+    if is_tiff(bytes) {
+        if let Some(raster) = decode_tiff_gray(bytes, opts)? {
+            return Ok(raster);
+        }
+    }
+    decode_with_image(bytes, opts)
 }
 
 /// Reads the file at `path` and [`decode`]s it. Failing to read the file is
@@ -402,6 +426,11 @@ fn decode_with_image(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 /// header has enough fixed fields, image type and pixel depth, that text
 /// and most other data fail it).
 fn guess_format(bytes: &[u8]) -> Result<ImageFormat> {
+    if is_tiff(bytes) {
+        // `image` knows only classic TIFF's signature; its decoder reads
+        // BigTIFF too.
+        return Ok(ImageFormat::Tiff);
+    }
     let reader = ImageReader::new(Cursor::new(bytes)).with_guessed_format()?;
     if let Some(format) = reader.format() {
         return Ok(format);
@@ -455,8 +484,10 @@ fn layout(color: ColorType) -> Result<(&'static [&'static str], SampleType)> {
 /// Splits interleaved native-endian samples into planes in contract units.
 fn deinterleave(buf: &[u8], names: &[&str], sample: SampleType, texels: usize) -> Result<Vec<Plane>> {
     let bytes = match sample {
-        SampleType::Int { bits } => usize::from(bits / 8),
+        SampleType::Int { bits: 8 } => 1,
+        SampleType::Int { bits: 16 } => 2,
         SampleType::Float => 4,
+        other => return Err(Error::Unsupported(format!("{other:?} samples are not read from interleaved pixels"))),
     };
     let stride = bytes * names.len();
     if buf.len() != texels.saturating_mul(stride) {
@@ -508,6 +539,182 @@ fn from_image_error(e: ImageError) -> Error {
 /// where it does not fit.
 fn to_usize(n: u64) -> Result<usize> {
     usize::try_from(n).map_err(|_| Error::Limits(format!("{n} does not fit in memory")))
+}
+
+// ---------------------------------------------------------------------------
+// Gray TIFF that `image` refuses, read with the `tiff` crate: 32- and 64-bit
+// float (what terrain generators and GIS tools export), half float, 32- and
+// 64-bit unsigned and 8- to 64-bit signed integers. Every other TIFF (8- and
+// 16-bit gray, RGB, float RGB, …) stays with `image`, which reads it.
+
+/// Whether the bytes start with a TIFF signature.
+fn is_tiff(bytes: &[u8]) -> bool {
+    TIFF_MAGIC.iter().any(|magic| bytes.starts_with(magic))
+}
+
+/// The gray sample layouts read here.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum TiffGray {
+    F16,
+    F32,
+    F64,
+    U32,
+    U64,
+    I8,
+    I16,
+    I32,
+    I64,
+}
+
+impl TiffGray {
+    /// The layout of a sample format and depth, if it is one read here.
+    fn of(format: SampleFormat, bits: u8) -> Option<TiffGray> {
+        use TiffGray::*;
+        Some(match (format, bits) {
+            (SampleFormat::IEEEFP, 16) => F16,
+            (SampleFormat::IEEEFP, 32) => F32,
+            (SampleFormat::IEEEFP, 64) => F64,
+            (SampleFormat::Uint, 32) => U32,
+            (SampleFormat::Uint, 64) => U64,
+            (SampleFormat::Int, 8) => I8,
+            (SampleFormat::Int, 16) => I16,
+            (SampleFormat::Int, 32) => I32,
+            (SampleFormat::Int, 64) => I64,
+            _ => return None,
+        })
+    }
+
+    /// Bytes per sample.
+    fn bytes(self) -> usize {
+        use TiffGray::*;
+        match self {
+            I8 => 1,
+            F16 | I16 => 2,
+            F32 | U32 | I32 => 4,
+            F64 | U64 | I64 => 8,
+        }
+    }
+
+    /// What was stored, for [`Raster::sample`].
+    fn sample(self) -> SampleType {
+        use TiffGray::*;
+        // At most 8 bytes, so the bit count fits a u8.
+        let bits = (self.bytes() * 8) as u8;
+        match self {
+            F16 | F32 | F64 => SampleType::Float,
+            U32 | U64 => SampleType::Int { bits },
+            I8 | I16 | I32 | I64 => SampleType::SignedInt { bits },
+        }
+    }
+}
+
+/// Decodes a gray TIFF whose samples `image` does not read. `Ok(None)`
+/// leaves the file to `image`: every other layout, and files whose header
+/// `tiff` cannot parse (`image` parses it with the same crate and reports
+/// the error as it always has).
+///
+/// Units (SPEC §1): floats as stored (a double beyond f32's range becomes
+/// ±inf, which [`Raster::heights`] rejects like any infinity); unsigned
+/// integers value / (2^bits − 1); signed integers value / (2^bits − 1) too
+/// (see [`SampleType::SignedInt`]). 64-bit integers are divided in f64, so
+/// they keep 53 bits before the f32 rounding.
+fn decode_tiff_gray(bytes: &[u8], opts: &ReadOptions) -> Result<Option<Raster>> {
+    let Ok(mut decoder) = tiff::decoder::Decoder::new(Cursor::new(bytes)) else { return Ok(None) };
+    let Ok(tiff::ColorType::Gray(bits)) = decoder.colortype() else { return Ok(None) };
+    let format = match decoder.find_tag_unsigned_vec::<u16>(Tag::SampleFormat) {
+        Ok(None) => SampleFormat::Uint,
+        Ok(Some(formats)) => match formats.first() {
+            Some(&f) => SampleFormat::from_u16_exhaustive(f),
+            None => return Ok(None),
+        },
+        Err(_) => return Ok(None),
+    };
+    let Some(kind) = TiffGray::of(format, bits) else { return Ok(None) };
+
+    // From here on the file is ours: its errors are reported as such.
+    let (width, height) = decoder.dimensions().map_err(from_tiff_error)?;
+    check_size(u64::from(width), u64::from(height), opts)?;
+    let texels = to_usize(u64::from(width) * u64::from(height))?;
+    let len = texels
+        .checked_mul(kind.bytes())
+        .ok_or_else(|| Error::Limits(format!("{texels} samples of {} bytes do not fit in memory", kind.bytes())))?;
+    let mut decoder = decoder.with_limits(tiff_limits(opts, kind));
+    let layout = decoder.image_buffer_layout().map_err(from_tiff_error)?;
+    if layout.planes != 1 || layout.complete_len != len {
+        return Err(Error::Decode(format!(
+            "tiff layout of {} bytes in {} planes does not match {width} × {height} {kind:?} samples",
+            layout.complete_len, layout.planes
+        )));
+    }
+    let mut buf = try_vec::<u8>(len)?;
+    buf.resize(len, 0);
+    decoder.read_image_bytes(&mut buf).map_err(from_tiff_error)?;
+    let data = tiff_samples(&buf, kind, texels)?;
+    Ok(Some(Raster {
+        width: to_usize(width.into())?,
+        height: to_usize(height.into())?,
+        format: InputFormat::Tiff,
+        sample: kind.sample(),
+        planes: vec![Plane { name: "Y".into(), data }],
+    }))
+}
+
+/// Limits handed to `tiff`: a decoded buffer may hold `max_texels` samples
+/// of this image's type and no more. The stored bytes of one strip or tile
+/// are streamed from memory, not buffered, so their limit only refuses
+/// counts no honest file has: twice the decoded size (LZW, the worst
+/// expander, stays under 1.5×) plus 1 MiB.
+fn tiff_limits(opts: &ReadOptions, kind: TiffGray) -> tiff::decoder::Limits {
+    let decoded = u64::try_from(kind.bytes())
+        .ok()
+        .and_then(|b| opts.max_texels.checked_mul(b))
+        .and_then(|n| usize::try_from(n).ok())
+        .unwrap_or(usize::MAX);
+    let mut limits = tiff::decoder::Limits::default();
+    limits.decoding_buffer_size = decoded;
+    limits.intermediate_buffer_size = decoded.saturating_mul(2).saturating_add(1 << 20);
+    limits
+}
+
+/// Native-endian samples (as `tiff` leaves them) to heights in contract
+/// units.
+fn tiff_samples(buf: &[u8], kind: TiffGray, texels: usize) -> Result<Vec<f32>> {
+    let size = kind.bytes();
+    if buf.len() != texels.saturating_mul(size) {
+        return Err(Error::Decode(format!("decoder gave {} bytes for {texels} texels of {size} bytes", buf.len())));
+    }
+    fn ne<const N: usize>(p: &[u8]) -> [u8; N] {
+        std::array::from_fn(|i| p[i])
+    }
+    // 2^32 − 1 and 2^64 − 1 (the latter rounds to 2^64 in f64).
+    const U32_TOP: f64 = u32::MAX as f64;
+    const U64_TOP: f64 = u64::MAX as f64;
+    let mut data = try_vec(texels)?;
+    let px = buf.par_chunks_exact(size);
+    match kind {
+        TiffGray::F16 => data.par_extend(px.map(|p| exr::prelude::f16::from_bits(u16::from_ne_bytes(ne(p))).to_f32())),
+        TiffGray::F32 => data.par_extend(px.map(|p| f32::from_ne_bytes(ne(p)))),
+        TiffGray::F64 => data.par_extend(px.map(|p| f64::from_ne_bytes(ne(p)) as f32)),
+        TiffGray::U32 => data.par_extend(px.map(|p| (f64::from(u32::from_ne_bytes(ne(p))) / U32_TOP) as f32)),
+        TiffGray::U64 => data.par_extend(px.map(|p| (u64::from_ne_bytes(ne(p)) as f64 / U64_TOP) as f32)),
+        TiffGray::I8 => data.par_extend(px.map(|p| f32::from(i8::from_ne_bytes(ne(p))) / 255.0)),
+        TiffGray::I16 => data.par_extend(px.map(|p| f32::from(i16::from_ne_bytes(ne(p))) / 65535.0)),
+        TiffGray::I32 => data.par_extend(px.map(|p| (f64::from(i32::from_ne_bytes(ne(p))) / U32_TOP) as f32)),
+        TiffGray::I64 => data.par_extend(px.map(|p| (i64::from_ne_bytes(ne(p)) as f64 / U64_TOP) as f32)),
+    }
+    Ok(data)
+}
+
+/// Maps `tiff`'s errors onto ours. Reading from memory cannot fail at the
+/// operating system, so its I/O errors mean the data ended early.
+fn from_tiff_error(e: tiff::TiffError) -> Error {
+    use tiff::TiffError as E;
+    match e {
+        E::IoError(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
+        E::UnsupportedError(e) => Error::Unsupported(message(&e.to_string())),
+        E::LimitsExceeded => Error::Limits("tiff data exceeds the decoder's limits".into()),
+        e @ (E::FormatError(_) | E::IntSizeError | E::UsageError(_)) => Error::Decode(message(&e.to_string())),
+    }
 }
 
 // ---------------------------------------------------------------------------
