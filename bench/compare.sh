@@ -9,6 +9,8 @@
 # Progress goes to standard error, the table to standard output (and to
 # bench/.work/results.md, or big.md for --big).
 set -euo pipefail
+# Numbers with a decimal point and character-wise string lengths, whatever the user's locale.
+if locale -a 2>/dev/null | grep -qix 'c.utf-\{0,1\}8'; then export LC_ALL=C.UTF-8; else export LC_ALL=C; fi
 
 # ---------------------------------------------------------------- settings --
 
@@ -44,7 +46,12 @@ done
 
 log() { printf '[compare] %s\n' "$*" >&2; }
 # One line, safe inside a Markdown table cell.
-cell() { tr '\n' ' ' <<<"$*" | sed 's/|/\\|/g; s/  */ /g; s/^ //; s/ $//' | cut -c1-110; }
+cell() {
+    local s
+    s=$(tr '\n' ' ' <<<"$*" | sed 's/|/\\|/g; s/  */ /g; s/^ //; s/ $//')
+    (( ${#s} > 160 )) && s="${s:0:159}…"
+    printf '%s\n' "$s"
+}
 mkdir -p "$WORK/out" "$WORK/log" "$PEERS"
 
 # ----------------------------------------------------------------- install --
@@ -237,6 +244,25 @@ tool_version() {
     echo "${v:-?}"
 }
 
+# The check cell from "SIZE<tab>NOTE" lines: each failure or wrong output
+# once, with the sizes it happened at, then the largest size's check if it
+# passed.
+summarize_checks() {
+    awk -F'\t' -v large="$1" '
+        NF < 2 { next }
+        $2 ~ /^(failed|WRONG)/ {
+            if (!($2 in at)) order[++n] = $2
+            at[$2] = at[$2] (at[$2] == "" ? "" : ", ") $1 "²"
+            next
+        }
+        $1 == large { ok = $2 }
+        END {
+            for (i = 1; i <= n; i++) out = out (out == "" ? "" : "; ") at[order[i]] ": " order[i]
+            if (ok != "") out = out (out == "" ? "" : "; ") ok
+            print out
+        }'
+}
+
 # ------------------------------------------------------------------ timing --
 
 # The arguments as one line a shell would read back the same.
@@ -275,7 +301,7 @@ time_tool() {
         t1=$(now_ns)
         if [[ $rc -ne 0 ]]; then
             if [[ $rc -eq 124 ]]; then FAIL="failed: timed out after ${RUN_TIMEOUT} s"
-            else FAIL="failed (exit $rc): $(grep -v '^Command exited' "$errf" | grep -v '^\s*$' | tail -1 || true)"
+            else FAIL="failed (exit $rc): $(sed 's/\x1b\[[0-9;]*m//g' "$errf" | grep -v '^\s*$' | tail -1 || true)"
             fi
             return 0
         fi
@@ -386,7 +412,7 @@ for entry in "${TOOLS[@]}"; do
         time_tool "$id" "$size" "$RUNS" "$ext"
         if [[ -n $FAIL ]]; then
             T[$id,$size]=failed
-            CHK[$id]="${CHK[$id]:+${CHK[$id]}; }${size}²: $FAIL"
+            CHK[$id]+="$size"$'\t'"$FAIL"$'\n'
             log "  $FAIL"
             continue
         fi
@@ -399,12 +425,8 @@ for entry in "${TOOLS[@]}"; do
         else
             note=$(check_output "$OUT" "$size" "$size" "$ref") || true
         fi
-        # The table shows the 4096² check; a smaller size only when it is wrong.
-        if [[ $size == "${SIZES[-1]}" ]]; then
-            CHK[$id]="${CHK[$id]:+${CHK[$id]}; }$note"
-        elif [[ $note == WRONG* ]]; then
-            CHK[$id]="${size}²: $note"
-        fi
+        CHK[$id]+="$size"$'\t'"$note"$'\n'
+        [[ $note == WRONG* ]] && log "  $note"
     done
     shell_words "${CMD[@]}" >"$WORK/log/$id.cmd"   # the last command, for the listing
 done
@@ -435,7 +457,7 @@ small=${SIZES[0]} large=${SIZES[-1]}
         [[ -n ${M[$id,$large]:-} ]] && rss=$(fmt_mib "${M[$id,$large]}")
         [[ -n ${SZ[$id,$large]:-} ]] && size="$(fmt_size "${SZ[$id,$large]}")"
         [[ $ext != png && $size != — ]] && size="$size (${ext^^})"
-        echo "| $name | ${VER[$id]} | $(cell "$computes") | $t_small | $t_large | $rss | $r_small / $r_large | $size | $(cell "${CHK[$id]:-}") |"
+        echo "| $name | ${VER[$id]} | $(cell "$computes") | $t_small | $t_large | $rss | $r_small / $r_large | $size | $(cell "$(summarize_checks "$large" <<<"${CHK[$id]:-}")") |"
     done
     echo
     echo "Commands (${large}²; paths relative to \`bench/.work\`, the repository and cargo's target directory):"
