@@ -3,7 +3,7 @@
 # height maps, and prints a Markdown table (see bench/README.md).
 #
 #     bench/compare.sh          # install peers, make inputs, time, print the table
-#     bench/compare.sh --big    # only normalfit on a 32768² map (≈1.5 GB input)
+#     bench/compare.sh --big    # only normalfit on a 32768² map (≈0.9 GB input, ≈8 GiB RAM)
 #
 # Runs from any directory (it finds the repository from its own path).
 # Progress goes to standard error, the table to standard output (and to
@@ -320,6 +320,7 @@ check_output() {
     "${CMD_ENV[@]}" "$py" "$BENCH/peers/check.py" "$@"
 }
 
+# Machine and date, taken when the run starts.
 machine_header() {
     local cpu mem os rustc
     cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//' || echo '?')
@@ -332,6 +333,7 @@ machine_header() {
 # --------------------------------------------------------------- --big ----
 
 run_big() {
+    local header; header=$(machine_header)
     build_normalfit
     local big=$WORK/h$BIG_SIZE.png stamp=$WORK/h$BIG_SIZE.stamp want avail_gb
     want="$(sha256sum examples/heightmap.rs | cut -c1-16) $BIG_SIZE"
@@ -339,8 +341,8 @@ run_big() {
         log "reusing $big (same generator)"
     else
         avail_gb=$(df -P --block-size=1G "$WORK" | awk 'NR == 2 { print $4 }')
-        if (( avail_gb < 8 )); then
-            echo "compare.sh --big: needs about 8 GB free in $WORK (input ≈1.5 GB, output ≈2 GB, slack); $avail_gb GB free" >&2
+        if (( avail_gb < 4 )); then
+            echo "compare.sh --big: needs about 4 GB free in $WORK (input ≈0.9 GB, output ≈0.8 GB, slack); $avail_gb GB free" >&2
             exit 1
         fi
         rm -f "$big" "$stamp"
@@ -360,12 +362,12 @@ run_big() {
     else
         ns32=$BEST_NS kb32=$PEAK_KB bytes32=$(stat -c %s "$OUT")
         note=$(python3 "$BENCH/peers/check.py" --size-only "$OUT" "$BIG_SIZE" "$BIG_SIZE" || true)
-        rm -f "$OUT"   # ≈2 GB; the input is kept for the next --big run
+        rm -f "$OUT"   # ≈0.8 GB; the input is kept for the next --big run
     fi
     {
         echo "## normalfit on a ${BIG_SIZE}² height map"
         echo
-        machine_header
+        echo "$header"
         echo "Inputs: \`cargo run --release --example heightmap -- SIZE\` (16-bit gray PNG; ${BIG_SIZE}²: $(fmt_size "$(stat -c %s "$big")")). Command: \`normalfit convert IN -o OUT.png $NORMALFIT_OPTS\` (S = $RELIEF × width). 4096²: best of $RUNS runs; ${BIG_SIZE}²: one run. Peak RSS from \`/usr/bin/time -f '%e %M'\`."
         echo
         echo "| input | wall time | peak RSS | ns per texel | per texel vs 4096² | output size | check |"
@@ -390,6 +392,7 @@ if [[ $BIG -eq 1 ]]; then
     exit 0
 fi
 
+HEADER=$(machine_header)
 install_peers
 [[ -n $PYTHONPATH_PEERS ]] && CMD_ENV=(env "PYTHONPATH=$PYTHONPATH_PEERS")
 build_normalfit
@@ -435,7 +438,7 @@ small=${SIZES[0]} large=${SIZES[-1]}
 {
     echo "## normalfit and its peers"
     echo
-    machine_header
+    echo "$HEADER"
     echo "Inputs: \`cargo run --release --example heightmap -- SIZE OUT.png\` (ridged fractal noise, 16-bit gray PNG; ${small}²: $(fmt_size "$(stat -c %s "$WORK/h$small.png")"), ${large}²: $(fmt_size "$(stat -c %s "$WORK/h$large.png")")). Gain S = $RELIEF × width for every tool that takes one. Output: 8-bit RGB, green up, unless noted."
     echo "Wall time: best of $RUNS runs; peak RSS: highest of the $RUNS, from \`/usr/bin/time -f '%e %M'\`; ratio: tool's time ÷ normalfit's; check: the ${large}² output against normalfit's (Δ = mean angle between the normals, tilt = the tool's gain relative to normalfit's)."
     echo
