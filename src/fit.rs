@@ -301,17 +301,9 @@ impl Plan {
     }
 }
 
-/// The fitted plane's unit normal from the patch sums (see the module docs).
-#[inline]
-pub(crate) fn plane_normal(fit: Fit, a: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
-    match fit {
-        Fit::Orthogonal => normal_from_sums::<true>(a, cx, cy, czz),
-        Fit::Vertical => normal_from_sums::<false>(a, cx, cy, czz),
-    }
-}
-
-/// [`plane_normal`] written without branches: every case is computed and
-/// the right one selected, so that a loop of it vectorises. The unused
+/// The fitted plane's unit normal from the patch sums (see the module
+/// docs), written without branches: every case is computed and the right
+/// one selected, so that a loop of it vectorises. The unused
 /// cases may divide by zero; their values are discarded.
 #[inline(always)]
 fn normal_from_sums<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
