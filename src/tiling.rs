@@ -5,6 +5,8 @@
 //! tiles along an axis when that wrap pair looks like the pairs of
 //! neighbouring columns (rows) inside the image. [`check`] measures exactly
 //! that, with no knowledge of files: planes in, [`TilingReport`] out.
+//! [`HeightSeams`] does the same for a height map fed row by row, in
+//! memory O(W + H), for images too large to hold.
 //!
 //! # The measure
 //!
@@ -134,6 +136,9 @@
 //! for both axes; the colour-to-luma conversion happens on the fly per
 //! block of rows, so no full-size copy is made. A 4096² gray image took
 //! 25 ms on 2 cores (`a_4096_square_check_is_cheap`), far below decoding it.
+//! [`HeightSeams`] runs the same kernels one row at a time on the caller's
+//! thread, keeping 6 rows and the profiles: 31 ms for a 4096² height map
+//! on one thread (`streaming_a_4096_square_is_cheap`).
 
 use rayon::prelude::*;
 
@@ -351,22 +356,188 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
         KindChoice::Height => ImageKind::Height,
         KindChoice::Normal => ImageKind::Normal,
     };
-    let axis = |score: f64| AxisReport { score, seamless: score <= opts.threshold };
     if len == 0 {
-        return TilingReport { kind, x: axis(1.0), y: axis(1.0) };
+        return Profiles::empty_report(kind, opts);
     }
-    let p = Profiles::measure(planes, width, height, kind);
-    // ε from the mean |Δ| per texel over both axes (2·W·H differences),
-    // times the line length each axis's profile sums over.
-    let total: f64 = p.vx.iter().chain(&p.vy).sum();
-    let mean = total / (2.0 * len as f64);
-    let eps_x = FLOOR_FRACTION * mean * height as f64 + 1e-30;
-    let eps_y = FLOOR_FRACTION * mean * width as f64 + 1e-30;
-    let crease = kind == ImageKind::Height;
-    TilingReport {
-        kind,
-        x: axis(axis_score(&p.vx, &p.cx, crease, eps_x)),
-        y: axis(axis_score(&p.vy, &p.cy, crease, eps_y)),
+    Profiles::measure(planes, width, height, kind).report(kind, opts)
+}
+
+/// The tiling check of a height map fed one row at a time, top to bottom:
+/// [`check`] for an image too large to hold, such as one streamed from a
+/// decoder.
+///
+/// Gives the report of
+/// `check(&[&heights], width, height, &opts.with_kind(KindChoice::Height))`:
+/// the same profiles and scores (see [below](#same-as-check)), judged as
+/// [`ImageKind::Height`] whatever `opts.kind` says. For a colour image, push
+/// rows of its luma (0.2126 R + 0.7152 G + 0.0722 B, as `check` takes it).
+///
+/// Memory is O(W + H), never the image: the x profiles (4 W values), the
+/// y profiles (2 H), the first 2 rows and the last 4 (the pairs that cross
+/// the y wrap, value H−1 → 0 and crease H−2, H−1, 0, 1, need rows H−2,
+/// H−1, 0 and 1). Each
+/// [`push_row`](Self::push_row) is O(W) work on the caller's thread, in
+/// branch-free loops over slices that vectorise; [`finish`](Self::finish)
+/// adds the pairs across the wrap and selects the references, O(W + H).
+///
+/// # Same as check
+///
+/// The per-line sums are computed by the same kernels as in `check`, in the
+/// same order: the y sums and the x sums of each block of 32 rows (kept in
+/// f32 by `check`, and so here) are bit for bit the same; only the f64
+/// total over the blocks is added in another order (`check` adds them per
+/// thread). Those f64 sums of f32 values are exact unless the block sums
+/// span about 2²⁹ in size, so the scores are in practice identical (they
+/// were in every test) and at worst about 10⁻¹⁵ apart relative; verdicts
+/// can then differ only for a score that close to the threshold.
+///
+/// ```
+/// use normalfit::tiling::{check, HeightSeams, KindChoice, TilingOptions};
+/// // A ramp along x, fed row by row.
+/// let (w, h) = (64, 32);
+/// let ramp: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 / (w - 1) as f32).collect();
+/// let mut seams = HeightSeams::new(w, h);
+/// for row in ramp.chunks_exact(w) {
+///     seams.push_row(row);
+/// }
+/// let opts = TilingOptions::new();
+/// let report = seams.finish(&opts);
+/// assert!(!report.x.seamless && report.y.seamless);
+/// let whole = check(&[&ramp], w, h, &opts.with_kind(KindChoice::Height));
+/// assert!((report.x.score / whole.x.score - 1.0).abs() < 1e-12);
+/// ```
+#[derive(Clone, Debug)]
+pub struct HeightSeams {
+    width: usize,
+    height: usize,
+    /// Rows pushed so far.
+    rows: usize,
+    /// Rows 0 and 1 as far as pushed (non-finite values as 0).
+    first: Vec<f32>,
+    /// The last 4 rows pushed: row y in slot y mod 4.
+    ring: Vec<f32>,
+    /// Scratch for [`add_row_x`].
+    padded: Vec<f32>,
+    /// The x sums of the current block of [`CHUNK`] rows, in f32 as in
+    /// [`Block`].
+    vx_block: Vec<f32>,
+    cx_block: Vec<f32>,
+    /// The profiles of the [module docs](self), x over the finished blocks.
+    /// `cy[0]` and `cy[H−2]` stay 0: their stencils cross the wrap, but
+    /// they are neither the seam nor interior pairs, so no score reads them.
+    vx: Vec<f64>,
+    cx: Vec<f64>,
+    vy: Vec<f64>,
+    cy: Vec<f64>,
+}
+
+impl HeightSeams {
+    /// A check of a `width` × `height` height map, no rows in yet.
+    ///
+    /// # Panics
+    ///
+    /// If `width * height` overflows `usize`.
+    #[must_use]
+    pub fn new(width: usize, height: usize) -> Self {
+        width.checked_mul(height).expect("image size overflows usize");
+        let rows_of = |n: usize| vec![0.0f32; n * width];
+        HeightSeams {
+            width,
+            height,
+            rows: 0,
+            first: rows_of(2.min(height)),
+            ring: rows_of(4.min(height)),
+            padded: vec![0.0; width + 3],
+            vx_block: vec![0.0; width],
+            cx_block: vec![0.0; width],
+            vx: vec![0.0; width],
+            cx: vec![0.0; width],
+            vy: vec![0.0; height],
+            cy: vec![0.0; height],
+        }
+    }
+
+    /// The rows pushed so far.
+    #[must_use]
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Adds the next row, `width` heights. Non-finite values count as 0, as
+    /// in [`check`].
+    ///
+    /// # Panics
+    ///
+    /// If `row.len() != width`, or if all `height` rows are in already.
+    pub fn push_row(&mut self, row: &[f32]) {
+        let (w, y) = (self.width, self.rows);
+        assert_eq!(row.len(), w, "HeightSeams::push_row: a row of {} values in an image {w} wide", row.len());
+        assert!(y < self.height, "HeightSeams::push_row: all {} rows are in already", self.height);
+        self.rows += 1;
+        if w == 0 {
+            return;
+        }
+        let slot = &mut self.ring[(y % 4) * w..][..w];
+        for (o, &v) in slot.iter_mut().zip(row) {
+            *o = finite(v);
+        }
+        let ring = &self.ring;
+        let ring_row = |j: usize| &ring[(j % 4) * w..][..w];
+        let r = ring_row(y);
+        if y < 2 {
+            self.first[y * w..][..w].copy_from_slice(r);
+        }
+        add_row_x(r, &mut self.padded, &mut self.vx_block, &mut self.cx_block, true);
+        if (y + 1) % CHUNK == 0 {
+            flush(&mut self.vx, &mut self.vx_block);
+            flush(&mut self.cx, &mut self.cx_block);
+        }
+        // The y pairs whose stencils end at this row and do not wrap.
+        if y >= 1 {
+            self.vy[y - 1] = y_value(ring_row(y - 1), r);
+        }
+        if y >= 3 {
+            self.cy[y - 2] = y_crease(ring_row(y - 3), ring_row(y - 2), ring_row(y - 1), r);
+        }
+    }
+
+    /// The report, judged as [`ImageKind::Height`] under `opts.threshold`.
+    ///
+    /// Once all `height` rows are in, that of the whole image. With rows
+    /// missing, that of the image made of the rows pushed (its last row
+    /// wraps to its first): what [`check`] says of that many rows, so a
+    /// caller can judge a truncated stream, and should compare
+    /// [`rows`](Self::rows) with the height when that matters. No rows, or
+    /// width 0: score 1 on both axes, as `check` of an empty image.
+    #[must_use]
+    pub fn finish(mut self, opts: &TilingOptions) -> TilingReport {
+        let (w, h) = (self.width, self.rows);
+        if w == 0 || h == 0 {
+            return Profiles::empty_report(ImageKind::Height, opts);
+        }
+        flush(&mut self.vx, &mut self.vx_block);
+        flush(&mut self.cx, &mut self.cx_block);
+        let (first, ring) = (&self.first, &self.ring);
+        // Row j mod H: the seam stencils only reach rows H − 2, H − 1, 0, 1.
+        let row = |j: usize| {
+            let j = j % h;
+            if j < 2 { &first[j * w..][..w] } else { &ring[(j % 4) * w..][..w] }
+        };
+        let (mut vy, mut cy) = (self.vy, self.cy);
+        vy.truncate(h);
+        cy.truncate(h);
+        // The seams; push_row did the interior pairs.
+        vy[h - 1] = y_value(row(h - 1), row(h));
+        cy[h - 1] = y_crease(row(2 * h - 2), row(h - 1), row(h), row(h + 1));
+        Profiles { vx: self.vx, cx: self.cx, vy, cy }.report(ImageKind::Height, opts)
+    }
+}
+
+/// Adds the f32 block sums into the f64 totals and clears them.
+fn flush(total: &mut [f64], block: &mut [f32]) {
+    for (t, b) in total.iter_mut().zip(block.iter_mut()) {
+        *t += f64::from(*b);
+        *b = 0.0;
     }
 }
 
@@ -405,7 +576,6 @@ impl Signal<'_> {
     /// Writes row `y` into `out`, non-finite values as 0.
     fn fill(&self, y: usize, out: &mut [f32]) {
         let w = out.len();
-        let finite = |v: f32| if v.is_finite() { v } else { 0.0 };
         match *self {
             Signal::Plane(p) => {
                 for (o, &v) in out.iter_mut().zip(&p[y * w..][..w]) {
@@ -433,6 +603,29 @@ struct Profiles {
 }
 
 impl Profiles {
+    /// The report on an image without texels: both axes tile, score 1.
+    fn empty_report(kind: ImageKind, opts: &TilingOptions) -> TilingReport {
+        TilingReport { kind, x: axis_report(1.0, opts), y: axis_report(1.0, opts) }
+    }
+
+    /// The report from complete profiles (`vx.len()` = W, `vy.len()` = H,
+    /// both ≥ 1): ε from the mean |Δ|, then [`axis_score`] per axis.
+    fn report(&self, kind: ImageKind, opts: &TilingOptions) -> TilingReport {
+        let (width, height) = (self.vx.len(), self.vy.len());
+        // ε from the mean |Δ| per texel over both axes (2·W·H differences),
+        // times the line length each axis's profile sums over.
+        let total: f64 = self.vx.iter().chain(&self.vy).sum();
+        let mean = total / (2.0 * (width * height) as f64);
+        let eps_x = FLOOR_FRACTION * mean * height as f64 + 1e-30;
+        let eps_y = FLOOR_FRACTION * mean * width as f64 + 1e-30;
+        let crease = kind == ImageKind::Height;
+        TilingReport {
+            kind,
+            x: axis_report(axis_score(&self.vx, &self.cx, crease, eps_x), opts),
+            y: axis_report(axis_score(&self.vy, &self.cy, crease, eps_y), opts),
+        }
+    }
+
     fn measure(planes: &[&[f32]], w: usize, h: usize, kind: ImageKind) -> Profiles {
         let signals: Vec<Signal> = match kind {
             ImageKind::Height if planes.len() >= 3 => {
@@ -531,23 +724,8 @@ impl Block {
 
         self.vx.fill(0.0);
         self.cx.fill(0.0);
-        let padded = &mut self.padded;
         for i in 1..=n {
-            let r = row(i);
-            padded[0] = r[w - 1];
-            padded[1..=w].copy_from_slice(r);
-            padded[w + 1] = r[0];
-            padded[w + 2] = r[1 % w];
-            // a, b, c, d = h(k−1), h(k), h(k+1), h(k+2) for k = 0 … W−1.
-            let (a, b, c, d) = (&padded[..w], &padded[1..=w], &padded[2..w + 2], &padded[3..w + 3]);
-            for (k, v) in self.vx.iter_mut().enumerate() {
-                *v += (c[k] - b[k]).abs();
-            }
-            if crease {
-                for (k, s) in self.cx.iter_mut().enumerate() {
-                    *s += ((d[k] - c[k]) - (b[k] - a[k])).abs();
-                }
-            }
+            add_row_x(row(i), &mut self.padded, &mut self.vx, &mut self.cx, crease);
         }
 
         self.vy.clear();
@@ -555,10 +733,56 @@ impl Block {
         for i in 0..n {
             // Rows y − 1, y, y + 1, y + 2 for the pair y → y + 1.
             let (a, b, c, d) = (row(i), row(i + 1), row(i + 2), row(i + 3));
-            self.vy.push(lane_sum(w, |x| (c[x] - b[x]).abs()));
-            self.cy.push(if crease { lane_sum(w, |x| ((d[x] - c[x]) - (b[x] - a[x])).abs()) } else { 0.0 });
+            self.vy.push(y_value(b, c));
+            self.cy.push(if crease { y_crease(a, b, c, d) } else { 0.0 });
         }
     }
+}
+
+/// The [`AxisReport`] of a score under `opts.threshold`.
+fn axis_report(score: f64, opts: &TilingOptions) -> AxisReport {
+    AxisReport { score, seamless: score <= opts.threshold }
+}
+
+/// A texel as judged: non-finite values as 0.
+#[inline]
+fn finite(v: f32) -> f32 {
+    if v.is_finite() { v } else { 0.0 }
+}
+
+/// Adds the x pairs of one row `r` (W ≥ 1 values) to the f32 sums `vx` and,
+/// with `crease`, its x creases to `cx`. `padded` is scratch of W + 3
+/// values. The one x kernel of [`check`] and [`HeightSeams`].
+#[inline]
+fn add_row_x(r: &[f32], padded: &mut [f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
+    let w = r.len();
+    padded[0] = r[w - 1];
+    padded[1..=w].copy_from_slice(r);
+    padded[w + 1] = r[0];
+    padded[w + 2] = r[1 % w];
+    // a, b, c, d = h(k−1), h(k), h(k+1), h(k+2) for k = 0 … W−1.
+    let (a, b, c, d) = (&padded[..w], &padded[1..=w], &padded[2..w + 2], &padded[3..w + 3]);
+    for (k, v) in vx[..w].iter_mut().enumerate() {
+        *v += (c[k] - b[k]).abs();
+    }
+    if crease {
+        for (k, s) in cx[..w].iter_mut().enumerate() {
+            *s += ((d[k] - c[k]) - (b[k] - a[k])).abs();
+        }
+    }
+}
+
+/// The y value sum of the row pair `b` → `c`.
+#[inline]
+fn y_value(b: &[f32], c: &[f32]) -> f64 {
+    lane_sum(b.len(), |x| (c[x] - b[x]).abs())
+}
+
+/// The y crease sum of the row pair `b` → `c`, `a` the row before `b` and
+/// `d` the row after `c`.
+#[inline]
+fn y_crease(a: &[f32], b: &[f32], c: &[f32], d: &[f32]) -> f64 {
+    lane_sum(b.len(), |x| ((d[x] - c[x]) - (b[x] - a[x])).abs())
 }
 
 /// Σ f(x) for x in 0 … n − 1, in 8 f32 lanes (so the loop vectorises)

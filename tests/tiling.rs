@@ -3,8 +3,8 @@
 
 mod tiling_support;
 
-use normalfit::tiling::{ImageKind, KindChoice, TilingOptions, check};
-use tiling_support::{Case, generated_cases, real_cases, spec_cases};
+use normalfit::tiling::{HeightSeams, ImageKind, KindChoice, TilingOptions, TilingReport, check};
+use tiling_support::{Case, Rng, generated_cases, real_cases, spec_cases};
 
 /// Checks every case's verdicts and detected kind; prints the scores.
 fn assert_cases(cases: &[Case]) {
@@ -141,4 +141,226 @@ fn a_4096_square_check_is_cheap() {
     let took = t.elapsed();
     println!("4096² check: {took:?}, {r:?}");
     assert!(took.as_secs_f64() < 5.0, "4096² check took {took:?}");
+}
+
+/// The streaming check of `v` (`w` × `h`), fed row by row.
+fn stream(v: &[f32], w: usize, h: usize, opts: &TilingOptions) -> TilingReport {
+    let mut seams = HeightSeams::new(w, h);
+    for y in 0..h {
+        seams.push_row(&v[y * w..][..w]);
+    }
+    assert_eq!(seams.rows(), h);
+    seams.finish(opts)
+}
+
+/// Asserts that streaming `v` gives `check`'s report as a height map under
+/// `threshold`: same kind and verdicts, scores within 1e-9 relative.
+/// Returns the larger relative score difference of the two axes.
+fn assert_stream_matches(v: &[f32], w: usize, h: usize, threshold: f64, label: &str) -> f64 {
+    let opts = TilingOptions::new().with_kind(KindChoice::Height).with_threshold(threshold);
+    let whole = check(&[v], w, h, &opts);
+    let streamed = stream(v, w, h, &opts);
+    let rel = |a: f64, b: f64| if a == b { 0.0 } else { (a - b).abs() / a.abs().max(b.abs()) };
+    let diff = rel(whole.x.score, streamed.x.score).max(rel(whole.y.score, streamed.y.score));
+    assert!(diff <= 1e-9, "{label} {w}×{h}: check {whole:?}, streamed {streamed:?}");
+    assert_eq!(streamed.kind, ImageKind::Height, "{label} {w}×{h}");
+    assert_eq!(
+        (streamed.x.seamless, streamed.y.seamless),
+        (whole.x.seamless, whole.y.seamless),
+        "{label} {w}×{h}: check {whole:?}, streamed {streamed:?}"
+    );
+    diff
+}
+
+/// Sizes around every special case: axes of 1 to 6 (no interior crease, the
+/// wrap stencils overlapping), and heights around the 32-row blocks.
+const SIZES_W: [usize; 11] = [1, 2, 3, 4, 5, 7, 8, 9, 17, 33, 64];
+const SIZES_H: [usize; 14] = [1, 2, 3, 4, 5, 6, 7, 31, 32, 33, 63, 64, 65, 97];
+
+#[test]
+fn streaming_equals_check_on_random_heights_of_many_sizes() {
+    let mut worst = 0.0f64;
+    for &w in &SIZES_W {
+        for &h in &SIZES_H {
+            for seed in 0..3u64 {
+                let mut rng = Rng(seed * 1000 + (w * 131 + h) as u64);
+                // Unit range, and a large offset and range for f32 rounding.
+                let (lo, span) = if seed == 2 { (1000.0, 500.0) } else { (0.0, 1.0) };
+                let v: Vec<f32> = (0..w * h).map(|_| (lo + span * rng.next()) as f32).collect();
+                for t in [0.8, 1.5] {
+                    worst = worst.max(assert_stream_matches(&v, w, h, t, &format!("random seed {seed}")));
+                }
+            }
+        }
+    }
+    println!("largest relative score difference: {worst:e}");
+}
+
+/// Slope creases at a wrap: a profile along the axis whose ends meet in
+/// value, not in slope, plus some noise, as a 16-bit file would hold it.
+fn crease_image(w: usize, h: usize, along_y: bool, seed: u64) -> Vec<f32> {
+    let base = tiling_support::periodic_noise(w, h, 2, 2, seed);
+    let v: Vec<f64> = (0..w * h)
+        .map(|k| {
+            let t = if along_y { (k / w) as f64 / h as f64 } else { (k % w) as f64 / w as f64 };
+            0.5 * (std::f64::consts::PI * t).sin() + 0.5 * f64::from(base[k])
+        })
+        .collect();
+    tiling_support::quantize(&tiling_support::normalize(&v), 16)
+}
+
+#[test]
+fn streaming_equals_check_on_noise_crops_creases_and_ramps() {
+    let mut worst = 0.0f64;
+    let mut same = |v: &[f32], w: usize, h: usize, label: &str| {
+        worst = worst.max(assert_stream_matches(v, w, h, 1.5, label));
+    };
+    // The generated gray cases (tileable noise, crops, noise periodic in x
+    // only, creases at the x wrap) and the contract's sine, ramp, constant.
+    for n in [64, 96] {
+        for c in generated_cases(n).iter().filter(|c| c.image.planes.len() == 1) {
+            same(&c.image.planes[0], c.image.width, c.image.height, &c.name);
+        }
+    }
+    for c in spec_cases() {
+        same(&c.image.planes[0], c.image.width, c.image.height, &c.name);
+    }
+    // Non-square and not a multiple of the 32-row blocks.
+    for (w, h) in [(80, 45), (45, 80), (7, 100), (100, 7), (257, 1000)] {
+        let t = tiling_support::periodic_noise(w, h, 3, 2, (w * h) as u64);
+        same(&t, w, h, "tileable noise");
+        let big = tiling_support::periodic_noise(3 * w, 3 * h, 9, 2, 7);
+        same(&tiling_support::crop(&big, 3 * w, w / 3 + 5, h / 2 + 7, w, h), w, h, "crop of noise");
+        let ramp_x: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 / w as f32).collect();
+        same(&ramp_x, w, h, "ramp along x");
+        let ramp_y: Vec<f32> = (0..w * h).map(|k| (k / w) as f32 / h as f32).collect();
+        same(&ramp_y, w, h, "ramp along y");
+    }
+    // A slope crease at each wrap: the streamed y wrap (pairs H − 1 → 0 and
+    // the creases across it) must find the seam `check` finds.
+    for (w, h) in [(64, 64), (48, 97)] {
+        for along_y in [false, true] {
+            let v = crease_image(w, h, along_y, 77);
+            same(&v, w, h, if along_y { "crease at the y wrap" } else { "crease at the x wrap" });
+            let r = stream(&v, w, h, &TilingOptions::new());
+            let seam = if along_y { r.y } else { r.x };
+            let other = if along_y { r.x } else { r.y };
+            assert!(!seam.seamless && seam.score > 3.0 && other.seamless, "{w}×{h} along_y {along_y}: {r:?}");
+        }
+    }
+    println!("largest relative score difference: {worst:e}");
+}
+
+#[test]
+fn streaming_judges_the_crease_not_only_the_value_at_the_y_wrap() {
+    // A parabola along y meets itself in value at the wrap (h(0) = h(H)),
+    // so the value pair H − 1 → 0 is ordinary: the verdict rests on the
+    // creases across the wrap, which only `finish` can compute.
+    let (w, h) = (32, 64);
+    let v: Vec<f32> = (0..w * h)
+        .map(|k| {
+            let t = (k / w) as f64 / h as f64;
+            (4.0 * t * (1.0 - t) + 0.01 * ((k % w) as f64 * 0.7).sin()) as f32
+        })
+        .collect();
+    let r = stream(&v, w, h, &TilingOptions::new());
+    let whole = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Height));
+    assert!(!r.y.seamless && r.y.score > 3.0, "{r:?}");
+    assert_eq!(r.y.score.to_bits(), whole.y.score.to_bits(), "{r:?} vs {whole:?}");
+    // The same image judged as a normal map, by value only, tiles along y:
+    // the crease is what fails it.
+    let as_normal = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Normal));
+    assert!(as_normal.y.seamless, "{as_normal:?}");
+}
+
+#[test]
+fn streaming_constant_images_tile_with_score_one() {
+    for (w, h) in [(1, 1), (1, 7), (7, 1), (2, 5), (3, 3), (7, 4), (64, 64), (5, 33)] {
+        let r = stream(&vec![0.25f32; w * h], w, h, &TilingOptions::new());
+        assert_eq!((r.x.score, r.y.score), (1.0, 1.0), "{w}×{h}");
+        assert!(r.seamless() && r.kind == ImageKind::Height);
+    }
+}
+
+#[test]
+fn streaming_non_finite_values_count_as_zero() {
+    for (w, h) in [(32, 32), (5, 4), (3, 2), (1, 6), (40, 70)] {
+        let mut v = tiling_support::periodic_noise(w, h, 2, 2, 3);
+        // In the first rows, the last rows, the first and last columns.
+        let spots = [0, w - 1, w * h / 2, w * (h - 1), w * h - 1, w.min(w * h - 1), (w * (h - 1)).saturating_sub(1)];
+        let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        for (i, &k) in spots.iter().enumerate() {
+            v[k] = bad[i % 3];
+        }
+        assert_stream_matches(&v, w, h, 1.5, "non-finite");
+        let zeroed: Vec<f32> = v.iter().map(|&x| if x.is_finite() { x } else { 0.0 }).collect();
+        let (a, b) = (stream(&v, w, h, &TilingOptions::new()), stream(&zeroed, w, h, &TilingOptions::new()));
+        assert_eq!(a, b, "{w}×{h}");
+        assert!(a.x.score.is_finite() && a.y.score.is_finite());
+    }
+}
+
+#[test]
+fn streaming_with_rows_missing_judges_the_rows_pushed() {
+    let (w, h) = (24, 70);
+    let v = tiling_support::periodic_noise(w, h, 3, 2, 11);
+    for pushed in [1, 2, 3, 4, 5, 32, 33, 69] {
+        let mut seams = HeightSeams::new(w, h);
+        for row in v.chunks_exact(w).take(pushed) {
+            seams.push_row(row);
+        }
+        assert_eq!(seams.rows(), pushed);
+        let opts = TilingOptions::new().with_kind(KindChoice::Height);
+        let (r, whole) = (seams.finish(&opts), check(&[&v[..w * pushed]], w, pushed, &opts));
+        let rel = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs());
+        assert!(rel(r.x.score, whole.x.score) <= 1e-9 && rel(r.y.score, whole.y.score) <= 1e-9, "{pushed}");
+        assert_eq!((r.x.seamless, r.y.seamless), (whole.x.seamless, whole.y.seamless));
+    }
+}
+
+#[test]
+fn streaming_empty_images_and_kind() {
+    let r = HeightSeams::new(0, 5).finish(&TilingOptions::new());
+    assert!(r.seamless() && (r.x.score, r.y.score) == (1.0, 1.0));
+    let mut seams = HeightSeams::new(0, 3);
+    for _ in 0..3 {
+        seams.push_row(&[]);
+    }
+    assert!(seams.finish(&TilingOptions::new()).seamless());
+    assert!(HeightSeams::new(5, 0).finish(&TilingOptions::new()).seamless());
+    // A forced Normal kind does not apply: the rows are heights.
+    let v = vec![0.5f32; 16];
+    let r = stream(&v, 4, 4, &TilingOptions::new().with_kind(KindChoice::Normal));
+    assert_eq!(r.kind, ImageKind::Height);
+}
+
+#[test]
+#[should_panic(expected = "rows are in already")]
+fn streaming_rejects_a_row_too_many() {
+    let mut seams = HeightSeams::new(2, 1);
+    seams.push_row(&[0.0, 1.0]);
+    seams.push_row(&[0.0, 1.0]);
+}
+
+#[test]
+#[should_panic(expected = "a row of 3 values")]
+fn streaming_rejects_a_row_of_the_wrong_width() {
+    HeightSeams::new(2, 2).push_row(&[0.0, 1.0, 2.0]);
+}
+
+#[test]
+fn streaming_a_4096_square_is_cheap() {
+    // Not a benchmark: a guard against per-row work beyond O(W).
+    let n = 4096;
+    let row = |y: usize| -> Vec<f32> { (0..n).map(|x| (x as f32 * 0.37 + y as f32 * 0.11).sin()).collect() };
+    let rows: Vec<Vec<f32>> = (0..n).map(row).collect();
+    let t = std::time::Instant::now();
+    let mut seams = HeightSeams::new(n, n);
+    for r in &rows {
+        seams.push_row(r);
+    }
+    let r = seams.finish(&TilingOptions::new());
+    let took = t.elapsed();
+    println!("4096² streamed: {took:?}, {r:?}");
+    assert!(took.as_secs_f64() < 5.0, "4096² streaming took {took:?}");
 }
