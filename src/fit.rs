@@ -111,14 +111,126 @@ pub fn normals_into<T: FromNormal>(
     opts: &Options,
     out: &mut [T],
 ) -> Result<()> {
-    let plan = Plan::new(heights, width, height, opts)?;
-    if out.len() != heights.len() {
-        return Err(Error::BufferSize { expected: heights.len(), actual: out.len() });
+    let plan = Plan::new(width, height, opts)?;
+    let len = width * height;
+    if heights.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: heights.len() });
     }
+    if out.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: out.len() });
+    }
+    if let Some((x, y)) = first_non_finite(heights, width) {
+        return Err(Error::NonFiniteHeight { x, y });
+    }
+    let source_row = |y: usize| &heights[y * width..][..width];
     out.par_chunks_mut(plan.block_rows * width)
         .enumerate()
-        .for_each(|(b, rows)| plan.fit_block(heights, b * plan.block_rows, rows));
+        .for_each(|(b, rows)| plan.fit_block(&source_row, b * plan.block_rows, rows));
     Ok(())
+}
+
+/// The fit of an image whose rows arrive in bands, top to bottom, for
+/// callers that stream rows from a decoder to an encoder without holding
+/// the image: memory grows with the width and N, not with the height.
+///
+/// Output rows are made in bands of [`band_rows`](Self::band_rows) (the
+/// last band may be shorter); band k covers rows k·B … k·B + B − 1 and needs
+/// the source rows [`source_rows`](Self::source_rows) gives, with the
+/// image's y border applied (rows above 0 or below H − 1 are found through
+/// the border: with wrap, band 0 needs the image's last rows). The texels
+/// are the same, bit for bit, as [`normals_into`] gives for the whole image.
+///
+/// ```
+/// use normalfit::fit::BandFit;
+/// use normalfit::{normals, Options};
+///
+/// let (w, h) = (40, 300);
+/// let heights: Vec<f32> = (0..w * h).map(|k| ((k % w) as f32 * 0.3).sin() + (k / w) as f32 * 0.01).collect();
+/// let opts = Options::new().with_patch(5);
+/// let fit = BandFit::new(w, h, &opts)?;
+/// let mut streamed = Vec::new();
+/// for y0 in (0..h).step_by(fit.band_rows()) {
+///     let y1 = (y0 + fit.band_rows()).min(h);
+///     let mut band = vec![[0.0f32; 3]; (y1 - y0) * w];
+///     // Any row store will do; this one has the whole image.
+///     fit.fit_band(y0, &|y| &heights[y * w..][..w], &mut band)?;
+///     streamed.extend(band);
+/// }
+/// assert_eq!(streamed, normals(&heights, w, h, &opts)?);
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+pub struct BandFit {
+    plan: Plan,
+    height: usize,
+    band_rows: usize,
+}
+
+impl BandFit {
+    /// Plans the fit of a `width` × `height` image.
+    ///
+    /// Errors: [`Error::InvalidOption`] for invalid options or a zero size.
+    pub fn new(width: usize, height: usize, opts: &Options) -> Result<BandFit> {
+        let plan = Plan::new(width, height, opts)?;
+        // Enough blocks per band to keep every core busy.
+        let blocks = 2 * rayon::current_num_threads().max(1);
+        let band_rows = plan.block_rows * blocks;
+        Ok(BandFit { plan, height, band_rows })
+    }
+
+    /// Rows per band, a whole number of the fit's tiles.
+    #[must_use]
+    pub fn band_rows(&self) -> usize {
+        self.band_rows
+    }
+
+    /// The patch radius r = N / 2: band k needs the source rows from r
+    /// above its first row to r below its last, through the y border.
+    #[must_use]
+    pub fn radius(&self) -> usize {
+        self.plan.r
+    }
+
+    /// The source rows (indices in 0 … H − 1, in the order of the padded
+    /// rows, with repeats) that the band starting at `y0` reads.
+    #[must_use]
+    pub fn source_rows(&self, y0: usize) -> Vec<usize> {
+        let y1 = (y0 + self.band_rows).min(self.height);
+        self.plan.ymap[y0..y1 + 2 * self.plan.r].to_vec()
+    }
+
+    /// Fits the band of output rows starting at `y0` (a multiple of
+    /// [`band_rows`](Self::band_rows)) into `out`, which holds its rows
+    /// (`band_rows`, or fewer for the last band). `row(y)` gives source row
+    /// y (`width` heights), for every y of [`source_rows`](Self::source_rows).
+    /// Rows run in parallel on rayon's current pool.
+    ///
+    /// Errors: [`Error::BufferSize`] for a misplaced band or a wrong `out`
+    /// length, [`Error::NonFiniteHeight`] if a row read holds NaN or ±inf.
+    pub fn fit_band<'a, T: FromNormal>(
+        &self,
+        y0: usize,
+        row: &(dyn Fn(usize) -> &'a [f32] + Sync),
+        out: &mut [T],
+    ) -> Result<()> {
+        let w = self.plan.width;
+        let y1 = (y0 + self.band_rows).min(self.height);
+        if y0 % self.band_rows != 0 || y0 >= self.height || out.len() != (y1 - y0) * w {
+            return Err(Error::BufferSize { expected: (y1.max(y0) - y0) * w, actual: out.len() });
+        }
+        for &y in &self.plan.ymap[y0..y1 + 2 * self.plan.r] {
+            let r = row(y);
+            if r.len() != w {
+                return Err(Error::BufferSize { expected: w, actual: r.len() });
+            }
+            if let Some(x) = r.iter().position(|h| !h.is_finite()) {
+                return Err(Error::NonFiniteHeight { x, y });
+            }
+        }
+        out.par_chunks_mut(self.plan.block_rows * w)
+            .enumerate()
+            .for_each(|(b, rows)| self.plan.fit_block(row, y0 + b * self.plan.block_rows, rows));
+        Ok(())
+    }
 }
 
 /// `width * height`, refusing zero sizes and overflow.
@@ -156,15 +268,9 @@ struct Plan {
 }
 
 impl Plan {
-    fn new(heights: &[f32], width: usize, height: usize, opts: &Options) -> Result<Plan> {
+    fn new(width: usize, height: usize, opts: &Options) -> Result<Plan> {
         opts.validate()?;
-        let len = checked_len(width, height)?;
-        if heights.len() != len {
-            return Err(Error::BufferSize { expected: len, actual: heights.len() });
-        }
-        if let Some((x, y)) = first_non_finite(heights, width) {
-            return Err(Error::NonFiniteHeight { x, y });
-        }
+        checked_len(width, height)?;
         let n = opts.patch;
         let r = n / 2;
         let padded = |len: usize, mode: Border| -> Vec<usize> {
@@ -188,9 +294,9 @@ impl Plan {
     }
 
     /// Fits the output rows `y0 .. y0 + out.len() / width`.
-    fn fit_block<T: FromNormal>(&self, heights: &[f32], y0: usize, out: &mut [T]) {
+    fn fit_block<'a, T: FromNormal>(&self, source_row: &(dyn Fn(usize) -> &'a [f32] + Sync), y0: usize, out: &mut [T]) {
         let (w, n, r) = (self.width, self.n, self.r);
-        let row_of = |p: usize| &heights[self.ymap[p] * w..][..w];
+        let row_of = |p: usize| source_row(self.ymap[p]);
 
         // The reference c of each column: one texel per (block, segment).
         let reference: Vec<f64> = (0..w)

@@ -363,3 +363,38 @@ fn many_inputs_go_into_the_output_folder() {
     let r = run(&["convert", s(&inputs[0]), s(&inputs[1]), "-o", "-"]);
     assert_eq!(r.status.code(), Some(2), "many images cannot share standard output");
 }
+
+/// A PNG whose pixel data stops half way fails while its rows stream
+/// through: the error names the input, and no output or temporary file is
+/// left, whatever the border (a wrap in y reads the file twice).
+#[test]
+fn a_png_truncated_in_its_pixels_leaves_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cut.png");
+    write_gray16(&input, 300, 700);
+    let bytes = fs::read(&input).unwrap();
+    fs::write(&input, &bytes[..bytes.len() / 2]).unwrap();
+    for border in ["wrap", "clamp"] {
+        let out = dir.path().join("out.png");
+        let r = run(&["convert", s(&input), "-o", s(&out), "--border", border]);
+        assert_eq!(r.status.code(), Some(2), "{border}");
+        let err = one_line_error(&r);
+        assert!(err.contains("cut.png"), "{err}");
+        assert_eq!(files_in(dir.path()), vec!["cut.png".to_string()], "{border}");
+    }
+}
+
+/// PNG to PNG streams rows to standard output too, identical to a file.
+#[test]
+fn a_png_streams_to_standard_output_as_to_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray16(&input, 90, 530);
+    let file = dir.path().join("n.png");
+    assert!(run(&["convert", s(&input), "-o", s(&file), "-n", "5"]).status.success());
+    let piped = run(&["convert", s(&input), "-o", "-", "--format", "png", "-n", "5"]);
+    assert!(piped.status.success(), "{}", String::from_utf8_lossy(&piped.stderr));
+    let a = image::load_from_memory(&piped.stdout).unwrap().to_rgb16();
+    let b = image::open(&file).unwrap().to_rgb16();
+    assert_eq!(a, b);
+}

@@ -5,8 +5,9 @@ use std::collections::HashSet;
 use std::io::{Cursor, Write};
 use std::path::{Path, PathBuf};
 
-use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions};
-use normalfit::tiling::{self, KindChoice, TilingOptions};
+use normalfit::io::stream::{self, PngDepth, PngRows};
+use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, ReadOptions, SampleType};
+use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
 use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
 
 use super::args::{AxisBorder, BorderArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
@@ -109,21 +110,26 @@ impl Plan {
     }
 
     fn convert_one(&self, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
-        let raster = read_input(input, &ReadOptions::default())?;
-        let target = self.target(input, &raster)?;
-        if let Some(path) = &target.path {
-            ids.refuse_overwrite(path)?;
-            let key = std::path::absolute(path).unwrap_or_else(|_| path.clone());
-            if !written.insert(key) {
-                return Err(Failure::file(
-                    path,
-                    "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders",
-                ));
+        if let Input::File(path) = input {
+            let rows = PngRows::open(path, &ReadOptions::default(), self.channel);
+            if let Some(rows) = rows.map_err(|e| Failure::file(path, e))? {
+                let sample = SampleType::Int { bits: if rows.more_than_8_bits() { 16 } else { 8 } };
+                let target = self.target(input, InputFormat::Png, sample)?;
+                if let Some(depth) = target.png_depth() {
+                    self.claim(&target, ids, written)?;
+                    return self.convert_streaming(path, rows, &target, depth);
+                }
             }
         }
+        let raster = read_input(input, &ReadOptions::default())?;
+        let target = self.target(input, raster.format.clone(), raster.sample)?;
+        self.claim(&target, ids, written)?;
         let (width, height) = (raster.width, raster.height);
         let heights = raster.into_heights(self.channel).map_err(|e| Failure::file(input.name(), e))?;
-        let fit = self.fit.clone().with_borders(self.borders_for(&heights, width, height, input));
+        let report = self
+            .needs_check()
+            .then(|| tiling::check(&[&heights], width, height, &TilingOptions::new().with_kind(KindChoice::Height)));
+        let fit = self.fit.clone().with_borders(self.borders_for(report, input));
         let encoded =
             |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &fit, &target, out) };
         match &target.path {
@@ -141,22 +147,96 @@ impl Plan {
         }
     }
 
+    /// PNG to PNG without holding the image: rows stream from the decoder
+    /// through the fit to the encoder. A first pass over the file, when the
+    /// borders need it, checks the tiling and keeps the last rows for a
+    /// wrap across the top.
+    fn convert_streaming(&self, path: &Path, rows: PngRows, target: &Target, depth: PngDepth) -> Result<(), Failure> {
+        let input = Input::File(path.to_path_buf());
+        let in_failure = |e: normalfit::Error| Failure::file(path, e);
+        let (width, height) = (rows.width(), rows.height());
+        let may_wrap_y = matches!(self.border.y, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
+        let (report, tail) = if self.needs_check() || may_wrap_y {
+            let first = PngRows::open(path, &ReadOptions::default(), self.channel).map_err(in_failure)?;
+            let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
+            let mut seams = self.needs_check().then(|| HeightSeams::new(width, height));
+            let tail = first
+                .read_tail(self.fit.patch / 2, |row| {
+                    if let Some(s) = seams.as_mut() {
+                        s.push_row(row);
+                    }
+                })
+                .map_err(in_failure)?;
+            let opts = TilingOptions::new().with_kind(KindChoice::Height);
+            (seams.map(|s| s.finish(&opts)), Some(tail))
+        } else {
+            (None, None)
+        };
+        let fit = self.fit.clone().with_borders(self.borders_for(report, &input));
+        let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
+        let compression = PngCompression::default();
+        // Decoding and fitting fail on the input; writing, on the output.
+        let mut failed_input = None;
+        let encoded = |out: &mut dyn Write| -> normalfit::Result<()> {
+            stream::convert_png(rows, tail, &fit, depth, compression, out).inspect_err(|e| {
+                if !matches!(e, normalfit::Error::Io(_) | normalfit::Error::Encode(_)) {
+                    failed_input = Some(e.to_string());
+                }
+            })
+        };
+        let result = match &target.path {
+            Some(out) => io::write_atomically(out, encoded).map_err(|e| Failure::file(out, e)),
+            None => {
+                // PNG needs no seeking: the rows go straight to standard output.
+                let mut stdout = std::io::stdout().lock();
+                encoded(&mut stdout)
+                    .and_then(|()| Ok(stdout.flush()?))
+                    .map_err(|e| Failure::file("<standard output>", e))
+            }
+        };
+        match failed_input {
+            Some(problem) => Err(Failure::file(path, problem)),
+            None => result,
+        }
+    }
+
+    /// Refuses an output that is an input, or that an earlier input of this
+    /// run already wrote.
+    fn claim(&self, target: &Target, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
+        if let Some(path) = &target.path {
+            ids.refuse_overwrite(path)?;
+            let key = std::path::absolute(path).unwrap_or_else(|_| path.clone());
+            if !written.insert(key) {
+                return Err(Failure::file(
+                    path,
+                    "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether the borders asked for need the tiling check: a wrap (to warn
+    /// when it draws a seam) or `auto`.
+    fn needs_check(&self) -> bool {
+        let check = |a: AxisBorder| matches!(a, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
+        check(self.border.x) || check(self.border.y)
+    }
+
     /// The border modes for one image: `auto` becomes wrap where the image
     /// tiles and mirror where it does not, and a wrap asked for on an axis
     /// that does not tile gets a warning, since it would draw a seam.
-    fn borders_for(&self, heights: &[f32], width: usize, height: usize, input: &Input) -> Borders {
+    /// `report` is the tiling check, made when [`Self::needs_check`].
+    fn borders_for(&self, report: Option<tiling::TilingReport>, input: &Input) -> Borders {
         let wrap = AxisBorder::Fixed(Border::Wrap);
-        let needs_check = |a: AxisBorder| a == wrap || a == AxisBorder::Auto;
         let resolve = |asked: AxisBorder, auto: Border| match asked {
             AxisBorder::Fixed(b) => b,
             AxisBorder::Auto => auto,
         };
-        if !needs_check(self.border.x) && !needs_check(self.border.y) {
-            // Only clamp and mirror: nothing to check.
+        let Some(report) = report else {
+            // Only clamp and mirror: nothing was checked.
             return Borders { x: resolve(self.border.x, Border::Mirror), y: resolve(self.border.y, Border::Mirror) };
-        }
-        let opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let report = tiling::check(&[heights], width, height, &opts);
+        };
         let seams: Vec<String> = [("x", self.border.x, report.x), ("y", self.border.y, report.y)]
             .iter()
             .filter(|(_, asked, axis)| *asked == wrap && !axis.seamless)
@@ -176,12 +256,12 @@ impl Plan {
     }
 
     /// The output's path (None: standard output), format and depth.
-    fn target(&self, input: &Input, raster: &Raster) -> Result<Target, Failure> {
-        let float_input = match raster.sample {
+    fn target(&self, input: &Input, format: InputFormat, sample: SampleType) -> Result<Target, Failure> {
+        let float_input = match sample {
             io::SampleType::Float => true,
             io::SampleType::Int { .. } | io::SampleType::SignedInt { .. } => false,
         };
-        let from_input = match raster.format {
+        let from_input = match format {
             InputFormat::Exr => FormatArg::Exr,
             InputFormat::Png => FormatArg::Png,
             _ if float_input => FormatArg::Exr,
@@ -218,7 +298,7 @@ impl Plan {
         let name = path.as_deref().unwrap_or(Path::new("<standard output>"));
         let encoding = match (format, self.bits) {
             (FormatArg::Png, None) => {
-                if raster.sample.more_than_8_bits() {
+                if sample.more_than_8_bits() {
                     Encoding::Png16
                 } else {
                     Encoding::Png8
@@ -247,6 +327,17 @@ struct Target {
     path: Option<PathBuf>,
     encoding: Encoding,
     signed: bool,
+}
+
+impl Target {
+    /// The depth of a PNG output, which can be written as rows stream.
+    fn png_depth(&self) -> Option<PngDepth> {
+        match self.encoding {
+            Encoding::Png8 => Some(PngDepth::Eight),
+            Encoding::Png16 => Some(PngDepth::Sixteen),
+            Encoding::Exr(_) => None,
+        }
+    }
 }
 
 #[derive(Clone, Copy)]

@@ -371,7 +371,7 @@ fn copy_plane(data: &[f32]) -> Result<Vec<f32>> {
 }
 
 /// Checks a header's claimed size: not zero, not above the limit.
-fn check_size(width: u64, height: u64, opts: &ReadOptions) -> Result<()> {
+pub(crate) fn check_size(width: u64, height: u64, opts: &ReadOptions) -> Result<()> {
     if width == 0 || height == 0 {
         return Err(Error::Decode(format!("image has zero size ({width} × {height})")));
     }

@@ -34,6 +34,15 @@ pub enum PngCompression {
 }
 
 impl PngCompression {
+    /// The `png` setting this stands for (what `image` maps it to).
+    pub(crate) fn to_png(self) -> png::Compression {
+        match self {
+            PngCompression::Fast => png::Compression::Fast,
+            PngCompression::Default => png::Compression::Balanced,
+            PngCompression::Best => png::Compression::High,
+        }
+    }
+
     /// The `image` setting this stands for.
     fn to_image(self) -> CompressionType {
         match self {

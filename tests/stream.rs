@@ -1,0 +1,170 @@
+//! Streaming PNG conversion (`normalfit::io::stream`) gives exactly what
+//! the whole-image path gives: decode everything, `normals_into`, encode.
+//! Sizes cross band edges, patches reach beyond short images, and every
+//! y border is used, so a row taken from the wrong place would show.
+
+use std::path::Path;
+
+use image::{ExtendedColorType, ImageEncoder};
+use normalfit::io::stream::{PngDepth, PngRows, convert_png};
+use normalfit::io::{Channel, PngCompression, ReadOptions, read_path};
+use normalfit::{Border, Borders, Options, Strength, normals_into};
+
+/// Heights with detail in both directions and no symmetry, as 16-bit.
+fn field(w: usize, h: usize, seed: u64) -> Vec<u16> {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    (0..w * h)
+        .map(|k| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            let (x, y) = ((k % w) as f64, (k / w) as f64);
+            let smooth = 0.5 + 0.3 * (x * 0.21 + y * 0.07).sin() * (y * 0.13).cos();
+            let v = smooth + 0.1 * ((s >> 40) as f64 / (1u64 << 24) as f64);
+            (v.clamp(0.0, 1.0) * 65535.0).round() as u16
+        })
+        .collect()
+}
+
+fn write_png(path: &Path, w: usize, h: usize, color: ExtendedColorType, samples: &[u8]) {
+    let file = std::fs::File::create(path).unwrap();
+    image::codecs::png::PngEncoder::new(file).write_image(samples, w as u32, h as u32, color).unwrap();
+}
+
+/// Streams `path` to PNG bytes and decodes them to 16-bit RGB samples.
+fn streamed(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth) -> Vec<u16> {
+    let rows = PngRows::open(path, &ReadOptions::default(), channel).unwrap().expect("streamable");
+    let tail = if opts.borders.y == Border::Wrap {
+        let first = PngRows::open(path, &ReadOptions::default(), channel).unwrap().unwrap();
+        Some(first.read_tail(opts.patch / 2, |_| {}).unwrap())
+    } else {
+        None
+    };
+    let mut png = Vec::new();
+    convert_png(rows, tail.as_deref(), opts, depth, PngCompression::Fast, &mut png).unwrap();
+    let img = image::load_from_memory(&png).unwrap();
+    match depth {
+        PngDepth::Eight => img.to_rgb8().into_raw().into_iter().map(u16::from).collect(),
+        PngDepth::Sixteen => img.to_rgb16().into_raw(),
+    }
+}
+
+/// The whole-image path for the same file.
+fn whole(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth) -> Vec<u16> {
+    let raster = read_path(path, &ReadOptions::default()).unwrap();
+    let (w, h) = (raster.width, raster.height);
+    let heights = raster.heights(channel).unwrap();
+    match depth {
+        PngDepth::Eight => {
+            let mut out = vec![[0u8; 3]; w * h];
+            normals_into(&heights, w, h, opts, &mut out).unwrap();
+            out.as_flattened().iter().map(|&v| u16::from(v)).collect()
+        }
+        PngDepth::Sixteen => {
+            let mut out = vec![[0u16; 3]; w * h];
+            normals_into(&heights, w, h, opts, &mut out).unwrap();
+            out.into_flattened()
+        }
+    }
+}
+
+fn assert_same(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth, what: &str) {
+    let (s, w) = (streamed(path, channel, opts, depth), whole(path, channel, opts, depth));
+    assert_eq!(s.len(), w.len(), "{what}");
+    if let Some(k) = s.iter().zip(&w).position(|(a, b)| a != b) {
+        panic!("{what}: sample {k} differs: streamed {} whole {}", s[k], w[k]);
+    }
+}
+
+#[test]
+fn gray_16_bit_equals_the_whole_image_path_for_every_size_patch_and_border() {
+    let dir = tempfile::tempdir().unwrap();
+    // Heights below, at and across band edges (a band is a few hundred rows).
+    for (w, h) in [(1, 1), (7, 1), (1, 9), (5, 3), (37, 61), (64, 300), (23, 700), (130, 1031)] {
+        let path = dir.path().join(format!("g{w}x{h}.png"));
+        let v = field(w, h, (w * 31 + h) as u64);
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_be_bytes()).collect();
+        // `image` takes 16-bit samples in native order.
+        let ne: Vec<u8> = bytes.chunks(2).flat_map(|c| u16::from_be_bytes([c[0], c[1]]).to_ne_bytes()).collect();
+        write_png(&path, w, h, ExtendedColorType::L16, &ne);
+        for n in [3, 7, 33] {
+            for y in [Border::Wrap, Border::Clamp, Border::Mirror] {
+                let opts = Options::new()
+                    .with_patch(n)
+                    .with_borders(Borders { x: Border::Mirror, y })
+                    .with_strength(Strength::Scale(30.0));
+                for depth in [PngDepth::Eight, PngDepth::Sixteen] {
+                    assert_same(&path, None, &opts, depth, &format!("{w}×{h} N {n} {y:?} {depth:?}"));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn colour_alpha_and_8_bit_layouts_pick_the_same_heights() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (45, 290);
+    let v = field(w, h, 5);
+    let byte = |k: usize, c: usize| ((u32::from(v[k]) * (c as u32 + 3) / 7) & 0xff) as u8;
+    // Name, layout, samples, channels to pick.
+    type Case = (&'static str, ExtendedColorType, Vec<u8>, Vec<Option<Channel>>);
+    let cases: Vec<Case> = vec![
+        ("l8", ExtendedColorType::L8, (0..w * h).map(|k| byte(k, 0)).collect(), vec![None, Some(Channel::R)]),
+        (
+            "la8",
+            ExtendedColorType::La8,
+            (0..w * h * 2).map(|i| byte(i / 2, i % 2)).collect(),
+            vec![None, Some(Channel::A)],
+        ),
+        (
+            "rgb8",
+            ExtendedColorType::Rgb8,
+            (0..w * h * 3).map(|i| byte(i / 3, i % 3)).collect(),
+            vec![None, Some(Channel::Luma), Some(Channel::G), Some(Channel::B)],
+        ),
+        (
+            "rgba16",
+            ExtendedColorType::Rgba16,
+            (0..w * h * 4).flat_map(|i| (v[i / 4] / (i % 4 + 1) as u16).to_ne_bytes()).collect(),
+            vec![None, Some(Channel::R), Some(Channel::A)],
+        ),
+    ];
+    for (name, color, samples, channels) in cases {
+        let path = dir.path().join(format!("{name}.png"));
+        write_png(&path, w, h, color, &samples);
+        for channel in channels {
+            let opts = Options::new().with_patch(5).with_strength(Strength::Scale(12.0));
+            assert_same(&path, channel, &opts, PngDepth::Sixteen, &format!("{name} {channel:?}"));
+        }
+    }
+}
+
+#[test]
+fn interlaced_and_other_formats_are_left_to_the_whole_image_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let jpeg = dir.path().join("a.jpg");
+    image::RgbImage::from_pixel(8, 8, image::Rgb([9, 9, 9])).save(&jpeg).unwrap();
+    assert!(PngRows::open(&jpeg, &ReadOptions::default(), None).unwrap().is_none());
+    // A missing alpha channel is an error, as it is for the whole image.
+    let gray = dir.path().join("g.png");
+    write_png(&gray, 4, 4, ExtendedColorType::L8, &[7; 16]);
+    assert!(PngRows::open(&gray, &ReadOptions::default(), Some(Channel::A)).is_err());
+}
+
+#[test]
+fn data_ending_early_is_a_decode_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (300, 400);
+    let path = dir.path().join("t.png");
+    let v = field(w, h, 9);
+    let ne: Vec<u8> = v.iter().flat_map(|x| x.to_ne_bytes()).collect();
+    write_png(&path, w, h, ExtendedColorType::L16, &ne);
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let rows = PngRows::open(&path, &ReadOptions::default(), None).unwrap().unwrap();
+    let opts = Options::new().with_borders(Borders::both(Border::Clamp));
+    let mut out = Vec::new();
+    let err = convert_png(rows, None, &opts, PngDepth::Eight, PngCompression::Fast, &mut out).unwrap_err();
+    assert!(matches!(err, normalfit::Error::Decode(_)), "{err:?}");
+}
