@@ -67,14 +67,14 @@ impl FromNormal for [f32; 3] {
 impl FromNormal for [u8; 3] {
     #[inline]
     fn from_normal(n: [f64; 3]) -> Self {
-        n.map(|c| ((c + 1.0) * 127.5 + 0.5) as u8)
+        n.map(|c| ((c + 1.0) * 127.5 + 0.5) as i32 as u8)
     }
 }
 
 impl FromNormal for [u16; 3] {
     #[inline]
     fn from_normal(n: [f64; 3]) -> Self {
-        n.map(|c| ((c + 1.0) * 32767.5 + 0.5) as u16)
+        n.map(|c| ((c + 1.0) * 32767.5 + 0.5) as i32 as u16)
     }
 }
 
@@ -316,6 +316,7 @@ impl Plan {
             .collect();
         ring.rotate_right(y0 % n);
         let mut entering = RowSums::zeros(w);
+        let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
 
         // Vertical sums over the window, started from scratch at the block's top.
         let mut v = WindowSums::zeros(w);
@@ -347,7 +348,7 @@ impl Plan {
                 }
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
-            self.emit(&v, out_row);
+            self.emit(&v, &mut normal, out_row);
         }
     }
 
@@ -385,24 +386,35 @@ impl Plan {
         }
     }
 
-    /// Turns the window sums of one row into normals.
-    fn emit<T: FromNormal>(&self, v: &WindowSums, out: &mut [T]) {
+    /// Turns the window sums of one row into normals, through `normal`
+    /// (x, y and z planes): the fit's loop then stores whole vectors, and
+    /// the texel type's conversion is a loop of its own.
+    fn emit<T: FromNormal>(&self, v: &WindowSums, normal: &mut [Vec<f64>; 3], out: &mut [T]) {
         // One loop per fit, so the per-texel work has no branch and vectorises.
         match self.fit {
-            Fit::Orthogonal => self.emit_with::<T, true>(v, out),
-            Fit::Vertical => self.emit_with::<T, false>(v, out),
+            Fit::Orthogonal => self.emit_with::<true>(v, normal),
+            Fit::Vertical => self.emit_with::<false>(v, normal),
+        }
+        let [nx, ny, nz] = normal;
+        for (((texel, &x), &y), &z) in out.iter_mut().zip(nx.iter()).zip(ny.iter()).zip(nz.iter()) {
+            *texel = T::from_normal([x, y, z]);
         }
     }
 
-    fn emit_with<T: FromNormal, const ORTHOGONAL: bool>(&self, v: &WindowSums, out: &mut [T]) {
+    fn emit_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, normal: &mut [Vec<f64>; 3]) {
         let inv_n2 = 1.0 / (self.n * self.n) as f64;
-        let w = out.len();
+        let [nx, ny, nz] = normal;
+        let w = nx.len();
         let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+        let (ny, nz) = (&mut ny[..w], &mut nz[..w]);
         for x in 0..w {
             let cx = si[x];
             let cy = self.sigma * sj[x];
             let czz = (szz[x] - s0[x] * s0[x] * inv_n2).max(0.0);
-            out[x] = T::from_normal(normal_from_sums::<ORTHOGONAL>(self.a, cx, cy, czz));
+            let [a, b, c] = normal_from_sums::<ORTHOGONAL>(self.a, cx, cy, czz);
+            nx[x] = a;
+            ny[x] = b;
+            nz[x] = c;
         }
     }
 }
