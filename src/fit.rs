@@ -35,8 +35,15 @@
 //!   N alone. Rows are split among threads by whole tiles, so every texel is
 //!   computed by the same operations in the same order whatever the number
 //!   of threads: the output is identical bit for bit.
+//! * The first row tile is the top r rows, the only rows whose patches
+//!   reach above row 0; the others start at row r. With a wrap in y, only
+//!   that tile reads the image's last rows, so a streaming caller
+//!   ([`BandFit`]) can fit the rest before it has them, and get the same
+//!   bits as the whole-image path.
 //! * Tiles are at least 8·N long, so restarting (N steps) costs at most an
 //!   eighth of the sliding work (2 steps a texel): the cost stays flat in N.
+
+use std::ops::Range;
 
 use rayon::prelude::*;
 
@@ -123,9 +130,7 @@ pub fn normals_into<T: FromNormal>(
         return Err(Error::NonFiniteHeight { x, y });
     }
     let source_row = |y: usize| &heights[y * width..][..width];
-    out.par_chunks_mut(plan.block_rows * width)
-        .enumerate()
-        .for_each(|(b, rows)| plan.fit_block(&source_row, b * plan.block_rows, rows));
+    plan.fit_rows(&source_row, 0, out);
     Ok(())
 }
 
@@ -133,12 +138,13 @@ pub fn normals_into<T: FromNormal>(
 /// callers that stream rows from a decoder to an encoder without holding
 /// the image: memory grows with the width and N, not with the height.
 ///
-/// Output rows are made in bands of [`band_rows`](Self::band_rows) (the
-/// last band may be shorter); band k covers rows k·B … k·B + B − 1 and needs
-/// the source rows [`source_rows`](Self::source_rows) gives, with the
-/// image's y border applied (rows above 0 or below H − 1 are found through
-/// the border: with wrap, band 0 needs the image's last rows). The texels
-/// are the same, bit for bit, as [`normals_into`] gives for the whole image.
+/// The output rows are cut into [`bands`](Self::bands): first the top r =
+/// N / 2 rows, the only ones whose patches reach above row 0, then bands of
+/// [`band_rows`](Self::band_rows) (the last one shorter). So with a wrap in
+/// y, only the top band needs the image's last rows, and a caller can fit
+/// and write every other band first. A band of rows y0 … y1 − 1 reads the
+/// source rows y0 − r … y1 − 1 + r, through the y border. The texels are
+/// the same, bit for bit, as [`normals_into`] gives for the whole image.
 ///
 /// ```
 /// use normalfit::fit::BandFit;
@@ -149,11 +155,10 @@ pub fn normals_into<T: FromNormal>(
 /// let opts = Options::new().with_patch(5);
 /// let fit = BandFit::new(w, h, &opts)?;
 /// let mut streamed = Vec::new();
-/// for y0 in (0..h).step_by(fit.band_rows()) {
-///     let y1 = (y0 + fit.band_rows()).min(h);
-///     let mut band = vec![[0.0f32; 3]; (y1 - y0) * w];
+/// for rows in fit.bands() {
+///     let mut band = vec![[0.0f32; 3]; rows.len() * w];
 ///     // Any row store will do; this one has the whole image.
-///     fit.fit_band(y0, &|y| &heights[y * w..][..w], &mut band)?;
+///     fit.fit_band(rows, &|y| &heights[y * w..][..w], &mut band)?;
 ///     streamed.extend(band);
 /// }
 /// assert_eq!(streamed, normals(&heights, w, h, &opts)?);
@@ -177,47 +182,54 @@ impl BandFit {
         Ok(BandFit { plan, height, band_rows })
     }
 
-    /// Rows per band, a whole number of the fit's tiles.
+    /// Rows per band after the top band, a whole number of the fit's tiles.
     #[must_use]
     pub fn band_rows(&self) -> usize {
         self.band_rows
     }
 
-    /// The patch radius r = N / 2: band k needs the source rows from r
-    /// above its first row to r below its last, through the y border.
+    /// The patch radius r = N / 2, the rows of the top band (fewer in an
+    /// image of fewer rows).
     #[must_use]
     pub fn radius(&self) -> usize {
         self.plan.r
     }
 
-    /// The source rows (indices in 0 … H − 1, in the order of the padded
-    /// rows, with repeats) that the band starting at `y0` reads.
-    #[must_use]
-    pub fn source_rows(&self, y0: usize) -> Vec<usize> {
-        let y1 = (y0 + self.band_rows).min(self.height);
-        self.plan.ymap[y0..y1 + 2 * self.plan.r].to_vec()
+    /// The bands of output rows, in order: the top r rows, then bands of
+    /// [`band_rows`](Self::band_rows).
+    pub fn bands(&self) -> impl Iterator<Item = Range<usize>> + use<> {
+        let (h, b) = (self.height, self.band_rows);
+        let top = self.plan.r.min(h);
+        std::iter::once(0..top).chain((top..h).step_by(b).map(move |y0| y0..(y0 + b).min(h))).filter(|r| !r.is_empty())
     }
 
-    /// Fits the band of output rows starting at `y0` (a multiple of
-    /// [`band_rows`](Self::band_rows)) into `out`, which holds its rows
-    /// (`band_rows`, or fewer for the last band). `row(y)` gives source row
-    /// y (`width` heights), for every y of [`source_rows`](Self::source_rows).
-    /// Rows run in parallel on rayon's current pool.
+    /// Fits the band `rows` (one of [`bands`](Self::bands)) into `out`,
+    /// which holds its texels. `row(y)` gives source row y (`width`
+    /// heights) for every y the band reads. Rows run in parallel on rayon's
+    /// current pool.
     ///
-    /// Errors: [`Error::BufferSize`] for a misplaced band or a wrong `out`
-    /// length, [`Error::NonFiniteHeight`] if a row read holds NaN or ±inf.
+    /// Errors: [`Error::BufferSize`] for a range that is not a band or a
+    /// wrong `out` length, [`Error::NonFiniteHeight`] if a row read holds NaN
+    /// or ±inf.
     pub fn fit_band<'a, T: FromNormal>(
         &self,
-        y0: usize,
+        rows: Range<usize>,
         row: &(dyn Fn(usize) -> &'a [f32] + Sync),
         out: &mut [T],
     ) -> Result<()> {
         let w = self.plan.width;
-        let y1 = (y0 + self.band_rows).min(self.height);
-        if y0 % self.band_rows != 0 || y0 >= self.height || out.len() != (y1 - y0) * w {
-            return Err(Error::BufferSize { expected: (y1.max(y0) - y0) * w, actual: out.len() });
+        let (h, top) = (self.height, self.plan.r.min(self.height));
+        let is_band = if rows.start < top {
+            rows == (0..top)
+        } else {
+            (rows.start - top) % self.band_rows == 0
+                && rows.start < h
+                && rows.end == (rows.start + self.band_rows).min(h)
+        };
+        if !is_band || out.len() != rows.len() * w {
+            return Err(Error::BufferSize { expected: rows.len() * w, actual: out.len() });
         }
-        for &y in &self.plan.ymap[y0..y1 + 2 * self.plan.r] {
+        for &y in &self.plan.ymap[rows.start..rows.end + 2 * self.plan.r] {
             let r = row(y);
             if r.len() != w {
                 return Err(Error::BufferSize { expected: w, actual: r.len() });
@@ -226,9 +238,7 @@ impl BandFit {
                 return Err(Error::NonFiniteHeight { x, y });
             }
         }
-        out.par_chunks_mut(self.plan.block_rows * w)
-            .enumerate()
-            .for_each(|(b, rows)| self.plan.fit_block(row, y0 + b * self.plan.block_rows, rows));
+        self.plan.fit_rows(row, rows.start, out);
         Ok(())
     }
 }
@@ -291,6 +301,27 @@ impl Plan {
             block_rows: tile,
             segment_cols: tile,
         })
+    }
+
+    /// Fits the output rows `y0 .. y0 + out.len() / width` (from a tile
+    /// edge), tile by tile in parallel.
+    ///
+    /// The tiles are fixed by the image and N alone: the top r rows, whose
+    /// patches reach above row 0 (through a wrap, to the image's last rows),
+    /// then `block_rows` at a time. Every texel is then made by the same
+    /// operations whichever rows a caller asks for at once.
+    fn fit_rows<'a, T: FromNormal>(&self, source_row: &(dyn Fn(usize) -> &'a [f32] + Sync), y0: usize, out: &mut [T]) {
+        let w = self.width;
+        let mut tiles: Vec<(usize, &mut [T])> = Vec::new();
+        let (mut y, mut rest) = (y0, out);
+        while !rest.is_empty() {
+            let rows = if y < self.r { self.r - y } else { self.block_rows - (y - self.r) % self.block_rows };
+            let (tile, tail) = rest.split_at_mut((rows * w).min(rest.len()));
+            tiles.push((y, tile));
+            y += rows;
+            rest = tail;
+        }
+        tiles.into_par_iter().for_each(|(y, tile)| self.fit_block(source_row, y, tile));
     }
 
     /// Fits the output rows `y0 .. y0 + out.len() / width`.

@@ -309,15 +309,15 @@ fn fit_stage<T: PngTexel>(
     rx: Receiver<Band<f32>>,
     tx: &SyncSender<Band<T>>,
 ) {
-    let (band, r) = (fit.band_rows(), fit.radius());
+    let r = fit.radius();
     // Rows lo .. lo + window.len() / w of the image, and a copy of its
     // first rows for a wrap at the bottom (they leave the window early).
     let mut window: Vec<f32> = Vec::new();
     let mut lo = 0;
     let mut head: Vec<f32> = Vec::new();
     let mut incoming = rx.into_iter();
-    for y0 in (0..h).step_by(band) {
-        let y1 = (y0 + band).min(h);
+    for rows in fit.bands() {
+        let (y0, y1) = (rows.start, rows.end);
         let needed = (y1 + r).min(h);
         while lo + window.len() / w < needed {
             match incoming.next() {
@@ -348,7 +348,7 @@ fn fit_stage<T: PngTexel>(
             }
         };
         let mut normals = vec![T::default(); (y1 - y0) * w];
-        let result = fit.fit_band(y0, &row, &mut normals);
+        let result = fit.fit_band(rows, &row, &mut normals);
         let failed = result.is_err();
         if tx.send(result.map(|()| (y0, normals))).is_err() || failed {
             return;
