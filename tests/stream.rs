@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use image::{ExtendedColorType, ImageEncoder};
-use normalfit::io::stream::{PngDepth, PngRows, convert_png};
-use normalfit::io::{Channel, PngCompression, ReadOptions, read_path};
+use normalfit::io::stream::{PngDepth, PngRows, convert_png, convert_png_seekable};
+use normalfit::io::{Channel, ReadOptions, read_path};
 use normalfit::{Border, Borders, Options, Strength, normals_into};
 
 /// Heights with detail in both directions and no symmetry, as 16-bit.
@@ -31,22 +31,34 @@ fn write_png(path: &Path, w: usize, h: usize, color: ExtendedColorType, samples:
     image::codecs::png::PngEncoder::new(file).write_image(samples, w as u32, h as u32, color).unwrap();
 }
 
-/// Streams `path` to PNG bytes and decodes them to 16-bit RGB samples.
-fn streamed(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth) -> Vec<u16> {
-    let rows = PngRows::open(path, &ReadOptions::default(), channel).unwrap().expect("streamable");
-    let tail = if opts.borders.y == Border::Wrap {
-        let first = PngRows::open(path, &ReadOptions::default(), channel).unwrap().unwrap();
-        Some(first.read_tail(opts.patch / 2, |_| {}).unwrap())
-    } else {
-        None
-    };
-    let mut png = Vec::new();
-    convert_png(rows, tail.as_deref(), opts, depth, PngCompression::Fast, &mut png).unwrap();
-    let img = image::load_from_memory(&png).unwrap();
-    match depth {
-        PngDepth::Eight => img.to_rgb8().into_raw().into_iter().map(u16::from).collect(),
-        PngDepth::Sixteen => img.to_rgb16().into_raw(),
+/// Decodes a PNG, verifying every chunk's CRC and the zlib stream's
+/// Adler-32 (which decoders skip by default), to samples widened to u16.
+fn strict_decode(png_bytes: &[u8]) -> Vec<u16> {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(png_bytes));
+    decoder.ignore_checksums(false);
+    let mut reader = decoder.read_info().expect("a valid header");
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).expect("valid, checksummed data");
+    let buf = &buf[..info.buffer_size()];
+    match info.bit_depth {
+        png::BitDepth::Sixteen => buf.chunks_exact(2).map(|c| u16::from_be_bytes([c[0], c[1]])).collect(),
+        _ => buf.iter().map(|&b| u16::from(b)).collect(),
     }
+}
+
+/// Streams `path` to PNG bytes both ways (in order, after a first pass for
+/// a wrap in y; and in one pass into a seekable output, the top rows
+/// last), checks both decode to the same samples, and returns them.
+fn streamed(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth) -> Vec<u16> {
+    let open = || PngRows::open(path, &ReadOptions::default(), channel).unwrap().expect("streamable");
+    let tail = (opts.borders.y == Border::Wrap).then(|| open().read_tail(opts.patch / 2, |_| {}).unwrap());
+    let mut ordered = Vec::new();
+    convert_png(open(), tail.as_deref(), opts, depth, |_| {}, &mut ordered).unwrap();
+    let mut seekable = std::io::Cursor::new(Vec::new());
+    convert_png_seekable(open(), opts, depth, |_| {}, &mut seekable).unwrap();
+    let (a, b) = (strict_decode(&ordered), strict_decode(seekable.get_ref()));
+    assert!(a == b, "the two streaming modes differ");
+    a
 }
 
 /// The whole-image path for the same file.
@@ -165,6 +177,6 @@ fn data_ending_early_is_a_decode_error() {
     let rows = PngRows::open(&path, &ReadOptions::default(), None).unwrap().unwrap();
     let opts = Options::new().with_borders(Borders::both(Border::Clamp));
     let mut out = Vec::new();
-    let err = convert_png(rows, None, &opts, PngDepth::Eight, PngCompression::Fast, &mut out).unwrap_err();
+    let err = convert_png(rows, None, &opts, PngDepth::Eight, |_| {}, &mut out).unwrap_err();
     assert!(matches!(err, normalfit::Error::Decode(_)), "{err:?}");
 }

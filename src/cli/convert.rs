@@ -148,56 +148,65 @@ impl Plan {
     }
 
     /// PNG to PNG without holding the image: rows stream from the decoder
-    /// through the fit to the encoder. A first pass over the file, when the
-    /// borders need it, checks the tiling and keeps the last rows for a
-    /// wrap across the top.
+    /// through the fit to the encoder, in one pass into a file. A first
+    /// pass over the input is made only for `--border auto` (the borders
+    /// depend on the tiling check) and for a wrap in y into standard output
+    /// (which cannot take the top rows last).
     fn convert_streaming(&self, path: &Path, rows: PngRows, target: &Target, depth: PngDepth) -> Result<(), Failure> {
         let input = Input::File(path.to_path_buf());
         let in_failure = |e: normalfit::Error| Failure::file(path, e);
         let (width, height) = (rows.width(), rows.height());
+        let auto = self.border.x == AxisBorder::Auto || self.border.y == AxisBorder::Auto;
         let may_wrap_y = matches!(self.border.y, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
-        let (report, tail) = if self.needs_check() || may_wrap_y {
+        let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
+        let first_pass = auto || (target.path.is_none() && may_wrap_y);
+        let (report, tail) = if first_pass {
             let first = PngRows::open(path, &ReadOptions::default(), self.channel).map_err(in_failure)?;
             let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
-            let mut seams = self.needs_check().then(|| HeightSeams::new(width, height));
-            let tail = first
-                .read_tail(self.fit.patch / 2, |row| {
-                    if let Some(s) = seams.as_mut() {
-                        s.push_row(row);
-                    }
-                })
-                .map_err(in_failure)?;
-            let opts = TilingOptions::new().with_kind(KindChoice::Height);
-            (seams.map(|s| s.finish(&opts)), Some(tail))
+            let mut seams = HeightSeams::new(width, height);
+            let tail = first.read_tail(self.fit.patch / 2, |row| seams.push_row(row)).map_err(in_failure)?;
+            (Some(seams.finish(&check_opts)), Some(tail))
         } else {
             (None, None)
         };
-        let fit = self.fit.clone().with_borders(self.borders_for(report, &input));
-        let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
-        let compression = PngCompression::default();
+        // Without a first pass, the check runs on the rows as they stream
+        // and the warning comes after the output.
+        let borders = self.borders_for(report, &input);
+        let fit = self.fit.clone().with_borders(borders);
+        let mut seams = (report.is_none() && self.needs_check()).then(|| HeightSeams::new(width, height));
+        let visit = |row: &[f32]| {
+            if let Some(s) = seams.as_mut() {
+                s.push_row(row);
+            }
+        };
         // Decoding and fitting fail on the input; writing, on the output.
         let mut failed_input = None;
-        let encoded = |out: &mut dyn Write| -> normalfit::Result<()> {
-            stream::convert_png(rows, tail, &fit, depth, compression, out).inspect_err(|e| {
-                if !matches!(e, normalfit::Error::Io(_) | normalfit::Error::Encode(_)) {
-                    failed_input = Some(e.to_string());
-                }
-            })
+        let mut on_input = |e: &normalfit::Error| {
+            if !matches!(e, normalfit::Error::Io(_) | normalfit::Error::Encode(_)) {
+                failed_input = Some(e.to_string());
+            }
         };
         let result = match &target.path {
-            Some(out) => io::write_atomically(out, encoded).map_err(|e| Failure::file(out, e)),
+            Some(out) => io::write_file_atomically(out, |file| {
+                stream::convert_png_seekable(rows, &fit, depth, visit, file).inspect_err(&mut on_input)
+            })
+            .map_err(|e| Failure::file(out, e)),
             None => {
-                // PNG needs no seeking: the rows go straight to standard output.
+                let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
                 let mut stdout = std::io::stdout().lock();
-                encoded(&mut stdout)
+                stream::convert_png(rows, tail, &fit, depth, visit, &mut stdout)
+                    .inspect_err(&mut on_input)
                     .and_then(|()| Ok(stdout.flush()?))
                     .map_err(|e| Failure::file("<standard output>", e))
             }
         };
-        match failed_input {
-            Some(problem) => Err(Failure::file(path, problem)),
-            None => result,
+        if let Some(problem) = failed_input {
+            return Err(Failure::file(path, problem));
         }
+        if let Some(seams) = seams {
+            self.borders_for(Some(seams.finish(&check_opts)), &input);
+        }
+        result
     }
 
     /// Refuses an output that is an input, or that an earlier input of this
@@ -234,7 +243,7 @@ impl Plan {
             AxisBorder::Auto => auto,
         };
         let Some(report) = report else {
-            // Only clamp and mirror: nothing was checked.
+            // Not checked (yet): the modes asked for, `auto` as mirror.
             return Borders { x: resolve(self.border.x, Border::Mirror), y: resolve(self.border.y, Border::Mirror) };
         };
         let seams: Vec<String> = [("x", self.border.x, report.x), ("y", self.border.y, report.y)]

@@ -34,15 +34,6 @@ pub enum PngCompression {
 }
 
 impl PngCompression {
-    /// The `png` setting this stands for (what `image` maps it to).
-    pub(crate) fn to_png(self) -> png::Compression {
-        match self {
-            PngCompression::Fast => png::Compression::Fast,
-            PngCompression::Default => png::Compression::Balanced,
-            PngCompression::Best => png::Compression::High,
-        }
-    }
-
     /// The `image` setting this stands for.
     fn to_image(self) -> CompressionType {
         match self {
@@ -174,6 +165,12 @@ where
 /// a temp-file crate would make it. On any error, and if `write` panics,
 /// the temporary file is removed.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
+    write_file_atomically(path, |out| write(out))
+}
+
+/// Like [`write_atomically`], with the temporary file itself (buffered), for
+/// encoders that seek.
+pub fn write_file_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
     let (file, guard) = TempFile::create(path)?;
     let mut out = BufWriter::new(file);
     write(&mut out)?;
