@@ -177,7 +177,7 @@ impl BandFit {
     pub fn new(width: usize, height: usize, opts: &Options) -> Result<BandFit> {
         let plan = Plan::new(width, height, opts)?;
         // Enough blocks per band to keep every core busy.
-        let blocks = 2 * rayon::current_num_threads().max(1);
+        let blocks = rayon::current_num_threads().max(1);
         let band_rows = plan.block_rows * blocks;
         Ok(BandFit { plan, height, band_rows })
     }

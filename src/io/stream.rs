@@ -329,9 +329,9 @@ fn convert_as<T: PngTexel, W: MaybeSeek + ?Sized>(
     let (png_tx, png_rx) = sync_channel::<Band<u8>>(2);
     let band = fit.band_rows();
     std::thread::scope(|scope| -> Result<()> {
-        scope.spawn(move || decode_stage(&mut rows, band, &mut visit, &heights_tx));
+        scope.spawn(move || decode_stage(&mut rows, band, &heights_tx));
         let fit = &fit;
-        scope.spawn(move || fit_stage::<T>(fit, w, h, tail, deferred, heights_rx, &png_tx));
+        scope.spawn(move || fit_stage::<T>(fit, w, h, tail, deferred, &mut visit, heights_rx, &png_tx));
         for message in png_rx {
             let (y0, bytes) = message?;
             if deferred && y0 == 0 {
@@ -365,19 +365,15 @@ fn convert_as<T: PngTexel, W: MaybeSeek + ?Sized>(
     Ok(())
 }
 
-/// Decodes bands of `band` rows, gives each row to `visit`, and sends the
-/// bands on; stops at the first error (sent on) or when the receiver is
-/// gone.
-fn decode_stage(rows: &mut PngRows, band: usize, visit: &mut dyn FnMut(&[f32]), tx: &SyncSender<Band<f32>>) {
+/// Decodes bands of `band` rows and sends them on; stops at the first
+/// error (sent on) or when the receiver is gone. Decoding is the one stage
+/// that cannot be split, so it does nothing else.
+fn decode_stage(rows: &mut PngRows, band: usize, tx: &SyncSender<Band<f32>>) {
     let (w, h) = (rows.width, rows.height);
     for y0 in (0..h).step_by(band) {
         let n = band.min(h - y0);
         let mut heights = vec![0.0f32; n * w];
-        let result = heights.chunks_exact_mut(w).try_for_each(|row| {
-            rows.next_row(row)?;
-            visit(row);
-            Ok(())
-        });
+        let result = heights.chunks_exact_mut(w).try_for_each(|row| rows.next_row(row));
         let failed = result.is_err();
         if tx.send(result.map(|()| (y0, heights))).is_err() || failed {
             return;
@@ -386,14 +382,17 @@ fn decode_stage(rows: &mut PngRows, band: usize, visit: &mut dyn FnMut(&[f32]), 
 }
 
 /// Fits each band once the rows it reads are in, turns it into filtered
-/// PNG rows and sends it on. `deferred`: the top band is fitted last, when
-/// the image's last rows are in, and sent unfiltered.
+/// PNG rows and sends it on; gives every row that comes in to `visit`.
+/// `deferred`: the top band is fitted last, when the image's last rows are
+/// in, and sent unfiltered.
+#[allow(clippy::too_many_arguments)]
 fn fit_stage<T: PngTexel>(
     fit: &BandFit,
     w: usize,
     h: usize,
     tail: Option<&[f32]>,
     deferred: bool,
+    visit: &mut dyn FnMut(&[f32]),
     rx: Receiver<Band<f32>>,
     tx: &SyncSender<Band<u8>>,
 ) {
@@ -417,7 +416,10 @@ fn fit_stage<T: PngTexel>(
         let needed = if top_last { h } else { (y1 + r).min(h) };
         while lo + window.len() / w < needed {
             match incoming.next() {
-                Some(Ok((_, rows))) => window.extend_from_slice(&rows),
+                Some(Ok((_, rows))) => {
+                    rows.chunks_exact(w).for_each(&mut *visit);
+                    window.extend_from_slice(&rows);
+                }
                 Some(Err(e)) => {
                     let _ = tx.send(Err(e));
                     return;
