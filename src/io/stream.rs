@@ -397,11 +397,11 @@ fn fit_stage<T: PngTexel>(
     tx: &SyncSender<Band<u8>>,
 ) {
     let r = fit.radius();
-    // Rows lo .. lo + window.len() / w of the image, and a copy of its
-    // first 2r rows, which the top band and a wrap at the bottom read
-    // after they have left the window.
-    let mut window: Vec<f32> = Vec::new();
-    let mut lo = 0;
+    // The decoded bands that later bands still read, as they came (first
+    // row, heights), and a copy of the image's first 2r rows, which the top
+    // band and a wrap at the bottom read after they have left.
+    let mut window: std::collections::VecDeque<(usize, Vec<f32>)> = std::collections::VecDeque::new();
+    let mut decoded = 0;
     let head_rows = (2 * r).min(h);
     let mut head: Vec<f32> = Vec::new();
     let mut incoming = rx.into_iter();
@@ -414,11 +414,14 @@ fn fit_stage<T: PngTexel>(
         let (y0, y1) = (rows.start, rows.end);
         let top_last = deferred && y0 == 0;
         let needed = if top_last { h } else { (y1 + r).min(h) };
-        while lo + window.len() / w < needed {
+        while decoded < needed {
             match incoming.next() {
-                Some(Ok((_, rows))) => {
+                Some(Ok((first, rows))) => {
                     rows.chunks_exact(w).for_each(&mut *visit);
-                    window.extend_from_slice(&rows);
+                    let wanted = (head_rows * w).saturating_sub(head.len()).min(rows.len());
+                    head.extend_from_slice(&rows[..wanted]);
+                    decoded = first + rows.len() / w;
+                    window.push_back((first, rows));
                 }
                 Some(Err(e)) => {
                     let _ = tx.send(Err(e));
@@ -429,16 +432,13 @@ fn fit_stage<T: PngTexel>(
                     return;
                 }
             }
-            if head.len() < head_rows * w {
-                let have = (window.len() / w).min(head_rows);
-                head.clear();
-                head.extend_from_slice(&window[..have * w]);
-            }
         }
-        let hi = lo + window.len() / w;
+        let in_window = &window;
         let row = |y: usize| -> &[f32] {
-            if (lo..hi).contains(&y) {
-                &window[(y - lo) * w..][..w]
+            if let Some((first, rows)) =
+                in_window.iter().find(|(first, rows)| (*first..first + rows.len() / w).contains(&y))
+            {
+                &rows[(y - first) * w..][..w]
             } else if y < head_rows {
                 &head[y * w..][..w]
             } else {
@@ -465,11 +465,12 @@ fn fit_stage<T: PngTexel>(
         if tx.send(result.map(|bytes| (y0, bytes))).is_err() || failed {
             return;
         }
-        // The next band reads from r rows above its start; with the top
-        // band last, the last r rows stay for it.
-        let keep_from = y1.saturating_sub(r).max(lo);
-        window.drain(..(keep_from - lo) * w);
-        lo = keep_from;
+        // The next band reads from r rows above its start (with the top
+        // band last, the last r rows stay for it): older bands can go.
+        let keep_from = y1.saturating_sub(r);
+        while window.front().is_some_and(|(first, rows)| first + rows.len() / w <= keep_from) {
+            window.pop_front();
+        }
     }
 }
 
