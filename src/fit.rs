@@ -68,20 +68,27 @@ impl FromNormal for [f32; 3] {
     }
 }
 
-// Rounding as ⌊x + ½⌋ by truncation: x ≥ 0 here, where it equals
-// `f64::round`, and it compiles to plain instructions that vectorise where
-// `round` is a library call on baseline x86-64.
+/// 2⁵²: adding it to an x in [0, 2⁵²) leaves round(x) (to nearest, ties
+/// to even) in the low bits of the sum's mantissa.
+const ROUND_MAGIC: f64 = 4_503_599_627_370_496.0;
+
+// Rounding by the magic number, in plain float and integer instructions
+// that vectorise, where `f64::round` is a library call on baseline x86-64
+// and a saturating `as` cast is a chain of compares. The scaled value
+// (n + 1) · (2^bits − 1) / 2 lies in [0, 2^bits − 1] for |n| ≤ 1; its ties
+// (x.5 exactly) fall only at n = 0, where nearest-even gives 128 and 32768,
+// as rounding half up does.
 impl FromNormal for [u8; 3] {
     #[inline]
     fn from_normal(n: [f64; 3]) -> Self {
-        n.map(|c| ((c + 1.0) * 127.5 + 0.5) as i32 as u8)
+        n.map(|c| ((c + 1.0) * 127.5 + ROUND_MAGIC).to_bits() as u8)
     }
 }
 
 impl FromNormal for [u16; 3] {
     #[inline]
     fn from_normal(n: [f64; 3]) -> Self {
-        n.map(|c| ((c + 1.0) * 32767.5 + 0.5) as i32 as u16)
+        n.map(|c| ((c + 1.0) * 32767.5 + ROUND_MAGIC).to_bits() as u16)
     }
 }
 
