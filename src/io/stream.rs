@@ -2,17 +2,20 @@
 //! fit to the encoder, so memory grows with the width and the patch size,
 //! not with the image's height.
 //!
-//! Three stages run at once: a thread decodes rows into bands of heights,
-//! a thread fits each band (its rows in parallel on rayon's pool), and the
-//! caller's thread filters and deflates the finished rows into the output.
-//! The result is the same, byte for byte, as decoding the whole image,
-//! calling [`normals_into`](crate::normals_into) and encoding it: the fit
-//! is cut into the same tiles either way ([`BandFit`]).
+//! Three stages run at once: a thread decodes rows into bands of heights;
+//! a thread fits each band (its row tiles in parallel on rayon's pool) and
+//! PNG-filters it (in parallel too); the caller's thread deflates the
+//! filtered rows into the output. The pixels are the same, bit for bit, as
+//! decoding the whole image and calling [`normals_into`](crate::normals_into):
+//! the fit is cut into the same tiles either way ([`BandFit`]).
 //!
-//! A wrap across the top and bottom needs the image's last rows before its
-//! first output row: the caller reads the file once more for them first
-//! ([`PngRows::read_tail`]). PNG cannot seek, so that pass decodes the whole
-//! file; it is also where a tiling check can be made on the way.
+//! A wrap across the top and bottom needs the image's last rows for the top
+//! N/2 output rows. Into an output that seeks ([`convert_png_seekable`]),
+//! those rows are fitted last and written into room kept for them after
+//! the header, stored uncompressed, so the input is read once. Into a pipe
+//! ([`convert_png`]), the caller reads the file once more for the last rows
+//! first ([`PngRows::read_tail`]); PNG cannot seek, so that pass decodes the
+//! whole file.
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, Write};
