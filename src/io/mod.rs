@@ -2,7 +2,7 @@
 //!
 //! [`read`] turns the bytes of any supported format into planes of `f32`
 //! in the contract's height units (SPEC §1) and picks the height channel;
-//! [`write`] encodes normal maps (SPEC §3) and puts files in place
+//! [`write`](mod@write) encodes normal maps (SPEC §3) and puts files in place
 //! atomically (SPEC §4). Neither knows about the fit, and the fit knows
 //! nothing of files. [`stream`] joins them for PNG files, streaming rows
 //! from decoder to encoder.
