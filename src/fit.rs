@@ -189,6 +189,18 @@ impl BandFit {
         Ok(BandFit { plan, height, band_rows })
     }
 
+    /// Columns.
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.plan.width
+    }
+
+    /// Rows.
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
     /// Rows per band after the top band, a whole number of the fit's tiles.
     #[must_use]
     pub fn band_rows(&self) -> usize {

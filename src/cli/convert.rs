@@ -129,7 +129,10 @@ impl Plan {
         let report = self
             .needs_check()
             .then(|| tiling::check(&[&heights], width, height, &TilingOptions::new().with_kind(KindChoice::Height)));
-        let fit = self.fit.clone().with_borders(self.borders_for(report, input));
+        if let Some(report) = &report {
+            self.warn_seams(report, input);
+        }
+        let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
         let encoded =
             |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &fit, &target, out) };
         match &target.path {
@@ -171,8 +174,10 @@ impl Plan {
         };
         // Without a first pass, the check runs on the rows as they stream
         // and the warning comes after the output.
-        let borders = self.borders_for(report, &input);
-        let fit = self.fit.clone().with_borders(borders);
+        if let Some(report) = &report {
+            self.warn_seams(report, &input);
+        }
+        let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
         let mut seams = (report.is_none() && self.needs_check()).then(|| HeightSeams::new(width, height));
         let visit = |row: &[f32]| {
             if let Some(s) = seams.as_mut() {
@@ -204,7 +209,7 @@ impl Plan {
             return Err(Failure::file(path, problem));
         }
         if let Some(seams) = seams {
-            self.borders_for(Some(seams.finish(&check_opts)), &input);
+            self.warn_seams(&seams.finish(&check_opts), &input);
         }
         result
     }
@@ -233,19 +238,21 @@ impl Plan {
     }
 
     /// The border modes for one image: `auto` becomes wrap where the image
-    /// tiles and mirror where it does not, and a wrap asked for on an axis
-    /// that does not tile gets a warning, since it would draw a seam.
-    /// `report` is the tiling check, made when [`Self::needs_check`].
-    fn borders_for(&self, report: Option<tiling::TilingReport>, input: &Input) -> Borders {
-        let wrap = AxisBorder::Fixed(Border::Wrap);
+    /// tiles and mirror where it does not (`report`: the tiling check, made
+    /// when [`Self::needs_check`]; without it, `auto` is mirror).
+    fn borders_for(&self, report: Option<&tiling::TilingReport>) -> Borders {
+        let suggested = report.map_or(Borders::both(Border::Mirror), |r| r.suggested_borders());
         let resolve = |asked: AxisBorder, auto: Border| match asked {
             AxisBorder::Fixed(b) => b,
             AxisBorder::Auto => auto,
         };
-        let Some(report) = report else {
-            // Not checked (yet): the modes asked for, `auto` as mirror.
-            return Borders { x: resolve(self.border.x, Border::Mirror), y: resolve(self.border.y, Border::Mirror) };
-        };
+        Borders { x: resolve(self.border.x, suggested.x), y: resolve(self.border.y, suggested.y) }
+    }
+
+    /// A wrap asked for on an axis that does not tile draws a seam: one
+    /// warning line names the axes.
+    fn warn_seams(&self, report: &tiling::TilingReport, input: &Input) {
+        let wrap = AxisBorder::Fixed(Border::Wrap);
         let seams: Vec<String> = [("x", self.border.x, report.x), ("y", self.border.y, report.y)]
             .iter()
             .filter(|(_, asked, axis)| *asked == wrap && !axis.seamless)
@@ -260,8 +267,6 @@ impl Plan {
                 ),
             );
         }
-        let suggested = report.suggested_borders();
-        Borders { x: resolve(self.border.x, suggested.x), y: resolve(self.border.y, suggested.y) }
     }
 
     /// The output's path (None: standard output), format and depth.

@@ -169,7 +169,7 @@ const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 const TIFF_MAGIC: [[u8; 4]; 4] = [*b"II*\0", *b"MM\0*", *b"II+\0", *b"MM\0+"];
 
 /// Rec. 709 luma weights of R, G and B (SPEC §1).
-const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
+pub(crate) const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Decodes an image from its bytes, choosing the decoder from the content.
 ///

@@ -17,6 +17,7 @@
 //! first ([`PngRows::read_tail`]); PNG cannot seek, so that pass decodes the
 //! whole file.
 
+use std::borrow::Cow;
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, Write};
 
@@ -24,13 +25,10 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
-use super::read::{Channel, ReadOptions, check_size};
+use super::read::{Channel, LUMA, ReadOptions, check_size};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::options::{Border, Options};
-
-/// Rec. 709 luma weights of R, G and B, as the whole-image reader uses.
-const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// The rows of a PNG file, top to bottom, as heights in contract units.
 pub struct PngRows {
@@ -219,11 +217,12 @@ pub fn convert_png(
         }
         None => None,
     };
-    let mut sink = Sink { out, top_at: None };
     match depth {
-        PngDepth::Eight => convert_as::<[u8; 3], _>(rows, tail, opts, visit, &mut sink),
-        PngDepth::Sixteen => convert_as::<[u16; 3], _>(rows, tail, opts, visit, &mut sink),
-    }
+        PngDepth::Eight => convert_as::<[u8; 3], _>(rows, tail, opts, visit, out, false),
+        PngDepth::Sixteen => convert_as::<[u16; 3], _>(rows, tail, opts, visit, out, false),
+    }?;
+    out.flush()?;
+    Ok(())
 }
 
 /// Like [`convert_png`], in one pass over the input whatever the borders,
@@ -241,87 +240,76 @@ pub fn convert_png_seekable<W: Write + Seek>(
     out: &mut W,
 ) -> Result<()> {
     let start = out.stream_position()?;
-    let mut sink = Sink { out, top_at: Some(start) };
-    match depth {
-        PngDepth::Eight => convert_as::<[u8; 3], _>(rows, None, opts, visit, &mut sink),
-        PngDepth::Sixteen => convert_as::<[u16; 3], _>(rows, None, opts, visit, &mut sink),
+    let first_idat = match depth {
+        PngDepth::Eight => convert_as::<[u8; 3], _>(rows, None, opts, visit, out, true),
+        PngDepth::Sixteen => convert_as::<[u16; 3], _>(rows, None, opts, visit, out, true),
     }?;
+    // The room kept for the first IDAT chunk follows the signature and IHDR.
+    let end = out.stream_position()?;
+    out.seek(std::io::SeekFrom::Start(start + HEADER_BYTES))?;
+    write_chunk(out, b"IDAT", &first_idat)?;
+    out.seek(std::io::SeekFrom::Start(end))?;
+    out.flush()?;
     Ok(())
-}
-
-/// Where the PNG goes: in order, or with the top rows written last into
-/// room kept for them (`top_at`: the offset of the file's start).
-struct Sink<'a, W: ?Sized> {
-    out: &'a mut W,
-    top_at: Option<u64>,
-}
-
-/// Seeking, for the sinks that can; a pipe cannot.
-trait MaybeSeek: Write {
-    fn seek_to(&mut self, pos: u64) -> Result<()>;
-}
-
-impl MaybeSeek for dyn Write + '_ {
-    fn seek_to(&mut self, _: u64) -> Result<()> {
-        Err(Error::Encode("the output cannot seek".into()))
-    }
-}
-
-impl<W: Write + Seek> MaybeSeek for W {
-    fn seek_to(&mut self, pos: u64) -> Result<()> {
-        self.seek(std::io::SeekFrom::Start(pos))?;
-        Ok(())
-    }
 }
 
 /// A texel type the streamed PNG can hold, with its big-endian bytes.
 trait PngTexel: FromNormal + Default {
     /// Bits per sample.
     const BITS: u8;
-    /// Appends the samples of `texels`, big-endian.
-    fn put(texels: &[Self], bytes: &mut Vec<u8>);
+    /// Bytes per texel (three samples).
+    const BYTES: usize = 3 * (Self::BITS as usize / 8);
+    /// The samples of `texels`, big-endian (8-bit ones as they are).
+    fn bytes(texels: &[Self]) -> Cow<'_, [u8]>;
 }
 
 impl PngTexel for [u8; 3] {
     const BITS: u8 = 8;
-    fn put(texels: &[Self], bytes: &mut Vec<u8>) {
-        bytes.extend_from_slice(texels.as_flattened());
+    fn bytes(texels: &[Self]) -> Cow<'_, [u8]> {
+        Cow::Borrowed(texels.as_flattened())
     }
 }
 
 impl PngTexel for [u16; 3] {
     const BITS: u8 = 16;
-    fn put(texels: &[Self], bytes: &mut Vec<u8>) {
-        bytes.extend(texels.as_flattened().iter().flat_map(|v| v.to_be_bytes()));
+    fn bytes(texels: &[Self]) -> Cow<'_, [u8]> {
+        Cow::Owned(texels.as_flattened().iter().flat_map(|v| v.to_be_bytes()).collect())
     }
 }
+
+/// Bytes of the PNG signature (8) and the IHDR chunk (25), after which the
+/// first IDAT chunk starts.
+const HEADER_BYTES: u64 = 8 + 25;
 
 /// A band of rows between stages: its first row and its values (heights;
 /// or the PNG rows, each with its filter byte).
 type Band<T> = Result<(usize, Vec<T>)>;
 
-fn convert_as<T: PngTexel, W: MaybeSeek + ?Sized>(
+/// Streams the PNG into `out`. With `deferred`, the top N/2 rows are
+/// fitted last: `out` gets room for the first IDAT chunk after the header,
+/// and the chunk's data (zlib header and the top rows, stored) is returned
+/// for the caller to write there; otherwise everything is written in order
+/// and nothing is returned.
+fn convert_as<T: PngTexel, W: Write + ?Sized>(
     mut rows: PngRows,
     tail: Option<&[f32]>,
     opts: &Options,
     mut visit: impl FnMut(&[f32]) + Send,
-    sink: &mut Sink<'_, W>,
-) -> Result<()> {
+    out: &mut W,
+    deferred: bool,
+) -> Result<Vec<u8>> {
     let (w, h) = (rows.width, rows.height);
     let fit = BandFit::new(w, h, opts)?;
-    let stride = 3 * usize::from(T::BITS / 8) * w;
-    let top_rows = fit.radius().min(h);
-    let deferred = sink.top_at.is_some();
-    let top_len = top_rows * (stride + 1);
+    let top_len = fit.radius().min(h) * (T::BYTES * w + 1);
 
-    write_signature_and_header(sink.out, w, h, T::BITS)?;
+    write_signature_and_header(out, w, h, T::BITS)?;
     if deferred {
         // Room for the first IDAT chunk: zlib header and the top rows as
         // stored blocks, filled in at the end.
         let room = 12 + 2 + stored_len(top_len);
-        std::io::copy(&mut std::io::repeat(0).take(room as u64), sink.out)?;
+        std::io::copy(&mut std::io::repeat(0).take(room as u64), out)?;
     }
-    let mut idat = Idat { out: &mut *sink.out, buf: Vec::new(), skip: if deferred { 2 } else { 0 } };
+    let mut idat = Idat { out: &mut *out, buf: Vec::new(), skip: if deferred { 2 } else { 0 } };
     let mut compressor = fdeflate::Compressor::new(&mut idat)?;
     let mut fed = 0u64;
     let mut top = Vec::new();
@@ -334,7 +322,7 @@ fn convert_as<T: PngTexel, W: MaybeSeek + ?Sized>(
     std::thread::scope(|scope| -> Result<()> {
         scope.spawn(move || decode_stage(&mut rows, band, &heights_tx));
         let fit = &fit;
-        scope.spawn(move || fit_stage::<T>(fit, w, h, tail, deferred, &mut visit, heights_rx, &png_tx));
+        scope.spawn(move || fit_stage::<T>(fit, tail, deferred, &mut visit, heights_rx, &png_tx));
         for message in png_rx {
             let (y0, bytes) = message?;
             if deferred && y0 == 0 {
@@ -348,24 +336,19 @@ fn convert_as<T: PngTexel, W: MaybeSeek + ?Sized>(
     })?;
     compressor.finish()?;
     let mut trailer = idat.take_trailer()?;
+    let mut first_idat = Vec::new();
     if deferred {
         if top.len() != top_len {
             return Err(Error::Encode("the top rows were not fitted".into()));
         }
         trailer = adler32_combine(adler32(&top), trailer, fed);
+        first_idat.extend_from_slice(&[0x78, 0x01]);
+        put_stored(&top, &mut first_idat);
     }
     idat.buf.extend_from_slice(&trailer.to_be_bytes());
     idat.flush_chunk()?;
-    write_chunk(sink.out, b"IEND", &[])?;
-    if let Some(start) = sink.top_at {
-        let end = start + 8 + 25;
-        sink.out.seek_to(end)?;
-        let mut first = vec![0x78, 0x01];
-        put_stored(&top, &mut first);
-        write_chunk(sink.out, b"IDAT", &first)?;
-    }
-    sink.out.flush()?;
-    Ok(())
+    write_chunk(out, b"IEND", &[])?;
+    Ok(first_idat)
 }
 
 /// Decodes bands of `band` rows and sends them on; stops at the first
@@ -388,18 +371,15 @@ fn decode_stage(rows: &mut PngRows, band: usize, tx: &SyncSender<Band<f32>>) {
 /// PNG rows and sends it on; gives every row that comes in to `visit`.
 /// `deferred`: the top band is fitted last, when the image's last rows are
 /// in, and sent unfiltered.
-#[allow(clippy::too_many_arguments)]
 fn fit_stage<T: PngTexel>(
     fit: &BandFit,
-    w: usize,
-    h: usize,
     tail: Option<&[f32]>,
     deferred: bool,
     visit: &mut dyn FnMut(&[f32]),
     rx: Receiver<Band<f32>>,
     tx: &SyncSender<Band<u8>>,
 ) {
-    let r = fit.radius();
+    let (w, h, r) = (fit.width(), fit.height(), fit.radius());
     // The decoded bands that later bands still read, as they came (first
     // row, heights), and a copy of the image's first 2r rows, which the top
     // band and a wrap at the bottom read after they have left.
@@ -452,15 +432,14 @@ fn fit_stage<T: PngTexel>(
         };
         let mut normals = vec![T::default(); (y1 - y0) * w];
         let result = fit.fit_band(rows, &row, &mut normals).map(|()| {
-            let mut raw = Vec::with_capacity(normals.len() * 6);
-            T::put(&normals, &mut raw);
+            let raw = T::bytes(&normals);
+            let stride = T::BYTES * w;
             if top_last {
-                raw.chunks_exact(w * 3 * usize::from(T::BITS / 8))
-                    .flat_map(|row| std::iter::once(0).chain(row.iter().copied()))
-                    .collect()
+                // Stored as they are: filter type 0 before each row.
+                raw.chunks_exact(stride).flat_map(|row| std::iter::once(0).chain(row.iter().copied())).collect()
             } else {
-                let filtered = filter_rows(&raw, raw.len() / (y1 - y0), usize::from(T::BITS / 8) * 3, prior.as_deref());
-                prior = Some(raw[raw.len() - raw.len() / (y1 - y0)..].to_vec());
+                let filtered = filter_rows(&raw, stride, T::BYTES, prior.as_deref());
+                prior = Some(raw[raw.len() - stride..].to_vec());
                 filtered
             }
         });
