@@ -373,12 +373,7 @@ impl Plan {
         for j in 0..n {
             let offset = j as f64 - r as f64;
             let h = &ring[(y0 + j) % n];
-            for x in 0..w {
-                v.s0[x] += h.s0[x];
-                v.si[x] += h.si[x];
-                v.sj[x] += offset * h.s0[x];
-                v.szz[x] += h.szz[x];
-            }
+            v.add(h, offset);
         }
 
         let (rf, r1) = (r as f64, r as f64 + 1.0);
@@ -388,14 +383,7 @@ impl Plan {
                 let p_out = y0 + k - 1;
                 let p_in = p_out + n;
                 self.horizontal_sums(row_of(p_in), &reference, &mut entering);
-                let (e, l) = (&entering, &ring[p_out % n]);
-                for x in 0..w {
-                    let s0 = v.s0[x] - l.s0[x] + e.s0[x];
-                    v.sj[x] += rf * l.s0[x] + r1 * e.s0[x] - s0;
-                    v.s0[x] = s0;
-                    v.si[x] += e.si[x] - l.si[x];
-                    v.szz[x] += e.szz[x] - l.szz[x];
-                }
+                v.slide(&ring[p_out % n], &entering, rf, r1);
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
             self.emit(&v, &mut normal, out_row);
@@ -518,5 +506,38 @@ impl WindowSums {
     fn zeros(width: usize) -> Self {
         let z = vec![0.0; width];
         WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z }
+    }
+
+    /// Adds the row sums `h` of the window's row at vertical offset `j`.
+    fn add(&mut self, h: &RowSums, j: f64) {
+        // Every slice cut to one length: the loop then has no bounds
+        // checks and vectorises.
+        let w = self.s0.len();
+        let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
+        let (h0, hi, hzz) = (&h.s0[..w], &h.si[..w], &h.szz[..w]);
+        for x in 0..w {
+            s0[x] += h0[x];
+            si[x] += hi[x];
+            sj[x] += j * h0[x];
+            szz[x] += hzz[x];
+        }
+    }
+
+    /// Slides the window down one row: row sums `leaving` (offset −r) go,
+    /// `entering` (offset r + 1 before the slide) come. Σj·z moves by
+    /// r·leaving + (r + 1)·entering − the new Σz, as every row's offset
+    /// drops by one.
+    fn slide(&mut self, leaving: &RowSums, entering: &RowSums, r: f64, r1: f64) {
+        let w = self.s0.len();
+        let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
+        let (l0, li, lzz) = (&leaving.s0[..w], &leaving.si[..w], &leaving.szz[..w]);
+        let (e0, ei, ezz) = (&entering.s0[..w], &entering.si[..w], &entering.szz[..w]);
+        for x in 0..w {
+            let new_s0 = s0[x] - l0[x] + e0[x];
+            sj[x] += r * l0[x] + r1 * e0[x] - new_s0;
+            s0[x] = new_s0;
+            si[x] += ei[x] - li[x];
+            szz[x] += ezz[x] - lzz[x];
+        }
     }
 }

@@ -469,22 +469,25 @@ fn filter_rows(raw: &[u8], stride: usize, bpp: usize, prior: Option<&[u8]>) -> V
         let cur = &raw[k * stride..][..stride];
         let above = if k == 0 { prior } else { Some(&raw[(k - 1) * stride..][..stride]) };
         let (kind, body) = dst.split_first_mut().expect("a filter byte");
+        // Written as zips over slices, with no indexing, so the loops
+        // vectorise (indexed, they ran one byte at a time).
         match above {
             None => {
                 *kind = 1;
                 body[..bpp].copy_from_slice(&cur[..bpp]);
-                for i in bpp..stride {
-                    body[i] = cur[i].wrapping_sub(cur[i - bpp]);
+                for ((d, &c), &left) in body[bpp..].iter_mut().zip(&cur[bpp..]).zip(cur) {
+                    *d = c.wrapping_sub(left);
                 }
             }
             Some(up) => {
                 *kind = 3;
-                for i in 0..bpp {
-                    body[i] = cur[i].wrapping_sub(up[i] >> 1);
+                for ((d, &c), &u) in body[..bpp].iter_mut().zip(cur).zip(up) {
+                    *d = c.wrapping_sub(u >> 1);
                 }
-                for i in bpp..stride {
-                    let mean = ((u16::from(cur[i - bpp]) + u16::from(up[i])) >> 1) as u8;
-                    body[i] = cur[i].wrapping_sub(mean);
+                let rest = body[bpp..].iter_mut().zip(&cur[bpp..]).zip(cur).zip(&up[bpp..]);
+                for (((d, &c), &left), &u) in rest {
+                    let mean = ((u16::from(left) + u16::from(u)) >> 1) as u8;
+                    *d = c.wrapping_sub(mean);
                 }
             }
         }
