@@ -57,8 +57,9 @@
 //! # Ok::<(), normalfit::Error>(())
 //! ```
 //!
-//! To a file, use [`io::write_atomically`], which writes a temporary file
-//! beside the target and renames it only once it is complete. To read an
+//! To a file, use [`io::write_atomically`], which writes a new file beside
+//! the target (without a name, on Linux) and gives it the target's name
+//! only once it is complete. To read an
 //! image, [`io::read_path`] or [`io::decode`] give an [`io::Raster`], and
 //! [`io::Raster::heights`] the heights in the contract's units.
 //!

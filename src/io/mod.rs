@@ -7,6 +7,7 @@
 //! nothing of files. [`stream`] joins them for PNG files, streaming rows
 //! from decoder to encoder.
 
+mod atomic;
 pub mod read;
 pub mod stream;
 pub mod write;

@@ -5,10 +5,9 @@
 //! `[u16; 3]`, `[f32; 3]`, see [`crate::FromNormal`]), so no float copy of
 //! the image is made between the fit and the file.
 
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, BufWriter, Seek, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::io::{Seek, Write};
+
+pub use super::atomic::{write_atomically, write_file_atomically};
 
 use exr::prelude::{Encoding, Image, Layer, LayerAttributes, SpecificChannels, Vec2, WritableImage, f16};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
@@ -150,109 +149,6 @@ where
         Encoding::SMALL_LOSSLESS,
         SpecificChannels::rgb(pixel),
     ))
-}
-
-/// Creates `path` with the bytes `write` produces, so that it appears
-/// whole or not at all (SPEC §4).
-///
-/// The bytes go to a new temporary file in the same folder (a rename is
-/// atomic only within one file system), named
-/// `.<file name>.<pid>-<counter>.normalfit-tmp`, which is flushed and
-/// synced to disk, then renamed onto `path`. `path` itself is never opened,
-/// so an interrupted or failed write leaves its old content in place.
-/// The temporary file is created like any new file, with the permissions
-/// 0666 minus the umask, so the result does not end up private (0600) as
-/// a temp-file crate would make it. On any error, and if `write` panics,
-/// the temporary file is removed.
-pub fn write_atomically(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
-    write_file_atomically(path, |out| write(out))
-}
-
-/// Like [`write_atomically`], with the temporary file itself (buffered), for
-/// encoders that seek.
-pub fn write_file_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
-    let (file, guard) = TempFile::create(path)?;
-    let mut out = BufWriter::new(file);
-    write(&mut out)?;
-    let file = out.into_inner().map_err(|e| Error::Io(e.into_error()))?;
-    file.sync_all()?;
-    // Closed before the rename: some systems (Windows) refuse to rename an
-    // open file.
-    drop(file);
-    fs::rename(&guard.path, path)?;
-    guard.keep();
-    sync_folder(path);
-    Ok(())
-}
-
-/// Tells temporary files of one process apart.
-static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
-
-/// A temporary file that is removed when dropped, unless kept.
-struct TempFile {
-    path: PathBuf,
-    armed: bool,
-}
-
-impl TempFile {
-    /// Creates a new, empty temporary file beside `target`. `create_new`
-    /// never opens an existing file, so a name already taken (another
-    /// process, a leftover) moves on to the next counter.
-    fn create(target: &Path) -> Result<(File, TempFile)> {
-        let name = target
-            .file_name()
-            .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;
-        let folder = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let mut last = None;
-        for _ in 0..100 {
-            let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-            let mut temp_name = std::ffi::OsString::from(".");
-            temp_name.push(name);
-            temp_name.push(format!(".{}-{n}.normalfit-tmp", std::process::id()));
-            let path = folder.join(temp_name);
-            match OpenOptions::new().write(true).create_new(true).open(&path) {
-                Ok(file) => return Ok((file, TempFile { path, armed: true })),
-                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
-                Err(e) => return Err(Error::Io(e)),
-            }
-        }
-        Err(Error::Io(last.unwrap_or_else(|| io::Error::new(io::ErrorKind::AlreadyExists, "no free temporary name"))))
-    }
-
-    /// The file was renamed into place: nothing left to remove.
-    fn keep(mut self) {
-        self.armed = false;
-    }
-}
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        if self.armed {
-            // Best effort: the original error is the one worth reporting.
-            let _ = fs::remove_file(&self.path);
-        }
-    }
-}
-
-/// Syncs the folder holding `path`, so the rename itself survives a crash.
-/// Best effort: some file systems refuse to open or sync a folder, and the
-/// file is already complete either way.
-fn sync_folder(path: &Path) {
-    #[cfg(unix)]
-    {
-        let folder = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        if let Ok(dir) = File::open(folder) {
-            let _ = dir.sync_all();
-        }
-    }
-    #[cfg(not(unix))]
-    let _ = path;
 }
 
 /// A PNG encoder with the adaptive filter, which suits smooth gradients.

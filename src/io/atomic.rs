@@ -1,0 +1,368 @@
+//! Files that appear whole or not at all (SPEC §4), even when the process
+//! is killed while writing them.
+//!
+//! The target path is never opened: the bytes go to a new file in the same
+//! folder (a rename is atomic only within one file system), which is
+//! flushed and synced, and only then takes the target's name in one step.
+//! Until that step, the old content of the target (or its absence) is what
+//! anyone sees.
+//!
+//! Where the new file lives until then is the part that decides what a
+//! kill leaves behind:
+//!
+//! * **Unnamed** (Linux, on file systems with `O_TMPFILE`: ext4, XFS,
+//!   Btrfs, tmpfs, …): the file is created without a name. A process that
+//!   dies at any point, even by SIGKILL, which no handler can catch, leaves
+//!   nothing: the kernel frees a file that no name and no descriptor holds.
+//!   Once it is complete and synced it gets its name with `linkat` through
+//!   `/proc/self/fd`: straight as the target when there is none, else as a
+//!   temporary name that is then renamed onto the target (there is no
+//!   "link and replace" call). Only a kill in the instant between those two
+//!   calls leaves a file behind, a complete one under the temporary name.
+//! * **Named** (other systems and file systems, or without `/proc`): the
+//!   file is created as `.<file name>.<pid>-<counter>.normalfit-tmp`
+//!   beside the target and renamed onto it. It is removed on any error and
+//!   if the writer panics; a process killed while writing leaves it behind
+//!   (the name says what it is).
+
+use std::ffi::OsStr;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::{Error, Result};
+
+/// Creates `path` with the bytes `write` produces, so that it appears
+/// whole or not at all (SPEC §4).
+///
+/// `path` itself is never opened: the bytes go to a new file in the same
+/// folder, which is flushed and synced to disk, then takes `path`'s name in
+/// one step (a link or a rename), and the folder is synced. So:
+///
+/// * whatever fails (a full disk, a read-only or missing folder, an error
+///   of `write`, a panic in it), `path` keeps its old content, or stays
+///   absent, and no temporary file is left;
+/// * on Linux, on file systems that support `O_TMPFILE` (ext4, XFS,
+///   Btrfs, tmpfs, …), the new file has no name until it is complete, so a
+///   process killed while writing, even by SIGKILL, leaves nothing behind
+///   either; elsewhere, the file is named `.<file name>.<pid>-<counter>.normalfit-tmp`
+///   while it is written, and a killed process can leave it behind;
+/// * the new file gets the permissions of any new file (0666 minus the
+///   umask), not the private 0600 of a temp-file crate;
+/// * `path` that is a symbolic link is replaced by the file; the file it
+///   pointed to is not written.
+///
+/// Errors: [`Error::Io`], with the folder named when a file cannot be
+/// created in it; any error of `write`, as it is.
+pub fn write_atomically(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
+    write_file_atomically(path, |out| write(out))
+}
+
+/// Like [`write_atomically`], with the new file itself (buffered), for
+/// encoders that seek. The same guarantees hold.
+pub fn write_file_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
+    write_in(path, Where::Unnamed, write)
+}
+
+/// Where the new file is kept until it is complete.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Where {
+    /// Without a name where the system allows, else named.
+    Unnamed,
+    /// Named, always (what other systems get; for tests).
+    #[cfg_attr(not(test), allow(dead_code))]
+    Named,
+}
+
+/// [`write_file_atomically`], keeping the new file as `place` says.
+fn write_in(path: &Path, place: Where, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;
+    let folder = folder_of(path);
+    let (file, named) = create(folder, name, place)?;
+    let mut out = BufWriter::new(file);
+    write(&mut out)?;
+    let file = out.into_inner().map_err(|e| Error::Io(e.into_error()))?;
+    file.sync_all()?;
+    match named {
+        Some(temp) => {
+            // Closed before the rename: some systems (Windows) refuse to
+            // rename an open file.
+            drop(file);
+            temp.rename_onto(path)?;
+        }
+        None => name_unnamed(&file, folder, name, path)?,
+    }
+    sync_folder(folder);
+    Ok(())
+}
+
+/// The folder a path's file is in ("." for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// A new, empty file in `folder`: unnamed where the system can, else named
+/// (and then returned with the guard that removes it).
+fn create(folder: &Path, name: &OsStr, place: Where) -> Result<(File, Option<TempName>)> {
+    if place == Where::Unnamed {
+        if let Some(file) = unnamed::create(folder).map_err(|e| creating_in(folder, e))? {
+            return Ok((file, None));
+        }
+    }
+    let mut last = None;
+    for _ in 0..100 {
+        let path = temp_path(folder, name);
+        match OpenOptions::new().write(true).create_new(true).open(&path) {
+            Ok(file) => return Ok((file, Some(TempName { path, armed: true }))),
+            // `create_new` never opens an existing file: a name already
+            // taken (another process, a leftover) moves on to the next.
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(creating_in(folder, e)),
+        }
+    }
+    Err(creating_in(folder, last.unwrap_or_else(|| io::Error::from(io::ErrorKind::AlreadyExists))))
+}
+
+/// Gives the complete unnamed `file` the name `target`: linked straight
+/// there when the name is free, else linked under a temporary name and
+/// renamed onto it.
+fn name_unnamed(file: &File, folder: &Path, name: &OsStr, target: &Path) -> Result<()> {
+    match unnamed::link(file, target) {
+        Ok(()) => return Ok(()),
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+        Err(e) => return Err(placing(e)),
+    }
+    for _ in 0..100 {
+        let path = temp_path(folder, name);
+        match unnamed::link(file, &path) {
+            Ok(()) => return TempName { path, armed: true }.rename_onto(target),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+            Err(e) => return Err(placing(e)),
+        }
+    }
+    Err(placing(io::Error::from(io::ErrorKind::AlreadyExists)))
+}
+
+/// Tells temporary names of one process apart.
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// `.<name>.<pid>-<counter>.normalfit-tmp` in `folder`: hidden, and saying
+/// whose it is.
+fn temp_path(folder: &Path, name: &OsStr) -> PathBuf {
+    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    let mut temp_name = std::ffi::OsString::from(".");
+    temp_name.push(name);
+    temp_name.push(format!(".{}-{n}.normalfit-tmp", std::process::id()));
+    folder.join(temp_name)
+}
+
+/// A temporary name that is removed when dropped, unless renamed.
+struct TempName {
+    path: PathBuf,
+    armed: bool,
+}
+
+impl TempName {
+    /// Renames the file onto `target`; on failure the temporary name goes.
+    fn rename_onto(mut self, target: &Path) -> Result<()> {
+        fs::rename(&self.path, target).map_err(placing)?;
+        self.armed = false;
+        Ok(())
+    }
+}
+
+impl Drop for TempName {
+    fn drop(&mut self) {
+        if self.armed {
+            // Best effort: the original error is the one worth reporting.
+            let _ = fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// An error creating a file in `folder`, with the folder named: a missing
+/// folder says so, others keep the system's words.
+fn creating_in(folder: &Path, e: io::Error) -> Error {
+    let message = match e.kind() {
+        io::ErrorKind::NotFound => format!("the folder {} does not exist", folder.display()),
+        _ => format!("cannot create a file in the folder {}: {e}", folder.display()),
+    };
+    Error::Io(io::Error::new(e.kind(), message))
+}
+
+/// An error putting the complete file in place under its name.
+fn placing(e: io::Error) -> Error {
+    Error::Io(io::Error::new(e.kind(), format!("cannot put the new file in place: {e}")))
+}
+
+/// Syncs `folder`, so the new name itself survives a crash. Best effort:
+/// some file systems refuse to open or sync a folder, and the file is
+/// already complete either way.
+fn sync_folder(folder: &Path) {
+    #[cfg(unix)]
+    if let Ok(dir) = File::open(folder) {
+        let _ = dir.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = folder;
+}
+
+/// Files without a name, on Linux (`O_TMPFILE`).
+#[cfg(any(target_os = "linux", target_os = "android"))]
+mod unnamed {
+    use std::fs::File;
+    use std::io;
+    use std::os::fd::AsRawFd;
+    use std::path::Path;
+
+    use rustix::fs::{AtFlags, CWD, Mode, OFlags, linkat, openat};
+    use rustix::io::Errno;
+
+    /// An unnamed file in `folder`, or `None` where the file system or the
+    /// kernel has no `O_TMPFILE` or `/proc` is not there to name it later.
+    pub(super) fn create(folder: &Path) -> io::Result<Option<File>> {
+        if !Path::new("/proc/self/fd").is_dir() {
+            return Ok(None);
+        }
+        // 0666: the umask applies, as to any new file.
+        let flags = OFlags::WRONLY | OFlags::TMPFILE | OFlags::CLOEXEC;
+        match openat(CWD, folder, flags, Mode::from_raw_mode(0o666)) {
+            Ok(fd) => Ok(Some(File::from(fd))),
+            // No O_TMPFILE on this file system (EOPNOTSUPP), or a kernel
+            // before 3.11, which sees only O_DIRECTORY in the flags (EISDIR).
+            Err(Errno::OPNOTSUPP | Errno::ISDIR | Errno::INVAL) => Ok(None),
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// Gives `file` the name `to` (`AlreadyExists` if it is taken). Linking
+    /// the `/proc/self/fd` entry with `AT_SYMLINK_FOLLOW` is the way open(2)
+    /// documents for unprivileged processes; std's `hard_link` does not
+    /// follow it.
+    pub(super) fn link(file: &File, to: &Path) -> io::Result<()> {
+        let fd = format!("/proc/self/fd/{}", file.as_raw_fd());
+        linkat(CWD, fd.as_str(), CWD, to, AtFlags::SYMLINK_FOLLOW).map_err(io::Error::from)
+    }
+}
+
+/// Elsewhere every new file is named.
+#[cfg(not(any(target_os = "linux", target_os = "android")))]
+mod unnamed {
+    use std::fs::File;
+    use std::io;
+    use std::path::Path;
+
+    pub(super) fn create(_folder: &Path) -> io::Result<Option<File>> {
+        Ok(None)
+    }
+
+    pub(super) fn link(_file: &File, _to: &Path) -> io::Result<()> {
+        Err(io::Error::from(io::ErrorKind::Unsupported))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> =
+            fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        names.sort();
+        names
+    }
+
+    /// Writes `bytes` to `target` as `place` says, and returns what the
+    /// folder held while the bytes were being written.
+    fn write_seeing(target: &Path, place: Where, bytes: &[u8]) -> Result<Vec<String>> {
+        let mut during = Vec::new();
+        write_in(target, place, |out| {
+            out.write_all(bytes)?;
+            out.flush()?;
+            during = listing(target.parent().unwrap());
+            Ok(())
+        })?;
+        Ok(during)
+    }
+
+    /// Whether this system can keep a new file in `dir` unnamed.
+    fn unnamed_here(dir: &Path) -> bool {
+        matches!(unnamed::create(dir), Ok(Some(_)))
+    }
+
+    #[test]
+    fn a_new_file_has_no_name_until_complete_where_the_system_allows() {
+        let dir = tempfile::tempdir().unwrap();
+        if !unnamed_here(dir.path()) {
+            println!("SKIPPED: no O_TMPFILE here; the named path is tested below");
+            return;
+        }
+        let target = dir.path().join("n.png");
+        let during = write_seeing(&target, Where::Unnamed, b"first").unwrap();
+        assert!(during.is_empty(), "nothing in the folder while writing: {during:?}");
+        assert_eq!(fs::read(&target).unwrap(), b"first");
+        // Over an existing file: linked under a temporary name, renamed.
+        let during = write_seeing(&target, Where::Unnamed, b"second").unwrap();
+        assert_eq!(during, ["n.png"], "only the old file while writing");
+        assert_eq!(fs::read(&target).unwrap(), b"second");
+        assert_eq!(listing(dir.path()), ["n.png"]);
+    }
+
+    #[test]
+    fn a_named_temporary_file_is_renamed_in_place() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("n.png");
+        fs::write(&target, b"old").unwrap();
+        let during = write_seeing(&target, Where::Named, b"new").unwrap();
+        assert_eq!(during.len(), 2, "{during:?}");
+        let temp = during.iter().find(|n| *n != "n.png").unwrap();
+        assert!(temp.starts_with(".n.png.") && temp.ends_with(".normalfit-tmp"), "{temp}");
+        assert_eq!(fs::read(&target).unwrap(), b"new");
+        assert_eq!(listing(dir.path()), ["n.png"]);
+    }
+
+    #[test]
+    fn a_failed_or_panicking_write_leaves_the_old_file_and_nothing_else() {
+        for place in [Where::Unnamed, Where::Named] {
+            let dir = tempfile::tempdir().unwrap();
+            let target = dir.path().join("n.png");
+            fs::write(&target, b"old").unwrap();
+            let failed = write_in(&target, place, |out| {
+                out.write_all(&[7; 100_000])?;
+                Err(Error::Encode("stop".into()))
+            });
+            assert!(matches!(failed, Err(Error::Encode(_))), "{place:?}: {failed:?}");
+            let panicked = std::panic::catch_unwind(|| {
+                write_in(&target, place, |out| {
+                    out.write_all(&[7; 100_000])?;
+                    panic!("the encoder broke");
+                })
+            });
+            assert!(panicked.is_err());
+            assert_eq!(fs::read(&target).unwrap(), b"old", "{place:?}");
+            assert_eq!(listing(dir.path()), ["n.png"], "{place:?}");
+        }
+    }
+
+    #[test]
+    fn a_folder_in_the_way_or_missing_is_an_error_that_leaves_nothing() {
+        for place in [Where::Unnamed, Where::Named] {
+            let dir = tempfile::tempdir().unwrap();
+            let folder = dir.path().join("n.png");
+            fs::create_dir(&folder).unwrap();
+            let e = write_seeing(&folder, place, b"new").unwrap_err().to_string();
+            assert!(e.contains("cannot put the new file in place"), "{place:?}: {e}");
+            assert_eq!(listing(dir.path()), ["n.png"], "{place:?}");
+            assert!(folder.is_dir());
+            let missing = dir.path().join("nope").join("n.png");
+            let e = write_seeing(&missing, place, b"new").unwrap_err().to_string();
+            assert!(e.contains("the folder") && e.contains("nope") && e.contains("does not exist"), "{place:?}: {e}");
+        }
+    }
+}
