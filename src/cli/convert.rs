@@ -2,7 +2,7 @@
 //! promise that outputs appear whole or not at all and never replace an input.
 
 use std::collections::HashSet;
-use std::io::{Cursor, Write};
+use std::io::{Cursor, Seek, Write};
 use std::path::{Path, PathBuf};
 
 use normalfit::io::stream::{self, PngDepth, PngRows};
@@ -133,14 +133,16 @@ impl Plan {
             self.warn_seams(report, input);
         }
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
-        let encoded =
-            |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &fit, &target, out) };
         match &target.path {
-            Some(path) => io::write_atomically(path, encoded).map_err(|e| Failure::file(path, e)),
+            // Into the file itself, which seeks as EXR needs: no copy of the
+            // encoded image in memory.
+            Some(path) => io::write_file_atomically(path, |file| encode(&heights, width, height, &fit, &target, file))
+                .map_err(|e| Failure::file(path, e)),
             None => {
                 // EXR needs to seek while writing, so the bytes are assembled first.
                 let mut bytes = Cursor::new(Vec::new());
-                encoded(&mut bytes).map_err(|e| Failure::file("<standard output>", e))?;
+                encode(&heights, width, height, &fit, &target, &mut bytes)
+                    .map_err(|e| Failure::file("<standard output>", e))?;
                 let mut stdout = std::io::stdout().lock();
                 stdout
                     .write_all(bytes.get_ref())
@@ -362,38 +364,47 @@ enum Encoding {
 }
 
 /// Fits the normals straight into the output's texel type and encodes them.
-fn encode(
+fn encode<W: Write + Seek>(
     heights: &[f32],
     w: usize,
     h: usize,
     opts: &Options,
     target: &Target,
-    out: &mut dyn Write,
+    out: &mut W,
 ) -> normalfit::Result<()> {
     let compression = PngCompression::default();
     match target.encoding {
         Encoding::Png8 => {
-            let mut texels = vec![[0u8; 3]; heights.len()];
+            let mut texels = texel_buffer::<[u8; 3]>(heights.len())?;
             normals_into(heights, w, h, opts, &mut texels)?;
             io::encode_png_rgb8(&texels, w, h, compression, out)
         }
         Encoding::Png16 => {
-            let mut texels = vec![[0u16; 3]; heights.len()];
+            let mut texels = texel_buffer::<[u16; 3]>(heights.len())?;
             normals_into(heights, w, h, opts, &mut texels)?;
             io::encode_png_rgb16(&texels, w, h, compression, out)
         }
         Encoding::Exr(depth) => {
-            let mut texels = vec![[0f32; 3]; heights.len()];
+            let mut texels = texel_buffer::<[f32; 3]>(heights.len())?;
             normals_into(heights, w, h, opts, &mut texels)?;
             if !target.signed {
                 texels.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
             }
-            let mut bytes = Cursor::new(Vec::new());
-            io::encode_exr(&texels, w, h, depth, &mut bytes)?;
-            out.write_all(bytes.get_ref())?;
-            Ok(())
+            io::encode_exr(&texels, w, h, depth, out)
         }
     }
+}
+
+/// Room for the normal map of `len` texels, or an error when the memory is
+/// not there: `vec!` would abort the process instead (under `ulimit -v`).
+fn texel_buffer<T: Clone + Default>(len: usize) -> normalfit::Result<Vec<T>> {
+    let mut texels = Vec::new();
+    texels.try_reserve_exact(len).map_err(|_| {
+        let mib = len.saturating_mul(size_of::<T>()) >> 20;
+        normalfit::Error::Limits(format!("not enough memory for the normal map ({mib} MiB)"))
+    })?;
+    texels.resize(len, T::default());
+    Ok(texels)
 }
 
 /// PNG or EXR from a file name's extension; other extensions are refused,

@@ -8,6 +8,7 @@
 //! from decoder to encoder.
 
 mod atomic;
+mod memory;
 pub mod read;
 pub mod stream;
 pub mod write;
