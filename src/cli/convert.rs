@@ -88,7 +88,10 @@ impl Plan {
                 }
                 Destination::Stdout
             }
-            Some(o) if many || o.is_dir() => Destination::Folder(o.clone()),
+            // A trailing slash says "folder" even before the folder exists.
+            Some(o) if many || o.is_dir() || o.to_string_lossy().ends_with(std::path::is_separator) => {
+                Destination::Folder(o.clone())
+            }
             Some(o) => Destination::File(o.clone()),
         };
         if let Destination::Folder(dir) = &destination {
