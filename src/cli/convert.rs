@@ -213,7 +213,8 @@ impl Plan {
         if let Some(problem) = failed_input {
             return Err(Failure::file(path, problem));
         }
-        if let Some(seams) = seams {
+        // A failed write stopped the rows part way: no seams to judge.
+        if let (Some(seams), Ok(())) = (seams, &result) {
             self.warn_seams(&seams.finish(&check_opts), &input);
         }
         result
