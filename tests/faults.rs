@@ -1,0 +1,600 @@
+//! Faults while writing, and memory limits: whatever goes wrong, a clear
+//! one-line error (exit 2), the target keeps its old content or stays
+//! absent, no temporary file is left, and the inputs are untouched.
+//!
+//! Some faults need root (a tmpfs mounted read-only or small enough to
+//! fill); the tests that need it say SKIPPED, with the reason, when they
+//! cannot have it. CI runs as root.
+
+use std::fs;
+use std::io::{BufWriter, Write};
+use std::os::unix::fs::{MetadataExt, PermissionsExt};
+use std::os::unix::process::ExitStatusExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_normalfit"))
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("the binary runs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A 16-bit gray height map, a slope with a bump and some noise, so its
+/// normal map compresses poorly and takes a while to write.
+fn write_gray16(path: &Path, w: u32, h: u32) {
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(w, h, |x, y| {
+        let (dx, dy) = (x as f64 - w as f64 / 2.0, y as f64 - h as f64 / 3.0);
+        let noise = ((x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503)) % 1000) as f64 / 1000.0;
+        let v = 0.3 * x as f64 / w as f64 + 0.5 * (-(dx * dx + dy * dy) / 4000.0).exp() + 0.05 * noise;
+        image::Luma([(v.min(1.0) * 65535.0).round() as u16])
+    });
+    let file = BufWriter::new(fs::File::create(path).unwrap());
+    let encoder = image::codecs::png::PngEncoder::new_with_quality(
+        file,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    );
+    img.write_with_encoder(encoder).unwrap();
+}
+
+fn write_gray8(path: &Path, w: u32, h: u32) {
+    image::GrayImage::from_fn(w, h, |x, y| image::Luma([((x * 37 + y * 11) % 256) as u8])).save(path).unwrap();
+}
+
+/// The names in a folder, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+/// Files whose bytes must come out of a run as they went in.
+struct Untouched(Vec<(PathBuf, Vec<u8>)>);
+
+impl Untouched {
+    fn of(paths: &[&Path]) -> Untouched {
+        Untouched(paths.iter().map(|p| (p.to_path_buf(), fs::read(p).unwrap())).collect())
+    }
+
+    fn check(&self, when: &str) {
+        for (path, bytes) in &self.0 {
+            assert!(fs::read(path).unwrap() == *bytes, "{when}: {} changed", path.display());
+        }
+    }
+}
+
+/// Checks a failed run: exit code 2 (not a signal), one error line on
+/// standard error that starts `normalfit: <subject>: ` and says one of
+/// `problem` (lower case). Returns the line.
+fn expect_fault(out: &Output, subject: &Path, problem: &[&str]) -> String {
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "exit status {:?}, stderr {stderr:?}", out.status);
+    assert!(!stderr.contains("panicked") && !stderr.contains("backtrace"), "{stderr}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| !l.starts_with("normalfit: warning: ")).collect();
+    assert_eq!(errors.len(), 1, "want one error line, got {stderr:?}");
+    let line = errors[0].to_string();
+    assert!(line.starts_with(&format!("normalfit: {}: ", subject.display())), "names {}: {line}", subject.display());
+    let lower = line.to_lowercase();
+    assert!(problem.iter().any(|p| lower.contains(p)), "says one of {problem:?}: {line}");
+    line
+}
+
+fn is_root() -> bool {
+    rustix::process::geteuid().is_root()
+}
+
+/// A file system mounted for one test, unmounted when dropped (also when
+/// the test fails).
+struct Mount(PathBuf);
+
+impl Mount {
+    /// Mounts a tmpfs with `options` on `dir` (made if missing).
+    fn tmpfs(dir: &Path, options: &str) -> Result<Mount, String> {
+        fs::create_dir_all(dir).unwrap();
+        let out = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", options, "tmpfs", s(dir)])
+            .output()
+            .map_err(|e| format!("cannot run mount: {e}"))?;
+        if !out.status.success() {
+            return Err(format!("mount -t tmpfs failed: {}", String::from_utf8_lossy(&out.stderr).trim()));
+        }
+        Ok(Mount(dir.to_path_buf()))
+    }
+
+    /// Makes it read-only.
+    fn remount_read_only(&self) -> Result<(), String> {
+        let out = Command::new("mount").args(["-o", "remount,ro", s(&self.0)]).output().map_err(|e| e.to_string())?;
+        if out.status.success() {
+            Ok(())
+        } else {
+            Err(format!("remount read-only failed: {}", String::from_utf8_lossy(&out.stderr).trim()))
+        }
+    }
+}
+
+impl Drop for Mount {
+    fn drop(&mut self) {
+        let ok = Command::new("umount").arg(&self.0).status().is_ok_and(|s| s.success());
+        if !ok {
+            // Busy (a child still running after a failed assertion): detach it.
+            let _ = Command::new("umount").arg("-l").arg(&self.0).status();
+        }
+    }
+}
+
+/// A folder whose files cannot be created: a read-only tmpfs as root (root
+/// ignores permission bits), mode 0555 otherwise. `setup` runs on it while
+/// it is still writable. `None` (with the reason) when neither works.
+enum ReadOnly {
+    Mounted(#[allow(dead_code)] Mount),
+    Chmod(PathBuf),
+}
+
+impl ReadOnly {
+    fn make(dir: &Path, setup: impl FnOnce(&Path)) -> Result<ReadOnly, String> {
+        if is_root() {
+            let mount = Mount::tmpfs(dir, "size=1m")?;
+            setup(dir);
+            mount.remount_read_only()?;
+            Ok(ReadOnly::Mounted(mount))
+        } else {
+            fs::create_dir_all(dir).unwrap();
+            setup(dir);
+            fs::set_permissions(dir, fs::Permissions::from_mode(0o555)).unwrap();
+            Ok(ReadOnly::Chmod(dir.to_path_buf()))
+        }
+    }
+}
+
+impl Drop for ReadOnly {
+    fn drop(&mut self) {
+        if let ReadOnly::Chmod(dir) = self {
+            // So the temporary folder can be removed.
+            let _ = fs::set_permissions(dir, fs::Permissions::from_mode(0o755));
+        }
+    }
+}
+
+#[test]
+fn a_missing_output_folder_is_an_error_for_a_file_and_made_for_a_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
+    write_gray8(&a, 9, 7);
+    write_gray16(&b, 12, 5);
+    let inputs = Untouched::of(&[&a, &b]);
+
+    // One input, a file path whose folder does not exist: an error that
+    // names the file and the missing folder; no folder is made.
+    let target = dir.path().join("nope").join("o.png");
+    let line = expect_fault(&run(&["convert", s(&a), "-o", s(&target)]), &target, &["does not exist"]);
+    assert!(line.contains(s(&dir.path().join("nope"))), "{line}");
+    assert_eq!(listing(dir.path()), ["a.png", "b.png"]);
+    inputs.check("missing folder");
+
+    // Many inputs: -o names a folder, made if missing (with its parents).
+    let outdir = dir.path().join("new").join("normals");
+    let r = run(&["convert", s(&a), s(&b), "-o", s(&outdir)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(listing(&outdir), ["a_normal.png", "b_normal.png"]);
+
+    // One input and a trailing slash: a folder too, made if missing.
+    let slash = format!("{}/", s(&dir.path().join("one")));
+    let r = run(&["convert", s(&a), "-o", &slash]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(listing(&dir.path().join("one")), ["a_normal.png"]);
+    inputs.check("folders made");
+}
+
+#[test]
+fn a_read_only_output_folder_is_an_error_that_changes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray16(&input, 64, 48);
+    let inputs = Untouched::of(&[&input]);
+    let ro = dir.path().join("ro");
+    let folder = match ReadOnly::make(&ro, |d| {
+        fs::write(d.join("o.png"), b"old png").unwrap();
+        fs::write(d.join("o.exr"), b"old exr").unwrap();
+    }) {
+        Ok(f) => f,
+        Err(why) => {
+            println!("SKIPPED a_read_only_output_folder_is_an_error_that_changes_nothing: {why}");
+            return;
+        }
+    };
+    // A streamed PNG and a whole-image EXR take the same way to the file.
+    for (name, old) in [("o.png", &b"old png"[..]), ("o.exr", b"old exr")] {
+        let target = ro.join(name);
+        let line = expect_fault(&run(&["convert", s(&input), "-o", s(&target)]), &target, &["read-only", "permission"]);
+        assert!(line.contains("cannot create a file in the folder"), "{line}");
+        assert_eq!(fs::read(&target).unwrap(), old, "{name}");
+        assert_eq!(listing(&ro), ["o.exr", "o.png"], "{name}");
+    }
+    inputs.check("read-only folder");
+    drop(folder);
+}
+
+#[test]
+fn a_full_disk_is_an_error_that_leaves_the_old_output_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    // 512², and a strong gain so the noise shows in the normals.
+    write_gray16(&input, 512, 512);
+    let inputs = Untouched::of(&[&input]);
+    if !is_root() {
+        println!(
+            "SKIPPED a_full_disk_is_an_error_that_leaves_the_old_output_and_nothing_else: needs root to mount a small tmpfs"
+        );
+        return;
+    }
+    let small = dir.path().join("small");
+    let mount = match Mount::tmpfs(&small, "size=256k") {
+        Ok(m) => m,
+        Err(why) => {
+            println!("SKIPPED a_full_disk_is_an_error_that_leaves_the_old_output_and_nothing_else: {why}");
+            return;
+        }
+    };
+    for (name, extra) in [("o.png", &["--bits", "16"][..]), ("o.exr", &[]), ("o8.png", &["--bits", "8"])] {
+        let mut args = vec!["convert", s(&input), "--scale", "200"];
+        args.extend_from_slice(extra);
+        // Where there is room, the output is more than twice the tmpfs.
+        let roomy = dir.path().join(name);
+        let r = run(&[&args[..], &["-o", s(&roomy)]].concat());
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let size = fs::metadata(&roomy).unwrap().len();
+        assert!(size > 512 << 10, "{name}: {size} bytes would fit");
+        fs::remove_file(&roomy).unwrap();
+
+        let target = small.join(name);
+        fs::write(&target, b"old").unwrap();
+        let r = run(&[&args[..], &["-o", s(&target)]].concat());
+        expect_fault(&r, &target, &["no space"]);
+        if name.ends_with(".png") {
+            // The input does not tile in x, but the streamed check saw only
+            // the rows before the failure: no warning from half an image.
+            assert_eq!(String::from_utf8_lossy(&r.stderr).lines().count(), 1, "{name}");
+        }
+        assert_eq!(fs::read(&target).unwrap(), b"old", "{name}");
+        assert_eq!(listing(&small), [name], "{name}");
+        fs::remove_file(&target).unwrap();
+    }
+    // No target before: none after.
+    let target = small.join("fresh.png");
+    let r = run(&["convert", s(&input), "-o", s(&target), "--bits", "16", "--scale", "200"]);
+    expect_fault(&r, &target, &["no space"]);
+    assert!(listing(&small).is_empty());
+
+    // The library call says the same, with the kind of error intact.
+    let e = normalfit::io::write_atomically(&small.join("lib.bin"), |out| {
+        for _ in 0..64 {
+            out.write_all(&[0x5a; 16 << 10])?;
+        }
+        Ok(())
+    })
+    .unwrap_err();
+    assert!(matches!(&e, normalfit::Error::Io(io) if io.kind() == std::io::ErrorKind::StorageFull), "{e:?}");
+    assert!(listing(&small).is_empty());
+    inputs.check("full disk");
+    drop(mount);
+}
+
+#[test]
+fn an_output_that_is_an_input_or_a_link_to_one_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray8(&input, 8, 8);
+    let hard = dir.path().join("hard.png");
+    fs::hard_link(&input, &hard).unwrap();
+    let soft = dir.path().join("soft.png");
+    std::os::unix::fs::symlink(&input, &soft).unwrap();
+    let inode = fs::metadata(&input).unwrap().ino();
+    let inputs = Untouched::of(&[&input]);
+    let before = listing(dir.path());
+    let spelled_otherwise = dir.path().join(".").join("h.png");
+    for target in [&input, &hard, &soft, &spelled_otherwise] {
+        expect_fault(&run(&["convert", s(&input), "-o", s(target)]), target, &["is one of the inputs"]);
+        // The same refusal whatever the output format.
+        let r = run(&["convert", s(&input), "-o", s(target), "--format", "png", "--bits", "16"]);
+        expect_fault(&r, target, &["is one of the inputs"]);
+        inputs.check(&format!("output {}", target.display()));
+        assert_eq!(listing(dir.path()), before, "no temporary file");
+    }
+    assert_eq!(fs::metadata(&hard).unwrap().ino(), inode, "the hard link still is the input");
+    assert_eq!(fs::read_link(&soft).unwrap(), input, "the symbolic link is left as it was");
+}
+
+#[test]
+fn an_output_path_that_is_a_folder_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray8(&input, 8, 8);
+    let inputs = Untouched::of(&[&input]);
+    // The default output's name is taken by a folder with a file in it.
+    let folder = dir.path().join("h_normal.png");
+    fs::create_dir(&folder).unwrap();
+    fs::write(folder.join("keep.txt"), b"mine").unwrap();
+    expect_fault(&run(&["convert", s(&input)]), &folder, &["is a folder"]);
+    assert_eq!(listing(&folder), ["keep.txt"]);
+    assert_eq!(fs::read(folder.join("keep.txt")).unwrap(), b"mine");
+    assert_eq!(listing(dir.path()), ["h.png", "h_normal.png"]);
+
+    // Many inputs need a folder: an existing file named by -o is refused,
+    // and left as it was.
+    let file = dir.path().join("out");
+    fs::write(&file, b"a file").unwrap();
+    let other = dir.path().join("g.png");
+    write_gray8(&other, 6, 6);
+    expect_fault(&run(&["convert", s(&input), s(&other), "-o", s(&file)]), &file, &["is not a folder"]);
+    assert_eq!(fs::read(&file).unwrap(), b"a file");
+    assert_eq!(listing(dir.path()), ["g.png", "h.png", "h_normal.png", "out"]);
+    inputs.check("folder in the way");
+}
+
+#[test]
+fn a_batch_with_one_failing_output_still_writes_the_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let names = ["a", "b", "c", "d"];
+    let inputs: Vec<PathBuf> = names.iter().map(|n| dir.path().join(format!("{n}.png"))).collect();
+    for p in &inputs {
+        write_gray16(p, 40, 30);
+    }
+    let untouched = Untouched::of(&inputs.iter().map(PathBuf::as_path).collect::<Vec<_>>());
+    let outdir = dir.path().join("out");
+    fs::create_dir(&outdir).unwrap();
+    // b's output is blocked by a folder.
+    let blocked = outdir.join("b_normal.png");
+    fs::create_dir(&blocked).unwrap();
+    let mut args = vec!["convert"];
+    args.extend(inputs.iter().map(|p| s(p)));
+    args.extend(["-o", s(&outdir)]);
+    let r = run(&args);
+    expect_fault(&r, &blocked, &["is a folder"]);
+    assert_eq!(listing(&outdir), ["a_normal.png", "b_normal.png", "c_normal.png", "d_normal.png"]);
+    assert!(blocked.is_dir() && listing(&blocked).is_empty());
+    for n in ["a", "c", "d"] {
+        let got = image::open(outdir.join(format!("{n}_normal.png"))).unwrap();
+        assert_eq!((got.width(), got.height()), (40, 30), "{n}");
+    }
+    untouched.check("batch");
+}
+
+/// Whether new files in `dir` can be kept unnamed (O_TMPFILE), which is
+/// what lets a killed process leave nothing behind.
+fn unnamed_files_in(dir: &Path) -> bool {
+    use rustix::fs::{CWD, Mode, OFlags, openat};
+    openat(CWD, dir, OFlags::WRONLY | OFlags::TMPFILE | OFlags::CLOEXEC, Mode::from_raw_mode(0o600)).is_ok()
+}
+
+/// The size of the file process `pid` has open in `folder`, if any.
+fn open_file_in(pid: u32, folder: &Path) -> Option<u64> {
+    let fds = fs::read_dir(format!("/proc/{pid}/fd")).ok()?;
+    fds.filter_map(Result::ok).find_map(|fd| {
+        let target = fs::read_link(fd.path()).ok()?;
+        target.starts_with(folder).then(|| fs::metadata(fd.path()).ok().map(|m| m.len())).flatten()
+    })
+}
+
+#[test]
+fn a_conversion_killed_mid_write_leaves_the_old_output_and_nothing_else() {
+    use rustix::process::{Pid, Signal, kill_process};
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("big.png");
+    write_gray16(&input, 4096, 4096);
+    let inputs = Untouched::of(&[&input]);
+    let outdir = fs::canonicalize(dir.path()).unwrap().join("out");
+    fs::create_dir(&outdir).unwrap();
+    if !unnamed_files_in(&outdir) {
+        println!(
+            "SKIPPED a_conversion_killed_mid_write_leaves_the_old_output_and_nothing_else: no O_TMPFILE on this file system, where a killed process leaves its temporary file"
+        );
+        return;
+    }
+    let target = outdir.join("n.png");
+    let args = ["convert", s(&input), "-o", s(&target), "--bits", "16"];
+    // A whole run first: what a finished output weighs.
+    let r = run(&args);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let full = fs::metadata(&target).unwrap().len();
+    assert!(full > 8 << 20, "the output ({full} bytes) takes a while to write");
+
+    for signal in [Signal::KILL, Signal::TERM, Signal::INT, Signal::HUP] {
+        fs::write(&target, b"old").unwrap();
+        let mut child = bin().args(args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+        // Killed once an eighth of the output is written: well inside the
+        // write, which streams from the first rows to the last.
+        let start = Instant::now();
+        let written = loop {
+            if let Some(len) = open_file_in(child.id(), &outdir).filter(|&len| len >= full / 8) {
+                break len;
+            }
+            if let Some(status) = child.try_wait().unwrap() {
+                panic!("{signal:?}: the conversion ended ({status}) before it was seen writing");
+            }
+            assert!(start.elapsed() < Duration::from_secs(120), "{signal:?}: no write seen");
+            std::thread::sleep(Duration::from_millis(1));
+        };
+        let pid = Pid::from_raw(child.id() as i32).unwrap();
+        kill_process(pid, signal).unwrap();
+        let status = child.wait().unwrap();
+        assert_eq!(status.signal(), Some(signal.as_raw()), "{signal:?} ended it, at {written} of {full} bytes");
+        assert_eq!(fs::read(&target).unwrap(), b"old", "{signal:?}");
+        assert_eq!(listing(&outdir), ["n.png"], "{signal:?}: no temporary file left");
+    }
+    inputs.check("killed");
+}
+
+/// Runs the binary with its address space limited to `bytes` (prlimit, or
+/// `ulimit -v` in sh where prlimit is missing).
+fn limited(bytes: u64, args: &[&str], stdin: Option<&Path>) -> Output {
+    let prlimit = Command::new("prlimit").arg("--version").output().is_ok_and(|o| o.status.success());
+    let mut command = if prlimit {
+        let mut c = Command::new("prlimit");
+        c.arg(format!("--as={bytes}")).arg(env!("CARGO_BIN_EXE_normalfit"));
+        c
+    } else {
+        let mut c = Command::new("sh");
+        c.args(["-c", &format!("ulimit -v {} && exec \"$0\" \"$@\"", bytes / 1024), env!("CARGO_BIN_EXE_normalfit")]);
+        c
+    };
+    command.args(args);
+    if let Some(path) = stdin {
+        command.stdin(fs::File::open(path).unwrap());
+    }
+    command.output().unwrap()
+}
+
+const GIB: u64 = 1 << 30;
+
+#[test]
+fn a_streamed_conversion_fits_in_1_gib_of_address_space() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray16(&input, 4096, 4096);
+    let out = dir.path().join("n.png");
+    let r = limited(GIB, &["convert", s(&input), "-o", s(&out)], None);
+    assert!(r.status.success(), "{:?}: {}", r.status, String::from_utf8_lossy(&r.stderr));
+    assert_eq!(image::image_dimensions(&out).unwrap(), (4096, 4096));
+}
+
+/// A float EXR of `size`² texels, all 0.5, ZIP-compressed in scan-line
+/// blocks or 256² tiles. Every block holds the same texels, so one block
+/// is compressed and written everywhere: a 16384² file (1 GiB of floats)
+/// takes a moment and about a megabyte.
+fn write_constant_exr(path: &Path, size: usize, tiled: bool) {
+    use exr::block::chunk::CompressedBlock;
+    use exr::block::writer::ChunksWriter;
+    use exr::block::{BlockIndex, UncompressedBlock, enumerate_ordered_header_block_indices};
+    use exr::compression::Compression;
+    use exr::math::RoundingMode;
+    use exr::meta::attribute::{ChannelDescription, LevelMode, LineOrder, SampleType, Text, TileDescription};
+    use exr::meta::{BlockDescription, header::Header};
+    use exr::prelude::{SmallVec, Vec2};
+
+    let blocks = if tiled {
+        BlockDescription::Tiles(TileDescription {
+            tile_size: Vec2(256, 256),
+            level_mode: LevelMode::Singular,
+            rounding_mode: RoundingMode::Down,
+        })
+    } else {
+        BlockDescription::ScanLines
+    };
+    let channels = SmallVec::from_elem(ChannelDescription::named("Y", SampleType::F32), 1);
+    let header = Header::new(Text::from("height"), (size, size), channels).with_encoding(
+        Compression::ZIP16,
+        blocks,
+        LineOrder::Increasing,
+    );
+    let file = BufWriter::new(fs::File::create(path).unwrap());
+    exr::block::write(file, SmallVec::from_elem(header, 1), true, |meta, writer| {
+        let mut first: Option<(Vec2<usize>, exr::block::chunk::Chunk)> = None;
+        for (index, block) in enumerate_ordered_header_block_indices(&meta.headers) {
+            let BlockIndex { pixel_position, pixel_size, .. } = block;
+            let template = match &first {
+                Some((size, chunk)) if *size == pixel_size => chunk.clone(),
+                _ => {
+                    let data = [0.5f32.to_ne_bytes()].repeat(pixel_size.area()).concat();
+                    let chunk = UncompressedBlock { index: block, data }.compress_to_chunk(&meta.headers)?;
+                    first = Some((pixel_size, chunk.clone()));
+                    chunk
+                }
+            };
+            let mut chunk = template;
+            match &mut chunk.compressed_block {
+                CompressedBlock::ScanLine(b) => b.y_coordinate = pixel_position.y() as i32,
+                CompressedBlock::Tile(t) => {
+                    t.coordinates.tile_index = Vec2(pixel_position.x() / 256, pixel_position.y() / 256)
+                }
+                _ => unreachable!("flat blocks only"),
+            }
+            writer.write_chunk(index, chunk)?;
+        }
+        Ok(())
+    })
+    .unwrap();
+}
+
+/// A 16-bit gray PNG of `size`² texels, all the same: tiny on disk, large
+/// when decoded whole.
+fn write_constant_png16(path: &Path, size: u32) {
+    let mut encoder = png::Encoder::new(BufWriter::new(fs::File::create(path).unwrap()), size, size);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Sixteen);
+    encoder.set_compression(png::Compression::Fast);
+    let mut writer = encoder.write_header().unwrap();
+    let mut stream = writer.stream_writer().unwrap();
+    let row = [0x40, 0x00].repeat(size as usize);
+    for _ in 0..size {
+        stream.write_all(&row).unwrap();
+    }
+    stream.finish().unwrap();
+}
+
+/// Checks a conversion under a memory limit: it succeeded with an output
+/// of `size`², or it failed cleanly: exit 2, not a signal (an abort is
+/// SIGABRT), one line naming `subject` and saying memory is short, and no
+/// output.
+fn succeeded_or_failed_cleanly(r: &Output, subject: &Path, out: &Path, size: u32) -> bool {
+    assert!(r.status.signal().is_none(), "{}: killed by a signal: {:?}", subject.display(), r.status);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(!stderr.contains("memory allocation"), "{stderr}");
+    if r.status.success() {
+        assert_eq!(image::image_dimensions(out).unwrap(), (size, size));
+        true
+    } else {
+        let line = expect_fault(r, subject, &["memory"]);
+        assert!(line.contains("too large"), "{line}");
+        assert!(!out.exists(), "{}", out.display());
+        false
+    }
+}
+
+#[test]
+fn an_image_too_large_for_the_memory_limit_fails_cleanly_and_never_aborts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("n.png");
+    let before = listing(dir.path());
+    let mut refused = Vec::new();
+    for (tiled, kind) in [(false, "scan-line"), (true, "tiled")] {
+        // The same writer's small file converts: the big one is no broken file.
+        let small = dir.path().join(format!("small-{kind}.exr"));
+        write_constant_exr(&small, 512, tiled);
+        let r = limited(GIB, &["convert", s(&small), "-o", s(&out)], None);
+        assert!(r.status.success(), "{kind}: {}", String::from_utf8_lossy(&r.stderr));
+        assert_eq!(image::image_dimensions(&out).unwrap(), (512, 512));
+        fs::remove_file(&out).unwrap();
+        fs::remove_file(&small).unwrap();
+
+        // 16384² floats are 1 GiB for the heights alone.
+        let big = dir.path().join(format!("big-{kind}.exr"));
+        write_constant_exr(&big, 16384, tiled);
+        let untouched = Untouched::of(&[&big]);
+        let r = limited(GIB, &["convert", s(&big), "-o", s(&out)], None);
+        if !succeeded_or_failed_cleanly(&r, &big, &out, 16384) {
+            refused.push(kind);
+        }
+        untouched.check(kind);
+        let _ = fs::remove_file(&out);
+        fs::remove_file(&big).unwrap();
+    }
+    // Standard input is read whole, then decoded whole.
+    let big = dir.path().join("big.png");
+    write_constant_png16(&big, 16384);
+    let r = limited(GIB, &["convert", "-", "-o", s(&out)], Some(&big));
+    if !succeeded_or_failed_cleanly(&r, Path::new("<standard input>"), &out, 16384) {
+        refused.push("png on standard input");
+    }
+    let _ = fs::remove_file(&out);
+    fs::remove_file(&big).unwrap();
+    assert_eq!(listing(dir.path()), before, "no output, no temporary file");
+    println!("refused under 1 GiB: {refused:?}");
+}
