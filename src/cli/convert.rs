@@ -136,6 +136,8 @@ impl Plan {
             self.warn_seams(report, input);
         }
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
+        let output = target.path.as_deref().unwrap_or(Path::new("<standard output>"));
+        check_encode_memory(&target, width, height).map_err(|e| Failure::file(output, e))?;
         match &target.path {
             // Into the file itself, which seeks as EXR needs: no copy of the
             // encoded image in memory.
@@ -143,9 +145,10 @@ impl Plan {
                 .map_err(|e| Failure::file(path, e)),
             None => {
                 // EXR needs to seek while writing, so the bytes are assembled first.
-                let mut bytes = Cursor::new(Vec::new());
+                let mut bytes = InMemory::default();
                 encode(&heights, width, height, &fit, &target, &mut bytes)
                     .map_err(|e| Failure::file("<standard output>", e))?;
+                let bytes = bytes.0;
                 let mut stdout = std::io::stdout().lock();
                 stdout
                     .write_all(bytes.get_ref())
@@ -399,6 +402,25 @@ fn encode<W: Write + Seek>(
     }
 }
 
+/// Refuses an encode that the memory limits leave no room for, before it
+/// starts: past our own buffers the encoders allocate as they go, and a
+/// failure there would abort the process. Bytes held per texel, measured
+/// from what the encoders do: the normal map (3, 6 or 12); for PNG, the
+/// whole zlib stream, which `png` assembles in memory, and its stored
+/// fallback when deflate does not pay (twice the raw size); for 16-bit
+/// PNG, our byte copy and `image`'s big-endian copy besides; for standard
+/// output, the encoded file (at most about the raw size).
+fn check_encode_memory(target: &Target, w: usize, h: usize) -> normalfit::Result<()> {
+    let (raw, per_texel): (u64, u64) = match target.encoding {
+        Encoding::Png8 => (3, 3 + 2 * 3),
+        Encoding::Png16 => (6, 6 + 2 * 6 + 2 * 6),
+        Encoding::Exr(_) => (12, 12),
+    };
+    let assembled = if target.path.is_none() { raw } else { 0 };
+    let texels = (w as u64).saturating_mul(h as u64);
+    io::check_memory("encoding the normal map", texels.saturating_mul(per_texel + assembled))
+}
+
 /// Room for the normal map of `len` texels, or an error when the memory is
 /// not there: `vec!` would abort the process instead (under `ulimit -v`).
 fn texel_buffer<T: Clone + Default>(len: usize) -> normalfit::Result<Vec<T>> {
@@ -409,6 +431,40 @@ fn texel_buffer<T: Clone + Default>(len: usize) -> normalfit::Result<Vec<T>> {
     })?;
     texels.resize(len, T::default());
     Ok(texels)
+}
+
+/// An encoded file assembled in memory, like `Cursor<Vec<u8>>`, but whose
+/// growth is reserved fallibly: running out of memory is an error, where a
+/// growing `Vec` would abort the process (under `ulimit -v`).
+#[derive(Default)]
+struct InMemory(Cursor<Vec<u8>>);
+
+impl Write for InMemory {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let end = usize::try_from(self.0.position()).unwrap_or(usize::MAX).saturating_add(buf.len());
+        let bytes = self.0.get_mut();
+        if end > bytes.capacity() {
+            // Amortised growth, as `Vec` itself would.
+            bytes.try_reserve(end - bytes.len()).map_err(|_| {
+                let mib = end >> 20;
+                std::io::Error::new(
+                    std::io::ErrorKind::OutOfMemory,
+                    format!("not enough memory to assemble the output ({mib} MiB)"),
+                )
+            })?;
+        }
+        self.0.write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Seek for InMemory {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.0.seek(to)
+    }
 }
 
 /// PNG or EXR from a file name's extension; other extensions are refused,

@@ -6,9 +6,10 @@
 //! process with an abort that no `Result` can catch. So a whole-image
 //! decode first estimates, from the header, the bytes it will hold, and is
 //! refused with [`Error::Limits`] when they exceed the room left under the
-//! limits. The buffers normalfit allocates itself are reserved fallibly
-//! (`try_reserve`) besides, so an estimate that falls short still ends in
-//! an error, not an abort.
+//! limits ([`check_memory`], which the command line also calls before a
+//! whole-image encode). The buffers normalfit allocates itself are reserved
+//! fallibly (`try_reserve`) besides, so an estimate that falls short still
+//! ends in an error, not an abort.
 //!
 //! The room is the soft limit on address space (RLIMIT_AS) less what the
 //! process has mapped (`VmSize` in `/proc/self/status`), and likewise for
@@ -23,16 +24,26 @@ use crate::error::{Error, Result};
 /// stacks, which the estimate does not count.
 const SLACK: u64 = 64 << 20;
 
-/// Refuses a decode that needs about `needed` bytes when the process may
-/// not map that much more (plus [`SLACK`]).
-pub(crate) fn check_room(needed: u64) -> Result<()> {
+/// Refuses work that needs about `needed` more bytes of memory than the
+/// process's memory limits leave, keeping 64 MiB besides for the buffers
+/// of the libraries doing the work, whose failure to allocate would abort
+/// the process. `what` names the work in the message ("decoding"). `Ok`
+/// when no limit is set, or where the use cannot be read (not Linux).
+///
+/// The limits are the soft limits on address space (RLIMIT_AS: `ulimit
+/// -v`, `prlimit --as`) and data (RLIMIT_DATA: `ulimit -d`); the use is
+/// what the process has mapped (`VmSize`, `VmData` in `/proc/self/status`).
+///
+/// Errors: [`Error::Limits`], saying how much is needed and how much is
+/// left.
+pub fn check_memory(what: &str, needed: u64) -> Result<()> {
     let Some((room, limit)) = room() else { return Ok(()) };
     let wanted = needed.saturating_add(SLACK);
     if wanted <= room {
         return Ok(());
     }
     Err(Error::Limits(format!(
-        "decoding needs about {} MiB of memory, but the process may take only {} MiB more (its memory limit is {} MiB)",
+        "{what} needs about {} MiB of memory, but the process may take only {} MiB more (its memory limit is {} MiB)",
         mib(wanted),
         mib(room),
         mib(limit)

@@ -13,6 +13,7 @@ pub mod read;
 pub mod stream;
 pub mod write;
 
+pub use memory::check_memory;
 pub use read::{Channel, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
 pub use write::{
     ExrDepth, PngCompression, encode_exr, encode_png_rgb8, encode_png_rgb16, write_atomically, write_file_atomically,

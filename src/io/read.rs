@@ -409,7 +409,7 @@ fn decode_with_image(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let (names, sample) = layout(color)?;
     let texels = to_usize(u64::from(width) * u64::from(height))?;
     let len = to_usize(decoder.total_bytes())?;
-    memory::check_room((len as u64).saturating_add(4 * texels as u64 * names.len() as u64))?;
+    memory::check_memory("decoding", (len as u64).saturating_add(4 * texels as u64 * names.len() as u64))?;
     let mut buf = try_vec::<u8>(len)?;
     buf.resize(len, 0);
     decoder.read_image(&mut buf).map_err(from_image_error)?;
@@ -648,7 +648,7 @@ fn decode_tiff_gray(bytes: &[u8], opts: &ReadOptions) -> Result<Option<Raster>> 
             layout.complete_len, layout.planes
         )));
     }
-    memory::check_room((len as u64).saturating_add(4 * texels as u64))?;
+    memory::check_memory("decoding", (len as u64).saturating_add(4 * texels as u64))?;
     let mut buf = try_vec::<u8>(len)?;
     buf.resize(len, 0);
     decoder.read_image_bytes(&mut buf).map_err(from_tiff_error)?;
@@ -729,7 +729,7 @@ fn from_tiff_error(e: tiff::TiffError) -> Error {
 fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     check_exr_header(bytes, opts)?;
     // `exr` allocates the image itself, and aborts if that fails.
-    memory::check_room(memory::exr_decode_bytes(bytes))?;
+    memory::check_memory("decoding", memory::exr_decode_bytes(bytes))?;
     use exr::prelude::{ReadChannels, ReadLayers};
     let image = exr::prelude::read()
         .no_deep_data()
