@@ -173,10 +173,12 @@ fn a_missing_output_folder_is_an_error_for_a_file_and_made_for_a_folder() {
 
     // One input, a file path whose folder does not exist: an error that
     // names the file and the missing folder; no folder is made.
-    let target = dir.path().join("nope").join("o.png");
-    let line = expect_fault(&run(&["convert", s(&a), "-o", s(&target)]), &target, &["does not exist"]);
-    assert!(line.contains(s(&dir.path().join("nope"))), "{line}");
-    assert_eq!(listing(dir.path()), ["a.png", "b.png"]);
+    for name in ["o.png", "o.exr"] {
+        let target = dir.path().join("nope").join(name);
+        let line = expect_fault(&run(&["convert", s(&a), "-o", s(&target)]), &target, &["does not exist"]);
+        assert!(line.contains(&format!("the folder {} does not exist", s(&dir.path().join("nope")))), "{line}");
+        assert_eq!(listing(dir.path()), ["a.png", "b.png"]);
+    }
     inputs.check("missing folder");
 
     // Many inputs: -o names a folder, made if missing (with its parents).
@@ -597,4 +599,51 @@ fn an_image_too_large_for_the_memory_limit_fails_cleanly_and_never_aborts() {
     fs::remove_file(&big).unwrap();
     assert_eq!(listing(dir.path()), before, "no output, no temporary file");
     println!("refused under 1 GiB: {refused:?}");
+}
+
+/// The whole-image path (standard input is read whole) at a range of
+/// limits, from too little to enough: every run converts or is refused
+/// with one line, never an abort, into a file and into standard output.
+#[test]
+fn whole_image_conversions_under_tightening_limits_never_abort() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray16(&input, 2048, 2048);
+    let file = dir.path().join("n.png");
+    // Every 25 MiB through the range where the encode runs out of room.
+    let limits: Vec<u64> = (4..=12).map(|k| k * 25).chain([800]).collect();
+    for (args, out) in [
+        (&["convert", "-", "-o", s(&file), "--bits", "16"][..], Some(&file)),
+        (&["convert", "-", "-o", "-", "--format", "png", "--bits", "16"], None),
+    ] {
+        let mut converted = Vec::new();
+        for &mib in &limits {
+            let r = limited(mib << 20, args, Some(&input));
+            assert!(r.status.signal().is_none(), "{args:?} at {mib} MiB: {:?}", r.status);
+            let stderr = String::from_utf8_lossy(&r.stderr);
+            assert!(!stderr.contains("memory allocation") && !stderr.contains("panicked"), "{stderr}");
+            if r.status.success() {
+                match out {
+                    Some(path) => assert_eq!(image::image_dimensions(path).unwrap(), (2048, 2048)),
+                    None => {
+                        let png = image::load_from_memory(&r.stdout).unwrap();
+                        assert_eq!((png.width(), png.height()), (2048, 2048));
+                    }
+                }
+                converted.push(mib);
+            } else {
+                let errors: Vec<&str> = stderr.lines().filter(|l| !l.starts_with("normalfit: warning: ")).collect();
+                assert_eq!(r.status.code(), Some(2), "{stderr}");
+                assert_eq!(errors.len(), 1, "{stderr}");
+                assert!(errors[0].contains("memory"), "{args:?} at {mib} MiB: {}", errors[0]);
+                if let Some(path) = out {
+                    assert!(!path.exists(), "no output after a refusal");
+                }
+            }
+            let _ = fs::remove_file(&file);
+        }
+        assert!(!converted.contains(&limits[0]), "{args:?}: {} MiB is too little, yet it converted", limits[0]);
+        assert!(converted.contains(&limits[limits.len() - 1]), "{args:?}: converted only at {converted:?} MiB");
+    }
+    assert_eq!(listing(dir.path()), ["h.png"]);
 }
