@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use image::{ExtendedColorType, ImageEncoder};
-use normalfit::io::stream::{PngDepth, PngRows, convert_png, convert_png_seekable};
+use normalfit::io::stream::{PngDepth, PngRows, RowSource, convert_png, convert_png_seekable};
 use normalfit::io::{Channel, ReadOptions, read_path};
 use normalfit::{Border, Borders, Options, Strength, normals_into};
 
