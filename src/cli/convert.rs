@@ -5,12 +5,12 @@ use std::collections::HashSet;
 use std::io::{Cursor, Write};
 use std::path::{Path, PathBuf};
 
-use normalfit::io::stream::{self, ExrRows, PngDepth, PngRows, RowSource};
+use normalfit::io::stream::{self, ExrRows, PngDepth, PngOutput, PngRows, RowSource};
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, ReadOptions, SampleType};
 use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
 use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
 
-use super::args::{AxisBorder, BorderArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
+use super::args::{AxisBorder, BorderArg, CompressionArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
 use super::input::{Input, InputIds, read_input};
 use super::report::{Failure, warn};
 use super::tiling::channel_of;
@@ -24,6 +24,7 @@ struct Plan {
     bits: Option<u8>,
     format: Option<FormatArg>,
     signed: bool,
+    compression: PngCompression,
     destination: Destination,
 }
 
@@ -105,6 +106,10 @@ impl Plan {
             bits: args.bits,
             format: args.format,
             signed: args.signed,
+            compression: match args.compression {
+                CompressionArg::Fast => PngCompression::Fast,
+                CompressionArg::Small => PngCompression::Default,
+            },
             destination,
         })
     }
@@ -136,8 +141,10 @@ impl Plan {
             self.warn_seams(report, input);
         }
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
-        let encoded =
-            |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &fit, &target, out) };
+        let compression = self.compression;
+        let encoded = |out: &mut dyn Write| -> normalfit::Result<()> {
+            encode(&heights, width, height, &fit, &target, compression, out)
+        };
         match &target.path {
             Some(path) => io::write_atomically(path, encoded).map_err(|e| Failure::file(path, e)),
             None => {
@@ -217,14 +224,14 @@ impl Plan {
                     .map_err(|e| Failure::file(stdout_name, e))
             }
             (Some(out), Encoding::Png8 | Encoding::Png16) => io::write_file_atomically(out, |file| {
-                let depth = target.png_depth().expect("a png encoding");
-                stream::convert_png_seekable(rows, &fit, depth, visit, file).inspect_err(&mut on_input)
+                let png = self.png_output(target).expect("a png encoding");
+                stream::convert_png_seekable(rows, &fit, png, visit, file).inspect_err(&mut on_input)
             })
             .map_err(|e| Failure::file(out, e)),
             (None, Encoding::Png8 | Encoding::Png16) => {
-                let depth = target.png_depth().expect("a png encoding");
+                let png = self.png_output(target).expect("a png encoding");
                 let mut stdout = std::io::stdout().lock();
-                stream::convert_png(rows, tail, &fit, depth, visit, &mut stdout)
+                stream::convert_png(rows, tail, &fit, png, visit, &mut stdout)
                     .inspect_err(&mut on_input)
                     .and_then(|()| Ok(stdout.flush()?))
                     .map_err(|e| Failure::file(stdout_name, e))
@@ -237,6 +244,11 @@ impl Plan {
             self.warn_seams(&seams.finish(&check_opts), &input);
         }
         result
+    }
+
+    /// The streamed PNG's settings, for a PNG target.
+    fn png_output(&self, target: &Target) -> Option<PngOutput> {
+        target.png_depth().map(|depth| PngOutput { depth, compression: self.compression })
     }
 
     /// Refuses an output that is an input, or that an earlier input of this
@@ -393,9 +405,9 @@ fn encode(
     h: usize,
     opts: &Options,
     target: &Target,
+    compression: PngCompression,
     out: &mut dyn Write,
 ) -> normalfit::Result<()> {
-    let compression = PngCompression::default();
     match target.encoding {
         Encoding::Png8 => {
             let mut texels = vec![[0u8; 3]; heights.len()];
