@@ -244,3 +244,31 @@ fn a_truncated_file_is_a_decode_error() {
     });
     assert!(matches!(result, Err(normalfit::Error::Decode(_))), "{result:?}");
 }
+
+#[test]
+fn exr_output_decodes_to_its_values_and_smooth_maps_compress() {
+    let (w, h) = (301, 100);
+    // Smooth values, which compress, with a noisy corner.
+    let texels: Vec<[f32; 3]> = (0..w * h)
+        .map(|k| {
+            let (x, y) = ((k % w) as f32, (k / w) as f32);
+            let noise = if x < 20.0 && y < 20.0 { ((k * 7919) % 1000) as f32 * 1e-3 } else { 0.0 };
+            [0.5 + 0.4 * (x * 0.01).sin() + noise, 0.5 + 0.3 * (y * 0.02).cos(), 0.9]
+        })
+        .collect();
+    for (depth, bytes_per_sample) in [(ExrDepth::Float, 4), (ExrDepth::Half, 2)] {
+        let mut out = std::io::Cursor::new(Vec::new());
+        encode_exr(&texels, w, h, depth, &mut out).unwrap();
+        let bytes = out.into_inner();
+        assert!(bytes.len() < w * h * 3 * bytes_per_sample / 2, "{depth:?}: {} bytes", bytes.len());
+        let raster = normalfit::io::decode(&bytes, &ReadOptions::default()).unwrap();
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            let plane = &raster.plane(name).expect("channel").data;
+            let expected: Vec<f32> = texels
+                .iter()
+                .map(|t| if depth == ExrDepth::Half { f16::from_f32(t[c]).to_f32() } else { t[c] })
+                .collect();
+            assert!(plane == &expected, "{depth:?} {name}");
+        }
+    }
+}
