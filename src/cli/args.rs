@@ -24,20 +24,11 @@ pub enum Command {
     Tiling(TilingArgs),
 }
 
+/// How a height map becomes normals: the options `convert` and `shade`
+/// share, flattened into both so that their help and defaults are one.
 #[derive(Args, Debug)]
-#[command(allow_negative_numbers = true)]
-pub struct ConvertArgs {
-    /// Height maps to convert (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-` reads
-    /// standard input).
-    #[arg(required = true, value_name = "INPUT")]
-    pub inputs: Vec<PathBuf>,
-
-    /// Output file, or folder for many inputs; `-` writes standard output.
-    /// Default: `<stem>_normal.<ext>` beside each input (standard output for
-    /// standard input).
-    #[arg(short, long, value_name = "OUTPUT")]
-    pub output: Option<PathBuf>,
-
+#[command(next_help_heading = "Fit options")]
+pub struct FitArgs {
     /// Patch size N: fit a plane to the N×N texels around each texel (odd, ≥ 3).
     /// Larger patches smooth more; the cost does not grow with N.
     #[arg(short = 'n', long, value_name = "N", default_value_t = 3, value_parser = parse_patch)]
@@ -66,9 +57,25 @@ pub struct ConvertArgs {
     #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_borders)]
     pub border: BorderArg,
 
-    /// Green up (opengl: glTF, Blender, Unity) or down (directx: Unreal).
+    /// Which way the normal maps' green points: up (opengl: glTF, Blender,
+    /// Unity) or down (directx: Unreal).
     #[arg(long, value_enum, default_value_t = ConventionArg::Opengl)]
     pub convention: ConventionArg,
+}
+
+#[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
+pub struct ConvertArgs {
+    /// Height maps to convert (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-` reads
+    /// standard input).
+    #[arg(required = true, value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
+
+    /// Output file, or folder for many inputs; `-` writes standard output.
+    /// Default: `<stem>_normal.<ext>` beside each input (standard output for
+    /// standard input).
+    #[arg(short, long, value_name = "OUTPUT")]
+    pub output: Option<PathBuf>,
 
     /// Channel of a colour image that holds the height (gray images use gray).
     #[arg(long, value_enum)]
@@ -87,6 +94,10 @@ pub struct ConvertArgs {
     /// Write the normal's components in [−1, 1] instead of (n + 1)/2 (EXR only).
     #[arg(long)]
     pub signed: bool,
+
+    // Last: its help heading would otherwise cover the options after it.
+    #[command(flatten)]
+    pub fit: FitArgs,
 }
 
 #[derive(Args, Debug)]

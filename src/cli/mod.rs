@@ -3,7 +3,9 @@
 
 pub mod args;
 pub mod convert;
+pub mod fitting;
 pub mod input;
+pub mod output;
 pub mod report;
 pub mod tiling;
 
@@ -35,8 +37,9 @@ pub fn main() -> ExitCode {
             return ExitCode::from(exit::ERROR);
         }
     };
+    let all_written = |failures: usize| if failures == 0 { exit::OK } else { exit::ERROR };
     let outcome = match cli.command {
-        Command::Convert(args) => convert::run(args).map(|failures| if failures == 0 { exit::OK } else { exit::ERROR }),
+        Command::Convert(args) => convert::run(args).map(all_written),
         Command::Tiling(args) => tiling::run(args),
     };
     match outcome {
