@@ -7,6 +7,7 @@ pub mod fitting;
 pub mod input;
 pub mod output;
 pub mod report;
+pub mod shade;
 pub mod tiling;
 
 use std::process::ExitCode;
@@ -41,6 +42,7 @@ pub fn main() -> ExitCode {
     let outcome = match cli.command {
         Command::Convert(args) => convert::run(args).map(all_written),
         Command::Tiling(args) => tiling::run(args),
+        Command::Shade(args) => shade::run(args).map(all_written),
     };
     match outcome {
         Ok(code) => ExitCode::from(code),
