@@ -5,6 +5,7 @@ use std::fmt;
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap_complete::Shell;
 use normalfit::Border;
 use normalfit::options::MAX_PATCH;
 use normalfit::shade::Light;
@@ -33,6 +34,11 @@ pub enum Command {
     /// n itself); --convention says which way its green points. Lambert
     /// shading with a little ambient light, so slopes turned away stay grey.
     Shade(ShadeArgs),
+    /// Print a shell completion script to standard output.
+    Completions(CompletionsArgs),
+    /// Print the manual page (roff) to standard output, or write one page
+    /// per command.
+    Man(ManArgs),
 }
 
 /// How a height map becomes normals: the options `convert` and `shade`
@@ -151,6 +157,21 @@ pub struct ShadeArgs {
     // Last: its help heading would otherwise cover the options after it.
     #[command(flatten)]
     pub fit: FitArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct CompletionsArgs {
+    /// The shell to complete for.
+    #[arg(value_enum)]
+    pub shell: Shell,
+}
+
+#[derive(Args, Debug)]
+pub struct ManArgs {
+    /// Write one page per command into this folder (normalfit.1,
+    /// normalfit-convert.1, …) instead of the whole manual to standard output.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]

@@ -2,9 +2,11 @@
 //! work is the library's.
 
 pub mod args;
+pub mod completions;
 pub mod convert;
 pub mod fitting;
 pub mod input;
+pub mod man;
 pub mod output;
 pub mod report;
 pub mod shade;
@@ -43,6 +45,8 @@ pub fn main() -> ExitCode {
         Command::Convert(args) => convert::run(args).map(all_written),
         Command::Tiling(args) => tiling::run(args),
         Command::Shade(args) => shade::run(args).map(all_written),
+        Command::Completions(args) => completions::run(&args).map(|()| exit::OK),
+        Command::Man(args) => man::run(&args).map(|()| exit::OK),
     };
     match outcome {
         Ok(code) => ExitCode::from(code),
