@@ -4,7 +4,7 @@
 //! outputs and errors.
 
 use std::fs;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use normalfit::io::{ExrDepth, encode_exr};
@@ -353,4 +353,40 @@ fn errors_are_one_line_and_the_other_inputs_are_still_written() {
     assert!(line.contains("standard output"), "{line}");
     let line = error_line(&run(&["shade", s(&good), "-n", "4"]));
     assert!(line.contains("patch"), "{line}");
+}
+
+/// The README's gallery: every picture in docs/gallery/ is exactly what the
+/// README's commands make from the gallery's height maps.
+#[test]
+fn the_gallery_is_what_the_readme_commands_make() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let readme = fs::read_to_string(root.join("README.md")).unwrap();
+    let commands: Vec<Vec<&str>> = readme
+        .lines()
+        .filter(|l| l.starts_with("normalfit ") && l.contains("docs/gallery/"))
+        .map(|l| l.split_whitespace().skip(1).collect())
+        .collect();
+    assert!(commands.len() >= 9, "a normal map, a lit view and a tiled view per sample: {commands:?}");
+    let dir = tempfile::tempdir().unwrap();
+    let mut shown = Vec::new();
+    for args in commands {
+        let o = args.iter().position(|a| *a == "-o").expect("gallery commands name their output");
+        let shipped = root.join(args[o + 1]);
+        let made = dir.path().join(shipped.file_name().unwrap());
+        let mut args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        args[o + 1] = s(&made).to_string();
+        let out = Command::new(env!("CARGO_BIN_EXE_normalfit")).current_dir(&root).args(&args).output().unwrap();
+        ok(&out);
+        let (made_img, shipped_img) = (image::open(&made).unwrap(), image::open(&shipped).unwrap());
+        assert_eq!(made_img.color(), shipped_img.color(), "{}", shipped.display());
+        assert_eq!(made_img.as_bytes(), shipped_img.as_bytes(), "{} is not what {args:?} makes", shipped.display());
+        assert!(readme.contains(&format!("({})", shipped.strip_prefix(&root).unwrap().display())), "shown");
+        shown.push(shipped);
+    }
+    for sample in ["bricks", "rock", "terrain"] {
+        for suffix in ["_normal", "_lit", "_tiled"] {
+            let picture = root.join(format!("docs/gallery/{sample}{suffix}.png"));
+            assert!(shown.contains(&picture), "{} is made by a README command", picture.display());
+        }
+    }
 }
