@@ -5,12 +5,12 @@ use std::collections::HashSet;
 use std::io::{Cursor, Write};
 use std::path::{Path, PathBuf};
 
-use normalfit::io::stream::{self, PngDepth, PngRows};
+use normalfit::io::stream::{self, ExrRows, PngDepth, PngOutput, PngRows, RowSource};
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, ReadOptions, SampleType};
 use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
 use normalfit::{Border, Borders, Options, normals_into};
 
-use super::args::{AxisBorder, BorderArg, ConvertArgs, FormatArg};
+use super::args::{AxisBorder, BorderArg, CompressionArg, ConvertArgs, FormatArg};
 use super::fitting;
 use super::input::{Input, InputIds, read_input, stdin_at_most_once};
 use super::output::{self, Destination};
@@ -26,6 +26,7 @@ struct Plan {
     bits: Option<u8>,
     format: Option<FormatArg>,
     signed: bool,
+    compression: PngCompression,
     destination: Destination,
 }
 
@@ -57,20 +58,27 @@ impl Plan {
             bits: args.bits,
             format: args.format,
             signed: args.signed,
+            compression: match args.compression {
+                CompressionArg::Fast => PngCompression::Fast,
+                CompressionArg::Small => PngCompression::Default,
+            },
             destination,
         })
     }
 
     fn convert_one(&self, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
         if let Input::File(path) = input {
-            let rows = PngRows::open(path, &ReadOptions::default(), self.channel);
-            if let Some(rows) = rows.map_err(|e| Failure::file(path, e))? {
+            let in_failure = |e: normalfit::Error| Failure::file(path, e);
+            if let Some(rows) = PngRows::reopen(path, self.channel).map_err(in_failure)? {
                 let sample = SampleType::Int { bits: if rows.more_than_8_bits() { 16 } else { 8 } };
                 let target = self.target(input, InputFormat::Png, sample)?;
-                if let Some(depth) = target.png_depth() {
-                    self.claim(&target, ids, written)?;
-                    return self.convert_streaming(path, rows, &target, depth);
-                }
+                self.claim(&target, ids, written)?;
+                return self.convert_streaming(path, rows, &target);
+            }
+            if let Some(rows) = ExrRows::reopen(path, self.channel).map_err(in_failure)? {
+                let target = self.target(input, InputFormat::Exr, SampleType::Float)?;
+                self.claim(&target, ids, written)?;
+                return self.convert_streaming(path, rows, &target);
             }
         }
         let raster = read_input(input, &ReadOptions::default())?;
@@ -85,8 +93,10 @@ impl Plan {
             self.warn_seams(report, input);
         }
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
-        let encoded =
-            |out: &mut dyn Write| -> normalfit::Result<()> { encode(&heights, width, height, &fit, &target, out) };
+        let compression = self.compression;
+        let encoded = |out: &mut dyn Write| -> normalfit::Result<()> {
+            encode(&heights, width, height, &fit, &target, compression, out)
+        };
         match &target.path {
             Some(path) => io::write_atomically(path, encoded).map_err(|e| Failure::file(path, e)),
             None => {
@@ -102,27 +112,34 @@ impl Plan {
         }
     }
 
-    /// PNG to PNG without holding the image: rows stream from the decoder
-    /// through the fit to the encoder, in one pass into a file. A first
-    /// pass over the input is made only for `--border auto` (the borders
-    /// depend on the tiling check) and for a wrap in y into standard output
-    /// (which cannot take the top rows last).
-    fn convert_streaming(&self, path: &Path, rows: PngRows, target: &Target, depth: PngDepth) -> Result<(), Failure> {
+    /// A PNG or scan-line EXR input, converted without holding the image:
+    /// rows stream from the decoder through the fit to the encoder. One
+    /// pass over the input, but for a wrap in y into an output written in
+    /// order (EXR, or PNG into a pipe), which needs the image's last rows
+    /// first: an EXR gives them from its last blocks, a PNG by a first
+    /// pass; and for `--border auto`, whose borders depend on the tiling
+    /// check, which then comes from a first pass too.
+    fn convert_streaming<S: Reopen>(&self, path: &Path, rows: S, target: &Target) -> Result<(), Failure> {
         let input = Input::File(path.to_path_buf());
         let in_failure = |e: normalfit::Error| Failure::file(path, e);
-        let (width, height) = (rows.width(), rows.height());
+        let (width, height, r) = (rows.width(), rows.height(), self.fit.patch / 2);
         let auto = self.border.x == AxisBorder::Auto || self.border.y == AxisBorder::Auto;
         let may_wrap_y = matches!(self.border.y, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
+        // A PNG file takes its top rows last, in room kept after the header.
+        let png_file = target.path.is_some() && target.png_depth().is_some();
+        let needs_tail = may_wrap_y && !png_file;
         let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let first_pass = auto || (target.path.is_none() && may_wrap_y);
-        let (report, tail) = if first_pass {
-            let first = PngRows::open(path, &ReadOptions::default(), self.channel).map_err(in_failure)?;
-            let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
-            let mut seams = HeightSeams::new(width, height);
-            let tail = first.read_tail(self.fit.patch / 2, |row| seams.push_row(row)).map_err(in_failure)?;
-            (Some(seams.finish(&check_opts)), Some(tail))
-        } else {
-            (None, None)
+        let cheap_tail = if needs_tail && !auto { S::last_rows(path, self.channel, r) } else { None };
+        let (report, tail) = match cheap_tail {
+            Some(tail) => (None, Some(tail.map_err(in_failure)?)),
+            None if auto || needs_tail => {
+                let first = S::reopen(path, self.channel).map_err(in_failure)?;
+                let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
+                let mut seams = HeightSeams::new(width, height);
+                let tail = first.read_tail(r, |row| seams.push_row(row)).map_err(in_failure)?;
+                (Some(seams.finish(&check_opts)), Some(tail))
+            }
+            None => (None, None),
         };
         // Without a first pass, the check runs on the rows as they stream
         // and the warning comes after the output.
@@ -130,6 +147,7 @@ impl Plan {
             self.warn_seams(report, &input);
         }
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
+        let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
         let mut seams = (report.is_none() && self.needs_check()).then(|| HeightSeams::new(width, height));
         let visit = |row: &[f32]| {
             if let Some(s) = seams.as_mut() {
@@ -143,18 +161,32 @@ impl Plan {
                 failed_input = Some(e.to_string());
             }
         };
-        let result = match &target.path {
-            Some(out) => io::write_file_atomically(out, |file| {
-                stream::convert_png_seekable(rows, &fit, depth, visit, file).inspect_err(&mut on_input)
+        let stdout_name = "<standard output>";
+        let result = match (&target.path, target.encoding) {
+            (Some(out), Encoding::Exr(depth)) => io::write_file_atomically(out, |file| {
+                stream::convert_exr(rows, tail, &fit, depth, target.signed, visit, file).inspect_err(&mut on_input)
             })
             .map_err(|e| Failure::file(out, e)),
-            None => {
-                let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
+            (None, Encoding::Exr(depth)) => {
+                // EXR seeks back to its offset table: the file is assembled first.
+                let mut bytes = Cursor::new(Vec::new());
+                stream::convert_exr(rows, tail, &fit, depth, target.signed, visit, &mut bytes)
+                    .inspect_err(&mut on_input)
+                    .and_then(|()| write_stdout(bytes.get_ref()))
+                    .map_err(|e| Failure::file(stdout_name, e))
+            }
+            (Some(out), Encoding::Png8 | Encoding::Png16) => io::write_file_atomically(out, |file| {
+                let png = self.png_output(target).expect("a png encoding");
+                stream::convert_png_seekable(rows, &fit, png, visit, file).inspect_err(&mut on_input)
+            })
+            .map_err(|e| Failure::file(out, e)),
+            (None, Encoding::Png8 | Encoding::Png16) => {
+                let png = self.png_output(target).expect("a png encoding");
                 let mut stdout = std::io::stdout().lock();
-                stream::convert_png(rows, tail, &fit, depth, visit, &mut stdout)
+                stream::convert_png(rows, tail, &fit, png, visit, &mut stdout)
                     .inspect_err(&mut on_input)
                     .and_then(|()| Ok(stdout.flush()?))
-                    .map_err(|e| Failure::file("<standard output>", e))
+                    .map_err(|e| Failure::file(stdout_name, e))
             }
         };
         if let Some(problem) = failed_input {
@@ -164,6 +196,11 @@ impl Plan {
             self.warn_seams(&seams.finish(&check_opts), &input);
         }
         result
+    }
+
+    /// The streamed PNG's settings, for a PNG target.
+    fn png_output(&self, target: &Target) -> Option<PngOutput> {
+        target.png_depth().map(|depth| PngOutput { depth, compression: self.compression })
     }
 
     /// Refuses an output that is an input, or that an earlier input of this
@@ -280,9 +317,9 @@ fn encode(
     h: usize,
     opts: &Options,
     target: &Target,
+    compression: PngCompression,
     out: &mut dyn Write,
 ) -> normalfit::Result<()> {
-    let compression = PngCompression::default();
     match target.encoding {
         Encoding::Png8 => {
             let mut texels = vec![[0u8; 3]; heights.len()];
@@ -316,5 +353,45 @@ fn format_of_extension(path: &Path) -> Result<Option<FormatArg>, Failure> {
         "png" => Ok(Some(FormatArg::Png)),
         "exr" => Ok(Some(FormatArg::Exr)),
         other => Err(Failure::file(path, format!("cannot write .{other} files: name the output .png or .exr"))),
+    }
+}
+
+/// Writes `bytes` to standard output and flushes it.
+fn write_stdout(bytes: &[u8]) -> normalfit::Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    stdout.write_all(bytes)?;
+    stdout.flush()?;
+    Ok(())
+}
+
+/// An input format whose rows stream, opened by path.
+trait Reopen: RowSource + Sized {
+    /// Opens `path` if it is this format and can stream (`Ok(None)`: read
+    /// it whole).
+    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>>;
+
+    /// The image's last `rows` rows, if the format can give them without
+    /// reading the whole file (`None`: it cannot).
+    fn last_rows(path: &Path, channel: Option<Channel>, rows: usize) -> Option<normalfit::Result<Vec<f32>>>;
+}
+
+impl Reopen for PngRows {
+    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        PngRows::open(path, &ReadOptions::default(), channel)
+    }
+
+    fn last_rows(_: &Path, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f32>>> {
+        // PNG cannot seek: its last rows come from a pass over the file.
+        None
+    }
+}
+
+impl Reopen for ExrRows {
+    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        ExrRows::open(path, &ReadOptions::default(), channel)
+    }
+
+    fn last_rows(path: &Path, channel: Option<Channel>, rows: usize) -> Option<normalfit::Result<Vec<f32>>> {
+        Some(ExrRows::last_rows(path, &ReadOptions::default(), channel, rows))
     }
 }

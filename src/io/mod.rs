@@ -4,8 +4,8 @@
 //! in the contract's height units (SPEC §1) and picks the height channel;
 //! [`write`](mod@write) encodes normal maps (SPEC §3) and puts files in place
 //! atomically (SPEC §4). Neither knows about the fit, and the fit knows
-//! nothing of files. [`stream`] joins them for PNG files, streaming rows
-//! from decoder to encoder.
+//! nothing of files. [`stream`] joins them for PNG and scan-line EXR
+//! files, streaming rows from decoder to encoder.
 
 pub mod read;
 pub mod stream;

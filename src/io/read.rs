@@ -162,7 +162,7 @@ impl Default for ReadOptions {
 }
 
 /// The four bytes every OpenEXR file starts with.
-const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+pub(crate) const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 
 /// The four bytes a TIFF starts with: classic and BigTIFF, little- and
 /// big-endian.
@@ -170,6 +170,13 @@ const TIFF_MAGIC: [[u8; 4]; 4] = [*b"II*\0", *b"MM\0*", *b"II+\0", *b"MM\0+"];
 
 /// Rec. 709 luma weights of R, G and B (SPEC §1).
 pub(crate) const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// The luma of one texel, computed in f64 and rounded to f32 once, so it
+/// does not depend on summation order (and every reader gets the same bits).
+#[inline]
+pub(crate) fn luma(r: f32, g: f32, b: f32) -> f32 {
+    (LUMA[0] * f64::from(r) + LUMA[1] * f64::from(g) + LUMA[2] * f64::from(b)) as f32
+}
 
 /// Decodes an image from its bytes, choosing the decoder from the content.
 ///
@@ -243,40 +250,79 @@ impl Raster {
 
     /// Applies SPEC §1's channel rule to this raster's plane names.
     fn select(&self, channel: Option<Channel>) -> Result<Source> {
-        let wanted = match channel {
-            None | Some(Channel::Luma) => None,
-            Some(Channel::R) => Some("r"),
-            Some(Channel::G) => Some("g"),
-            Some(Channel::B) => Some("b"),
-            Some(Channel::A) => {
-                return self
-                    .find("a")?
-                    .map(Source::Plane)
-                    .ok_or_else(|| Error::Unsupported("image has no alpha channel".into()));
-            }
-        };
-        // An explicit R, G or B names a stored channel when there is one,
-        // overriding an EXR's "Y"; a gray image has none and gives gray.
-        if let Some(name) = wanted {
-            if let Some(i) = self.find(name)? {
-                return Ok(Source::Plane(i));
-            }
-        }
-        match (self.gray_plane()?, wanted) {
-            (Some(i), _) => Ok(Source::Plane(i)),
-            (None, Some(name)) => {
-                Err(Error::Unsupported(format!("image has no {name} channel (channels: {})", self.channel_list())))
-            }
-            (None, None) => self.rgb().map(Source::Luma),
-        }
+        let names: Vec<&str> = self.planes.iter().map(|p| p.name.as_str()).collect();
+        select_channel(&names, channel)
     }
 
+    /// Luma of three planes, each texel computed in f64 and rounded to f32
+    /// once, so the result does not depend on f32 summation order.
+    fn luma(&self, [r, g, b]: [usize; 3]) -> Result<Vec<f32>> {
+        let (r, g, b) = (&self.planes[r].data, &self.planes[g].data, &self.planes[b].data);
+        let mut out = try_vec(r.len())?;
+        out.par_extend(r.par_iter().zip(g.par_iter()).zip(b.par_iter()).map(|((&r, &g), &b)| luma(r, g, b)));
+        Ok(out)
+    }
+
+    /// SPEC §1: a NaN or infinite height is an error naming the first such
+    /// texel in row order.
+    fn check_finite(&self, heights: &[f32]) -> Result<()> {
+        match heights.par_iter().position_first(|h| !h.is_finite()) {
+            None => Ok(()),
+            Some(i) => Err(Error::NonFiniteHeight { x: i % self.width.max(1), y: i / self.width.max(1) }),
+        }
+    }
+}
+
+/// Where the heights come from.
+pub(crate) enum Source {
+    /// One stored plane, by index.
+    Plane(usize),
+    /// Luma of the R, G, B planes at these indices.
+    Luma([usize; 3]),
+}
+
+/// SPEC §1's channel rule (see [`Raster::heights`]) over a list of channel
+/// names: which channel, or which three for luma, hold the height.
+pub(crate) fn select_channel(names: &[&str], channel: Option<Channel>) -> Result<Source> {
+    let names = Names(names);
+    let wanted = match channel {
+        None | Some(Channel::Luma) => None,
+        Some(Channel::R) => Some("r"),
+        Some(Channel::G) => Some("g"),
+        Some(Channel::B) => Some("b"),
+        Some(Channel::A) => {
+            return names
+                .find("a")?
+                .map(Source::Plane)
+                .ok_or_else(|| Error::Unsupported("image has no alpha channel".into()));
+        }
+    };
+    // An explicit R, G or B names a stored channel when there is one,
+    // overriding an EXR's "Y"; a gray image has none and gives gray.
+    if let Some(name) = wanted {
+        if let Some(i) = names.find(name)? {
+            return Ok(Source::Plane(i));
+        }
+    }
+    match (names.gray_plane()?, wanted) {
+        (Some(i), _) => Ok(Source::Plane(i)),
+        (None, Some(name)) => {
+            Err(Error::Unsupported(format!("image has no {name} channel (channels: {})", names.channel_list())))
+        }
+        (None, None) => names.rgb().map(Source::Luma),
+    }
+}
+
+/// Channel names, for the channel rule.
+struct Names<'a>(&'a [&'a str]);
+
+impl Names<'_> {
     /// The gray channel: "Y" if present, else the only channel there is.
     fn gray_plane(&self) -> Result<Option<usize>> {
         if let Some(i) = self.find("y")? {
             return Ok(Some(i));
         }
-        Ok((self.planes.len() == 1).then_some(0))
+        Ok((self.0.len() == 1).then_some(0))
     }
 
     /// The R, G and B planes that luma is made of.
@@ -295,63 +341,32 @@ impl Raster {
     /// the letter. An exact match wins; several layer matches are ambiguous,
     /// an error rather than a silent guess.
     fn find(&self, letter: &str) -> Result<Option<usize>> {
-        let matches: Vec<usize> = (0..self.planes.len())
+        let matches: Vec<usize> = (0..self.0.len())
             .filter(|&i| {
-                let name = &self.planes[i].name;
+                let name = self.0[i];
                 let last = name.rsplit('.').next().unwrap_or(name);
                 last.eq_ignore_ascii_case(letter)
             })
             .collect();
-        let exact = matches.iter().copied().find(|&i| self.planes[i].name.eq_ignore_ascii_case(letter));
+        let exact = matches.iter().copied().find(|&i| self.0[i].eq_ignore_ascii_case(letter));
         match (exact, matches.as_slice()) {
             (Some(i), _) => Ok(Some(i)),
             (None, []) => Ok(None),
             (None, [i]) => Ok(Some(*i)),
             (None, _) => Err(Error::Unsupported(format!(
                 "channel {letter} is ambiguous: {}",
-                matches.iter().map(|&i| self.planes[i].name.as_str()).collect::<Vec<_>>().join(", ")
+                matches.iter().map(|&i| self.0[i]).collect::<Vec<_>>().join(", ")
             ))),
         }
     }
 
     /// The channel names, for messages.
     fn channel_list(&self) -> String {
-        if self.planes.is_empty() {
+        if self.0.is_empty() {
             return "none".into();
         }
-        let names: Vec<&str> = self.planes.iter().map(|p| p.name.as_str()).collect();
-        names.join(", ")
+        self.0.join(", ")
     }
-
-    /// Luma of three planes, each texel computed in f64 and rounded to f32
-    /// once, so the result does not depend on f32 summation order.
-    fn luma(&self, [r, g, b]: [usize; 3]) -> Result<Vec<f32>> {
-        let (r, g, b) = (&self.planes[r].data, &self.planes[g].data, &self.planes[b].data);
-        let mut out = try_vec(r.len())?;
-        out.par_extend(
-            r.par_iter().zip(g.par_iter()).zip(b.par_iter()).map(|((&r, &g), &b)| {
-                (LUMA[0] * f64::from(r) + LUMA[1] * f64::from(g) + LUMA[2] * f64::from(b)) as f32
-            }),
-        );
-        Ok(out)
-    }
-
-    /// SPEC §1: a NaN or infinite height is an error naming the first such
-    /// texel in row order.
-    fn check_finite(&self, heights: &[f32]) -> Result<()> {
-        match heights.par_iter().position_first(|h| !h.is_finite()) {
-            None => Ok(()),
-            Some(i) => Err(Error::NonFiniteHeight { x: i % self.width.max(1), y: i / self.width.max(1) }),
-        }
-    }
-}
-
-/// Where the heights come from.
-enum Source {
-    /// One stored plane, by index.
-    Plane(usize),
-    /// Luma of the R, G, B planes at these indices.
-    Luma([usize; 3]),
 }
 
 /// A vector with room for `len` values, or [`Error::Limits`] if the memory
@@ -744,12 +759,18 @@ fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 }
 
 /// Checks every layer's data window against the limit before `exr`
-/// allocates anything for it. Every layer, not just the first: `exr` reads
-/// all offset tables, whose length follows from each layer's size. The
-/// offset tables are stored in the file, so an honest file holds 8 bytes
-/// per chunk; a header claiming more chunks than that is forged.
+/// allocates anything for it ([`check_exr_meta`]).
 fn check_exr_header(bytes: &[u8], opts: &ReadOptions) -> Result<()> {
     let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(from_exr_error)?;
+    check_exr_meta(&meta, bytes.len() as u64, opts)
+}
+
+/// Checks every layer's data window against the limit, from the header of
+/// a file of `file_len` bytes. Every layer, not just the first: `exr`
+/// reads all offset tables, whose length follows from each layer's size.
+/// The offset tables are stored in the file, so an honest file holds 8
+/// bytes per chunk; a header claiming more chunks than that is forged.
+pub(crate) fn check_exr_meta(meta: &exr::meta::MetaData, file_len: u64, opts: &ReadOptions) -> Result<()> {
     if meta.headers.is_empty() {
         return Err(Error::Decode("exr file has no layers".into()));
     }
@@ -759,7 +780,7 @@ fn check_exr_header(bytes: &[u8], opts: &ReadOptions) -> Result<()> {
         check_size(size.0 as u64, size.1 as u64, opts)?;
         chunks = chunks.saturating_add(header.chunk_count as u64);
     }
-    if chunks.saturating_mul(8) > bytes.len() as u64 {
+    if chunks.saturating_mul(8) > file_len {
         return Err(Error::Decode(format!(
             "truncated or corrupt: header claims {chunks} chunks, more than the file holds"
         )));
@@ -796,7 +817,7 @@ fn exr_plane(channel: exr::prelude::AnyChannel<exr::prelude::FlatSamples>, texel
 
 /// Maps `exr`'s errors onto ours; reading from memory cannot fail at the
 /// operating system, so its I/O errors mean the data ended early.
-fn from_exr_error(e: exr::error::Error) -> Error {
+pub(crate) fn from_exr_error(e: exr::error::Error) -> Error {
     use exr::error::Error as E;
     match e {
         E::NotSupported(m) => Error::Unsupported(message(&m)),
