@@ -8,11 +8,13 @@ use std::path::{Path, PathBuf};
 use normalfit::io::stream::{self, ExrRows, PngDepth, PngOutput, PngRows, RowSource};
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, ReadOptions, SampleType};
 use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
-use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
+use normalfit::{Border, Borders, Options, normals_into};
 
-use super::args::{AxisBorder, BorderArg, CompressionArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
-use super::input::{Input, InputIds, read_input};
-use super::report::{Failure, warn};
+use super::args::{AxisBorder, BorderArg, CompressionArg, ConvertArgs, FormatArg};
+use super::fitting;
+use super::input::{Input, InputIds, read_input, stdin_at_most_once};
+use super::output::{self, Destination};
+use super::report::Failure;
 use super::tiling::channel_of;
 
 /// What `convert` does with every input, decided once from the arguments.
@@ -26,18 +28,6 @@ struct Plan {
     signed: bool,
     compression: PngCompression,
     destination: Destination,
-}
-
-/// Where outputs go.
-enum Destination {
-    /// `<stem>_normal.<ext>` beside each input (standard output for `-`).
-    BesideInputs,
-    /// This exact file (one input only).
-    File(PathBuf),
-    /// `<dir>/<stem>_normal.<ext>`.
-    Folder(PathBuf),
-    /// Standard output (one input only).
-    Stdout,
 }
 
 /// Converts every input; returns the failures (already reported).
@@ -58,50 +48,12 @@ pub fn run(args: ConvertArgs) -> Result<usize, Failure> {
 
 impl Plan {
     fn from_args(args: &ConvertArgs) -> Result<Plan, Failure> {
-        let strength = match args.relief {
-            Some(f) => Strength::Relief(f),
-            None => Strength::Scale(args.scale),
-        };
-        let fit = Options::new()
-            .with_patch(args.patch)
-            .with_fit(match args.fit {
-                FitArg::Orthogonal => Fit::Orthogonal,
-                FitArg::Vertical => Fit::Vertical,
-            })
-            .with_convention(match args.convention {
-                ConventionArg::Opengl => Convention::OpenGl,
-                ConventionArg::Directx => Convention::DirectX,
-            })
-            .with_strength(strength)
-            .with_invert(args.invert);
-        fit.validate().map_err(|e| Failure::usage(e.to_string()))?;
-
-        let many = args.inputs.len() > 1;
-        let stdin_count = args.inputs.iter().filter(|p| p.as_os_str() == "-").count();
-        if stdin_count > 1 {
-            return Err(Failure::usage("standard input ('-') can be read only once"));
-        }
-        let destination = match &args.output {
-            None => Destination::BesideInputs,
-            Some(o) if o.as_os_str() == "-" => {
-                if many {
-                    return Err(Failure::usage("'-o -' takes one input: many images cannot share standard output"));
-                }
-                Destination::Stdout
-            }
-            Some(o) if many || o.is_dir() => Destination::Folder(o.clone()),
-            Some(o) => Destination::File(o.clone()),
-        };
-        if let Destination::Folder(dir) = &destination {
-            if dir.exists() && !dir.is_dir() {
-                return Err(Failure::file(dir, "is not a folder: with many inputs, -o names the output folder"));
-            }
-            std::fs::create_dir_all(dir)
-                .map_err(|e| Failure::file(dir, format!("cannot create the output folder: {}", e)))?;
-        }
+        let fit = fitting::options(&args.fit)?;
+        stdin_at_most_once(&args.inputs)?;
+        let destination = Destination::new(args.output.as_deref(), &args.inputs)?;
         Ok(Plan {
             fit,
-            border: args.border,
+            border: args.fit.border,
             channel: args.channel.map(channel_of),
             bits: args.bits,
             format: args.format,
@@ -254,56 +206,25 @@ impl Plan {
     /// Refuses an output that is an input, or that an earlier input of this
     /// run already wrote.
     fn claim(&self, target: &Target, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
-        if let Some(path) = &target.path {
-            ids.refuse_overwrite(path)?;
-            let key = std::path::absolute(path).unwrap_or_else(|_| path.clone());
-            if !written.insert(key) {
-                return Err(Failure::file(
-                    path,
-                    "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders",
-                ));
-            }
+        match &target.path {
+            Some(path) => output::claim(path, ids, written),
+            None => Ok(()),
         }
-        Ok(())
     }
 
-    /// Whether the borders asked for need the tiling check: a wrap (to warn
-    /// when it draws a seam) or `auto`.
+    /// Whether the borders asked for need the tiling check.
     fn needs_check(&self) -> bool {
-        let check = |a: AxisBorder| matches!(a, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
-        check(self.border.x) || check(self.border.y)
+        self.border.needs_check()
     }
 
-    /// The border modes for one image: `auto` becomes wrap where the image
-    /// tiles and mirror where it does not (`report`: the tiling check, made
-    /// when [`Self::needs_check`]; without it, `auto` is mirror).
+    /// The border modes for one image, `auto` settled by `report`.
     fn borders_for(&self, report: Option<&tiling::TilingReport>) -> Borders {
-        let suggested = report.map_or(Borders::both(Border::Mirror), |r| r.suggested_borders());
-        let resolve = |asked: AxisBorder, auto: Border| match asked {
-            AxisBorder::Fixed(b) => b,
-            AxisBorder::Auto => auto,
-        };
-        Borders { x: resolve(self.border.x, suggested.x), y: resolve(self.border.y, suggested.y) }
+        self.border.resolve(report)
     }
 
-    /// A wrap asked for on an axis that does not tile draws a seam: one
-    /// warning line names the axes.
+    /// Warns about a wrap on an axis that does not tile.
     fn warn_seams(&self, report: &tiling::TilingReport, input: &Input) {
-        let wrap = AxisBorder::Fixed(Border::Wrap);
-        let seams: Vec<String> = [("x", self.border.x, report.x), ("y", self.border.y, report.y)]
-            .iter()
-            .filter(|(_, asked, axis)| *asked == wrap && !axis.seamless)
-            .map(|(name, _, axis)| format!("{name} (seam score {:.2})", axis.score))
-            .collect();
-        if !seams.is_empty() {
-            warn(
-                input.name().display(),
-                format!(
-                    "does not tile along {}: wrap borders will show a seam there; use --border clamp or mirror, or --border auto",
-                    seams.join(" and ")
-                ),
-            );
-        }
+        self.border.warn_seams(report, input);
     }
 
     /// The output's path (None: standard output), format and depth.
@@ -336,16 +257,7 @@ impl Plan {
             FormatArg::Png => "png",
             FormatArg::Exr => "exr",
         };
-        let beside = |dir: &Path| dir.join(format!("{}_normal.{ext}", input.stem()));
-        let path = match &self.destination {
-            Destination::Stdout => None,
-            Destination::BesideInputs => match input {
-                Input::Stdin => None,
-                Input::File(p) => Some(beside(p.parent().unwrap_or(Path::new("")))),
-            },
-            Destination::File(p) => Some(p.clone()),
-            Destination::Folder(dir) => Some(beside(dir)),
-        };
+        let path = self.destination.path_for(input, &format!("{}_normal.{ext}", input.stem()));
         let name = path.as_deref().unwrap_or(Path::new("<standard output>"));
         let encoding = match (format, self.bits) {
             (FormatArg::Png, None) => {

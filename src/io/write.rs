@@ -79,6 +79,22 @@ pub fn encode_png_rgb8(
         .map_err(from_image_error)
 }
 
+/// Writes an 8-bit gray PNG of `width` × `height` texels, row-major: a
+/// picture such as [`shade`](crate::shade::shade) makes, a third the size
+/// of the same picture as RGB.
+///
+/// Errors: as [`encode_png_rgb8`].
+pub fn encode_png_gray8(
+    texels: &[u8],
+    width: usize,
+    height: usize,
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<()> {
+    let (w, h) = png_size(texels.len(), width, height)?;
+    png_encoder(out, compression).write_image(texels, w, h, ExtendedColorType::L8).map_err(from_image_error)
+}
+
 /// Writes a 16-bit RGB PNG of `width` × `height` texels, row-major.
 ///
 /// `image`'s `PngEncoder::write_image` takes 16-bit samples as
