@@ -493,7 +493,9 @@ fn exr_half_float_u32_and_mixed_channels() {
             .map(|k| (0.2126 * f64::from(r[k]) + 0.7152 * f64::from(g[k]) + 0.0722 * f64::from(b[k])) as f32)
             .collect()
     };
-    let cases: Vec<(&str, Vec<AnyChannel<FlatSamples>>, Vec<f32>)> = vec![
+    // Name, channels, the heights they must give.
+    type Case<'a> = (&'a str, Vec<AnyChannel<FlatSamples>>, Vec<f32>);
+    let cases: Vec<Case> = vec![
         ("half", vec![AnyChannel::new("Y", FlatSamples::F16(halves(&a)))], as_half(&a)),
         ("float", vec![AnyChannel::new("Y", FlatSamples::F32(a.clone()))], a.clone()),
         ("u32", vec![AnyChannel::new("Y", FlatSamples::U32(ints.clone()))], ints_f32.clone()),
@@ -619,7 +621,7 @@ fn an_offset_data_window_reads_as_the_image() {
     let at_origin = file(dir.path(), "origin.exr", &exr_gray(w, h, &heights));
     let window = [-5, 7, 2, 12];
     let offset = ExrSpec { data_window: window, display_window: [0, 0, 7, 5], ..ExrSpec::gray(8, 6) };
-    let offset = file(dir.path(), "offset.exr", &offset.file(&[heights.clone()]));
+    let offset = file(dir.path(), "offset.exr", &offset.file(std::slice::from_ref(&heights)));
     let want = normals(&heights, w, h, &Options::default()).unwrap();
     let out = dir.path().join("o.exr");
     for input in [&at_origin, &offset] {

@@ -24,7 +24,7 @@
 //!   the channel that becomes the height matters.
 
 use std::fmt;
-use std::io::{Cursor, Read};
+use std::io::{BufRead, Cursor, Read};
 use std::path::Path;
 
 use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
@@ -969,10 +969,10 @@ impl<R: exr::image::read::layers::ChannelsReader> exr::image::read::image::Layer
 /// image; OpenEXR rejects it, and so does normalfit. Anything else wrong
 /// with the header (bytes missing, a name too long) is left to `exr`,
 /// which reports it.
-pub(crate) fn check_exr_windows(mut read: impl Read) -> Result<()> {
+pub(crate) fn check_exr_windows(mut read: impl BufRead) -> Result<()> {
     /// Attribute and type names are at most 255 bytes (with long names).
     const NAME_MAX: usize = 256;
-    fn name(read: &mut impl Read) -> Option<Vec<u8>> {
+    fn name(read: &mut impl BufRead) -> Option<Vec<u8>> {
         let mut out = Vec::new();
         for byte in read.bytes() {
             match byte.ok()? {
