@@ -28,6 +28,8 @@ struct Plan {
     signed: bool,
     compression: PngCompression,
     destination: Destination,
+    /// The size limit and the EXR layer, for every read.
+    read: ReadOptions,
 }
 
 /// Converts every input; returns the failures (already reported).
@@ -63,25 +65,26 @@ impl Plan {
                 CompressionArg::Small => PngCompression::Default,
             },
             destination,
+            read: args.read.options(),
         })
     }
 
     fn convert_one(&self, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
         if let Input::File(path) = input {
             let in_failure = |e: normalfit::Error| Failure::file(path, e);
-            if let Some(rows) = PngRows::reopen(path, self.channel).map_err(in_failure)? {
+            if let Some(rows) = PngRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
                 let sample = SampleType::Int { bits: if rows.more_than_8_bits() { 16 } else { 8 } };
                 let target = self.target(input, InputFormat::Png, sample)?;
                 self.claim(&target, ids, written)?;
                 return self.convert_streaming(path, rows, &target);
             }
-            if let Some(rows) = ExrRows::reopen(path, self.channel).map_err(in_failure)? {
+            if let Some(rows) = ExrRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
                 let target = self.target(input, InputFormat::Exr, SampleType::Float)?;
                 self.claim(&target, ids, written)?;
                 return self.convert_streaming(path, rows, &target);
             }
         }
-        let raster = read_input(input, &ReadOptions::default())?;
+        let raster = read_input(input, &self.read)?;
         let target = self.target(input, raster.format.clone(), raster.sample)?;
         self.claim(&target, ids, written)?;
         let (width, height) = (raster.width, raster.height);
@@ -129,11 +132,11 @@ impl Plan {
         let png_file = target.path.is_some() && target.png_depth().is_some();
         let needs_tail = may_wrap_y && !png_file;
         let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let cheap_tail = if needs_tail && !auto { S::last_rows(path, self.channel, r) } else { None };
+        let cheap_tail = if needs_tail && !auto { S::last_rows(path, &self.read, self.channel, r) } else { None };
         let (report, tail) = match cheap_tail {
             Some(tail) => (None, Some(tail.map_err(in_failure)?)),
             None if auto || needs_tail => {
-                let first = S::reopen(path, self.channel).map_err(in_failure)?;
+                let first = S::reopen(path, &self.read, self.channel).map_err(in_failure)?;
                 let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
                 let mut seams = HeightSeams::new(width, height);
                 let tail = first.read_tail(r, |row| seams.push_row(row)).map_err(in_failure)?;
@@ -368,30 +371,40 @@ fn write_stdout(bytes: &[u8]) -> normalfit::Result<()> {
 trait Reopen: RowSource + Sized {
     /// Opens `path` if it is this format and can stream (`Ok(None)`: read
     /// it whole).
-    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>>;
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>>;
 
     /// The image's last `rows` rows, if the format can give them without
     /// reading the whole file (`None`: it cannot).
-    fn last_rows(path: &Path, channel: Option<Channel>, rows: usize) -> Option<normalfit::Result<Vec<f32>>>;
+    fn last_rows(
+        path: &Path,
+        opts: &ReadOptions,
+        channel: Option<Channel>,
+        rows: usize,
+    ) -> Option<normalfit::Result<Vec<f32>>>;
 }
 
 impl Reopen for PngRows {
-    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
-        PngRows::open(path, &ReadOptions::default(), channel)
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        PngRows::open(path, opts, channel)
     }
 
-    fn last_rows(_: &Path, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f32>>> {
+    fn last_rows(_: &Path, _: &ReadOptions, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f32>>> {
         // PNG cannot seek: its last rows come from a pass over the file.
         None
     }
 }
 
 impl Reopen for ExrRows {
-    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
-        ExrRows::open(path, &ReadOptions::default(), channel)
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        ExrRows::open(path, opts, channel)
     }
 
-    fn last_rows(path: &Path, channel: Option<Channel>, rows: usize) -> Option<normalfit::Result<Vec<f32>>> {
-        Some(ExrRows::last_rows(path, &ReadOptions::default(), channel, rows))
+    fn last_rows(
+        path: &Path,
+        opts: &ReadOptions,
+        channel: Option<Channel>,
+        rows: usize,
+    ) -> Option<normalfit::Result<Vec<f32>>> {
+        Some(ExrRows::last_rows(path, opts, channel, rows))
     }
 }
