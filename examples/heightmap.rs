@@ -1,9 +1,11 @@
 //! Writes a 16-bit gray PNG height map of realistic detail, of any size,
-//! for benchmarks and tests:
+//! for benchmarks and tests; or, named `.exr`, the same heights as a float
+//! OpenEXR (channel Y, ZIP compression, scan lines):
 //!
 //! ```sh
 //! cargo run --release --example heightmap -- 4096 /tmp/h4096.png
 //! cargo run --release --example heightmap -- 32768 /tmp/h32768.png
+//! cargo run --release --example heightmap -- 8192 /tmp/h8192.exr
 //! ```
 //!
 //! The field is ridged fractal value noise (8 octaves, periodic, so the map
@@ -32,13 +34,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if size == 0 || size > 1 << 16 {
         return Err("SIZE must be 1 … 65536".into());
     }
+    let noise = Noise::new(size);
+    if path.ends_with(".exr") {
+        write_exr(&noise, size, path)?;
+        println!("wrote {path}: {size}×{size} float Y");
+        return Ok(());
+    }
     let file = BufWriter::with_capacity(1 << 20, File::create(path)?);
     let mut encoder = png::Encoder::new(file, size as u32, size as u32);
     encoder.set_color(png::ColorType::Grayscale);
     encoder.set_depth(png::BitDepth::Sixteen);
     encoder.set_compression(png::Compression::Fast);
     let mut writer = encoder.write_header()?.into_stream_writer()?;
-    let noise = Noise::new(size);
     let mut block = vec![0u8; BLOCK_ROWS * size * 2];
     for y0 in (0..size).step_by(BLOCK_ROWS) {
         let rows = BLOCK_ROWS.min(size - y0);
@@ -52,6 +59,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     writer.finish()?;
     println!("wrote {path}: {size}×{size} 16-bit gray");
+    Ok(())
+}
+
+/// The heights as a float EXR; `exr` asks for the pixels block by block,
+/// so the image is never held whole.
+fn write_exr(noise: &Noise, size: usize, path: &str) -> Result<(), Box<dyn std::error::Error>> {
+    use exr::prelude::*;
+    let channels = SpecificChannels::build()
+        .with_channel("Y")
+        .with_pixel_fn(|p: Vec2<usize>| (noise.height(p.x(), p.y()) as f32,));
+    let layer = Layer::new((size, size), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
+    Image::from_layer(layer).write().to_file(path)?;
     Ok(())
 }
 

@@ -12,7 +12,7 @@ use image::ImageEncoder;
 use normalfit::Error;
 use normalfit::io::{
     Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions, SampleType, decode, encode_exr,
-    encode_png_rgb8, encode_png_rgb16, read_path, write_atomically,
+    encode_png_gray8, encode_png_rgb8, encode_png_rgb16, read_path, write_atomically,
 };
 
 // ---------------------------------------------------------------------------
@@ -629,13 +629,13 @@ fn tiff_float_nan_and_inf_name_the_first_texel() {
 #[test]
 fn tiff_float_max_texels_is_the_limit() {
     let file = tiff_f32(4, 4, &[0.5; 16]);
-    let e = decode(&file, &ReadOptions { max_texels: 15 }).unwrap_err();
+    let e = decode(&file, &ReadOptions::default().with_max_texels(15)).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
-    assert_eq!(decode(&file, &ReadOptions { max_texels: 16 }).unwrap().heights(None).unwrap(), [0.5; 16]);
+    assert_eq!(decode(&file, &ReadOptions::default().with_max_texels(16)).unwrap().heights(None).unwrap(), [0.5; 16]);
     let file =
         tiff_gray::<tiff::encoder::colortype::Gray64Float>(4, 4, &[0.5; 16], tiff::encoder::Compression::Uncompressed);
-    assert!(matches!(decode(&file, &ReadOptions { max_texels: 15 }).unwrap_err(), Error::Limits(_)));
-    assert!(decode(&file, &ReadOptions { max_texels: 16 }).is_ok());
+    assert!(matches!(decode(&file, &ReadOptions::default().with_max_texels(15)).unwrap_err(), Error::Limits(_)));
+    assert!(decode(&file, &ReadOptions::default().with_max_texels(16)).is_ok());
 }
 
 #[test]
@@ -842,11 +842,11 @@ fn exr_header_claiming_huge_size_fails_on_limits() {
 #[test]
 fn max_texels_option_is_the_limit() {
     let png = PngSpec::new(4, 4, 0, 8).encode(|_, _| vec![1]);
-    let e = decode(&png, &ReadOptions { max_texels: 15 }).unwrap_err();
+    let e = decode(&png, &ReadOptions::default().with_max_texels(15)).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
-    assert!(decode(&png, &ReadOptions { max_texels: 16 }).is_ok());
+    assert!(decode(&png, &ReadOptions::default().with_max_texels(16)).is_ok());
     let exr = exr_bytes((4, 4), (0, 0), vec![f32_channel("Y", &[0.0; 16])]);
-    let e = decode(&exr, &ReadOptions { max_texels: 15 }).unwrap_err();
+    let e = decode(&exr, &ReadOptions::default().with_max_texels(15)).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
     assert_eq!(ReadOptions::default().max_texels, 1 << 30);
 }
@@ -890,6 +890,20 @@ fn png_rgb16_round_trip_keeps_byte_order() {
         let expected: Vec<u16> = texels.iter().map(|t| t[c]).collect();
         assert_eq!(back, expected, "{name}");
     }
+}
+
+#[test]
+fn png_gray8_round_trip() {
+    let texels: Vec<u8> = (0..12).map(|i| i * 21).collect();
+    let mut out = Vec::new();
+    encode_png_gray8(&texels, 4, 3, PngCompression::Best, &mut out).unwrap();
+    let r = read(&out);
+    assert_eq!((r.width, r.height, r.sample), (4, 3, SampleType::Int { bits: 8 }));
+    assert_eq!(r.planes.len(), 1, "one gray plane");
+    let expected: Vec<f32> = texels.iter().map(|&t| f32::from(t) / 255.0).collect();
+    assert_eq!(r.planes[0].data, expected);
+    let e = encode_png_gray8(&texels, 5, 3, PngCompression::Fast, Vec::new()).unwrap_err();
+    assert!(matches!(e, Error::BufferSize { expected: 15, actual: 12 }), "{e}");
 }
 
 #[test]

@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use image::{ExtendedColorType, ImageEncoder};
-use normalfit::io::stream::{PngDepth, PngRows, convert_png, convert_png_seekable};
-use normalfit::io::{Channel, ReadOptions, read_path};
+use normalfit::io::stream::{PngDepth, PngOutput, PngRows, RowSource, convert_png, convert_png_seekable};
+use normalfit::io::{Channel, PngCompression, ReadOptions, read_path};
 use normalfit::{Border, Borders, Options, Strength, normals_into};
 
 /// Heights with detail in both directions and no symmetry, as 16-bit.
@@ -179,4 +179,29 @@ fn data_ending_early_is_a_decode_error() {
     let mut out = Vec::new();
     let err = convert_png(rows, None, &opts, PngDepth::Eight, |_| {}, &mut out).unwrap_err();
     assert!(matches!(err, normalfit::Error::Decode(_)), "{err:?}");
+}
+
+#[test]
+fn chosen_filters_give_the_same_pixels_in_a_smaller_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (97, 410);
+    let path = dir.path().join("c.png");
+    let ne: Vec<u8> = field(w, h, 21).iter().flat_map(|x| x.to_ne_bytes()).collect();
+    write_png(&path, w, h, ExtendedColorType::L16, &ne);
+    let open = || PngRows::open(&path, &ReadOptions::default(), None).unwrap().expect("streamable");
+    for depth in [PngDepth::Eight, PngDepth::Sixteen] {
+        for y in [Border::Wrap, Border::Clamp] {
+            let opts = Options::new().with_borders(Borders { x: Border::Wrap, y }).with_strength(Strength::Scale(40.0));
+            let encode = |compression| {
+                let mut out = std::io::Cursor::new(Vec::new());
+                convert_png_seekable(open(), &opts, PngOutput { depth, compression }, |_| {}, &mut out).unwrap();
+                out.into_inner()
+            };
+            let (fast, small) = (encode(PngCompression::Fast), encode(PngCompression::Default));
+            let whole = whole(&path, None, &opts, depth);
+            assert!(strict_decode(&small) == whole, "{depth:?} {y:?}");
+            assert!(strict_decode(&fast) == whole, "{depth:?} {y:?}");
+            assert!(small.len() < fast.len(), "{depth:?} {y:?}: {} ≥ {}", small.len(), fast.len());
+        }
+    }
 }

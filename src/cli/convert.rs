@@ -5,14 +5,16 @@ use std::collections::HashSet;
 use std::io::{Cursor, Seek, Write};
 use std::path::{Path, PathBuf};
 
-use normalfit::io::stream::{self, PngDepth, PngRows};
+use normalfit::io::stream::{self, ExrRows, PngDepth, PngOutput, PngRows, RowSource};
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, ReadOptions, SampleType};
 use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
-use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
+use normalfit::{Border, Borders, Options, normals_into};
 
-use super::args::{AxisBorder, BorderArg, ConventionArg, ConvertArgs, FitArg, FormatArg};
-use super::input::{Input, InputIds, read_input};
-use super::report::{Failure, warn};
+use super::args::{AxisBorder, BorderArg, CompressionArg, ConvertArgs, FormatArg};
+use super::fitting;
+use super::input::{Input, InputIds, read_input, stdin_at_most_once};
+use super::output::{self, Destination};
+use super::report::Failure;
 use super::tiling::channel_of;
 
 /// What `convert` does with every input, decided once from the arguments.
@@ -24,19 +26,10 @@ struct Plan {
     bits: Option<u8>,
     format: Option<FormatArg>,
     signed: bool,
+    compression: PngCompression,
     destination: Destination,
-}
-
-/// Where outputs go.
-enum Destination {
-    /// `<stem>_normal.<ext>` beside each input (standard output for `-`).
-    BesideInputs,
-    /// This exact file (one input only).
-    File(PathBuf),
-    /// `<dir>/<stem>_normal.<ext>`.
-    Folder(PathBuf),
-    /// Standard output (one input only).
-    Stdout,
+    /// The size limit and the EXR layer, for every read.
+    read: ReadOptions,
 }
 
 /// Converts every input; returns the failures (already reported).
@@ -57,74 +50,41 @@ pub fn run(args: ConvertArgs) -> Result<usize, Failure> {
 
 impl Plan {
     fn from_args(args: &ConvertArgs) -> Result<Plan, Failure> {
-        let strength = match args.relief {
-            Some(f) => Strength::Relief(f),
-            None => Strength::Scale(args.scale),
-        };
-        let fit = Options::new()
-            .with_patch(args.patch)
-            .with_fit(match args.fit {
-                FitArg::Orthogonal => Fit::Orthogonal,
-                FitArg::Vertical => Fit::Vertical,
-            })
-            .with_convention(match args.convention {
-                ConventionArg::Opengl => Convention::OpenGl,
-                ConventionArg::Directx => Convention::DirectX,
-            })
-            .with_strength(strength)
-            .with_invert(args.invert);
-        fit.validate().map_err(|e| Failure::usage(e.to_string()))?;
-
-        let many = args.inputs.len() > 1;
-        let stdin_count = args.inputs.iter().filter(|p| p.as_os_str() == "-").count();
-        if stdin_count > 1 {
-            return Err(Failure::usage("standard input ('-') can be read only once"));
-        }
-        let destination = match &args.output {
-            None => Destination::BesideInputs,
-            Some(o) if o.as_os_str() == "-" => {
-                if many {
-                    return Err(Failure::usage("'-o -' takes one input: many images cannot share standard output"));
-                }
-                Destination::Stdout
-            }
-            // A trailing slash says "folder" even before the folder exists.
-            Some(o) if many || o.is_dir() || o.to_string_lossy().ends_with(std::path::is_separator) => {
-                Destination::Folder(o.clone())
-            }
-            Some(o) => Destination::File(o.clone()),
-        };
-        if let Destination::Folder(dir) = &destination {
-            if dir.exists() && !dir.is_dir() {
-                return Err(Failure::file(dir, "is not a folder: with many inputs, -o names the output folder"));
-            }
-            std::fs::create_dir_all(dir)
-                .map_err(|e| Failure::file(dir, format!("cannot create the output folder: {}", e)))?;
-        }
+        let fit = fitting::options(&args.fit)?;
+        stdin_at_most_once(&args.inputs)?;
+        let destination = Destination::new(args.output.as_deref(), &args.inputs)?;
         Ok(Plan {
             fit,
-            border: args.border,
+            border: args.fit.border,
             channel: args.channel.map(channel_of),
             bits: args.bits,
             format: args.format,
             signed: args.signed,
+            compression: match args.compression {
+                CompressionArg::Fast => PngCompression::Fast,
+                CompressionArg::Small => PngCompression::Default,
+            },
             destination,
+            read: args.read.options(),
         })
     }
 
     fn convert_one(&self, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
         if let Input::File(path) = input {
-            let rows = PngRows::open(path, &ReadOptions::default(), self.channel);
-            if let Some(rows) = rows.map_err(|e| Failure::file(path, e))? {
+            let in_failure = |e: normalfit::Error| Failure::file(path, e);
+            if let Some(rows) = PngRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
                 let sample = SampleType::Int { bits: if rows.more_than_8_bits() { 16 } else { 8 } };
                 let target = self.target(input, InputFormat::Png, sample)?;
-                if let Some(depth) = target.png_depth() {
-                    self.claim(&target, ids, written)?;
-                    return self.convert_streaming(path, rows, &target, depth);
-                }
+                self.claim(&target, ids, written)?;
+                return self.convert_streaming(path, rows, &target);
+            }
+            if let Some(rows) = ExrRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
+                let target = self.target(input, InputFormat::Exr, SampleType::Float)?;
+                self.claim(&target, ids, written)?;
+                return self.convert_streaming(path, rows, &target);
             }
         }
-        let raster = read_input(input, &ReadOptions::default())?;
+        let raster = read_input(input, &self.read)?;
         let target = self.target(input, raster.format.clone(), raster.sample)?;
         self.claim(&target, ids, written)?;
         let (width, height) = (raster.width, raster.height);
@@ -138,15 +98,18 @@ impl Plan {
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
         let output = target.path.as_deref().unwrap_or(Path::new("<standard output>"));
         check_encode_memory(&target, width, height).map_err(|e| Failure::file(output, e))?;
+        let compression = self.compression;
         match &target.path {
             // Into the file itself, which seeks as EXR needs: no copy of the
             // encoded image in memory.
-            Some(path) => io::write_file_atomically(path, |file| encode(&heights, width, height, &fit, &target, file))
-                .map_err(|e| Failure::file(path, e)),
+            Some(path) => io::write_file_atomically(path, |file| {
+                encode(&heights, width, height, &fit, &target, compression, file)
+            })
+            .map_err(|e| Failure::file(path, e)),
             None => {
                 // EXR needs to seek while writing, so the bytes are assembled first.
                 let mut bytes = InMemory::default();
-                encode(&heights, width, height, &fit, &target, &mut bytes)
+                encode(&heights, width, height, &fit, &target, compression, &mut bytes)
                     .map_err(|e| Failure::file("<standard output>", e))?;
                 let bytes = bytes.0;
                 let mut stdout = std::io::stdout().lock();
@@ -158,27 +121,34 @@ impl Plan {
         }
     }
 
-    /// PNG to PNG without holding the image: rows stream from the decoder
-    /// through the fit to the encoder, in one pass into a file. A first
-    /// pass over the input is made only for `--border auto` (the borders
-    /// depend on the tiling check) and for a wrap in y into standard output
-    /// (which cannot take the top rows last).
-    fn convert_streaming(&self, path: &Path, rows: PngRows, target: &Target, depth: PngDepth) -> Result<(), Failure> {
+    /// A PNG or scan-line EXR input, converted without holding the image:
+    /// rows stream from the decoder through the fit to the encoder. One
+    /// pass over the input, but for a wrap in y into an output written in
+    /// order (EXR, or PNG into a pipe), which needs the image's last rows
+    /// first: an EXR gives them from its last blocks, a PNG by a first
+    /// pass; and for `--border auto`, whose borders depend on the tiling
+    /// check, which then comes from a first pass too.
+    fn convert_streaming<S: Reopen>(&self, path: &Path, rows: S, target: &Target) -> Result<(), Failure> {
         let input = Input::File(path.to_path_buf());
         let in_failure = |e: normalfit::Error| Failure::file(path, e);
-        let (width, height) = (rows.width(), rows.height());
+        let (width, height, r) = (rows.width(), rows.height(), self.fit.patch / 2);
         let auto = self.border.x == AxisBorder::Auto || self.border.y == AxisBorder::Auto;
         let may_wrap_y = matches!(self.border.y, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
+        // A PNG file takes its top rows last, in room kept after the header.
+        let png_file = target.path.is_some() && target.png_depth().is_some();
+        let needs_tail = may_wrap_y && !png_file;
         let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let first_pass = auto || (target.path.is_none() && may_wrap_y);
-        let (report, tail) = if first_pass {
-            let first = PngRows::open(path, &ReadOptions::default(), self.channel).map_err(in_failure)?;
-            let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
-            let mut seams = HeightSeams::new(width, height);
-            let tail = first.read_tail(self.fit.patch / 2, |row| seams.push_row(row)).map_err(in_failure)?;
-            (Some(seams.finish(&check_opts)), Some(tail))
-        } else {
-            (None, None)
+        let cheap_tail = if needs_tail && !auto { S::last_rows(path, &self.read, self.channel, r) } else { None };
+        let (report, tail) = match cheap_tail {
+            Some(tail) => (None, Some(tail.map_err(in_failure)?)),
+            None if auto || needs_tail => {
+                let first = S::reopen(path, &self.read, self.channel).map_err(in_failure)?;
+                let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
+                let mut seams = HeightSeams::new(width, height);
+                let tail = first.read_tail(r, |row| seams.push_row(row)).map_err(in_failure)?;
+                (Some(seams.finish(&check_opts)), Some(tail))
+            }
+            None => (None, None),
         };
         // Without a first pass, the check runs on the rows as they stream
         // and the warning comes after the output.
@@ -186,6 +156,7 @@ impl Plan {
             self.warn_seams(report, &input);
         }
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
+        let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
         let mut seams = (report.is_none() && self.needs_check()).then(|| HeightSeams::new(width, height));
         let visit = |row: &[f32]| {
             if let Some(s) = seams.as_mut() {
@@ -199,18 +170,32 @@ impl Plan {
                 failed_input = Some(e.to_string());
             }
         };
-        let result = match &target.path {
-            Some(out) => io::write_file_atomically(out, |file| {
-                stream::convert_png_seekable(rows, &fit, depth, visit, file).inspect_err(&mut on_input)
+        let stdout_name = "<standard output>";
+        let result = match (&target.path, target.encoding) {
+            (Some(out), Encoding::Exr(depth)) => io::write_file_atomically(out, |file| {
+                stream::convert_exr(rows, tail, &fit, depth, target.signed, visit, file).inspect_err(&mut on_input)
             })
             .map_err(|e| Failure::file(out, e)),
-            None => {
-                let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
+            (None, Encoding::Exr(depth)) => {
+                // EXR seeks back to its offset table: the file is assembled first.
+                let mut bytes = InMemory::default();
+                stream::convert_exr(rows, tail, &fit, depth, target.signed, visit, &mut bytes)
+                    .inspect_err(&mut on_input)
+                    .and_then(|()| write_stdout(bytes.0.get_ref()))
+                    .map_err(|e| Failure::file(stdout_name, e))
+            }
+            (Some(out), Encoding::Png8 | Encoding::Png16) => io::write_file_atomically(out, |file| {
+                let png = self.png_output(target).expect("a png encoding");
+                stream::convert_png_seekable(rows, &fit, png, visit, file).inspect_err(&mut on_input)
+            })
+            .map_err(|e| Failure::file(out, e)),
+            (None, Encoding::Png8 | Encoding::Png16) => {
+                let png = self.png_output(target).expect("a png encoding");
                 let mut stdout = std::io::stdout().lock();
-                stream::convert_png(rows, tail, &fit, depth, visit, &mut stdout)
+                stream::convert_png(rows, tail, &fit, png, visit, &mut stdout)
                     .inspect_err(&mut on_input)
                     .and_then(|()| Ok(stdout.flush()?))
-                    .map_err(|e| Failure::file("<standard output>", e))
+                    .map_err(|e| Failure::file(stdout_name, e))
             }
         };
         if let Some(problem) = failed_input {
@@ -223,59 +208,33 @@ impl Plan {
         result
     }
 
+    /// The streamed PNG's settings, for a PNG target.
+    fn png_output(&self, target: &Target) -> Option<PngOutput> {
+        target.png_depth().map(|depth| PngOutput { depth, compression: self.compression })
+    }
+
     /// Refuses an output that is an input, or that an earlier input of this
     /// run already wrote.
     fn claim(&self, target: &Target, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
-        if let Some(path) = &target.path {
-            ids.refuse_overwrite(path)?;
-            let key = std::path::absolute(path).unwrap_or_else(|_| path.clone());
-            if !written.insert(key) {
-                return Err(Failure::file(
-                    path,
-                    "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders",
-                ));
-            }
+        match &target.path {
+            Some(path) => output::claim(path, ids, written),
+            None => Ok(()),
         }
-        Ok(())
     }
 
-    /// Whether the borders asked for need the tiling check: a wrap (to warn
-    /// when it draws a seam) or `auto`.
+    /// Whether the borders asked for need the tiling check.
     fn needs_check(&self) -> bool {
-        let check = |a: AxisBorder| matches!(a, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
-        check(self.border.x) || check(self.border.y)
+        self.border.needs_check()
     }
 
-    /// The border modes for one image: `auto` becomes wrap where the image
-    /// tiles and mirror where it does not (`report`: the tiling check, made
-    /// when [`Self::needs_check`]; without it, `auto` is mirror).
+    /// The border modes for one image, `auto` settled by `report`.
     fn borders_for(&self, report: Option<&tiling::TilingReport>) -> Borders {
-        let suggested = report.map_or(Borders::both(Border::Mirror), |r| r.suggested_borders());
-        let resolve = |asked: AxisBorder, auto: Border| match asked {
-            AxisBorder::Fixed(b) => b,
-            AxisBorder::Auto => auto,
-        };
-        Borders { x: resolve(self.border.x, suggested.x), y: resolve(self.border.y, suggested.y) }
+        self.border.resolve(report)
     }
 
-    /// A wrap asked for on an axis that does not tile draws a seam: one
-    /// warning line names the axes.
+    /// Warns about a wrap on an axis that does not tile.
     fn warn_seams(&self, report: &tiling::TilingReport, input: &Input) {
-        let wrap = AxisBorder::Fixed(Border::Wrap);
-        let seams: Vec<String> = [("x", self.border.x, report.x), ("y", self.border.y, report.y)]
-            .iter()
-            .filter(|(_, asked, axis)| *asked == wrap && !axis.seamless)
-            .map(|(name, _, axis)| format!("{name} (seam score {:.2})", axis.score))
-            .collect();
-        if !seams.is_empty() {
-            warn(
-                input.name().display(),
-                format!(
-                    "does not tile along {}: wrap borders will show a seam there; use --border clamp or mirror, or --border auto",
-                    seams.join(" and ")
-                ),
-            );
-        }
+        self.border.warn_seams(report, input);
     }
 
     /// The output's path (None: standard output), format and depth.
@@ -308,16 +267,7 @@ impl Plan {
             FormatArg::Png => "png",
             FormatArg::Exr => "exr",
         };
-        let beside = |dir: &Path| dir.join(format!("{}_normal.{ext}", input.stem()));
-        let path = match &self.destination {
-            Destination::Stdout => None,
-            Destination::BesideInputs => match input {
-                Input::Stdin => None,
-                Input::File(p) => Some(beside(p.parent().unwrap_or(Path::new("")))),
-            },
-            Destination::File(p) => Some(p.clone()),
-            Destination::Folder(dir) => Some(beside(dir)),
-        };
+        let path = self.destination.path_for(input, &format!("{}_normal.{ext}", input.stem()));
         let name = path.as_deref().unwrap_or(Path::new("<standard output>"));
         let encoding = match (format, self.bits) {
             (FormatArg::Png, None) => {
@@ -377,9 +327,9 @@ fn encode<W: Write + Seek>(
     h: usize,
     opts: &Options,
     target: &Target,
+    compression: PngCompression,
     out: &mut W,
 ) -> normalfit::Result<()> {
-    let compression = PngCompression::default();
     match target.encoding {
         Encoding::Png8 => {
             let mut texels = texel_buffer::<[u8; 3]>(heights.len())?;
@@ -475,5 +425,55 @@ fn format_of_extension(path: &Path) -> Result<Option<FormatArg>, Failure> {
         "png" => Ok(Some(FormatArg::Png)),
         "exr" => Ok(Some(FormatArg::Exr)),
         other => Err(Failure::file(path, format!("cannot write .{other} files: name the output .png or .exr"))),
+    }
+}
+
+/// Writes `bytes` to standard output and flushes it.
+fn write_stdout(bytes: &[u8]) -> normalfit::Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    stdout.write_all(bytes)?;
+    stdout.flush()?;
+    Ok(())
+}
+
+/// An input format whose rows stream, opened by path.
+trait Reopen: RowSource + Sized {
+    /// Opens `path` if it is this format and can stream (`Ok(None)`: read
+    /// it whole).
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>>;
+
+    /// The image's last `rows` rows, if the format can give them without
+    /// reading the whole file (`None`: it cannot).
+    fn last_rows(
+        path: &Path,
+        opts: &ReadOptions,
+        channel: Option<Channel>,
+        rows: usize,
+    ) -> Option<normalfit::Result<Vec<f32>>>;
+}
+
+impl Reopen for PngRows {
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        PngRows::open(path, opts, channel)
+    }
+
+    fn last_rows(_: &Path, _: &ReadOptions, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f32>>> {
+        // PNG cannot seek: its last rows come from a pass over the file.
+        None
+    }
+}
+
+impl Reopen for ExrRows {
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        ExrRows::open(path, opts, channel)
+    }
+
+    fn last_rows(
+        path: &Path,
+        opts: &ReadOptions,
+        channel: Option<Channel>,
+        rows: usize,
+    ) -> Option<normalfit::Result<Vec<f32>>> {
+        Some(ExrRows::last_rows(path, opts, channel, rows))
     }
 }

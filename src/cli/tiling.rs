@@ -22,6 +22,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
         opts.threshold = t;
     }
     let channel = args.channel.map(channel_of);
+    let read = args.read.options();
     let many = args.inputs.len() > 1;
     let previews = Previews {
         plain: args.preview.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,
@@ -31,7 +32,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
     let (mut errors, mut seams) = (0, 0);
     for path in &args.inputs {
         let input = Input::from_arg(path);
-        let checked = check_one(&input, args.kind, channel, &opts).and_then(|(raster, report)| {
+        let checked = check_one(&input, &read, args.kind, channel, &opts).and_then(|(raster, report)| {
             previews.write(&input, &raster, &report, channel)?;
             Ok((raster, report))
         });
@@ -72,11 +73,12 @@ pub fn channel_of(c: ChannelArg) -> Channel {
 /// Reads one image and checks it.
 fn check_one(
     input: &Input,
+    read: &ReadOptions,
     kind: KindArg,
     channel: Option<Channel>,
     opts: &TilingOptions,
 ) -> Result<(Raster, TilingReport), Failure> {
-    let raster = read_input(input, &ReadOptions::default())?;
+    let raster = read_input(input, read)?;
     let report = report_of(&raster, kind, channel, opts).map_err(|e| Failure::file(input.name(), e))?;
     Ok((raster, report))
 }
@@ -155,7 +157,8 @@ impl Previews {
     }
 }
 
-fn rgb_planes(raster: &Raster) -> Option<[&[f32]; 3]> {
+/// The R, G and B planes, when the image has all three.
+pub fn rgb_planes(raster: &Raster) -> Option<[&[f32]; 3]> {
     match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
         (Some(r), Some(g), Some(b)) => Some([&r.data, &g.data, &b.data]),
         _ => None,
@@ -188,15 +191,7 @@ pub fn report_of(
 ) -> normalfit::Result<TilingReport> {
     let (w, h) = (raster.width, raster.height);
     let rgb = rgb_planes(raster);
-    let kind = match (kind, rgb) {
-        (KindArg::Height, _) => ImageKind::Height,
-        (KindArg::Normal, Some(_)) => ImageKind::Normal,
-        (KindArg::Normal, None) => {
-            return Err(normalfit::Error::Unsupported("a normal map needs R, G and B channels".into()));
-        }
-        (KindArg::Auto, Some(planes)) if channel.is_none() => ImageKind::detect(&planes, w, h),
-        (KindArg::Auto, _) => ImageKind::Height,
-    };
+    let kind = kind_of(raster, kind, channel)?;
     let fixed = TilingOptions { kind: kind_choice(kind), ..*opts };
     Ok(match (kind, rgb) {
         (ImageKind::Normal, Some(planes)) => tiling::check(&planes, w, h, &fixed),
@@ -204,6 +199,20 @@ pub fn report_of(
             let heights = raster.heights(channel)?;
             tiling::check(&[&heights], w, h, &fixed)
         }
+    })
+}
+
+/// What a decoded image holds: as asked, or detected from its R, G, B
+/// planes. Naming a height channel (`channel`) says it is a height map.
+pub fn kind_of(raster: &Raster, kind: KindArg, channel: Option<Channel>) -> normalfit::Result<ImageKind> {
+    Ok(match (kind, rgb_planes(raster)) {
+        (KindArg::Height, _) => ImageKind::Height,
+        (KindArg::Normal, Some(_)) => ImageKind::Normal,
+        (KindArg::Normal, None) => {
+            return Err(normalfit::Error::Unsupported("a normal map needs R, G and B channels".into()));
+        }
+        (KindArg::Auto, Some(planes)) if channel.is_none() => ImageKind::detect(&planes, raster.width, raster.height),
+        (KindArg::Auto, _) => ImageKind::Height,
     })
 }
 

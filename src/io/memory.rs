@@ -106,28 +106,20 @@ mod limits {
     }
 }
 
-/// The bytes the `exr` crate holds for a whole-image read of the largest
-/// layer of `bytes` (every channel at full resolution, as stored), plus
-/// one converted `f32` plane for half or u32 channels; 0 when the header
-/// does not parse (the read reports that).
-pub(crate) fn exr_decode_bytes(bytes: &[u8]) -> u64 {
-    let Ok(meta) = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false) else { return 0 };
-    meta.headers
+/// The bytes the `exr` crate holds for a whole-image read of the part
+/// `header` describes (every channel at full resolution, as stored), plus
+/// one converted `f32` plane for half or u32 channels.
+pub(crate) fn exr_decode_bytes(header: &exr::meta::header::Header) -> u64 {
+    let texels = (header.layer_size.0 as u64).saturating_mul(header.layer_size.1 as u64);
+    let stored: u64 = header
+        .channels
+        .list
         .iter()
-        .map(|header| {
-            let texels = (header.layer_size.0 as u64).saturating_mul(header.layer_size.1 as u64);
-            let stored: u64 = header
-                .channels
-                .list
-                .iter()
-                .map(|c| texels.saturating_mul(c.sample_type.bytes_per_sample() as u64))
-                .fold(0, u64::saturating_add);
-            let all_f32 = header.channels.list.iter().all(|c| c.sample_type == SampleType::F32);
-            let converted = if all_f32 { 0 } else { texels.saturating_mul(4) };
-            stored.saturating_add(converted)
-        })
-        .max()
-        .unwrap_or(0)
+        .map(|c| texels.saturating_mul(c.sample_type.bytes_per_sample() as u64))
+        .fold(0, u64::saturating_add);
+    let all_f32 = header.channels.list.iter().all(|c| c.sample_type == SampleType::F32);
+    let converted = if all_f32 { 0 } else { texels.saturating_mul(4) };
+    stored.saturating_add(converted)
 }
 
 #[cfg(test)]

@@ -4,8 +4,8 @@
 //! in the contract's height units (SPEC §1) and picks the height channel;
 //! [`write`](mod@write) encodes normal maps (SPEC §3) and puts files in place
 //! atomically (SPEC §4). Neither knows about the fit, and the fit knows
-//! nothing of files. [`stream`] joins them for PNG files, streaming rows
-//! from decoder to encoder.
+//! nothing of files. [`stream`] joins them for PNG and scan-line EXR
+//! files, streaming rows from decoder to encoder.
 
 mod atomic;
 mod memory;
@@ -16,5 +16,6 @@ pub mod write;
 pub use memory::check_memory;
 pub use read::{Channel, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
 pub use write::{
-    ExrDepth, PngCompression, encode_exr, encode_png_rgb8, encode_png_rgb16, write_atomically, write_file_atomically,
+    ExrDepth, PngCompression, encode_exr, encode_png_gray8, encode_png_rgb8, encode_png_rgb16, write_atomically,
+    write_file_atomically,
 };

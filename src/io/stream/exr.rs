@@ -1,0 +1,276 @@
+//! Scan-line OpenEXR rows in ([`ExrRows`]), and an OpenEXR normal map
+//! written band by band ([`convert_exr`]).
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufReader, Seek, SeekFrom, Write};
+use std::ops::Range;
+use std::path::Path;
+
+use exr::block::UncompressedBlock;
+use exr::block::reader::ChunksReader;
+use exr::meta::BlockDescription;
+use exr::meta::attribute::{ChannelList, SampleType as ExrSample};
+use exr::prelude::{Vec2, f16};
+
+use super::{RowSource, Stages, checked_tail, run};
+use crate::error::{Error, Result};
+use crate::fit::BandFit;
+use crate::io::read::{
+    Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer, from_exr_error, luma,
+    select_channel,
+};
+use crate::io::write::{ExrDepth, write_exr_rows};
+use crate::options::Options;
+
+/// The decompressed blocks of a file, in the order they finish.
+type Blocks = Box<dyn Iterator<Item = exr::error::Result<UncompressedBlock>> + Send>;
+
+/// The rows of a scan-line OpenEXR file, top to bottom, as heights.
+///
+/// Blocks (1 to 32 rows, by compression) are decompressed on a few
+/// threads ahead of the rows asked for; a block that arrives before its
+/// turn waits. Files written top to bottom (line order "increasing", what
+/// writers use) then hold a few blocks in memory, whatever their height.
+pub struct ExrRows {
+    blocks: Blocks,
+    channels: ChannelList,
+    source: Source,
+    width: usize,
+    height: usize,
+    lines_per_block: usize,
+    /// Blocks that arrived before their turn, by first row.
+    early: BTreeMap<usize, UncompressedBlock>,
+    /// The heights of the block being handed out, from row `current_y0`.
+    current: Vec<f32>,
+    current_y0: usize,
+    /// The next row handed out.
+    next: usize,
+}
+
+impl ExrRows {
+    /// Opens `path` for streaming if it is an OpenEXR file that can stream:
+    /// one part of scan lines, one resolution level, no subsampled or deep
+    /// channels. `Ok(None)` otherwise (not EXR, tiled, several parts, …),
+    /// and the caller reads the image whole. Reads only the header.
+    /// `opts.layer` may pick a group of the part's channels
+    /// ([`ReadOptions::layer`]).
+    ///
+    /// Errors: [`Error::Io`] if the file cannot be opened, [`Error::Decode`]
+    /// for a corrupt header (an inverted window among them),
+    /// [`Error::Limits`] for a size above `opts.max_texels`,
+    /// [`Error::Unsupported`] for a missing channel or layer.
+    pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<ExrRows>> {
+        Self::open_from(path, opts, channel, 0)
+    }
+
+    /// The last `rows` rows of `path` (fewer if the image is shorter),
+    /// decoding only the blocks that hold them: the tail a wrap in y needs
+    /// for the top rows ([`convert_exr`], [`convert_png`](super::convert_png)).
+    ///
+    /// Errors: as [`ExrRows::open`], and [`Error::Unsupported`] if the file
+    /// cannot stream.
+    pub fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Result<Vec<f32>> {
+        let probe = Self::open(path, opts, channel)?.ok_or_else(not_streamable)?;
+        let (w, h) = (probe.width, probe.height);
+        drop(probe);
+        let keep = rows.min(h);
+        let mut source = Self::open_from(path, opts, channel, h - keep)?.ok_or_else(not_streamable)?;
+        let mut tail = vec![0.0f32; keep * w];
+        tail.chunks_exact_mut(w.max(1)).try_for_each(|row| source.next_row(row))?;
+        Ok(tail)
+    }
+
+    /// Opens the file to hand out rows from `first_row` on; only the blocks
+    /// that hold them are read.
+    fn open_from(
+        path: &Path,
+        opts: &ReadOptions,
+        channel: Option<Channel>,
+        first_row: usize,
+    ) -> Result<Option<ExrRows>> {
+        let file = File::open(path)?;
+        let file_len = file.metadata()?.len();
+        let mut file = BufReader::with_capacity(1 << 16, file);
+        if !std::io::BufRead::fill_buf(&mut file)?.starts_with(&EXR_MAGIC) {
+            return Ok(None);
+        }
+        check_exr_windows(&mut file)?;
+        file.seek(SeekFrom::Start(0))?;
+        let reader = exr::block::read(file, false).map_err(from_exr_error)?;
+        check_exr_meta(reader.meta_data(), file_len, opts)?;
+        let layer = choose_exr_layer(reader.headers(), opts.layer.as_deref())?;
+        let [header] = reader.headers() else { return Ok(None) };
+        let flat = header.channels.list.iter().all(|c| c.sampling == Vec2(1, 1));
+        if header.deep || header.blocks != BlockDescription::ScanLines || !flat {
+            return Ok(None);
+        }
+        // The channel rule runs on the layer's channels; `source` indexes
+        // the part's whole channel list.
+        let (indices, names): (Vec<usize>, Vec<String>) = (header.channels.list.iter().enumerate())
+            .map(|(i, c)| (i, c.name.to_string()))
+            .filter(|(_, name)| layer.holds(name))
+            .unzip();
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        let source = match select_channel(&names, channel)? {
+            Source::Plane(i) => Source::Plane(indices[i]),
+            Source::Luma(rgb) => Source::Luma(rgb.map(|i| indices[i])),
+        };
+        let (width, height) = (header.layer_size.0, header.layer_size.1);
+        let channels = header.channels.clone();
+        let lines_per_block = header.compression.scan_lines_per_block();
+        let first_block = first_row - first_row % lines_per_block;
+
+        let chunks = reader
+            .filter_chunks(false, |_, _, block| block.pixel_position.y() + block.pixel_size.y() > first_block)
+            .map_err(from_exr_error)?;
+        let blocks: Blocks = match chunks.parallel_decompressor(false) {
+            Ok(parallel) => Box::new(parallel),
+            Err(chunks) => Box::new(chunks.sequential_decompressor(false)),
+        };
+        Ok(Some(ExrRows {
+            blocks,
+            channels,
+            source,
+            width,
+            height,
+            lines_per_block,
+            early: BTreeMap::new(),
+            current: Vec::new(),
+            current_y0: first_block,
+            next: first_row,
+        }))
+    }
+
+    /// Makes the block that starts at row `y0` the current one.
+    fn load_block(&mut self, y0: usize) -> Result<()> {
+        let block = loop {
+            if let Some(block) = self.early.remove(&y0) {
+                break block;
+            }
+            let block = match self.blocks.next() {
+                Some(block) => block.map_err(from_exr_error)?,
+                None => {
+                    return Err(Error::Decode(format!("image data ends after {y0} of {} rows", self.height)));
+                }
+            };
+            let at = block.index.pixel_position.y();
+            if at == y0 {
+                break block;
+            }
+            if at < y0 || at % self.lines_per_block != 0 || self.early.insert(at, block).is_some() {
+                return Err(Error::Decode(format!("block for row {at} is misplaced or repeated")));
+            }
+        };
+        let rows = self.lines_per_block.min(self.height - y0);
+        let index = block.index;
+        if index.pixel_position.x() != 0 || index.pixel_size != Vec2(self.width, rows) || index.level != Vec2(0, 0) {
+            return Err(Error::Decode(format!("block for row {y0} has the wrong size")));
+        }
+        self.fill(&block, y0, rows)
+    }
+
+    /// Turns a block into the heights of its rows.
+    fn fill(&mut self, block: &UncompressedBlock, y0: usize, rows: usize) -> Result<()> {
+        let w = self.width;
+        let wanted: Vec<usize> = match self.source {
+            Source::Plane(c) => vec![c],
+            Source::Luma(rgb) => rgb.to_vec(),
+        };
+        let mut planes = vec![vec![0.0f32; rows * w]; wanted.len()];
+        for line in block.lines(&self.channels) {
+            let Some(k) = wanted.iter().position(|&c| c == line.location.channel) else { continue };
+            let row = line.location.position.y() - y0;
+            let out = &mut planes[k][row * w..][..w];
+            let read = match self.channels.list[line.location.channel].sample_type {
+                ExrSample::F32 => line.read_samples_into_slice(out),
+                ExrSample::F16 => {
+                    let mut halves = vec![f16::ZERO; w];
+                    line.read_samples_into_slice(&mut halves).map(|()| {
+                        out.iter_mut().zip(&halves).for_each(|(o, h)| *o = h.to_f32());
+                    })
+                }
+                ExrSample::U32 => {
+                    let mut ints = vec![0u32; w];
+                    // u32 → f32 rounds above 2^24, as the whole-image reader does.
+                    line.read_samples_into_slice(&mut ints).map(|()| {
+                        out.iter_mut().zip(&ints).for_each(|(o, &n)| *o = n as f32);
+                    })
+                }
+            };
+            read.map_err(from_exr_error)?;
+        }
+        self.current = match planes.as_slice() {
+            [r, g, b] => r.iter().zip(g).zip(b).map(|((&r, &g), &b)| luma(r, g, b)).collect(),
+            _ => planes.swap_remove(0),
+        };
+        self.current_y0 = y0;
+        Ok(())
+    }
+}
+
+impl RowSource for ExrRows {
+    fn width(&self) -> usize {
+        self.width
+    }
+
+    fn height(&self) -> usize {
+        self.height
+    }
+
+    fn next_row(&mut self, out: &mut [f32]) -> Result<()> {
+        let (w, y) = (self.width, self.next);
+        if y >= self.height {
+            return Err(Error::Decode(format!("all {} rows have been read", self.height)));
+        }
+        if out.len() != w {
+            return Err(Error::BufferSize { expected: w, actual: out.len() });
+        }
+        if y >= self.current_y0 + self.current.len() / w.max(1) || self.current.is_empty() {
+            self.load_block(y - y % self.lines_per_block)?;
+        }
+        out.copy_from_slice(&self.current[(y - self.current_y0) * w..][..w]);
+        self.next += 1;
+        Ok(())
+    }
+}
+
+fn not_streamable() -> Error {
+    Error::Unsupported("only scan-line EXR files of one layer can be read by rows".into())
+}
+
+/// Converts the rows of `rows` to an OpenEXR normal map (R, G, B channels,
+/// ZIP compression in blocks of 16 rows) written to `out`, band by band:
+/// the values are (n + 1)/2, or n itself with `signed`, as half or float.
+///
+/// EXR's offset table comes before the pixels and is filled in at the end,
+/// so `out` must seek. The rows are written in order, so `tail` (the
+/// image's last N/2 rows, [`ExrRows::last_rows`] or
+/// [`RowSource::read_tail`]) is needed when `opts` wraps in y. Every
+/// decoded row is also given to `visit`.
+///
+/// Errors: those of decoding, [`Error::InvalidOption`] for bad options or
+/// a wrap in y without `tail`, [`Error::Io`] if writing fails.
+pub fn convert_exr<W: Write + Seek>(
+    rows: impl RowSource,
+    tail: Option<&[f32]>,
+    opts: &Options,
+    depth: ExrDepth,
+    signed: bool,
+    visit: impl FnMut(&[f32]) + Send,
+    out: W,
+) -> Result<()> {
+    let (w, h) = (rows.width(), rows.height());
+    let tail = checked_tail(tail, w, h, opts)?;
+    let fit = BandFit::new(w, h, opts)?;
+    write_exr_rows(out, w, h, depth, |push| {
+        let prepare = |_: Range<usize>, mut normals: Vec<[f32; 3]>| {
+            if !signed {
+                normals.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
+            }
+            normals
+        };
+        let consume = |_: usize, texels: Vec<[f32; 3]>| push(&texels);
+        run(rows, &fit, tail, false, visit, Stages { prepare, consume })
+    })
+}

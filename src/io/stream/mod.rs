@@ -1,0 +1,261 @@
+//! Streaming conversion: rows go from the decoder through the fit to the
+//! encoder, so memory grows with the width and the patch size, not with
+//! the image's height.
+//!
+//! Inputs that stream: PNG that is not interlaced ([`PngRows`]) and
+//! scan-line OpenEXR ([`ExrRows`]). Outputs: PNG ([`convert_png`],
+//! [`convert_png_seekable`]) and OpenEXR ([`convert_exr`]). Other inputs
+//! (interlaced PNG, tiled or multi-layer EXR, TIFF, JPEG, …) are decoded
+//! whole by [`crate::io::read`].
+//!
+//! Three stages run at once: a thread decodes rows into bands of heights;
+//! a thread fits each band (its row tiles in parallel on rayon's pool) and
+//! prepares it for the encoder (PNG filtering, in parallel too); the
+//! caller's thread compresses and writes it. The pixels are the same, bit
+//! for bit, as decoding the whole image and calling
+//! [`normals_into`](crate::normals_into): the fit is cut into the same
+//! tiles either way ([`BandFit`]).
+//!
+//! A wrap across the top and bottom needs the image's last rows for the top
+//! N/2 output rows. Into a PNG file ([`convert_png_seekable`]), those rows
+//! are fitted last and written into room kept for them after the header,
+//! so the input is read once. Otherwise the caller hands the last rows in
+//! first: an EXR gives them cheaply ([`ExrRows::last_rows`] reads only the
+//! blocks that hold them, through the file's offset table); a PNG cannot
+//! seek, so [`RowSource::read_tail`] decodes it once more.
+
+mod exr;
+mod png;
+
+use std::ops::Range;
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+
+pub use self::exr::{ExrRows, convert_exr};
+pub use self::png::{PngDepth, PngOutput, PngRows, convert_png, convert_png_seekable};
+
+use crate::error::{Error, Result};
+use crate::fit::{BandFit, FromNormal, first_non_finite};
+use crate::options::{Border, Options};
+
+/// The rows of a height map, top to bottom, decoded as they are asked for.
+pub trait RowSource: Send {
+    /// Columns.
+    fn width(&self) -> usize;
+
+    /// Rows.
+    fn height(&self) -> usize;
+
+    /// Decodes the next row into `out` (`width` heights, in contract units).
+    ///
+    /// Errors: [`Error::Decode`] for corrupt or truncated data, or when all
+    /// rows have been read.
+    fn next_row(&mut self, out: &mut [f32]) -> Result<()>;
+
+    /// Reads every row, giving each to `visit`, and returns the last
+    /// `rows` rows (fewer if the image is shorter): the first pass of a
+    /// conversion that wraps across the top and bottom.
+    fn read_tail(mut self, rows: usize, mut visit: impl FnMut(&[f32])) -> Result<Vec<f32>>
+    where
+        Self: Sized,
+    {
+        let (w, h) = (self.width(), self.height());
+        let keep = rows.min(h);
+        let mut tail = vec![0.0f32; keep * w];
+        let mut row = vec![0.0f32; w];
+        for y in 0..h {
+            self.next_row(&mut row)?;
+            visit(&row);
+            if y + keep >= h {
+                tail[(y + keep - h) * w..][..w].copy_from_slice(&row);
+            }
+        }
+        Ok(tail)
+    }
+}
+
+/// `tail` if it is what a conversion with `opts` of a `w` × `h` image
+/// needs: the last N/2 rows when it wraps in y (where it is required).
+fn checked_tail<'a>(tail: Option<&'a [f32]>, w: usize, h: usize, opts: &Options) -> Result<Option<&'a [f32]>> {
+    let expected = (opts.patch / 2).min(h) * w;
+    match tail {
+        Some(t) if t.len() == expected => Ok(Some(t)),
+        Some(t) => Err(Error::BufferSize { expected, actual: t.len() }),
+        None if opts.borders.y == Border::Wrap => {
+            Err(Error::InvalidOption("a wrap in y needs the image's last rows from a first pass".into()))
+        }
+        None => Ok(None),
+    }
+}
+
+/// A band of rows between stages: its first row and its values (heights,
+/// or what the encoder takes).
+type Band<T> = Result<(usize, Vec<T>)>;
+
+/// What is done with each fitted band.
+struct Stages<Prepare, Consume> {
+    /// On the fit thread: turns the band's rows (range, texels) into what
+    /// the encoder takes.
+    prepare: Prepare,
+    /// On the caller's thread: encodes and writes a prepared band, given
+    /// with its first row.
+    consume: Consume,
+}
+
+/// Runs the three stages over every band of `fit`, top to bottom, or with
+/// `deferred` the top band last (when the image's last rows are in).
+/// `visit` sees every decoded row, in order.
+fn run<S, T, B, Prepare, Consume>(
+    mut rows: S,
+    fit: &BandFit,
+    tail: Option<&[f32]>,
+    deferred: bool,
+    mut visit: impl FnMut(&[f32]) + Send,
+    stages: Stages<Prepare, Consume>,
+) -> Result<()>
+where
+    S: RowSource,
+    T: FromNormal + Default,
+    B: Send,
+    Prepare: FnMut(Range<usize>, Vec<T>) -> Vec<B> + Send,
+    Consume: FnMut(usize, Vec<B>) -> Result<()>,
+{
+    let Stages { prepare, mut consume } = stages;
+    // Two bands in flight between stages keep every stage busy without
+    // holding more than a few bands.
+    let (heights_tx, heights_rx) = sync_channel::<Band<f32>>(2);
+    let (out_tx, out_rx) = sync_channel::<Band<B>>(2);
+    let band = fit.band_rows();
+    std::thread::scope(|scope| -> Result<()> {
+        scope.spawn(move || decode_stage(&mut rows, band, &heights_tx));
+        scope.spawn(move || fit_stage(fit, tail, deferred, &mut visit, prepare, heights_rx, &out_tx));
+        // Returning early drops the receiver, which stops the other stages.
+        for message in out_rx {
+            let (y0, values) = message?;
+            consume(y0, values)?;
+        }
+        Ok(())
+    })
+}
+
+/// Decodes bands of `band` rows and sends them on; stops at the first
+/// error (sent on) or when the receiver is gone. Decoding is the one stage
+/// that cannot be split, so it does nothing else.
+fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f32>>) {
+    let (w, h) = (rows.width(), rows.height());
+    for y0 in (0..h).step_by(band) {
+        let n = band.min(h - y0);
+        let mut heights = vec![0.0f32; n * w];
+        let result = heights.chunks_exact_mut(w).try_for_each(|row| rows.next_row(row));
+        let failed = result.is_err();
+        if tx.send(result.map(|()| (y0, heights))).is_err() || failed {
+            return;
+        }
+    }
+}
+
+/// The first NaN or infinite height in row order among the bands `rx`
+/// delivers, knowing that texel `known` of a later row is one: the error
+/// that names it (or the decoder's error, if one comes first).
+fn first_bad_texel(rx: Receiver<Band<f32>>, w: usize, known: (usize, usize)) -> Error {
+    for band in rx {
+        match band {
+            Ok((first, rows)) => {
+                if let Some((x, y)) = first_non_finite(&rows, w) {
+                    return Error::NonFiniteHeight { x, y: first + y };
+                }
+                if first + rows.len() / w > known.1 {
+                    break;
+                }
+            }
+            Err(e) => return e,
+        }
+    }
+    Error::NonFiniteHeight { x: known.0, y: known.1 }
+}
+
+/// Fits each band once the rows it reads are in, prepares it for the
+/// encoder and sends it on; gives every row that comes in to `visit`.
+/// `deferred`: the top band is fitted last, when the image's last rows are
+/// in.
+fn fit_stage<T: FromNormal + Default, B>(
+    fit: &BandFit,
+    tail: Option<&[f32]>,
+    deferred: bool,
+    visit: &mut dyn FnMut(&[f32]),
+    mut prepare: impl FnMut(Range<usize>, Vec<T>) -> Vec<B>,
+    rx: Receiver<Band<f32>>,
+    tx: &SyncSender<Band<B>>,
+) {
+    let (w, h, r) = (fit.width(), fit.height(), fit.radius());
+    if let Some(tail) = tail {
+        if let Some((x, y)) = first_non_finite(tail, w) {
+            // The top band reads these last rows first, through the wrap:
+            // fitting it would name this texel before the rows above are
+            // read. SPEC §1 names the first bad texel in row order, so the
+            // rows are read on and checked in order instead.
+            let _ = tx.send(Err(first_bad_texel(rx, w, (x, y + h - tail.len() / w))));
+            return;
+        }
+    }
+    // The decoded bands that later bands still read, as they came (first
+    // row, heights), and a copy of the image's first 2r rows, which the top
+    // band and a wrap at the bottom read after they have left.
+    let mut window: std::collections::VecDeque<(usize, Vec<f32>)> = std::collections::VecDeque::new();
+    let mut decoded = 0;
+    let head_rows = (2 * r).min(h);
+    let mut head: Vec<f32> = Vec::new();
+    let mut incoming = rx.into_iter();
+    let mut bands: Vec<_> = fit.bands().collect();
+    if deferred {
+        bands.rotate_left(1);
+    }
+    for rows in bands {
+        let (y0, y1) = (rows.start, rows.end);
+        let needed = if deferred && y0 == 0 { h } else { (y1 + r).min(h) };
+        while decoded < needed {
+            match incoming.next() {
+                Some(Ok((first, rows))) => {
+                    rows.chunks_exact(w).for_each(&mut *visit);
+                    let wanted = (head_rows * w).saturating_sub(head.len()).min(rows.len());
+                    head.extend_from_slice(&rows[..wanted]);
+                    decoded = first + rows.len() / w;
+                    window.push_back((first, rows));
+                }
+                Some(Err(e)) => {
+                    let _ = tx.send(Err(e));
+                    return;
+                }
+                None => {
+                    let _ = tx.send(Err(Error::Decode("image data ends early".into())));
+                    return;
+                }
+            }
+        }
+        let in_window = &window;
+        let row = |y: usize| -> &[f32] {
+            if let Some((first, rows)) =
+                in_window.iter().find(|(first, rows)| (*first..first + rows.len() / w).contains(&y))
+            {
+                &rows[(y - first) * w..][..w]
+            } else if y < head_rows {
+                &head[y * w..][..w]
+            } else {
+                // Only a wrap at the top, fitted first, reads below the window.
+                let t = tail.expect("a wrap in y comes with the tail");
+                &t[(y + r.min(h) - h) * w..][..w]
+            }
+        };
+        let mut normals = vec![T::default(); (y1 - y0) * w];
+        let result = fit.fit_band(rows.clone(), &row, &mut normals).map(|()| prepare(rows, normals));
+        let failed = result.is_err();
+        if tx.send(result.map(|values| (y0, values))).is_err() || failed {
+            return;
+        }
+        // The next band reads from r rows above its start (with the top
+        // band last, the last r rows stay for it): older bands can go.
+        let keep_from = y1.saturating_sub(r);
+        while window.front().is_some_and(|(first, rows)| first + rows.len() / w <= keep_from) {
+            window.pop_front();
+        }
+    }
+}
