@@ -5,8 +5,8 @@ use std::collections::HashSet;
 use std::io::{Cursor, Write};
 use std::path::{Path, PathBuf};
 
-use normalfit::io::stream::{self, ExrRows, PngDepth, PngRows, RowSource};
-use normalfit::io::{self, Channel, ExrDepth, InputFormat, PngCompression, ReadOptions, SampleType};
+use normalfit::io::stream::{self, ExrFormat, ExrRows, PngDepth, PngRows, RowSource};
+use normalfit::io::{self, Channel, ExrDepth, InputFormat, Layout, PngCompression, ReadOptions, SampleType};
 use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
 use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
 
@@ -205,26 +205,28 @@ impl Plan {
         let stdout_name = "<standard output>";
         let result = match (&target.path, target.encoding) {
             (Some(out), Encoding::Exr(depth)) => io::write_file_atomically(out, |file| {
-                stream::convert_exr(rows, tail, &fit, depth, target.signed, visit, file).inspect_err(&mut on_input)
+                let format = ExrFormat { depth, signed: target.signed, layout: Layout::Rgb };
+                stream::convert_exr(rows, tail, &fit, format, visit, file).inspect_err(&mut on_input)
             })
             .map_err(|e| Failure::file(out, e)),
             (None, Encoding::Exr(depth)) => {
                 // EXR seeks back to its offset table: the file is assembled first.
                 let mut bytes = Cursor::new(Vec::new());
-                stream::convert_exr(rows, tail, &fit, depth, target.signed, visit, &mut bytes)
+                let format = ExrFormat { depth, signed: target.signed, layout: Layout::Rgb };
+                stream::convert_exr(rows, tail, &fit, format, visit, &mut bytes)
                     .inspect_err(&mut on_input)
                     .and_then(|()| write_stdout(bytes.get_ref()))
                     .map_err(|e| Failure::file(stdout_name, e))
             }
             (Some(out), Encoding::Png8 | Encoding::Png16) => io::write_file_atomically(out, |file| {
                 let depth = target.png_depth().expect("a png encoding");
-                stream::convert_png_seekable(rows, &fit, depth, visit, file).inspect_err(&mut on_input)
+                stream::convert_png_seekable(rows, &fit, depth, Layout::Rgb, visit, file).inspect_err(&mut on_input)
             })
             .map_err(|e| Failure::file(out, e)),
             (None, Encoding::Png8 | Encoding::Png16) => {
                 let depth = target.png_depth().expect("a png encoding");
                 let mut stdout = std::io::stdout().lock();
-                stream::convert_png(rows, tail, &fit, depth, visit, &mut stdout)
+                stream::convert_png(rows, tail, &fit, depth, Layout::Rgb, visit, &mut stdout)
                     .inspect_err(&mut on_input)
                     .and_then(|()| Ok(stdout.flush()?))
                     .map_err(|e| Failure::file(stdout_name, e))
