@@ -2,8 +2,10 @@
 //! work is the library's.
 
 pub mod args;
+pub mod batch;
 pub mod convert;
 pub mod input;
+pub mod progress;
 pub mod report;
 pub mod tiling;
 
