@@ -1,6 +1,8 @@
-//! Generates the sample height maps in `samples/`, with their normal maps
-//! and lit views, so the README and the tests have pictures the project
-//! owns outright.
+//! Generates the sample height maps in `samples/`, with their normal maps,
+//! so the README and the tests have pictures the project owns outright; and
+//! the same maps at half size in `docs/gallery/`, from which the README's
+//! gallery is made by `normalfit convert` and `normalfit shade` (the
+//! commands are in the README).
 //!
 //! ```text
 //! cargo run --release --example make_samples
@@ -19,15 +21,19 @@ use std::path::Path;
 
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
-use normalfit::shade::{Light, shade};
-use normalfit::{Border, Borders, Convention, Options, Strength, normals, normals_into};
+use normalfit::{Border, Borders, Options, Strength, normals_into};
 
 /// Side of every sample, in texels.
 const SIZE: usize = 512;
 
+/// Side of the gallery's height maps: small pictures for the README.
+const GALLERY_SIZE: usize = SIZE / 2;
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let gallery = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs").join("gallery");
     std::fs::create_dir_all(&dir)?;
+    std::fs::create_dir_all(&gallery)?;
     let wrap = Options::default();
     let samples = [
         Sample {
@@ -51,19 +57,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let heights = quantize(&make());
         // The encoder takes 16-bit samples in native byte order.
         let bytes: Vec<u8> = heights.iter().flat_map(|v| v.to_ne_bytes()).collect();
-        write_png(&dir.join(format!("{name}.png")), &bytes, ExtendedColorType::L16)?;
+        write_png(&dir.join(format!("{name}.png")), &bytes, SIZE, ExtendedColorType::L16)?;
 
         // The normals are made from the 16-bit values just written, so they
         // are exactly what `normalfit` gives for the file.
         let h: Vec<f32> = heights.iter().map(|&v| f32::from(v) / 65535.0).collect();
         let mut rgb = vec![[0u8; 3]; h.len()];
         normals_into(&h, SIZE, SIZE, &opts, &mut rgb)?;
-        write_png(&dir.join(format!("{name}_normal.png")), rgb.as_flattened(), ExtendedColorType::Rgb8)?;
+        write_png(&dir.join(format!("{name}_normal.png")), rgb.as_flattened(), SIZE, ExtendedColorType::Rgb8)?;
 
-        let n = normals(&h, SIZE, SIZE, &opts)?;
-        let lit = shade(&n, SIZE, SIZE, Light::default(), Convention::OpenGl)?;
-        write_png(&dir.join(format!("{name}_lit.png")), &lit, ExtendedColorType::L8)?;
-        println!("wrote samples/{name}.png, {name}_normal.png, {name}_lit.png");
+        write_png(
+            &gallery.join(format!("{name}.png")),
+            &half_size_8_bit(&heights),
+            GALLERY_SIZE,
+            ExtendedColorType::L8,
+        )?;
+        println!("wrote samples/{name}.png, {name}_normal.png and docs/gallery/{name}.png");
     }
     Ok(())
 }
@@ -100,16 +109,38 @@ fn quantize(field: &[f64]) -> Vec<u16> {
     field.iter().map(|&v| ((v - lo) / (hi - lo) * 65535.0).round() as u16).collect()
 }
 
-/// Best compression: the files are committed, so size matters more than
-/// the second it costs.
-fn write_png(path: &Path, bytes: &[u8], color: ExtendedColorType) -> Result<(), Box<dyn std::error::Error>> {
+/// The sample at half its size and in 8 bits, each texel the mean of a 2×2
+/// block, rounded (ties up): a small file for the README, with the same
+/// relief. 8 bits are enough for pictures: at the gallery's gains (the
+/// samples' halved) rounding to 8 bits tilts a fitted normal by at most
+/// 1.3° (terrain, N = 5; under 1° for the others), and the lit views of the
+/// 8- and 16-bit maps look the same.
+fn half_size_8_bit(heights: &[u16]) -> Vec<u8> {
+    let at = |x: usize, y: usize| u32::from(heights[y * SIZE + x]);
+    // Four 16-bit values sum to at most 4 · 65535; 8 bits are 16 bits / 257.
+    let (sum_per_level, half) = (4 * 257, 2 * 257);
+    let mut out = Vec::with_capacity(GALLERY_SIZE * GALLERY_SIZE);
+    for y in 0..GALLERY_SIZE {
+        for x in 0..GALLERY_SIZE {
+            let sum = at(2 * x, 2 * y) + at(2 * x + 1, 2 * y) + at(2 * x, 2 * y + 1) + at(2 * x + 1, 2 * y + 1);
+            out.push(u8::try_from((sum + half) / sum_per_level).expect("the mean of four u16 over 257 is a u8"));
+        }
+    }
+    out
+}
+
+/// A square PNG of `side` texels. Best compression: the files are
+/// committed, so size matters more than the second it costs.
+fn write_png(
+    path: &Path,
+    bytes: &[u8],
+    side: usize,
+    color: ExtendedColorType,
+) -> Result<(), Box<dyn std::error::Error>> {
     let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    PngEncoder::new_with_quality(file, CompressionType::Best, FilterType::Adaptive).write_image(
-        bytes,
-        SIZE as u32,
-        SIZE as u32,
-        color,
-    )?;
+    let side = side as u32;
+    PngEncoder::new_with_quality(file, CompressionType::Best, FilterType::Adaptive)
+        .write_image(bytes, side, side, color)?;
     Ok(())
 }
 

@@ -4,7 +4,8 @@
 //! plane to the N×N patch of points (u, v, height) around every texel, and a
 //! check of whether a texture tiles seamlessly.
 //!
-//! The crate has three layers, each usable without the next:
+//! The crate has three layers, each usable without the next, and a
+//! fourth for people to look at the result:
 //!
 //! * [`fit`]: the compute core. Heights in a caller's row-major `f32`
 //!   buffer, [`Options`] in, normals out ([`normals`], [`normals_into`]).
@@ -16,6 +17,8 @@
 //!   OpenEXR), and [`io::write_atomically`] for outputs that appear whole or
 //!   not at all.
 //! * [`tiling`]: a seam score and a verdict per axis ([`tiling::check`]).
+//! * [`shade`]: normals lit by a directional light as a gray picture
+//!   ([`shade::shade`]), repeated 2×2 so seams show ([`shade::tile_2x2`]).
 //!
 //! Every fallible call returns the typed [`Error`].
 //!
@@ -61,6 +64,37 @@
 //! beside the target and renames it only once it is complete. To read an
 //! image, [`io::read_path`] or [`io::decode`] give an [`io::Raster`], and
 //! [`io::Raster::heights`] the heights in the contract's units.
+//!
+//! # A picture to look at
+//!
+//! ```
+//! use normalfit::io::{PngCompression, encode_png_gray8};
+//! use normalfit::shade::{Light, shade, tile_2x2};
+//! use normalfit::{Options, Strength, normals};
+//!
+//! // A round bump in the middle of a 32 × 32 map.
+//! let (width, height) = (32, 32);
+//! let heights: Vec<f32> = (0..width * height)
+//!     .map(|k| {
+//!         let (x, y) = ((k % width) as f32 - 16.0, (k / width) as f32 - 16.0);
+//!         (-(x * x + y * y) / 30.0).exp()
+//!     })
+//!     .collect();
+//! let opts = Options::new().with_strength(Strength::Scale(6.0));
+//! let n = normals(&heights, width, height, &opts)?;
+//!
+//! // Light from the top-left (the default): the bump's upper-left side
+//! // faces it, its lower-right side turns away.
+//! let lit = shade(&n, width, height, Light::default(), opts.convention)?;
+//! assert!(lit[13 * width + 13] > lit[16 * width + 16] && lit[16 * width + 16] > lit[19 * width + 19]);
+//!
+//! // Repeated 2×2, then an 8-bit gray PNG.
+//! let tiled = tile_2x2(&lit, width, height)?;
+//! let mut png = Vec::new();
+//! encode_png_gray8(&tiled, 2 * width, 2 * height, PngCompression::Best, &mut png)?;
+//! assert!(png.starts_with(b"\x89PNG"));
+//! # Ok::<(), normalfit::Error>(())
+//! ```
 //!
 //! # Does it tile?
 //!

@@ -242,7 +242,7 @@ fn files_converted_at_once_give_what_one_at_a_time_gives() {
         assert_eq!(summary(&stderr), (6, 0, 2), "{stderr}");
         let conflict: Vec<&str> = stderr.lines().filter(|l| l.contains("earlier input")).collect();
         assert_eq!(conflict.len(), 1, "{stderr}");
-        assert!(conflict[0].contains("h0.png is not converted"), "{}", conflict[0]);
+        assert!(conflict[0].contains("h0.png is skipped"), "{}", conflict[0]);
         for line in stderr.lines() {
             assert!(line.starts_with("normalfit: "), "whole lines only: {line:?}");
         }

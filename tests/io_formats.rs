@@ -12,8 +12,8 @@ use image::ImageEncoder;
 use normalfit::Error;
 use normalfit::io::{
     Channel, ExrDepth, InputFormat, Layout, PngCompression, Raster, ReadOptions, SampleType, decode, encode_exr,
-    encode_exr_gray, encode_exr_normals, encode_png_gray16, encode_png_normals, encode_png_rgb8, encode_png_rgb16,
-    read_path, write_atomically,
+    encode_exr_gray, encode_exr_normals, encode_png_gray8, encode_png_gray16, encode_png_normals, encode_png_rgb8,
+    encode_png_rgb16, read_path, write_atomically,
 };
 
 // ---------------------------------------------------------------------------
@@ -974,6 +974,20 @@ fn gray_maps_round_trip() {
     let r = read(&out.into_inner());
     assert_eq!(names(&r), ["Y"]);
     assert_eq!(data(&r, "Y"), floats.to_vec());
+}
+
+#[test]
+fn png_gray8_round_trip() {
+    let texels: Vec<u8> = (0..12).map(|i| i * 21).collect();
+    let mut out = Vec::new();
+    encode_png_gray8(&texels, 4, 3, PngCompression::Best, &mut out).unwrap();
+    let r = read(&out);
+    assert_eq!((r.width, r.height, r.sample), (4, 3, SampleType::Int { bits: 8 }));
+    assert_eq!(r.planes.len(), 1, "one gray plane");
+    let expected: Vec<f32> = texels.iter().map(|&t| f32::from(t) / 255.0).collect();
+    assert_eq!(r.planes[0].data, expected);
+    let e = encode_png_gray8(&texels, 5, 3, PngCompression::Fast, Vec::new()).unwrap_err();
+    assert!(matches!(e, Error::BufferSize { expected: 15, actual: 12 }), "{e}");
 }
 
 #[test]

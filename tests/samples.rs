@@ -113,3 +113,24 @@ fn readme_commands_reproduce_the_shipped_normal_maps() {
         }
     }
 }
+
+/// The README's gallery starts from the samples at half size in 8 bits:
+/// each texel the mean of a 2×2 block of the sample, rounded to 8 bits.
+#[test]
+fn gallery_height_maps_are_the_samples_at_half_size() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    for name in ["bricks", "rock", "terrain"] {
+        let (sample, w, h) = load(name);
+        let small = image::open(root.join("docs/gallery").join(format!("{name}.png"))).unwrap();
+        assert_eq!(small.color(), image::ColorType::L8, "{name}");
+        let small = small.into_luma8();
+        assert_eq!((small.width() as usize, small.height() as usize), (w / 2, h / 2), "{name}");
+        for (x, y, p) in small.enumerate_pixels() {
+            let (x, y) = (x as usize * 2, y as usize * 2);
+            let mean =
+                (sample[y * w + x] + sample[y * w + x + 1] + sample[(y + 1) * w + x] + sample[(y + 1) * w + x + 1])
+                    / 4.0;
+            assert_eq!(f64::from(p.0[0]), (mean / 257.0).round(), "{name} ({x}, {y})");
+        }
+    }
+}

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use image::{ExtendedColorType, ImageEncoder};
-use normalfit::io::stream::{PngDepth, PngRows, RowSource, convert_png, convert_png_seekable};
+use normalfit::io::stream::{PngDepth, PngOutput, PngRows, RowSource, convert_png, convert_png_seekable};
 use normalfit::io::{Channel, Layout, PngCompression, ReadOptions, encode_png_normals, read_path};
 use normalfit::{Border, Borders, Options, Strength, normals_into};
 
@@ -58,9 +58,10 @@ fn streamed_as(path: &Path, channel: Option<Channel>, opts: &Options, depth: Png
     let open = || PngRows::open(path, &ReadOptions::default(), channel).unwrap().expect("streamable");
     let tail = (opts.borders.y == Border::Wrap).then(|| open().read_tail(opts.patch / 2, |_| {}).unwrap());
     let mut ordered = Vec::new();
-    convert_png(open(), tail.as_deref(), opts, depth, layout, |_| {}, &mut ordered).unwrap();
+    let output = PngOutput { depth, compression: PngCompression::Fast, layout };
+    convert_png(open(), tail.as_deref(), opts, output, |_| {}, &mut ordered).unwrap();
     let mut seekable = std::io::Cursor::new(Vec::new());
-    convert_png_seekable(open(), opts, depth, layout, |_| {}, &mut seekable).unwrap();
+    convert_png_seekable(open(), opts, output, |_| {}, &mut seekable).unwrap();
     let (a, b) = (strict_decode(&ordered), strict_decode(seekable.get_ref()));
     assert!(a == b, "the two streaming modes differ");
     a
@@ -223,6 +224,32 @@ fn data_ending_early_is_a_decode_error() {
     let rows = PngRows::open(&path, &ReadOptions::default(), None).unwrap().unwrap();
     let opts = Options::new().with_borders(Borders::both(Border::Clamp));
     let mut out = Vec::new();
-    let err = convert_png(rows, None, &opts, PngDepth::Eight, Layout::Rgb, |_| {}, &mut out).unwrap_err();
+    let err = convert_png(rows, None, &opts, PngDepth::Eight, |_| {}, &mut out).unwrap_err();
     assert!(matches!(err, normalfit::Error::Decode(_)), "{err:?}");
+}
+
+#[test]
+fn chosen_filters_give_the_same_pixels_in_a_smaller_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (97, 410);
+    let path = dir.path().join("c.png");
+    let ne: Vec<u8> = field(w, h, 21).iter().flat_map(|x| x.to_ne_bytes()).collect();
+    write_png(&path, w, h, ExtendedColorType::L16, &ne);
+    let open = || PngRows::open(&path, &ReadOptions::default(), None).unwrap().expect("streamable");
+    for depth in [PngDepth::Eight, PngDepth::Sixteen] {
+        for y in [Border::Wrap, Border::Clamp] {
+            let opts = Options::new().with_borders(Borders { x: Border::Wrap, y }).with_strength(Strength::Scale(40.0));
+            let encode = |compression| {
+                let mut out = std::io::Cursor::new(Vec::new());
+                let output = PngOutput { depth, compression, layout: Layout::Rgb };
+                convert_png_seekable(open(), &opts, output, |_| {}, &mut out).unwrap();
+                out.into_inner()
+            };
+            let (fast, small) = (encode(PngCompression::Fast), encode(PngCompression::Default));
+            let whole = whole(&path, None, &opts, depth);
+            assert!(strict_decode(&small) == whole, "{depth:?} {y:?}");
+            assert!(strict_decode(&fast) == whole, "{depth:?} {y:?}");
+            assert!(small.len() < fast.len(), "{depth:?} {y:?}: {} ≥ {}", small.len(), fast.len());
+        }
+    }
 }

@@ -235,7 +235,7 @@ fn exr_input_streams_to_png_with_the_whole_image_s_pixels() {
     let opts = Options::new().with_patch(5).with_strength(Strength::Scale(10.0));
     let rows = ExrRows::open(&path, &ReadOptions::default(), None).unwrap().unwrap();
     let mut png = std::io::Cursor::new(Vec::new());
-    convert_png_seekable(rows, &opts, PngDepth::Sixteen, Layout::Rgb, |_| {}, &mut png).unwrap();
+    convert_png_seekable(rows, &opts, PngDepth::Sixteen, |_| {}, &mut png).unwrap();
     let decoded = image::load_from_memory(png.get_ref()).unwrap().into_rgb16().into_raw();
 
     let heights = read_path(&path, &ReadOptions::default()).unwrap().heights(None).unwrap();
@@ -300,4 +300,32 @@ fn a_truncated_file_is_a_decode_error() {
         convert_exr(rows, None, &opts, ExrFormat::default(), |_| {}, std::io::Cursor::new(Vec::new()))
     });
     assert!(matches!(result, Err(normalfit::Error::Decode(_))), "{result:?}");
+}
+
+#[test]
+fn exr_output_decodes_to_its_values_and_smooth_maps_compress() {
+    let (w, h) = (301, 100);
+    // Smooth values, which compress, with a noisy corner.
+    let texels: Vec<[f32; 3]> = (0..w * h)
+        .map(|k| {
+            let (x, y) = ((k % w) as f32, (k / w) as f32);
+            let noise = if x < 20.0 && y < 20.0 { ((k * 7919) % 1000) as f32 * 1e-3 } else { 0.0 };
+            [0.5 + 0.4 * (x * 0.01).sin() + noise, 0.5 + 0.3 * (y * 0.02).cos(), 0.9]
+        })
+        .collect();
+    for (depth, bytes_per_sample) in [(ExrDepth::Float, 4), (ExrDepth::Half, 2)] {
+        let mut out = std::io::Cursor::new(Vec::new());
+        encode_exr(&texels, w, h, depth, &mut out).unwrap();
+        let bytes = out.into_inner();
+        assert!(bytes.len() < w * h * 3 * bytes_per_sample / 2, "{depth:?}: {} bytes", bytes.len());
+        let raster = normalfit::io::decode(&bytes, &ReadOptions::default()).unwrap();
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            let plane = &raster.plane(name).expect("channel").data;
+            let expected: Vec<f32> = texels
+                .iter()
+                .map(|t| if depth == ExrDepth::Half { f16::from_f32(t[c]).to_f32() } else { t[c] })
+                .collect();
+            assert!(plane == &expected, "{depth:?} {name}");
+        }
+    }
 }

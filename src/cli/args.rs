@@ -1,11 +1,14 @@
-//! The command line as clap sees it. Nothing here computes: `convert.rs`
-//! and `tiling.rs` turn these into the library's options.
+//! The command line as clap sees it. Nothing here computes: `convert.rs`,
+//! `shade.rs` and `tiling.rs` turn these into the library's options.
 
+use std::fmt;
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap_complete::Shell;
 use normalfit::Border;
 use normalfit::options::MAX_PATCH;
+use normalfit::shade::Light;
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -22,22 +25,27 @@ pub enum Command {
     Convert(ConvertArgs),
     /// Tell whether images tile seamlessly (exit 0: all tile, 1: a seam).
     Tiling(TilingArgs),
+    /// Render normal maps, or height maps through the fit, lit by a
+    /// directional light, to gray PNGs (optionally tiled 2×2).
+    ///
+    /// A height map goes through the same fit as `convert` (the fit options
+    /// below). A normal map's colours c are read back as n = 2c − 1 (PNG,
+    /// TIFF, …; EXR holding (n + 1)/2), or n = c with `--signed` (EXR holding
+    /// n itself); --convention says which way its green points. Lambert
+    /// shading with a little ambient light, so slopes turned away stay grey.
+    Shade(ShadeArgs),
+    /// Print a shell completion script to standard output.
+    Completions(CompletionsArgs),
+    /// Print the manual page (roff) to standard output, or write one page
+    /// per command.
+    Man(ManArgs),
 }
 
+/// How a height map becomes normals: the options `convert` and `shade`
+/// share, flattened into both so that their help and defaults are one.
 #[derive(Args, Debug)]
-#[command(allow_negative_numbers = true)]
-pub struct ConvertArgs {
-    /// Height maps to convert (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-` reads
-    /// standard input).
-    #[arg(required = true, value_name = "INPUT")]
-    pub inputs: Vec<PathBuf>,
-
-    /// Output file, or folder for many inputs; `-` writes standard output.
-    /// Default: `<stem>_normal.<ext>` beside each input (standard output for
-    /// standard input).
-    #[arg(short, long, value_name = "OUTPUT")]
-    pub output: Option<PathBuf>,
-
+#[command(next_help_heading = "Fit options")]
+pub struct FitArgs {
     /// Patch size N: fit a plane to the N×N texels around each texel (odd, ≥ 3).
     /// Larger patches smooth more; the cost does not grow with N.
     #[arg(short = 'n', long, value_name = "N", default_value_t = 3, value_parser = parse_patch)]
@@ -66,9 +74,25 @@ pub struct ConvertArgs {
     #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_borders)]
     pub border: BorderArg,
 
-    /// Green up (opengl: glTF, Blender, Unity) or down (directx: Unreal).
+    /// Which way the normal maps' green points: up (opengl: glTF, Blender,
+    /// Unity) or down (directx: Unreal).
     #[arg(long, value_enum, default_value_t = ConventionArg::Opengl)]
     pub convention: ConventionArg,
+}
+
+#[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
+pub struct ConvertArgs {
+    /// Height maps to convert (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-` reads
+    /// standard input).
+    #[arg(required = true, value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
+
+    /// Output file, or folder for many inputs; `-` writes standard output.
+    /// Default: `<stem>_normal.<ext>` beside each input (standard output for
+    /// standard input).
+    #[arg(short, long, value_name = "OUTPUT")]
+    pub output: Option<PathBuf>,
 
     /// Channel of a colour image that holds the height (gray images use gray).
     #[arg(long, value_enum)]
@@ -88,11 +112,21 @@ pub struct ConvertArgs {
     #[arg(long)]
     pub signed: bool,
 
+    /// PNG output: fast (one cheap filter for every row) or small (each
+    /// row's best filter: about 12 % smaller, a little slower).
+    #[arg(long, value_enum, default_value_t = CompressionArg::Fast)]
+    pub compression: CompressionArg,
+
+    // The groups with a help heading come after the options without one,
+    // which a heading would otherwise cover.
     #[command(flatten)]
     pub channels: ChannelsArgs,
 
     #[command(flatten)]
     pub batch: BatchArgs,
+
+    #[command(flatten)]
+    pub fit: FitArgs,
 }
 
 /// What the output holds besides the normal, for pipelines.
@@ -172,6 +206,69 @@ pub enum OverwriteArg {
     Always,
     Never,
     Older,
+}
+
+#[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
+pub struct ShadeArgs {
+    /// Normal maps or height maps (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-`
+    /// reads standard input).
+    #[arg(required = true, value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
+
+    /// Output PNG, or folder for many inputs; `-` writes standard output.
+    /// Default: `<stem>_lit.png` beside each input (standard output for
+    /// standard input).
+    #[arg(short, long, value_name = "OUTPUT")]
+    pub output: Option<PathBuf>,
+
+    /// Where the light comes from, in degrees: the azimuth counter-clockwise
+    /// from the image's right (0 right, 90 top, 135 top-left, 180 left), and
+    /// the elevation above the surface (90 overhead, small values rake).
+    #[arg(long, value_name = "AZIMUTH,ELEVATION", default_value_t = LightArg(Light::default()),
+          value_parser = parse_light, allow_hyphen_values = true)]
+    pub light: LightArg,
+
+    /// Repeat the lit view 2×2, so the wrap seams cross the middle.
+    #[arg(long)]
+    pub tile: bool,
+
+    /// What the inputs hold; auto decides from the pixels (as `tiling` does).
+    #[arg(long, value_enum, default_value_t = KindArg::Auto)]
+    pub kind: KindArg,
+
+    /// Channel of a colour height map that holds the height.
+    #[arg(long, value_enum)]
+    pub channel: Option<ChannelArg>,
+
+    /// Float (EXR) normal maps hold the normal n in [−1, 1], not (n + 1)/2.
+    #[arg(long)]
+    pub signed: bool,
+
+    // Last: its help heading would otherwise cover the options after it.
+    #[command(flatten)]
+    pub fit: FitArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct CompletionsArgs {
+    /// The shell to complete for.
+    #[arg(value_enum)]
+    pub shell: Shell,
+}
+
+#[derive(Args, Debug)]
+pub struct ManArgs {
+    /// Write one page per command into this folder (normalfit.1,
+    /// normalfit-convert.1, …) instead of the whole manual to standard output.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CompressionArg {
+    Fast,
+    Small,
 }
 
 #[derive(Args, Debug)]
@@ -307,4 +404,26 @@ fn parse_borders(s: &str) -> Result<BorderArg, String> {
         }
         Some((x, y)) => Ok(BorderArg { x: parse_border(x)?, y: parse_border(y)? }),
     }
+}
+
+/// `--light AZIMUTH,ELEVATION`, shown (and defaulted) as the library's
+/// [`Light::default()`] prints.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightArg(pub Light);
+
+impl fmt::Display for LightArg {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{},{}", self.0.azimuth_deg, self.0.elevation_deg)
+    }
+}
+
+fn parse_light(s: &str) -> Result<LightArg, String> {
+    let usage = || format!("--light takes AZIMUTH,ELEVATION in degrees, such as 135,35; got '{s}'");
+    let (azimuth, elevation) = s.split_once(',').ok_or_else(usage)?;
+    let number = |v: &str| v.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(usage);
+    let (azimuth_deg, elevation_deg) = (number(azimuth)?, number(elevation)?);
+    if !(0.0..=90.0).contains(&elevation_deg) {
+        return Err(format!("the light's elevation must be from 0 to 90 degrees, got {elevation_deg}"));
+    }
+    Ok(LightArg(Light { azimuth_deg, elevation_deg }))
 }

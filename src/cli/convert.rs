@@ -6,18 +6,16 @@ use std::io::{Cursor, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use normalfit::io::stream::{self, ExrFormat, ExrRows, PngDepth, PngRows, RowSource};
+use normalfit::io::stream::{self, ExrFormat, ExrRows, PngDepth, PngOutput, PngRows, RowSource};
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, Layout, PngCompression, ReadOptions, SampleType};
 use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
-use normalfit::{
-    Border, Borders, Convention, Fit, FromNormal, Options, Strength, normals_and_residual_into, normals_into,
-};
+use normalfit::{Border, Borders, FromNormal, Options, normals_and_residual_into, normals_into};
 
-use super::args::{
-    AlphaArg, AxisBorder, BorderArg, ChannelsArg, ConventionArg, ConvertArgs, FitArg, FormatArg, OverwriteArg,
-};
+use super::args::{AlphaArg, AxisBorder, BorderArg, ChannelsArg, CompressionArg, ConvertArgs, FormatArg, OverwriteArg};
 use super::batch::{self, ClaimOrder, Job, RESIDUAL_SUFFIX};
-use super::input::{Input, InputIds, read_input};
+use super::fitting;
+use super::input::{Input, InputIds, read_input, stdin_at_most_once};
+use super::output::{self, Destination};
 use super::progress::Progress;
 use super::report::{Failure, print_line, warn};
 use super::tiling::channel_of;
@@ -31,25 +29,22 @@ struct Plan {
     bits: Option<u8>,
     format: Option<FormatArg>,
     signed: bool,
+    compression: PngCompression,
     destination: Destination,
     layout: Layout,
-    residual: Option<Destination>,
+    residual: Option<ResidualPlace>,
     /// Appended to an input's stem to name its normal map.
     suffix: String,
     overwrite: OverwriteArg,
     quiet: bool,
 }
 
-/// Where outputs go.
-enum Destination {
-    /// `<stem>_normal.<ext>` beside each input (standard output for `-`).
-    BesideInputs,
-    /// This exact file (one input only).
+/// Where residual maps go (`--residual`).
+enum ResidualPlace {
+    /// This file (one input).
     File(PathBuf),
-    /// `<dir>/<stem>_normal.<ext>`.
+    /// `<stem>_residual.<ext>` in this folder, under the input's subfolder.
     Folder(PathBuf),
-    /// Standard output (one input only).
-    Stdout,
 }
 
 /// What became of one input.
@@ -137,46 +132,9 @@ fn default_jobs() -> usize {
 
 impl Plan {
     fn from_args(args: &ConvertArgs, many: bool) -> Result<Plan, Failure> {
-        let strength = match args.relief {
-            Some(f) => Strength::Relief(f),
-            None => Strength::Scale(args.scale),
-        };
-        let fit = Options::new()
-            .with_patch(args.patch)
-            .with_fit(match args.fit {
-                FitArg::Orthogonal => Fit::Orthogonal,
-                FitArg::Vertical => Fit::Vertical,
-            })
-            .with_convention(match args.convention {
-                ConventionArg::Opengl => Convention::OpenGl,
-                ConventionArg::Directx => Convention::DirectX,
-            })
-            .with_strength(strength)
-            .with_invert(args.invert);
-        fit.validate().map_err(|e| Failure::usage(e.to_string()))?;
-
-        let stdin_count = args.inputs.iter().filter(|p| p.as_os_str() == "-").count();
-        if stdin_count > 1 {
-            return Err(Failure::usage("standard input ('-') can be read only once"));
-        }
-        let destination = match &args.output {
-            None => Destination::BesideInputs,
-            Some(o) if o.as_os_str() == "-" => {
-                if many {
-                    return Err(Failure::usage("'-o -' takes one input: many images cannot share standard output"));
-                }
-                Destination::Stdout
-            }
-            Some(o) if many || o.is_dir() => Destination::Folder(o.clone()),
-            Some(o) => Destination::File(o.clone()),
-        };
-        if let Destination::Folder(dir) = &destination {
-            if dir.exists() && !dir.is_dir() {
-                return Err(Failure::file(dir, "is not a folder: with many inputs, -o names the output folder"));
-            }
-            std::fs::create_dir_all(dir)
-                .map_err(|e| Failure::file(dir, format!("cannot create the output folder: {}", e)))?;
-        }
+        let fit = fitting::options(&args.fit)?;
+        stdin_at_most_once(&args.inputs)?;
+        let destination = Destination::for_batch(args.output.as_deref(), many)?;
         let layout = match (args.channels.alpha, args.channels.channels) {
             (AlphaArg::None, ChannelsArg::Rgb) => Layout::Rgb,
             (AlphaArg::Height, ChannelsArg::Rgb) => Layout::RgbHeight,
@@ -197,17 +155,21 @@ impl Plan {
                 }
                 std::fs::create_dir_all(r)
                     .map_err(|e| Failure::file(r, format!("cannot create the residual folder: {e}")))?;
-                Some(Destination::Folder(r.clone()))
+                Some(ResidualPlace::Folder(r.clone()))
             }
-            Some(r) => Some(Destination::File(r.clone())),
+            Some(r) => Some(ResidualPlace::File(r.clone())),
         };
         Ok(Plan {
             fit,
-            border: args.border,
+            border: args.fit.border,
             channel: args.channel.map(channel_of),
             bits: args.bits,
             format: args.format,
             signed: args.signed,
+            compression: match args.compression {
+                CompressionArg::Fast => PngCompression::Fast,
+                CompressionArg::Small => PngCompression::Default,
+            },
             destination,
             layout,
             residual,
@@ -254,7 +216,7 @@ impl Plan {
         let texels = Texels::fit(&heights, width, height, &fit, &target, distances.as_deref_mut())
             .map_err(|e| Failure::file(input.name(), e))?;
         if write_normals {
-            let encoded = |out: &mut dyn Write| texels.encode(&heights, width, height, &target, out);
+            let encoded = |out: &mut dyn Write| texels.encode(&heights, width, height, &target, self.compression, out);
             match &target.path {
                 Some(path) => {
                     make_subfolder(job, path)?;
@@ -364,14 +326,14 @@ impl Plan {
                     .map_err(|e| Failure::file(stdout_name, e))
             }
             (Some(out), Encoding::Png8 | Encoding::Png16) => io::write_file_atomically(out, |file| {
-                let depth = target.png_depth().expect("a png encoding");
-                stream::convert_png_seekable(rows, &fit, depth, self.layout, visit, file).inspect_err(&mut on_input)
+                let png = self.png_output(target).expect("a png encoding");
+                stream::convert_png_seekable(rows, &fit, png, visit, file).inspect_err(&mut on_input)
             })
             .map_err(|e| Failure::file(out, e)),
             (None, Encoding::Png8 | Encoding::Png16) => {
-                let depth = target.png_depth().expect("a png encoding");
+                let png = self.png_output(target).expect("a png encoding");
                 let mut stdout = std::io::stdout().lock();
-                stream::convert_png(rows, tail, &fit, depth, self.layout, visit, &mut stdout)
+                stream::convert_png(rows, tail, &fit, png, visit, &mut stdout)
                     .inspect_err(&mut on_input)
                     .and_then(|()| Ok(stdout.flush()?))
                     .map_err(|e| Failure::file(stdout_name, e))
@@ -399,17 +361,7 @@ impl Plan {
         shared.order.wait_turn(k);
         let mut claimed = shared.claimed.lock().unwrap_or_else(|e| e.into_inner());
         for path in outputs {
-            shared.ids.refuse_overwrite(path)?;
-            let key = std::path::absolute(path).unwrap_or_else(|_| path.clone());
-            if !claimed.insert(key) {
-                return Err(Failure::file(
-                    path,
-                    format!(
-                        "is the output of an earlier input of this run, so {} is not converted; give the inputs distinct names or separate -o folders",
-                        job.input.name().display()
-                    ),
-                ));
-            }
+            output::claim(path, &job.input, &shared.ids, &mut claimed)?;
         }
         drop(claimed);
         shared.order.pass(k);
@@ -433,45 +385,25 @@ impl Plan {
         }
     }
 
-    /// Whether the borders asked for need the tiling check: a wrap (to warn
-    /// when it draws a seam) or `auto`.
+    /// The streamed PNG's settings, for a PNG target.
+    fn png_output(&self, target: &Target) -> Option<PngOutput> {
+        target.png_depth().map(|depth| PngOutput { depth, compression: self.compression, layout: self.layout })
+    }
+
+    /// Whether the borders asked for need the tiling check.
     fn needs_check(&self) -> bool {
-        let check = |a: AxisBorder| matches!(a, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
-        check(self.border.x) || check(self.border.y)
+        self.border.needs_check()
     }
 
-    /// The border modes for one image: `auto` becomes wrap where the image
-    /// tiles and mirror where it does not (`report`: the tiling check, made
-    /// when [`Self::needs_check`]; without it, `auto` is mirror).
+    /// The border modes for one image, `auto` settled by `report`.
     fn borders_for(&self, report: Option<&tiling::TilingReport>) -> Borders {
-        let suggested = report.map_or(Borders::both(Border::Mirror), |r| r.suggested_borders());
-        let resolve = |asked: AxisBorder, auto: Border| match asked {
-            AxisBorder::Fixed(b) => b,
-            AxisBorder::Auto => auto,
-        };
-        Borders { x: resolve(self.border.x, suggested.x), y: resolve(self.border.y, suggested.y) }
+        self.border.resolve(report)
     }
 
-    /// A wrap asked for on an axis that does not tile draws a seam: one
-    /// warning line names the axes.
+    /// Warns about a wrap on an axis that does not tile (not with `--quiet`).
     fn warn_seams(&self, report: &tiling::TilingReport, input: &Input) {
-        if self.quiet {
-            return;
-        }
-        let wrap = AxisBorder::Fixed(Border::Wrap);
-        let seams: Vec<String> = [("x", self.border.x, report.x), ("y", self.border.y, report.y)]
-            .iter()
-            .filter(|(_, asked, axis)| *asked == wrap && !axis.seamless)
-            .map(|(name, _, axis)| format!("{name} (seam score {:.2})", axis.score))
-            .collect();
-        if !seams.is_empty() {
-            warn(
-                input.name().display(),
-                format!(
-                    "does not tile along {}: wrap borders will show a seam there; use --border clamp or mirror, or --border auto",
-                    seams.join(" and ")
-                ),
-            );
+        if !self.quiet {
+            self.border.warn_seams(report, input);
         }
     }
 
@@ -507,23 +439,14 @@ impl Plan {
             FormatArg::Png => "png",
             FormatArg::Exr => "exr",
         };
-        let named = |dir: &Path, suffix: &str, ext: &str| dir.join(format!("{}{suffix}.{ext}", input.stem()));
-        let path = match &self.destination {
-            Destination::Stdout => None,
-            Destination::BesideInputs => match input {
-                Input::Stdin => None,
-                Input::File(p) => Some(named(p.parent().unwrap_or(Path::new("")), &self.suffix, ext)),
-            },
-            Destination::File(p) => Some(p.clone()),
-            Destination::Folder(dir) => Some(named(&dir.join(&job.subfolder), &self.suffix, ext)),
-        };
+        let path = self.destination.path_in(input, &job.subfolder, &format!("{}{}.{ext}", input.stem(), self.suffix));
         let residual = match &self.residual {
             None => None,
-            Some(Destination::Folder(dir)) => {
-                Some(ResidualTarget::of(named(&dir.join(&job.subfolder), RESIDUAL_SUFFIX, ext), format)?)
+            Some(ResidualPlace::Folder(dir)) => {
+                let name = format!("{}{RESIDUAL_SUFFIX}.{ext}", input.stem());
+                Some(ResidualTarget::of(dir.join(&job.subfolder).join(name), format)?)
             }
-            Some(Destination::File(p)) => Some(ResidualTarget::of(p.clone(), format)?),
-            Some(_) => unreachable!("the residual goes to a file or a folder"),
+            Some(ResidualPlace::File(p)) => Some(ResidualTarget::of(p.clone(), format)?),
         };
         let name = path.as_deref().unwrap_or(Path::new("<standard output>"));
         let encoding = match (format, self.bits) {
@@ -658,9 +581,9 @@ impl Texels {
         w: usize,
         h: usize,
         target: &Target,
+        compression: PngCompression,
         out: &mut dyn Write,
     ) -> normalfit::Result<()> {
-        let compression = PngCompression::default();
         let layout = target.layout;
         match (self, target.encoding) {
             (Texels::Eight(t), _) => io::encode_png_normals(t, Some(heights), w, h, layout, compression, out),

@@ -55,6 +55,14 @@ pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> 
     }
 }
 
+/// Standard input can be read only once.
+pub fn stdin_at_most_once(inputs: &[PathBuf]) -> Result<(), Failure> {
+    if inputs.iter().filter(|p| p.as_os_str() == "-").count() > 1 {
+        return Err(Failure::usage("standard input ('-') can be read only once"));
+    }
+    Ok(())
+}
+
 /// The (device, inode) of every input file, so that no output replaces one,
 /// whether named directly, through a symbolic link or as a hard link.
 pub struct InputIds(Vec<(u64, u64)>);

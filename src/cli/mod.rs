@@ -3,10 +3,15 @@
 
 pub mod args;
 pub mod batch;
+pub mod completions;
 pub mod convert;
+pub mod fitting;
 pub mod input;
+pub mod man;
+pub mod output;
 pub mod progress;
 pub mod report;
+pub mod shade;
 pub mod tiling;
 
 use std::process::ExitCode;
@@ -37,9 +42,13 @@ pub fn main() -> ExitCode {
             return ExitCode::from(exit::ERROR);
         }
     };
+    let all_written = |failures: usize| if failures == 0 { exit::OK } else { exit::ERROR };
     let outcome = match cli.command {
-        Command::Convert(args) => convert::run(args).map(|failures| if failures == 0 { exit::OK } else { exit::ERROR }),
+        Command::Convert(args) => convert::run(args).map(all_written),
         Command::Tiling(args) => tiling::run(args),
+        Command::Shade(args) => shade::run(args).map(all_written),
+        Command::Completions(args) => completions::run(&args).map(|()| exit::OK),
+        Command::Man(args) => man::run(&args).map(|()| exit::OK),
     };
     match outcome {
         Ok(code) => ExitCode::from(code),

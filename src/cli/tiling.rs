@@ -155,7 +155,8 @@ impl Previews {
     }
 }
 
-fn rgb_planes(raster: &Raster) -> Option<[&[f32]; 3]> {
+/// The R, G and B planes, when the image has all three.
+pub fn rgb_planes(raster: &Raster) -> Option<[&[f32]; 3]> {
     match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
         (Some(r), Some(g), Some(b)) => Some([&r.data, &g.data, &b.data]),
         _ => None,
@@ -188,15 +189,7 @@ pub fn report_of(
 ) -> normalfit::Result<TilingReport> {
     let (w, h) = (raster.width, raster.height);
     let rgb = rgb_planes(raster);
-    let kind = match (kind, rgb) {
-        (KindArg::Height, _) => ImageKind::Height,
-        (KindArg::Normal, Some(_)) => ImageKind::Normal,
-        (KindArg::Normal, None) => {
-            return Err(normalfit::Error::Unsupported("a normal map needs R, G and B channels".into()));
-        }
-        (KindArg::Auto, Some(planes)) if channel.is_none() => ImageKind::detect(&planes, w, h),
-        (KindArg::Auto, _) => ImageKind::Height,
-    };
+    let kind = kind_of(raster, kind, channel)?;
     let fixed = TilingOptions { kind: kind_choice(kind), ..*opts };
     Ok(match (kind, rgb) {
         (ImageKind::Normal, Some(planes)) => tiling::check(&planes, w, h, &fixed),
@@ -204,6 +197,20 @@ pub fn report_of(
             let heights = raster.heights(channel)?;
             tiling::check(&[&heights], w, h, &fixed)
         }
+    })
+}
+
+/// What a decoded image holds: as asked, or detected from its R, G, B
+/// planes. Naming a height channel (`channel`) says it is a height map.
+pub fn kind_of(raster: &Raster, kind: KindArg, channel: Option<Channel>) -> normalfit::Result<ImageKind> {
+    Ok(match (kind, rgb_planes(raster)) {
+        (KindArg::Height, _) => ImageKind::Height,
+        (KindArg::Normal, Some(_)) => ImageKind::Normal,
+        (KindArg::Normal, None) => {
+            return Err(normalfit::Error::Unsupported("a normal map needs R, G and B channels".into()));
+        }
+        (KindArg::Auto, Some(planes)) if channel.is_none() => ImageKind::detect(&planes, raster.width, raster.height),
+        (KindArg::Auto, _) => ImageKind::Height,
     })
 }
 

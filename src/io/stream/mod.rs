@@ -31,7 +31,7 @@ use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 pub use self::exr::{ExrFormat, ExrRows, convert_exr};
-pub use self::png::{PngDepth, PngRows, convert_png, convert_png_seekable};
+pub use self::png::{PngDepth, PngOutput, PngRows, convert_png, convert_png_seekable};
 
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};

@@ -1,0 +1,94 @@
+//! Where each input's output goes, for the commands that write one file
+//! per input (`convert`, `shade`), and the rule that no output replaces an
+//! input or an earlier output of the same run.
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+use super::input::{Input, InputIds};
+use super::report::Failure;
+
+/// Where outputs go, from `-o`.
+pub enum Destination {
+    /// A name made from the input's stem beside each input (standard output
+    /// for standard input).
+    BesideInputs,
+    /// This exact file (one input only).
+    File(PathBuf),
+    /// A name made from the input's stem in this folder.
+    Folder(PathBuf),
+    /// Standard output (one input only).
+    Stdout,
+}
+
+impl Destination {
+    /// Reads `-o` for these inputs: `-` is standard output (one input
+    /// only); with many inputs, or naming a folder, it is a folder, made
+    /// if missing; else a file.
+    pub fn new(output: Option<&Path>, inputs: &[PathBuf]) -> Result<Destination, Failure> {
+        Destination::for_batch(output, inputs.len() > 1)
+    }
+
+    /// Like [`Destination::new`], `many` saying whether the run has more
+    /// than one input (or a folder of them).
+    pub fn for_batch(output: Option<&Path>, many: bool) -> Result<Destination, Failure> {
+        let destination = match output {
+            None => Destination::BesideInputs,
+            Some(o) if o.as_os_str() == "-" => {
+                if many {
+                    return Err(Failure::usage("'-o -' takes one input: many images cannot share standard output"));
+                }
+                Destination::Stdout
+            }
+            Some(o) if many || o.is_dir() => Destination::Folder(o.to_path_buf()),
+            Some(o) => Destination::File(o.to_path_buf()),
+        };
+        if let Destination::Folder(dir) = &destination {
+            if dir.exists() && !dir.is_dir() {
+                return Err(Failure::file(dir, "is not a folder: with many inputs, -o names the output folder"));
+            }
+            std::fs::create_dir_all(dir)
+                .map_err(|e| Failure::file(dir, format!("cannot create the output folder: {e}")))?;
+        }
+        Ok(destination)
+    }
+
+    /// The output of `input`, `file_name` being its name when the
+    /// destination makes one (beside the input or in a folder); `None` is
+    /// standard output.
+    pub fn path_for(&self, input: &Input, file_name: &str) -> Option<PathBuf> {
+        self.path_in(input, Path::new(""), file_name)
+    }
+
+    /// Like [`Destination::path_for`], for an input found in `subfolder` of
+    /// a folder named as input: in an output folder, the output goes into
+    /// the same subfolder.
+    pub fn path_in(&self, input: &Input, subfolder: &Path, file_name: &str) -> Option<PathBuf> {
+        match self {
+            Destination::Stdout => None,
+            Destination::BesideInputs => match input {
+                Input::Stdin => None,
+                Input::File(p) => Some(p.parent().unwrap_or(Path::new("")).join(file_name)),
+            },
+            Destination::File(p) => Some(p.clone()),
+            Destination::Folder(dir) => Some(dir.join(subfolder).join(file_name)),
+        }
+    }
+}
+
+/// Refuses `output` (of `input`) if it is an input, or if an earlier input
+/// of this run already wrote it (`written` keeps their absolute paths).
+pub fn claim(output: &Path, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
+    ids.refuse_overwrite(output)?;
+    let key = std::path::absolute(output).unwrap_or_else(|_| output.to_path_buf());
+    if !written.insert(key) {
+        return Err(Failure::file(
+            output,
+            format!(
+                "is the output of an earlier input of this run, so {} is skipped; give the inputs distinct names or separate -o folders",
+                input.name().display()
+            ),
+        ));
+    }
+    Ok(())
+}
