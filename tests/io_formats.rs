@@ -630,13 +630,13 @@ fn tiff_float_nan_and_inf_name_the_first_texel() {
 #[test]
 fn tiff_float_max_texels_is_the_limit() {
     let file = tiff_f32(4, 4, &[0.5; 16]);
-    let e = decode(&file, &ReadOptions { max_texels: 15 }).unwrap_err();
+    let e = decode(&file, &ReadOptions::default().with_max_texels(15)).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
-    assert_eq!(decode(&file, &ReadOptions { max_texels: 16 }).unwrap().heights(None).unwrap(), [0.5; 16]);
+    assert_eq!(decode(&file, &ReadOptions::default().with_max_texels(16)).unwrap().heights(None).unwrap(), [0.5; 16]);
     let file =
         tiff_gray::<tiff::encoder::colortype::Gray64Float>(4, 4, &[0.5; 16], tiff::encoder::Compression::Uncompressed);
-    assert!(matches!(decode(&file, &ReadOptions { max_texels: 15 }).unwrap_err(), Error::Limits(_)));
-    assert!(decode(&file, &ReadOptions { max_texels: 16 }).is_ok());
+    assert!(matches!(decode(&file, &ReadOptions::default().with_max_texels(15)).unwrap_err(), Error::Limits(_)));
+    assert!(decode(&file, &ReadOptions::default().with_max_texels(16)).is_ok());
 }
 
 #[test]
@@ -843,11 +843,11 @@ fn exr_header_claiming_huge_size_fails_on_limits() {
 #[test]
 fn max_texels_option_is_the_limit() {
     let png = PngSpec::new(4, 4, 0, 8).encode(|_, _| vec![1]);
-    let e = decode(&png, &ReadOptions { max_texels: 15 }).unwrap_err();
+    let e = decode(&png, &ReadOptions::default().with_max_texels(15)).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
-    assert!(decode(&png, &ReadOptions { max_texels: 16 }).is_ok());
+    assert!(decode(&png, &ReadOptions::default().with_max_texels(16)).is_ok());
     let exr = exr_bytes((4, 4), (0, 0), vec![f32_channel("Y", &[0.0; 16])]);
-    let e = decode(&exr, &ReadOptions { max_texels: 15 }).unwrap_err();
+    let e = decode(&exr, &ReadOptions::default().with_max_texels(15)).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
     assert_eq!(ReadOptions::default().max_texels, 1 << 30);
 }

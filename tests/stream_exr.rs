@@ -275,7 +275,7 @@ fn what_cannot_stream_is_left_to_the_whole_image_path() {
         LineOrder::Increasing,
         vec![AnyChannel::new("Y", FlatSamples::F32(vec![0.5; 64 * 64]))],
     );
-    let err = ExrRows::open(&big, &ReadOptions { max_texels: 1000 }, None).err().expect("over the limit");
+    let err = ExrRows::open(&big, &ReadOptions::default().with_max_texels(1000), None).err().expect("over the limit");
     assert!(matches!(err, normalfit::Error::Limits(_)), "{err:?}");
 }
 

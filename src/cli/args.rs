@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
 use normalfit::Border;
+use normalfit::io::ReadOptions;
 use normalfit::options::MAX_PATCH;
 use normalfit::shade::Light;
 
@@ -116,6 +117,9 @@ pub struct ConvertArgs {
     /// row's best filter: about 12 % smaller, a little slower).
     #[arg(long, value_enum, default_value_t = CompressionArg::Fast)]
     pub compression: CompressionArg,
+
+    #[command(flatten)]
+    pub read: ReadArgs,
 
     // The groups with a help heading come after the options without one,
     // which a heading would otherwise cover.
@@ -302,6 +306,33 @@ pub struct TilingArgs {
     /// wrap), shifted the same way, where slope seams show.
     #[arg(long, value_name = "FILE")]
     pub preview_lit: Option<PathBuf>,
+
+    #[command(flatten)]
+    pub read: ReadArgs,
+}
+
+/// How inputs are read: the size limit and, for OpenEXR, the layer.
+#[derive(Args, Debug)]
+pub struct ReadArgs {
+    /// Refuse images of more than N texels (width × height), checked from
+    /// the file's header before any pixel is decoded.
+    #[arg(long, value_name = "N", default_value_t = ReadOptions::default().max_texels, value_parser = parse_max_texels)]
+    pub max_texels: u64,
+
+    /// OpenEXR: read the layer NAME, a part of that name or the channels
+    /// NAME.* (default: the first part, all its channels).
+    #[arg(long, value_name = "NAME")]
+    pub layer: Option<String>,
+}
+
+impl ReadArgs {
+    pub fn options(&self) -> ReadOptions {
+        let opts = ReadOptions::default().with_max_texels(self.max_texels);
+        match &self.layer {
+            Some(name) => opts.with_layer(name.clone()),
+            None => opts,
+        }
+    }
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug)]
@@ -353,6 +384,13 @@ fn parse_suffix(s: &str) -> Result<String, String> {
         return Err(format!("the suffix is part of a file name: no '/', '\\' or NUL, got '{s}'"));
     }
     Ok(s.to_string())
+}
+
+fn parse_max_texels(s: &str) -> Result<u64, String> {
+    match s.parse::<u64>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(format!("--max-texels must be a whole number of texels, at least 1, got '{s}'")),
+    }
 }
 
 fn parse_bits(s: &str) -> Result<u8, String> {

@@ -31,6 +31,8 @@ struct Plan {
     signed: bool,
     compression: PngCompression,
     destination: Destination,
+    /// The size limit and the EXR layer, for every read.
+    read: ReadOptions,
     layout: Layout,
     residual: Option<ResidualPlace>,
     /// Appended to an input's stem to name its normal map.
@@ -171,6 +173,7 @@ impl Plan {
                 CompressionArg::Small => PngCompression::Default,
             },
             destination,
+            read: args.read.options(),
             layout,
             residual,
             suffix: args.batch.suffix.clone(),
@@ -185,17 +188,17 @@ impl Plan {
         let input = &job.input;
         if let (Input::File(path), None) = (input, &self.residual) {
             let in_failure = |e: normalfit::Error| Failure::file(path, e);
-            if let Some(rows) = PngRows::reopen(path, self.channel).map_err(in_failure)? {
+            if let Some(rows) = PngRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
                 let sample = SampleType::Int { bits: if rows.more_than_8_bits() { 16 } else { 8 } };
                 let target = self.target(job, InputFormat::Png, sample)?;
                 return self.convert_streaming(job, k, shared, rows, &target);
             }
-            if let Some(rows) = ExrRows::reopen(path, self.channel).map_err(in_failure)? {
+            if let Some(rows) = ExrRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
                 let target = self.target(job, InputFormat::Exr, SampleType::Float)?;
                 return self.convert_streaming(job, k, shared, rows, &target);
             }
         }
-        let raster = read_input(input, &ReadOptions::default())?;
+        let raster = read_input(input, &self.read)?;
         let target = self.target(job, raster.format.clone(), raster.sample)?;
         self.claim(job, &target, k, shared)?;
         let write_normals = self.wanted(target.path.as_deref(), input);
@@ -274,11 +277,11 @@ impl Plan {
         let png_file = target.path.is_some() && target.png_depth().is_some();
         let needs_tail = may_wrap_y && !png_file;
         let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let cheap_tail = if needs_tail && !auto { S::last_rows(path, self.channel, r) } else { None };
+        let cheap_tail = if needs_tail && !auto { S::last_rows(path, &self.read, self.channel, r) } else { None };
         let (report, tail) = match cheap_tail {
             Some(tail) => (None, Some(tail.map_err(in_failure)?)),
             None if auto || needs_tail => {
-                let first = S::reopen(path, self.channel).map_err(in_failure)?;
+                let first = S::reopen(path, &self.read, self.channel).map_err(in_failure)?;
                 let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
                 let mut seams = HeightSeams::new(width, height);
                 let tail = first.read_tail(r, |row| seams.push_row(row)).map_err(in_failure)?;
@@ -654,30 +657,40 @@ fn write_stdout(bytes: &[u8]) -> normalfit::Result<()> {
 trait Reopen: RowSource + Sized {
     /// Opens `path` if it is this format and can stream (`Ok(None)`: read
     /// it whole).
-    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>>;
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>>;
 
     /// The image's last `rows` rows, if the format can give them without
     /// reading the whole file (`None`: it cannot).
-    fn last_rows(path: &Path, channel: Option<Channel>, rows: usize) -> Option<normalfit::Result<Vec<f32>>>;
+    fn last_rows(
+        path: &Path,
+        opts: &ReadOptions,
+        channel: Option<Channel>,
+        rows: usize,
+    ) -> Option<normalfit::Result<Vec<f32>>>;
 }
 
 impl Reopen for PngRows {
-    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
-        PngRows::open(path, &ReadOptions::default(), channel)
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        PngRows::open(path, opts, channel)
     }
 
-    fn last_rows(_: &Path, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f32>>> {
+    fn last_rows(_: &Path, _: &ReadOptions, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f32>>> {
         // PNG cannot seek: its last rows come from a pass over the file.
         None
     }
 }
 
 impl Reopen for ExrRows {
-    fn reopen(path: &Path, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
-        ExrRows::open(path, &ReadOptions::default(), channel)
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> normalfit::Result<Option<Self>> {
+        ExrRows::open(path, opts, channel)
     }
 
-    fn last_rows(path: &Path, channel: Option<Channel>, rows: usize) -> Option<normalfit::Result<Vec<f32>>> {
-        Some(ExrRows::last_rows(path, &ReadOptions::default(), channel, rows))
+    fn last_rows(
+        path: &Path,
+        opts: &ReadOptions,
+        channel: Option<Channel>,
+        rows: usize,
+    ) -> Option<normalfit::Result<Vec<f32>>> {
+        Some(ExrRows::last_rows(path, opts, channel, rows))
     }
 }

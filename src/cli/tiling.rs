@@ -22,6 +22,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
         opts.threshold = t;
     }
     let channel = args.channel.map(channel_of);
+    let read = args.read.options();
     let many = args.inputs.len() > 1;
     let previews = Previews {
         plain: args.preview.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,
@@ -31,7 +32,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
     let (mut errors, mut seams) = (0, 0);
     for path in &args.inputs {
         let input = Input::from_arg(path);
-        let checked = check_one(&input, args.kind, channel, &opts).and_then(|(raster, report)| {
+        let checked = check_one(&input, &read, args.kind, channel, &opts).and_then(|(raster, report)| {
             previews.write(&input, &raster, &report, channel)?;
             Ok((raster, report))
         });
@@ -72,11 +73,12 @@ pub fn channel_of(c: ChannelArg) -> Channel {
 /// Reads one image and checks it.
 fn check_one(
     input: &Input,
+    read: &ReadOptions,
     kind: KindArg,
     channel: Option<Channel>,
     opts: &TilingOptions,
 ) -> Result<(Raster, TilingReport), Failure> {
-    let raster = read_input(input, &ReadOptions::default())?;
+    let raster = read_input(input, read)?;
     let report = report_of(&raster, kind, channel, opts).map_err(|e| Failure::file(input.name(), e))?;
     Ok((raster, report))
 }

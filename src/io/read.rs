@@ -11,6 +11,11 @@
 //!   100000 × 100000 texels, and both `image` and `exr` would otherwise try
 //!   to allocate for it (the `exr` crate can abort the process on a failed
 //!   allocation, which no `Result` can catch).
+//! * Headers are checked before the decoders trust them: a PNG's IHDR size
+//!   (so the message names the size, not a decoder's buffer), an EXR's
+//!   data and display windows (the `exr` crate would silently swap the
+//!   corners of an inverted one) and its offset tables (8 bytes a chunk
+//!   must be in the file).
 //! * Large buffers are reserved with `try_reserve_exact`, so running out of
 //!   memory for an image under the limit is an error, not an abort.
 //! * Values are stored already in contract units (SPEC §1): integer samples
@@ -19,7 +24,7 @@
 //!   the channel that becomes the height matters.
 
 use std::fmt;
-use std::io::Cursor;
+use std::io::{BufRead, Cursor, Read};
 use std::path::Path;
 
 use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
@@ -145,7 +150,7 @@ pub struct Raster {
     pub planes: Vec<Plane>,
 }
 
-/// Limits for a read of untrusted bytes.
+/// Limits for a read of untrusted bytes, and which part of a file to read.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ReadOptions {
     /// The largest width × height accepted, checked from the header before
@@ -153,11 +158,34 @@ pub struct ReadOptions {
     /// 4 GiB for one `f32` plane: larger than any texture a GPU takes,
     /// small enough that a forged header cannot exhaust memory.
     pub max_texels: u64,
+    /// OpenEXR: the layer to read, by name. A layer is a part of a
+    /// multi-part file (its `name` attribute), else the channels of one
+    /// part whose names start with `NAME.` ("diffuse.R", "diffuse.G", …);
+    /// a part's name wins over a channel prefix. `None` reads the file's
+    /// first part of flat (not deep) samples, all its channels. Any other
+    /// format has no layers: asking for one there is an error.
+    pub layer: Option<String>,
 }
 
 impl Default for ReadOptions {
     fn default() -> Self {
-        ReadOptions { max_texels: 1 << 30 }
+        ReadOptions { max_texels: 1 << 30, layer: None }
+    }
+}
+
+impl ReadOptions {
+    /// The same options with another texel limit.
+    #[must_use]
+    pub fn with_max_texels(mut self, max_texels: u64) -> Self {
+        self.max_texels = max_texels;
+        self
+    }
+
+    /// The same options reading the OpenEXR layer `name`.
+    #[must_use]
+    pub fn with_layer(mut self, name: impl Into<String>) -> Self {
+        self.layer = Some(name.into());
+        self
     }
 }
 
@@ -183,13 +211,20 @@ pub(crate) fn luma(r: f32, g: f32, b: f32) -> f32 {
 /// Errors: [`Error::Decode`] for empty, unknown, corrupt, truncated or
 /// zero-size data; [`Error::Limits`] when the header claims more than
 /// `opts.max_texels` texels; [`Error::Unsupported`] for a layout normalfit
-/// does not read.
+/// does not read, or a layer asked for in a format that has none.
 pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     if bytes.is_empty() {
         return Err(Error::Decode("file is empty".into()));
     }
     if bytes.starts_with(&EXR_MAGIC) {
         return decode_exr(bytes, opts);
+    }
+    if let Some(layer) = &opts.layer {
+        let format = if is_tiff(bytes) { InputFormat::Tiff } else { input_format(guess_format(bytes)?) };
+        return Err(no_layers(&format, layer));
+    }
+    if bytes.starts_with(&PNG_SIGNATURE) {
+        check_png_header(bytes, opts)?;
     }
     if is_tiff(bytes) {
         if let Some(raster) = decode_tiff_gray(bytes, opts)? {
@@ -385,6 +420,34 @@ fn copy_plane(data: &[f32]) -> Result<Vec<f32>> {
     Ok(out)
 }
 
+/// The error for a layer asked for in a format without layers.
+pub(crate) fn no_layers(format: &InputFormat, layer: &str) -> Error {
+    Error::Unsupported(format!("layer {layer} asked for, but {format} files have no layers (only OpenEXR has)"))
+}
+
+/// The eight bytes every PNG file starts with.
+pub(crate) const PNG_SIGNATURE: [u8; 8] = *b"\x89PNG\r\n\x1a\n";
+
+/// Checks the size a PNG's IHDR claims, from the file's first bytes,
+/// before a decoder sees it: against the limit, and against PNG's own
+/// maximum side, 2^31 − 1. The decoders check too, but report the limit
+/// they hit (their buffers), not the size; here the message names it.
+/// Too few bytes, or no IHDR first, is left to the decoder to report.
+pub(crate) fn check_png_header(start: &[u8], opts: &ReadOptions) -> Result<()> {
+    // Signature (8 bytes), IHDR length (4) and type (4), width, height.
+    let Some(ihdr) = start.get(8..24) else { return Ok(()) };
+    if &ihdr[4..8] != b"IHDR" {
+        return Ok(());
+    }
+    let width = u32::from_be_bytes([ihdr[8], ihdr[9], ihdr[10], ihdr[11]]);
+    let height = u32::from_be_bytes([ihdr[12], ihdr[13], ihdr[14], ihdr[15]]);
+    const PNG_MAX_SIDE: u32 = i32::MAX as u32;
+    if width > PNG_MAX_SIDE || height > PNG_MAX_SIDE {
+        return Err(Error::Decode(format!("png header claims {width} × {height}, but a side is at most 2^31 − 1")));
+    }
+    check_size(u64::from(width), u64::from(height), opts)
+}
+
 /// Checks a header's claimed size: not zero, not above the limit.
 pub(crate) fn check_size(width: u64, height: u64, opts: &ReadOptions) -> Result<()> {
     if width == 0 || height == 0 {
@@ -397,14 +460,35 @@ pub(crate) fn check_size(width: u64, height: u64, opts: &ReadOptions) -> Result<
     Ok(())
 }
 
-/// Lower-cases the first letter of a dependency's message and puts it on
-/// one line, so it reads as part of ours.
-fn message(s: &str) -> String {
-    let s = one_line(s);
-    let mut chars = s.chars();
+/// A dependency's message made to read as part of ours: on one line,
+/// "Format error decoding Png: …" as "png: …", chunk types printed by
+/// `png` as `ChunkType { type: IDAT, … }` as IDAT, no final full stop,
+/// and the first letter in lower case unless it starts an acronym (CRC).
+pub(crate) fn message(s: &str) -> String {
+    const CHUNK: &str = "ChunkType { type: ";
+    let mut s = one_line(s);
+    while let Some(start) = s.find(CHUNK) {
+        let rest = &s[start + CHUNK.len()..];
+        let (Some(kind), Some(end)) = (rest.get(..4), rest.find('}')) else { break };
+        s = format!("{}{kind}{}", &s[..start], &rest[end + 1..]);
+    }
+    let s = s.trim_end_matches('.');
+    match s.strip_prefix("Format error decoding ").and_then(|r| r.split_once(": ")) {
+        Some((format, rest)) => format!("{}: {}", format.to_lowercase(), lower_first(rest)),
+        None => lower_first(s),
+    }
+}
+
+/// `s` with its first letter in lower case when its first word is an
+/// ordinary one ("Unknown" → "unknown"; "CRC", "I/O", "IDAT" stay).
+fn lower_first(s: &str) -> String {
+    let word = s.split_whitespace().next().unwrap_or("");
+    let mut chars = word.chars();
     match chars.next() {
-        Some(c) => c.to_lowercase().chain(chars).collect(),
-        None => s,
+        Some(first) if chars.all(char::is_lowercase) => {
+            first.to_lowercase().chain(s[first.len_utf8()..].chars()).collect()
+        }
+        _ => s.to_string(),
     }
 }
 
@@ -736,33 +820,212 @@ fn from_tiff_error(e: tiff::TiffError) -> Error {
 // OpenEXR, read with the `exr` crate: `image`'s EXR path only gives RGB(A)
 // and rejects single-channel files, the common height map layout.
 
-/// Decodes an EXR: meta data first (sizes checked), then the first valid
-/// layer at its largest resolution level, all channels.
+/// Decodes an EXR: meta data first (windows and sizes checked), then the
+/// layer asked for ([`choose_exr_layer`]) at its largest resolution level,
+/// all its channels.
 fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
-    check_exr_header(bytes, opts)?;
-    use exr::prelude::{ReadChannels, ReadLayers};
-    let image = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
+    check_exr_windows(Cursor::new(bytes))?;
+    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(from_exr_error)?;
+    check_exr_meta(&meta, bytes.len() as u64, opts)?;
+    let choice = choose_exr_layer(&meta.headers, opts.layer.as_deref())?;
+    use exr::prelude::ReadLayers;
+    let channels = exr::prelude::read().no_deep_data().largest_resolution_level().all_channels();
+    let image = OnePart { part: choice.part, channels }
         .all_attributes()
         .from_buffered(Cursor::new(bytes))
         .map_err(from_exr_error)?;
-    let layer = image.layer_data;
-    let (width, height) = (layer.size.0, layer.size.1);
+    let (size, channels) = image.layer_data;
+    let (width, height) = (size.0, size.1);
     check_size(width as u64, height as u64, opts)?;
-    let texels = width * height;
-    let planes =
-        layer.channel_data.list.into_iter().map(|channel| exr_plane(channel, texels)).collect::<Result<Vec<_>>>()?;
+    let texels = to_usize((width as u64).saturating_mul(height as u64))?;
+    let planes = channels
+        .list
+        .into_iter()
+        .filter(|channel| choice.holds(&channel.name.to_string()))
+        .map(|channel| exr_plane(channel, texels))
+        .collect::<Result<Vec<_>>>()?;
     Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
 }
 
-/// Checks every layer's data window against the limit before `exr`
-/// allocates anything for it ([`check_exr_meta`]).
-fn check_exr_header(bytes: &[u8], opts: &ReadOptions) -> Result<()> {
-    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(from_exr_error)?;
-    check_exr_meta(&meta, bytes.len() as u64, opts)
+/// Which part of an OpenEXR file, and which of its channels, make the
+/// image read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct ExrLayer {
+    /// The part (header) index.
+    pub part: usize,
+    /// Only the channels named `prefix.…`, or all the part's channels.
+    pub prefix: Option<String>,
+}
+
+impl ExrLayer {
+    /// Whether the channel of this name belongs to the layer.
+    pub fn holds(&self, channel: &str) -> bool {
+        match &self.prefix {
+            None => true,
+            Some(p) => channel.strip_prefix(p.as_str()).is_some_and(|rest| rest.starts_with('.')),
+        }
+    }
+}
+
+/// Finds the layer `name` among an OpenEXR file's headers (see
+/// [`ReadOptions::layer`]): a part of that name, else the first part with
+/// channels named `name.…`; `None` is the first part of flat samples.
+///
+/// Errors: [`Error::Unsupported`] naming the layers there are when none
+/// matches, or when every part holds deep data.
+pub(crate) fn choose_exr_layer(headers: &[exr::meta::header::Header], name: Option<&str>) -> Result<ExrLayer> {
+    let Some(name) = name else {
+        return headers
+            .iter()
+            .position(|h| !h.deep)
+            .map(|part| ExrLayer { part, prefix: None })
+            .ok_or_else(|| Error::Unsupported("exr file holds only deep data".into()));
+    };
+    let part_name = |h: &exr::meta::header::Header| h.own_attributes.layer_name.as_ref().map(|n| n.to_string());
+    if let Some(part) = headers.iter().position(|h| part_name(h).as_deref() == Some(name)) {
+        return Ok(ExrLayer { part, prefix: None });
+    }
+    let group = ExrLayer { part: 0, prefix: Some(name.to_string()) };
+    if let Some(part) =
+        headers.iter().position(|h| !h.deep && h.channels.list.iter().any(|c| group.holds(&c.name.to_string())))
+    {
+        return Ok(ExrLayer { part, ..group });
+    }
+    // The names there are: parts, and the channel groups of each part.
+    let mut layers: Vec<String> = Vec::new();
+    for header in headers {
+        layers.extend(part_name(header));
+        for channel in &header.channels.list {
+            let channel = channel.name.to_string();
+            if let Some((group, _)) = channel.rsplit_once('.') {
+                if !layers.iter().any(|l| l == group) {
+                    layers.push(group.to_string());
+                }
+            }
+        }
+    }
+    let there = if layers.is_empty() {
+        "it has none: no part names, no channels named LAYER.X".into()
+    } else {
+        format!("layers: {}", layers.join(", "))
+    };
+    Err(Error::Unsupported(format!("exr file has no layer {name} ({there})")))
+}
+
+/// The `exr` reader of one part of a file, by index (the crate itself
+/// reads the first valid part or all of them).
+struct OnePart<C> {
+    part: usize,
+    channels: C,
+}
+
+/// Gathers the blocks of one part.
+struct OnePartReader<R> {
+    part: usize,
+    size: exr::math::Vec2<usize>,
+    channels: R,
+}
+
+impl<'s, C: exr::image::read::layers::ReadChannels<'s>> exr::image::read::image::ReadLayers<'s> for OnePart<C> {
+    type Layers = (exr::math::Vec2<usize>, <C::Reader as exr::image::read::layers::ChannelsReader>::Channels);
+    type Reader = OnePartReader<C::Reader>;
+
+    fn create_layers_reader(&'s self, headers: &[exr::meta::header::Header]) -> exr::error::Result<Self::Reader> {
+        let header = headers.get(self.part).ok_or_else(|| exr::error::Error::Invalid("layer index".into()))?;
+        let channels = self.channels.create_channels_reader(header)?;
+        Ok(OnePartReader { part: self.part, size: header.layer_size, channels })
+    }
+}
+
+impl<R: exr::image::read::layers::ChannelsReader> exr::image::read::image::LayersReader for OnePartReader<R> {
+    type Layers = (exr::math::Vec2<usize>, R::Channels);
+
+    fn filter_block(
+        &self,
+        _: &exr::meta::MetaData,
+        tile: exr::block::chunk::TileCoordinates,
+        block: exr::block::BlockIndex,
+    ) -> bool {
+        block.layer == self.part && self.channels.filter_block(tile)
+    }
+
+    fn read_block(
+        &mut self,
+        headers: &[exr::meta::header::Header],
+        block: exr::block::UncompressedBlock,
+    ) -> exr::error::UnitResult {
+        let header = headers.get(self.part).ok_or_else(|| exr::error::Error::Invalid("layer index".into()))?;
+        self.channels.read_block(header, block)
+    }
+
+    fn into_layers(self) -> Self::Layers {
+        (self.size, self.channels.into_channels())
+    }
+}
+
+/// Checks the data and display windows of every header as stored: each
+/// max at least its min. The `exr` crate swaps an inverted window's
+/// corners, which would read a broken or forged header as some other
+/// image; OpenEXR rejects it, and so does normalfit. Anything else wrong
+/// with the header (bytes missing, a name too long) is left to `exr`,
+/// which reports it.
+pub(crate) fn check_exr_windows(mut read: impl BufRead) -> Result<()> {
+    /// Attribute and type names are at most 255 bytes (with long names).
+    const NAME_MAX: usize = 256;
+    fn name(read: &mut impl BufRead) -> Option<Vec<u8>> {
+        let mut out = Vec::new();
+        for byte in read.bytes() {
+            match byte.ok()? {
+                0 => return Some(out),
+                b if out.len() < NAME_MAX => out.push(b),
+                _ => return None,
+            }
+        }
+        None
+    }
+    fn i32_le(read: &mut impl Read) -> Option<i32> {
+        let mut b = [0u8; 4];
+        read.read_exact(&mut b).ok()?;
+        Some(i32::from_le_bytes(b))
+    }
+    let mut start = [0u8; 8];
+    if read.read_exact(&mut start).is_err() {
+        return Ok(());
+    }
+    // Version field flags: bit 12 (byte 5, 0x10) is "multi-part".
+    let multipart = start[5] & 0x10 != 0;
+    loop {
+        let mut attributes = 0;
+        loop {
+            let Some(attribute) = name(&mut read) else { return Ok(()) };
+            if attribute.is_empty() {
+                break;
+            }
+            attributes += 1;
+            let (Some(kind), Some(size)) = (name(&mut read), i32_le(&mut read)) else { return Ok(()) };
+            let window = attribute == b"dataWindow" || attribute == b"displayWindow";
+            if window && kind == b"box2i" && size == 16 {
+                let corners: Option<Vec<i32>> = (0..4).map(|_| i32_le(&mut read)).collect();
+                let Some(&[x_min, y_min, x_max, y_max]) = corners.as_deref() else { return Ok(()) };
+                if x_max < x_min || y_max < y_min {
+                    let which = if attribute == b"dataWindow" { "data" } else { "display" };
+                    return Err(Error::Decode(format!(
+                        "exr {which} window is inverted: min ({x_min}, {y_min}), max ({x_max}, {y_max})"
+                    )));
+                }
+            } else {
+                let Ok(size) = u64::try_from(size) else { return Ok(()) };
+                let skipped = std::io::copy(&mut (&mut read).take(size), &mut std::io::sink()).unwrap_or(0);
+                if skipped != size {
+                    return Ok(());
+                }
+            }
+        }
+        // A multi-part file ends its list of headers with an empty one.
+        if !multipart || attributes == 0 {
+            return Ok(());
+        }
+    }
 }
 
 /// Checks every layer's data window against the limit, from the header of
@@ -820,8 +1083,12 @@ fn exr_plane(channel: exr::prelude::AnyChannel<exr::prelude::FlatSamples>, texel
 pub(crate) fn from_exr_error(e: exr::error::Error) -> Error {
     use exr::error::Error as E;
     match e {
-        E::NotSupported(m) => Error::Unsupported(message(&m)),
-        E::Invalid(m) => Error::Decode(message(&m)),
+        E::NotSupported(m) => Error::Unsupported(format!("exr: {}", message(&m))),
+        // `exr` reports every read past the end of the data so.
+        E::Invalid(m) if m == "reference to missing bytes" => {
+            Error::Decode("truncated or corrupt: the file ends before the data its header refers to".into())
+        }
+        E::Invalid(m) => Error::Decode(format!("invalid exr: {}", message(&m))),
         E::Io(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
         E::Aborted => Error::Decode("reading was aborted".into()),
     }

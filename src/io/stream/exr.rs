@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{BufReader, Seek, Write};
+use std::io::{BufReader, Seek, SeekFrom, Write};
 use std::ops::Range;
 use std::path::Path;
 
@@ -16,7 +16,10 @@ use exr::prelude::{Vec2, f16};
 use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
-use crate::io::read::{Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, from_exr_error, luma, select_channel};
+use crate::io::read::{
+    Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer, from_exr_error, luma,
+    select_channel,
+};
 use crate::io::write::{Container, ExrDepth, Layout, lay_out, write_exr_rows};
 use crate::options::Options;
 
@@ -47,13 +50,16 @@ pub struct ExrRows {
 
 impl ExrRows {
     /// Opens `path` for streaming if it is an OpenEXR file that can stream:
-    /// one layer of scan lines, one resolution level, no subsampled or deep
-    /// channels. `Ok(None)` otherwise (not EXR, tiled, several layers, …),
+    /// one part of scan lines, one resolution level, no subsampled or deep
+    /// channels. `Ok(None)` otherwise (not EXR, tiled, several parts, …),
     /// and the caller reads the image whole. Reads only the header.
+    /// `opts.layer` may pick a group of the part's channels
+    /// ([`ReadOptions::layer`]).
     ///
     /// Errors: [`Error::Io`] if the file cannot be opened, [`Error::Decode`]
-    /// for a corrupt header, [`Error::Limits`] for a size above
-    /// `opts.max_texels`, [`Error::Unsupported`] for a missing channel.
+    /// for a corrupt header (an inverted window among them),
+    /// [`Error::Limits`] for a size above `opts.max_texels`,
+    /// [`Error::Unsupported`] for a missing channel or layer.
     pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<ExrRows>> {
         Self::open_from(path, opts, channel, 0)
     }
@@ -89,16 +95,27 @@ impl ExrRows {
         if !std::io::BufRead::fill_buf(&mut file)?.starts_with(&EXR_MAGIC) {
             return Ok(None);
         }
+        check_exr_windows(&mut file)?;
+        file.seek(SeekFrom::Start(0))?;
         let reader = exr::block::read(file, false).map_err(from_exr_error)?;
         check_exr_meta(reader.meta_data(), file_len, opts)?;
+        let layer = choose_exr_layer(reader.headers(), opts.layer.as_deref())?;
         let [header] = reader.headers() else { return Ok(None) };
         let flat = header.channels.list.iter().all(|c| c.sampling == Vec2(1, 1));
         if header.deep || header.blocks != BlockDescription::ScanLines || !flat {
             return Ok(None);
         }
-        let names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+        // The channel rule runs on the layer's channels; `source` indexes
+        // the part's whole channel list.
+        let (indices, names): (Vec<usize>, Vec<String>) = (header.channels.list.iter().enumerate())
+            .map(|(i, c)| (i, c.name.to_string()))
+            .filter(|(_, name)| layer.holds(name))
+            .unzip();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        let source = select_channel(&names, channel)?;
+        let source = match select_channel(&names, channel)? {
+            Source::Plane(i) => Source::Plane(indices[i]),
+            Source::Luma(rgb) => Source::Luma(rgb.map(|i| indices[i])),
+        };
         let (width, height) = (header.layer_size.0, header.layer_size.1);
         let channels = header.channels.clone();
         let lines_per_block = header.compression.scan_lines_per_block();

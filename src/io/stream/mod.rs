@@ -34,7 +34,7 @@ pub use self::exr::{ExrFormat, ExrRows, convert_exr};
 pub use self::png::{PngDepth, PngOutput, PngRows, convert_png, convert_png_seekable};
 
 use crate::error::{Error, Result};
-use crate::fit::{BandFit, FromNormal};
+use crate::fit::{BandFit, FromNormal, first_non_finite};
 use crate::io::write::Layout;
 use crate::options::{Border, Options};
 
@@ -163,6 +163,26 @@ fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f32
     }
 }
 
+/// The first NaN or infinite height in row order among the bands `rx`
+/// delivers, knowing that texel `known` of a later row is one: the error
+/// that names it (or the decoder's error, if one comes first).
+fn first_bad_texel(rx: Receiver<Band<f32>>, w: usize, known: (usize, usize)) -> Error {
+    for band in rx {
+        match band {
+            Ok((first, rows)) => {
+                if let Some((x, y)) = first_non_finite(&rows, w) {
+                    return Error::NonFiniteHeight { x, y: first + y };
+                }
+                if first + rows.len() / w > known.1 {
+                    break;
+                }
+            }
+            Err(e) => return e,
+        }
+    }
+    Error::NonFiniteHeight { x: known.0, y: known.1 }
+}
+
 /// Fits each band once the rows it reads are in, prepares it for the
 /// encoder and sends it on; gives every row that comes in to `visit`.
 /// `deferred`: the top band is fitted last, when the image's last rows are
@@ -177,6 +197,16 @@ fn fit_stage<T: FromNormal + Default, B>(
     tx: &SyncSender<Band<B>>,
 ) {
     let (w, h, r) = (fit.width(), fit.height(), fit.radius());
+    if let Some(tail) = tail {
+        if let Some((x, y)) = first_non_finite(tail, w) {
+            // The top band reads these last rows first, through the wrap:
+            // fitting it would name this texel before the rows above are
+            // read. SPEC §1 names the first bad texel in row order, so the
+            // rows are read on and checked in order instead.
+            let _ = tx.send(Err(first_bad_texel(rx, w, (x, y + h - tail.len() / w))));
+            return;
+        }
+    }
     // The decoded bands that later bands still read, as they came (first
     // row, heights), and a copy of the image's first 2r rows, which the top
     // band and a wrap at the bottom read after they have left.

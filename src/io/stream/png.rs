@@ -13,7 +13,9 @@ use rayon::prelude::*;
 use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
-use crate::io::read::{Channel, ReadOptions, check_size, luma};
+use crate::io::read::{
+    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, check_png_header, check_size, luma, message, no_layers,
+};
 use crate::io::write::{Container, Layout, PngCompression, PngSample, lay_out};
 use crate::options::Options;
 
@@ -52,13 +54,20 @@ impl PngRows {
     ///
     /// Errors: [`Error::Io`] if the file cannot be opened, [`Error::Decode`]
     /// for a corrupt header, [`Error::Limits`] for a size above
-    /// `opts.max_texels`, [`Error::Unsupported`] for a missing channel.
+    /// `opts.max_texels`, [`Error::Unsupported`] for a missing channel or
+    /// a layer asked for (PNG has none). The rows read later may fail with
+    /// [`Error::Decode`]; the last one also checks the rest of the file
+    /// up to IEND, as a whole-image decoder does.
     pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<PngRows>> {
         let mut file = BufReader::with_capacity(1 << 16, File::open(path)?);
-        let magic = std::io::BufRead::fill_buf(&mut file)?;
-        if !magic.starts_with(b"\x89PNG\r\n\x1a\n") {
+        let start = std::io::BufRead::fill_buf(&mut file)?;
+        if !start.starts_with(&PNG_SIGNATURE) {
             return Ok(None);
         }
+        if let Some(layer) = &opts.layer {
+            return Err(no_layers(&InputFormat::Png, layer));
+        }
+        check_png_header(start, opts)?;
         // The decoder's own buffers are a few rows; the limit guards them.
         let mut decoder = png::Decoder::new_with_limits(file, png::Limits { bytes: 1 << 28 });
         decoder.set_transformations(png::Transformations::EXPAND);
@@ -138,6 +147,12 @@ impl RowSource for PngRows {
             }),
         }
         self.next += 1;
+        if self.next == self.height {
+            // The rest of the file is read too, as a whole-image decoder
+            // reads it: a bad CRC in the last IDAT chunk, or a file cut
+            // before IEND, is the same error either way.
+            self.reader.finish().map_err(png_error)?;
+        }
         Ok(())
     }
 }
@@ -580,7 +595,8 @@ fn adler32_combine(first: u32, second: u32, second_len: u64) -> u32 {
 fn png_error(e: png::DecodingError) -> Error {
     match e {
         png::DecodingError::IoError(e) if e.kind() != std::io::ErrorKind::UnexpectedEof => Error::Io(e),
+        png::DecodingError::IoError(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
         png::DecodingError::LimitsExceeded => Error::Limits("the png decoder needs more memory than allowed".into()),
-        other => Error::Decode(crate::error::one_line(&other.to_string())),
+        other => Error::Decode(format!("png: {}", message(&other.to_string()))),
     }
 }
