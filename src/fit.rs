@@ -125,19 +125,76 @@ pub fn normals_into<T: FromNormal>(
     opts: &Options,
     out: &mut [T],
 ) -> Result<()> {
+    fit_image(heights, width, height, opts, out, None)
+}
+
+/// Like [`normals_into`], and also the fit's residual: `residual[k]` is
+/// the root-mean-square distance of texel k's N² patch points from the
+/// plane fitted to them, in texel widths (the units of the surface
+/// z = S · h, so it grows with the gain S).
+///
+/// The distance is the one the fit minimises: perpendicular to the plane
+/// for [`Fit::Orthogonal`] (√(λ / N²), λ the covariance's smallest
+/// eigenvalue), vertical for [`Fit::Vertical`]. A planar patch gives 0;
+/// bumps, pits and grain finer than the patch give more, so the map is a
+/// hint of cavities and roughness at the patch's scale. Where the normal
+/// is the flat (0, 0, 1) of a tilt-free patch, the residual is the
+/// points' distance from that horizontal plane. It comes from the sums
+/// the fit already has, at the cost of a few operations per texel.
+///
+/// ```
+/// use normalfit::{normals_and_residual_into, Options};
+/// // A plane plus a checkerboard of amplitude 0.1: the plane is found, and
+/// // the points lie about 0.1 from it (exactly 0.1 · √(1 − 1/N⁴), N = 3).
+/// let (w, h) = (16, 16);
+/// let heights: Vec<f32> = (0..w * h)
+///     .map(|k| 0.01 * (k % w) as f32 + if (k % w + k / w) % 2 == 0 { 0.1 } else { -0.1 })
+///     .collect();
+/// let opts = Options::new().with_fit(normalfit::Fit::Vertical)
+///     .with_borders(normalfit::Borders::both(normalfit::Border::Mirror));
+/// let mut normals = vec![[0.0f32; 3]; w * h];
+/// let mut residual = vec![0.0f32; w * h];
+/// normals_and_residual_into(&heights, w, h, &opts, &mut normals, &mut residual)?;
+/// let expected = 0.1 * (1.0f32 - 1.0 / 81.0).sqrt();
+/// assert!((residual[5 * w + 7] - expected).abs() < 1e-5);
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+///
+/// Errors: as [`normals_into`]; [`Error::BufferSize`] also for a
+/// `residual` of the wrong length.
+pub fn normals_and_residual_into<T: FromNormal>(
+    heights: &[f32],
+    width: usize,
+    height: usize,
+    opts: &Options,
+    out: &mut [T],
+    residual: &mut [f32],
+) -> Result<()> {
+    fit_image(heights, width, height, opts, out, Some(residual))
+}
+
+/// The whole-image fit behind [`normals_into`] and
+/// [`normals_and_residual_into`].
+fn fit_image<T: FromNormal>(
+    heights: &[f32],
+    width: usize,
+    height: usize,
+    opts: &Options,
+    out: &mut [T],
+    residual: Option<&mut [f32]>,
+) -> Result<()> {
     let plan = Plan::new(width, height, opts)?;
     let len = width * height;
-    if heights.len() != len {
-        return Err(Error::BufferSize { expected: len, actual: heights.len() });
-    }
-    if out.len() != len {
-        return Err(Error::BufferSize { expected: len, actual: out.len() });
+    for actual in [heights.len(), out.len()].into_iter().chain(residual.as_ref().map(|r| r.len())) {
+        if actual != len {
+            return Err(Error::BufferSize { expected: len, actual });
+        }
     }
     if let Some((x, y)) = first_non_finite(heights, width) {
         return Err(Error::NonFiniteHeight { x, y });
     }
     let source_row = |y: usize| &heights[y * width..][..width];
-    plan.fit_rows(&source_row, 0, out);
+    plan.fit_rows(&source_row, 0, out, residual);
     Ok(())
 }
 
@@ -257,7 +314,7 @@ impl BandFit {
                 return Err(Error::NonFiniteHeight { x, y });
             }
         }
-        self.plan.fit_rows(row, rows.start, out);
+        self.plan.fit_rows(row, rows.start, out, None);
         Ok(())
     }
 }
@@ -276,6 +333,9 @@ pub(crate) fn checked_len(width: usize, height: usize) -> Result<usize> {
 pub(crate) fn first_non_finite(heights: &[f32], width: usize) -> Option<(usize, usize)> {
     heights.iter().position(|h| !h.is_finite()).map(|k| (k % width, k / width))
 }
+
+/// A tile's first row, its texels and its residuals (when asked for).
+type Tile<'t, T> = (usize, &'t mut [T], Option<&'t mut [f32]>);
 
 /// Everything about a conversion that is the same for every tile.
 struct Plan {
@@ -328,23 +388,46 @@ impl Plan {
     /// The tiles are fixed by the image and N alone: the top r rows, whose
     /// patches reach above row 0 (through a wrap, to the image's last rows),
     /// then `block_rows` at a time. Every texel is then made by the same
-    /// operations whichever rows a caller asks for at once.
-    fn fit_rows<'a, T: FromNormal>(&self, source_row: &(dyn Fn(usize) -> &'a [f32] + Sync), y0: usize, out: &mut [T]) {
+    /// operations whichever rows a caller asks for at once. `residual`,
+    /// when given, holds as many texels as `out` and gets the fit's RMS
+    /// distances.
+    fn fit_rows<'a, T: FromNormal>(
+        &self,
+        source_row: &(dyn Fn(usize) -> &'a [f32] + Sync),
+        y0: usize,
+        out: &mut [T],
+        residual: Option<&mut [f32]>,
+    ) {
         let w = self.width;
-        let mut tiles: Vec<(usize, &mut [T])> = Vec::new();
-        let (mut y, mut rest) = (y0, out);
+        let mut tiles: Vec<Tile<'_, T>> = Vec::new();
+        let (mut y, mut rest, mut rest_residual) = (y0, out, residual);
         while !rest.is_empty() {
             let rows = if y < self.r { self.r - y } else { self.block_rows - (y - self.r) % self.block_rows };
-            let (tile, tail) = rest.split_at_mut((rows * w).min(rest.len()));
-            tiles.push((y, tile));
+            let len = (rows * w).min(rest.len());
+            let (tile, tail) = rest.split_at_mut(len);
+            let (tile_residual, residual_tail) = match rest_residual {
+                Some(r) => {
+                    let (head, tail) = r.split_at_mut(len);
+                    (Some(head), Some(tail))
+                }
+                None => (None, None),
+            };
+            tiles.push((y, tile, tile_residual));
             y += rows;
             rest = tail;
+            rest_residual = residual_tail;
         }
-        tiles.into_par_iter().for_each(|(y, tile)| self.fit_block(source_row, y, tile));
+        tiles.into_par_iter().for_each(|(y, tile, residual)| self.fit_block(source_row, y, tile, residual));
     }
 
     /// Fits the output rows `y0 .. y0 + out.len() / width`.
-    fn fit_block<'a, T: FromNormal>(&self, source_row: &(dyn Fn(usize) -> &'a [f32] + Sync), y0: usize, out: &mut [T]) {
+    fn fit_block<'a, T: FromNormal>(
+        &self,
+        source_row: &(dyn Fn(usize) -> &'a [f32] + Sync),
+        y0: usize,
+        out: &mut [T],
+        mut residual: Option<&mut [f32]>,
+    ) {
         let (w, n, r) = (self.width, self.n, self.r);
         let row_of = |p: usize| source_row(self.ymap[p]);
 
@@ -387,6 +470,9 @@ impl Plan {
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
             self.emit(&v, &mut normal, out_row);
+            if let Some(residual) = residual.as_deref_mut() {
+                self.emit_residual(&v, &mut residual[k * w..][..w]);
+            }
         }
     }
 
@@ -455,6 +541,54 @@ impl Plan {
             nz[x] = c;
         }
     }
+
+    /// The RMS distance of each texel's patch points from its fitted plane,
+    /// in surface units, from the window sums of one row. A loop of its
+    /// own, run only when asked for, so the normals' loop stays as it is.
+    fn emit_residual(&self, v: &WindowSums, out: &mut [f32]) {
+        match self.fit {
+            Fit::Orthogonal => self.emit_residual_with::<true>(v, out),
+            Fit::Vertical => self.emit_residual_with::<false>(v, out),
+        }
+    }
+
+    fn emit_residual_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, out: &mut [f32]) {
+        let inv_n2 = 1.0 / (self.n * self.n) as f64;
+        let w = out.len();
+        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+        for x in 0..w {
+            let czz = (szz[x] - s0[x] * s0[x] * inv_n2).max(0.0);
+            let sum = squared_distance_sum::<ORTHOGONAL>(self.a, si[x], sj[x], czz);
+            out[x] = (sum * inv_n2).sqrt() as f32;
+        }
+    }
+}
+
+/// The summed squared distance of the patch's points from the fitted
+/// plane, from the patch sums. The scatter matrix of the points is
+/// [[A, 0, Cx], [0, A, Cy], [Cx, Cy, Czz]]; with t² = Cx² + Cy², the
+/// product of its two eigenvalues in the (tilt, z) plane is A·Czz − t².
+///
+/// * orthogonal: the smallest eigenvalue λ = (A·Czz − t²) / λmax, with
+///   λmax = (A + Czz)/2 + √(d² + t²) ≥ A > 0: the product over the largest
+///   one, which does not cancel as (A + Czz)/2 − √(…) would on a near-planar
+///   patch;
+/// * vertical: Czz − t²/A = (A·Czz − t²) / A, the residual sum of squares
+///   of ordinary least squares (the design is orthogonal: ΣiΣj = 0);
+/// * a flat patch (see [`normal_from_sums`]) has the horizontal plane,
+///   at summed squared distance Czz.
+#[inline(always)]
+fn squared_distance_sum<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: f64, czz: f64) -> f64 {
+    let tilt2 = cx * cx + cy * cy;
+    let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
+    let largest = if ORTHOGONAL {
+        let d = 0.5 * (a - czz);
+        0.5 * (a + czz) + (d * d + tilt2).sqrt()
+    } else {
+        a
+    };
+    let tilted = (a * czz - tilt2).max(0.0) / largest;
+    if flat { czz } else { tilted }
 }
 
 /// The fitted plane's unit normal from the patch sums (see the module

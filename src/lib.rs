@@ -129,5 +129,5 @@ pub mod shade;
 pub mod tiling;
 
 pub use error::{Error, Result};
-pub use fit::{FromNormal, normals, normals_into};
+pub use fit::{FromNormal, normals, normals_and_residual_into, normals_into};
 pub use options::{Border, Borders, Convention, Fit, Options, Strength};

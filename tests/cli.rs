@@ -42,12 +42,22 @@ fn write_gray8(path: &Path, w: u32, h: u32) {
     img.save(path).unwrap();
 }
 
+/// Whether a line of standard error is a batch's summary line.
+fn is_summary(line: &str) -> bool {
+    let words: Vec<&str> = line.split(' ').collect();
+    matches!(
+        words[..],
+        ["normalfit:", a, "converted,", b, "skipped,", c, "failed", "in", t, "s"]
+            if [a, b, c].iter().all(|n| n.parse::<usize>().is_ok()) && t.parse::<f64>().is_ok()
+    )
+}
+
 /// The one error line on standard error. Warnings (the wrap-seam hint) may
-/// precede it, each on its own line.
+/// precede it, each on its own line, and a batch's summary line follow it.
 fn one_line_error(out: &Output) -> String {
     let all = String::from_utf8_lossy(&out.stderr).to_string();
     assert!(!all.contains("panicked"), "{all}");
-    let errors: Vec<&str> = all.lines().filter(|l| !l.starts_with("normalfit: warning: ")).collect();
+    let errors: Vec<&str> = all.lines().filter(|l| !l.starts_with("normalfit: warning: ") && !is_summary(l)).collect();
     assert_eq!(errors.len(), 1, "want one error line on stderr, got {all:?}");
     errors[0].to_string()
 }

@@ -78,13 +78,20 @@ fn expect_fault(out: &Output, subject: &Path, problem: &[&str]) -> String {
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
     assert_eq!(out.status.code(), Some(2), "exit status {:?}, stderr {stderr:?}", out.status);
     assert!(!stderr.contains("panicked") && !stderr.contains("backtrace"), "{stderr}");
-    let errors: Vec<&str> = stderr.lines().filter(|l| !l.starts_with("normalfit: warning: ")).collect();
+    let errors: Vec<&str> =
+        stderr.lines().filter(|l| !l.starts_with("normalfit: warning: ") && !is_summary(l)).collect();
     assert_eq!(errors.len(), 1, "want one error line, got {stderr:?}");
     let line = errors[0].to_string();
     assert!(line.starts_with(&format!("normalfit: {}: ", subject.display())), "names {}: {line}", subject.display());
     let lower = line.to_lowercase();
     assert!(problem.iter().any(|p| lower.contains(p)), "says one of {problem:?}: {line}");
     line
+}
+
+/// A batch's closing line, `normalfit: C converted, S skipped, F failed in
+/// T s`: a count, not an error.
+fn is_summary(line: &str) -> bool {
+    line.starts_with("normalfit: ") && line.contains(" converted, ") && line.contains(" failed in ")
 }
 
 fn is_root() -> bool {
@@ -360,6 +367,11 @@ fn a_batch_with_one_failing_output_still_writes_the_others() {
     args.extend(["-o", s(&outdir)]);
     let r = run(&args);
     expect_fault(&r, &blocked, &["is a folder"]);
+    let summary = String::from_utf8_lossy(&r.stderr).lines().find(|l| is_summary(l)).map(str::to_string);
+    assert!(
+        summary.as_deref().is_some_and(|l| l.starts_with("normalfit: 3 converted, 0 skipped, 1 failed")),
+        "{summary:?}"
+    );
     assert_eq!(listing(&outdir), ["a_normal.png", "b_normal.png", "c_normal.png", "d_normal.png"]);
     assert!(blocked.is_dir() && listing(&blocked).is_empty());
     for n in ["a", "c", "d"] {

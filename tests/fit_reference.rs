@@ -5,7 +5,9 @@
 mod common;
 
 use common::reference;
-use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals, normals_into};
+use normalfit::{
+    Border, Borders, Convention, Fit, Options, Strength, normals, normals_and_residual_into, normals_into,
+};
 use proptest::prelude::*;
 
 const BORDERS: [Border; 3] = [Border::Wrap, Border::Clamp, Border::Mirror];
@@ -81,6 +83,105 @@ proptest! {
 
 /// A tilted plane z = a·x + b·y has one exact normal everywhere the patch
 /// lies inside the image (clamp only distorts the texels near its edges).
+/// The fast residual and the normals that come with it.
+fn residual(heights: &[f32], w: usize, h: usize, opts: &Options) -> (Vec<[f32; 3]>, Vec<f32>) {
+    let mut normals = vec![[0.0f32; 3]; w * h];
+    let mut residual = vec![0.0f32; w * h];
+    normals_and_residual_into(heights, w, h, opts, &mut normals, &mut residual).unwrap();
+    (normals, residual)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 150, ..ProptestConfig::default() })]
+
+    /// The residual from the sums against distances measured point by
+    /// point from the reference's plane; the normals that come with it are
+    /// those of `normals`, bit for bit.
+    #[test]
+    fn fast_residual_matches_the_reference((w, h, heights) in image_strategy(), opts in options_strategy()) {
+        let (with_residual, fast) = residual(&heights, w, h, &opts);
+        prop_assert!(with_residual == normals(&heights, w, h, &opts).unwrap());
+        let tolerance = 1e-5 * (1.0 + opts.scale_for_width(w).abs());
+        for y in 0..h {
+            for x in 0..w {
+                let slow = reference::residual_at(&heights, w, h, &opts, x, y);
+                let got = f64::from(fast[y * w + x]);
+                prop_assert!((got - slow).abs() <= tolerance, "({x}, {y}) of {w}x{h}: fast {got} slow {slow}");
+            }
+        }
+    }
+}
+
+/// A tilted plane leaves no residual; adding a checkerboard of amplitude a
+/// leaves a known one. On an odd patch the checkerboard (±a) is
+/// uncorrelated with u and v, so the least-squares plane is the plane
+/// itself and the residual is the checkerboard less its mean, ±a/N²:
+/// RMS = a·√(1 − 1/N⁴), in surface units S·a. The orthogonal fit gives the
+/// same on an untilted plane and less on a tilted one (perpendicular
+/// distances are shorter than vertical ones, by about cos θ).
+#[test]
+fn a_plane_has_no_residual_and_a_checkerboard_its_known_one() {
+    let (w, h) = (40, 30);
+    let scale = 4.0;
+    for n in [3usize, 5, 9, 15] {
+        let r = n / 2;
+        let n4 = (n * n * n * n) as f64;
+        for slope in [0.0f32, 0.02, 0.07] {
+            for amplitude in [0.0f32, 0.01, 0.03] {
+                let heights: Vec<f32> = (0..w * h)
+                    .map(|k| {
+                        let (x, y) = (k % w, k / w);
+                        let checker = if (x + y) % 2 == 0 { amplitude } else { -amplitude };
+                        0.3 + slope * x as f32 - 0.5 * slope * y as f32 + checker
+                    })
+                    .collect();
+                let base = Options::new()
+                    .with_patch(n)
+                    .with_borders(Borders::both(Border::Clamp))
+                    .with_strength(Strength::Scale(scale));
+                let vertical = residual(&heights, w, h, &base.clone().with_fit(Fit::Vertical)).1;
+                let orthogonal = residual(&heights, w, h, &base.clone().with_fit(Fit::Orthogonal)).1;
+                // Interior texels: their patches are the plane and checkerboard unbroken.
+                for y in r..h - r {
+                    for x in r..w - r {
+                        let k = y * w + x;
+                        let what = format!("N {n} slope {slope} amplitude {amplitude} at ({x}, {y})");
+                        let known = scale * f64::from(amplitude) * (1.0 - 1.0 / n4).sqrt();
+                        assert!((f64::from(vertical[k]) - known).abs() < 2e-6, "{what}: vertical {}", vertical[k]);
+                        if slope == 0.0 {
+                            assert!((f64::from(orthogonal[k]) - known).abs() < 2e-6, "{what}: {}", orthogonal[k]);
+                        } else {
+                            let slow = reference::residual_at(&heights, w, h, &base, x, y);
+                            assert!(
+                                (f64::from(orthogonal[k]) - slow).abs() < 2e-6,
+                                "{what}: {} vs {slow}",
+                                orthogonal[k]
+                            );
+                            if amplitude > 0.0 {
+                                assert!(orthogonal[k] < vertical[k], "{what}");
+                                // tan θ = S·slope·√(1 + 1/4) on this plane.
+                                let tan = scale * f64::from(slope) * 1.25f64.sqrt();
+                                let cos = 1.0 / (1.0 + tan * tan).sqrt();
+                                let ratio = f64::from(orthogonal[k]) / known;
+                                assert!((ratio - cos).abs() < 0.02, "{what}: ratio {ratio} vs cos θ {cos}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn residual_buffers_of_the_wrong_size_are_errors() {
+    let heights = vec![0.5f32; 12];
+    let mut normals = vec![[0.0f32; 3]; 12];
+    let mut short = vec![0.0f32; 11];
+    let e = normals_and_residual_into(&heights, 4, 3, &Options::new(), &mut normals, &mut short).unwrap_err();
+    assert!(matches!(e, normalfit::Error::BufferSize { expected: 12, actual: 11 }), "{e:?}");
+}
+
 #[test]
 fn tilted_plane_gives_its_exact_normal() {
     let (w, h) = (40, 30);

@@ -439,7 +439,11 @@ fn check(case: &Case, good: &Good, root: &Path) -> (String, Vec<String>) {
         let mut args = vec![os("convert"), good.png.as_os_str(), path.as_os_str(), good.exr.as_os_str(), os("-o")];
         args.push(out.as_os_str());
         args.extend(&extra);
-        expect_refusal(case, "convert batch", &run_bin(&args, None), &name, 0, &mut problems);
+        let run = run_bin(&args, None);
+        expect_refusal(case, "convert batch", &run, &name, 0, &mut problems);
+        if !run.summary().is_some_and(|l| l.starts_with("normalfit: 2 converted, 0 skipped, 1 failed in ")) {
+            problems.push(format!("convert batch: no summary of 2 converted and 1 failed: {:?}", run.stderr));
+        }
         let written = if out.is_dir() { files_in(&out) } else { Vec::new() };
         if written != ["good_a_normal.png", "good_b_normal.exr"] {
             problems.push(format!("convert batch wrote {written:?}, want the two good outputs only"));

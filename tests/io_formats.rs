@@ -11,8 +11,9 @@ use exr::prelude::{
 use image::ImageEncoder;
 use normalfit::Error;
 use normalfit::io::{
-    Channel, ExrDepth, InputFormat, PngCompression, Raster, ReadOptions, SampleType, decode, encode_exr,
-    encode_png_gray8, encode_png_rgb8, encode_png_rgb16, read_path, write_atomically,
+    Channel, ExrDepth, InputFormat, Layout, PngCompression, Raster, ReadOptions, SampleType, decode, encode_exr,
+    encode_exr_gray, encode_exr_normals, encode_png_gray8, encode_png_gray16, encode_png_normals, encode_png_rgb8,
+    encode_png_rgb16, read_path, write_atomically,
 };
 
 // ---------------------------------------------------------------------------
@@ -890,6 +891,89 @@ fn png_rgb16_round_trip_keeps_byte_order() {
         let expected: Vec<u16> = texels.iter().map(|t| t[c]).collect();
         assert_eq!(back, expected, "{name}");
     }
+}
+
+/// RGBA with the heights in alpha (rounded, clamped to [0, 1]), opaque
+/// RGBA, and RGB with blue 0 for red-green, at 8 and 16 bits.
+#[test]
+fn png_layouts_put_heights_one_or_zero_where_they_say() {
+    let heights = [0.0f32, 0.5, 1.0, -0.25, 1.75, 0.2];
+    let t8: Vec<[u8; 3]> = (0..6).map(|i| [i * 40, 200 - i * 30, 255 - i]).collect();
+    let t16: Vec<[u16; 3]> = t8.iter().map(|t| t.map(|v| u16::from(v) * 250 + 3)).collect();
+    let max = |bits| if bits == 8 { 255.0 } else { 65535.0 };
+    for bits in [8, 16] {
+        for layout in [Layout::RgbHeight, Layout::RgbOpaque, Layout::Rg] {
+            let mut out = Vec::new();
+            if bits == 8 {
+                encode_png_normals(&t8, Some(&heights), 3, 2, layout, PngCompression::Fast, &mut out).unwrap();
+            } else {
+                encode_png_normals(&t16, Some(&heights), 3, 2, layout, PngCompression::Fast, &mut out).unwrap();
+            }
+            let r = read(&out);
+            assert_eq!(r.sample, SampleType::Int { bits });
+            let stored =
+                |name: &str| -> Vec<f64> { data(&r, name).iter().map(|&v| f64::from(v) * max(bits)).collect() };
+            let red: Vec<f64> =
+                (0..6).map(|k| if bits == 8 { f64::from(t8[k][0]) } else { f64::from(t16[k][0]) }).collect();
+            assert_eq!(stored("R").iter().map(|v| v.round()).collect::<Vec<_>>(), red, "{layout:?} {bits}");
+            match layout {
+                Layout::RgbHeight => {
+                    let want: Vec<f64> =
+                        heights.iter().map(|&h| (f64::from(h).clamp(0.0, 1.0) * max(bits)).round()).collect();
+                    assert_eq!(stored("A").iter().map(|v| v.round()).collect::<Vec<_>>(), want, "{bits}");
+                }
+                Layout::RgbOpaque => assert!(stored("A").iter().all(|&a| a.round() == max(bits))),
+                _ => {
+                    assert_eq!(names(&r), ["R", "G", "B"], "red-green stays an RGB file");
+                    assert!(stored("B").iter().all(|&b| b == 0.0));
+                }
+            }
+        }
+    }
+    let e = encode_png_normals(&t8, None, 3, 2, Layout::RgbHeight, PngCompression::Fast, Vec::new()).unwrap_err();
+    assert!(matches!(e, Error::InvalidOption(_)), "{e}");
+    let e = encode_png_normals(&t8, Some(&heights[..5]), 3, 2, Layout::RgbHeight, PngCompression::Fast, Vec::new())
+        .unwrap_err();
+    assert!(matches!(e, Error::BufferSize { expected: 6, actual: 5 }), "{e}");
+}
+
+#[test]
+fn exr_layouts_name_their_channels_and_keep_heights_as_they_are() {
+    let heights = [-3.5f32, 0.25, 1000.0, 0.0];
+    let texels: Vec<[f32; 3]> = (0..4).map(|i| [i as f32 * 0.1, 0.5 - i as f32 * 0.1, 0.9]).collect();
+    for (layout, want) in [
+        (Layout::RgbHeight, &["A", "B", "G", "R"][..]),
+        (Layout::RgbOpaque, &["A", "B", "G", "R"][..]),
+        (Layout::Rg, &["G", "R"][..]),
+    ] {
+        let mut out = Cursor::new(Vec::new());
+        encode_exr_normals(&texels, Some(&heights), 2, 2, layout, ExrDepth::Float, &mut out).unwrap();
+        let r = read(&out.into_inner());
+        assert_eq!(names(&r), want, "{layout:?}");
+        assert_eq!(data(&r, "G"), texels.iter().map(|t| t[1]).collect::<Vec<_>>());
+        match layout {
+            Layout::RgbHeight => assert_eq!(data(&r, "A"), heights.to_vec()),
+            Layout::RgbOpaque => assert_eq!(data(&r, "A"), vec![1.0; 4]),
+            _ => {}
+        }
+    }
+}
+
+#[test]
+fn gray_maps_round_trip() {
+    let values: Vec<u16> = vec![0, 1, 300, 65535, 40000, 7];
+    let mut out = Vec::new();
+    encode_png_gray16(&values, 2, 3, PngCompression::Fast, &mut out).unwrap();
+    let r = read(&out);
+    assert_eq!((names(&r), r.sample), (vec!["Y"], SampleType::Int { bits: 16 }));
+    let back: Vec<u16> = data(&r, "Y").iter().map(|&v| (v * 65535.0).round() as u16).collect();
+    assert_eq!(back, values);
+    let floats = [0.0f32, 1e-7, 0.5, 3.25];
+    let mut out = Cursor::new(Vec::new());
+    encode_exr_gray(&floats, 4, 1, ExrDepth::Float, &mut out).unwrap();
+    let r = read(&out.into_inner());
+    assert_eq!(names(&r), ["Y"]);
+    assert_eq!(data(&r, "Y"), floats.to_vec());
 }
 
 #[test]

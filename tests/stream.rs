@@ -7,7 +7,7 @@ use std::path::Path;
 
 use image::{ExtendedColorType, ImageEncoder};
 use normalfit::io::stream::{PngDepth, PngOutput, PngRows, RowSource, convert_png, convert_png_seekable};
-use normalfit::io::{Channel, PngCompression, ReadOptions, read_path};
+use normalfit::io::{Channel, Layout, PngCompression, ReadOptions, encode_png_normals, read_path};
 use normalfit::{Border, Borders, Options, Strength, normals_into};
 
 /// Heights with detail in both directions and no symmetry, as 16-bit.
@@ -50,12 +50,18 @@ fn strict_decode(png_bytes: &[u8]) -> Vec<u16> {
 /// a wrap in y; and in one pass into a seekable output, the top rows
 /// last), checks both decode to the same samples, and returns them.
 fn streamed(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth) -> Vec<u16> {
+    streamed_as(path, channel, opts, depth, Layout::Rgb)
+}
+
+/// [`streamed`] with the channels of `layout`.
+fn streamed_as(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth, layout: Layout) -> Vec<u16> {
     let open = || PngRows::open(path, &ReadOptions::default(), channel).unwrap().expect("streamable");
     let tail = (opts.borders.y == Border::Wrap).then(|| open().read_tail(opts.patch / 2, |_| {}).unwrap());
     let mut ordered = Vec::new();
-    convert_png(open(), tail.as_deref(), opts, depth, |_| {}, &mut ordered).unwrap();
+    let output = PngOutput { depth, compression: PngCompression::Fast, layout };
+    convert_png(open(), tail.as_deref(), opts, output, |_| {}, &mut ordered).unwrap();
     let mut seekable = std::io::Cursor::new(Vec::new());
-    convert_png_seekable(open(), opts, depth, |_| {}, &mut seekable).unwrap();
+    convert_png_seekable(open(), opts, output, |_| {}, &mut seekable).unwrap();
     let (a, b) = (strict_decode(&ordered), strict_decode(seekable.get_ref()));
     assert!(a == b, "the two streaming modes differ");
     a
@@ -107,6 +113,47 @@ fn gray_16_bit_equals_the_whole_image_path_for_every_size_patch_and_border() {
                     .with_strength(Strength::Scale(30.0));
                 for depth in [PngDepth::Eight, PngDepth::Sixteen] {
                     assert_same(&path, None, &opts, depth, &format!("{w}×{h} N {n} {y:?} {depth:?}"));
+                }
+            }
+        }
+    }
+}
+
+/// Alpha of heights, opaque alpha and red-green: the streamed PNG holds the
+/// samples the whole-image encoder writes, in both streaming modes, for
+/// wraps that fit the top rows last and for rows read through mirrors.
+#[test]
+fn every_channel_layout_streams_the_whole_image_path_s_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    for (w, h) in [(1, 1), (9, 4), (40, 530)] {
+        let path = dir.path().join(format!("g{w}x{h}.png"));
+        let ne: Vec<u8> = field(w, h, 3).iter().flat_map(|x| x.to_ne_bytes()).collect();
+        write_png(&path, w, h, ExtendedColorType::L16, &ne);
+        let raster = read_path(&path, &ReadOptions::default()).unwrap();
+        let heights = raster.heights(None).unwrap();
+        for y in [Border::Wrap, Border::Mirror] {
+            let opts = Options::new().with_patch(5).with_borders(Borders { x: Border::Wrap, y });
+            for layout in [Layout::RgbHeight, Layout::RgbOpaque, Layout::Rg] {
+                for depth in [PngDepth::Eight, PngDepth::Sixteen] {
+                    let mut whole = Vec::new();
+                    match depth {
+                        PngDepth::Eight => {
+                            let mut t = vec![[0u8; 3]; w * h];
+                            normals_into(&heights, w, h, &opts, &mut t).unwrap();
+                            encode_png_normals(&t, Some(&heights), w, h, layout, PngCompression::Fast, &mut whole)
+                        }
+                        PngDepth::Sixteen => {
+                            let mut t = vec![[0u16; 3]; w * h];
+                            normals_into(&heights, w, h, &opts, &mut t).unwrap();
+                            encode_png_normals(&t, Some(&heights), w, h, layout, PngCompression::Fast, &mut whole)
+                        }
+                    }
+                    .unwrap();
+                    let whole = strict_decode(&whole);
+                    let channels = if layout == Layout::Rg { 3 } else { 4 };
+                    assert_eq!(whole.len(), w * h * channels, "{layout:?}");
+                    let streamed = streamed_as(&path, None, &opts, depth, layout);
+                    assert!(streamed == whole, "{w}×{h} {y:?} {layout:?} {depth:?}");
                 }
             }
         }
@@ -194,7 +241,8 @@ fn chosen_filters_give_the_same_pixels_in_a_smaller_file() {
             let opts = Options::new().with_borders(Borders { x: Border::Wrap, y }).with_strength(Strength::Scale(40.0));
             let encode = |compression| {
                 let mut out = std::io::Cursor::new(Vec::new());
-                convert_png_seekable(open(), &opts, PngOutput { depth, compression }, |_| {}, &mut out).unwrap();
+                let output = PngOutput { depth, compression, layout: Layout::Rgb };
+                convert_png_seekable(open(), &opts, output, |_| {}, &mut out).unwrap();
                 out.into_inner()
             };
             let (fast, small) = (encode(PngCompression::Fast), encode(PngCompression::Default));

@@ -9,8 +9,8 @@ use exr::prelude::{
     AnyChannel, AnyChannels, Blocks, Compression, Encoding, FlatSamples, Image, Layer, LayerAttributes, LineOrder,
     SmallVec, WritableImage, f16,
 };
-use normalfit::io::stream::{ExrRows, PngDepth, RowSource, convert_exr, convert_png_seekable};
-use normalfit::io::{Channel, ExrDepth, ReadOptions, encode_exr, read_path};
+use normalfit::io::stream::{ExrFormat, ExrRows, PngDepth, RowSource, convert_exr, convert_png_seekable};
+use normalfit::io::{Channel, ExrDepth, Layout, ReadOptions, encode_exr, encode_exr_normals, read_path};
 use normalfit::{Border, Borders, Options, Strength, normals_into};
 
 /// Heights with detail in both directions and no symmetry.
@@ -154,10 +154,67 @@ fn exr_output_is_byte_identical_to_the_whole_image_path() {
                     let tail = (y == Border::Wrap)
                         .then(|| ExrRows::last_rows(&path, &ReadOptions::default(), None, n / 2).unwrap());
                     let mut out = std::io::Cursor::new(Vec::new());
-                    convert_exr(rows, tail.as_deref(), &opts, depth, signed, |_| {}, &mut out).unwrap();
+                    let format = ExrFormat { depth, signed, layout: Layout::Rgb };
+                    convert_exr(rows, tail.as_deref(), &opts, format, |_| {}, &mut out).unwrap();
                     assert!(out.get_ref() == &whole_exr(&path, &opts, depth, signed), "{what}");
                 }
             }
+        }
+    }
+}
+
+/// Alpha of heights (as stored, beyond [0, 1] too), opaque alpha and
+/// red-green only: the streamed file is the whole-image writer's, byte for
+/// byte, and holds the channels the layout names.
+#[test]
+fn every_channel_layout_streams_to_the_whole_image_writer_s_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (29, 333);
+    let path = dir.path().join("h.exr");
+    let stored: Vec<f32> = field(w, h, 7).iter().map(|v| 4.0 * v - 1.5).collect();
+    write_exr(
+        &path,
+        w,
+        h,
+        Compression::ZIP1,
+        LineOrder::Increasing,
+        vec![AnyChannel::new("Y", FlatSamples::F32(stored.clone()))],
+    );
+    let opts = Options::new().with_patch(7).with_strength(Strength::Scale(3.0));
+    for (layout, names) in [
+        (Layout::RgbHeight, &["A", "B", "G", "R"][..]),
+        (Layout::RgbOpaque, &["A", "B", "G", "R"][..]),
+        (Layout::Rg, &["G", "R"][..]),
+    ] {
+        for signed in [false, true] {
+            let format = ExrFormat { depth: ExrDepth::Float, signed, layout };
+            let rows = ExrRows::open(&path, &ReadOptions::default(), None).unwrap().unwrap();
+            let tail = ExrRows::last_rows(&path, &ReadOptions::default(), None, 3).unwrap();
+            let mut streamed = std::io::Cursor::new(Vec::new());
+            convert_exr(rows, Some(&tail), &opts, format, |_| {}, &mut streamed).unwrap();
+
+            let mut texels = vec![[0f32; 3]; w * h];
+            normals_into(&stored, w, h, &opts, &mut texels).unwrap();
+            if !signed {
+                texels.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
+            }
+            let mut whole = std::io::Cursor::new(Vec::new());
+            encode_exr_normals(&texels, Some(&stored), w, h, layout, ExrDepth::Float, &mut whole).unwrap();
+            assert!(streamed.get_ref() == whole.get_ref(), "{layout:?} signed {signed}");
+
+            let raster = normalfit::io::decode(streamed.get_ref(), &ReadOptions::default()).unwrap();
+            let mut got: Vec<&str> = raster.planes.iter().map(|p| p.name.as_str()).collect();
+            got.sort_unstable();
+            assert_eq!(got, names, "{layout:?}");
+            let plane = |name: &str| &raster.plane(name).unwrap().data;
+            match layout {
+                Layout::RgbHeight => assert!(plane("A") == &stored, "the alpha holds the heights as stored"),
+                Layout::RgbOpaque => assert!(plane("A").iter().all(|&a| a == 1.0)),
+                _ => {}
+            }
+            let k = 17 * w + 5;
+            assert_eq!(plane("R")[k], texels[k][0]);
+            assert_eq!(plane("G")[k], texels[k][1]);
         }
     }
 }
@@ -240,7 +297,7 @@ fn a_truncated_file_is_a_decode_error() {
     let opts = Options::new().with_borders(Borders::both(Border::Clamp));
     let result = ExrRows::open(&path, &ReadOptions::default(), None).and_then(|rows| {
         let rows = rows.expect("the header is intact");
-        convert_exr(rows, None, &opts, ExrDepth::Float, false, |_| {}, std::io::Cursor::new(Vec::new()))
+        convert_exr(rows, None, &opts, ExrFormat::default(), |_| {}, std::io::Cursor::new(Vec::new()))
     });
     assert!(matches!(result, Err(normalfit::Error::Decode(_))), "{result:?}");
 }

@@ -121,9 +121,95 @@ pub struct ConvertArgs {
     #[command(flatten)]
     pub read: ReadArgs,
 
-    // Last: its help heading would otherwise cover the options after it.
+    // The groups with a help heading come after the options without one,
+    // which a heading would otherwise cover.
+    #[command(flatten)]
+    pub channels: ChannelsArgs,
+
+    #[command(flatten)]
+    pub batch: BatchArgs,
+
     #[command(flatten)]
     pub fit: FitArgs,
+}
+
+/// What the output holds besides the normal, for pipelines.
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Channels")]
+pub struct ChannelsArgs {
+    /// Alpha channel: none (RGB), height (the input height, for parallax
+    /// mapping: integer inputs in [0, 1], float ones as stored, clamped to
+    /// [0, 1] in PNG), or one (opaque).
+    #[arg(long, value_enum, default_value_t = AlphaArg::None)]
+    pub alpha: AlphaArg,
+
+    /// rgb, or rg for two-channel (BC5) pipelines whose shader rebuilds z:
+    /// EXR gets channels R and G only; PNG stays RGB with B = 0, which BC5
+    /// encoders ignore.
+    #[arg(long, value_enum, default_value_t = ChannelsArg::Rgb)]
+    pub channels: ChannelsArg,
+
+    /// Also write the fit's residual: per texel, the root-mean-square
+    /// distance of the patch's points from the fitted plane (perpendicular
+    /// for the orthogonal fit, vertical for the vertical one), divided by
+    /// the gain S, so in height units (integer inputs: 1 = full range).
+    /// Planes give 0; pits, bumps and grain give more. 16-bit gray PNG
+    /// (65535 · value, clamped to 1) or 32-bit float EXR (channel Y), by the
+    /// file's extension. With many inputs, a folder of
+    /// `<stem>_residual.<ext>`, ext as the normal map's.
+    #[arg(long, value_name = "FILE")]
+    pub residual: Option<PathBuf>,
+}
+
+/// Many files at once.
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Batches")]
+pub struct BatchArgs {
+    /// Folders named as inputs are searched in their subfolders too
+    /// (symbolic links to folders are not followed).
+    #[arg(short, long)]
+    pub recursive: bool,
+
+    /// Appended to each input's stem to name its output. Files whose stem
+    /// already ends in it (or in `_residual`) are taken for outputs and
+    /// skipped when folders are searched.
+    #[arg(long, value_name = "TEXT", default_value = "_normal", value_parser = parse_suffix)]
+    pub suffix: String,
+
+    /// Files converted at once. Each file's fit already uses every core;
+    /// more jobs overlap the decoding, compressing and syncing of small
+    /// files, which run on one thread. Default: twice the cores, at most 8.
+    #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub jobs: Option<u16>,
+
+    /// When an output exists already: always replace it, never (skip the
+    /// input), or only when it is older than the input.
+    #[arg(long, value_enum, default_value_t = OverwriteArg::Always)]
+    pub overwrite: OverwriteArg,
+
+    /// No progress bar, no summary line, no warnings: errors only.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AlphaArg {
+    None,
+    Height,
+    One,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChannelsArg {
+    Rgb,
+    Rg,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OverwriteArg {
+    Always,
+    Never,
+    Older,
 }
 
 #[derive(Args, Debug)]
@@ -291,6 +377,13 @@ fn parse_patch(s: &str) -> Result<usize, String> {
         return Err(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"));
     }
     Ok(n)
+}
+
+fn parse_suffix(s: &str) -> Result<String, String> {
+    if s.contains(['/', '\\', '\0']) {
+        return Err(format!("the suffix is part of a file name: no '/', '\\' or NUL, got '{s}'"));
+    }
+    Ok(s.to_string())
 }
 
 fn parse_max_texels(s: &str) -> Result<u64, String> {

@@ -2,12 +2,14 @@
 //! work is the library's.
 
 pub mod args;
+pub mod batch;
 pub mod completions;
 pub mod convert;
 pub mod fitting;
 pub mod input;
 pub mod man;
 pub mod output;
+pub mod progress;
 pub mod report;
 pub mod shade;
 pub mod tiling;

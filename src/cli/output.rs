@@ -26,7 +26,12 @@ impl Destination {
     /// only); with many inputs, naming a folder, or ending in a slash, it
     /// is a folder, made if missing; else a file.
     pub fn new(output: Option<&Path>, inputs: &[PathBuf]) -> Result<Destination, Failure> {
-        let many = inputs.len() > 1;
+        Destination::for_batch(output, inputs.len() > 1)
+    }
+
+    /// Like [`Destination::new`], `many` saying whether the run has more
+    /// than one input (or a folder of them).
+    pub fn for_batch(output: Option<&Path>, many: bool) -> Result<Destination, Failure> {
         let destination = match output {
             None => Destination::BesideInputs,
             Some(o) if o.as_os_str() == "-" => {
@@ -55,6 +60,13 @@ impl Destination {
     /// destination makes one (beside the input or in a folder); `None` is
     /// standard output.
     pub fn path_for(&self, input: &Input, file_name: &str) -> Option<PathBuf> {
+        self.path_in(input, Path::new(""), file_name)
+    }
+
+    /// Like [`Destination::path_for`], for an input found in `subfolder` of
+    /// a folder named as input: in an output folder, the output goes into
+    /// the same subfolder.
+    pub fn path_in(&self, input: &Input, subfolder: &Path, file_name: &str) -> Option<PathBuf> {
         match self {
             Destination::Stdout => None,
             Destination::BesideInputs => match input {
@@ -62,20 +74,23 @@ impl Destination {
                 Input::File(p) => Some(p.parent().unwrap_or(Path::new("")).join(file_name)),
             },
             Destination::File(p) => Some(p.clone()),
-            Destination::Folder(dir) => Some(dir.join(file_name)),
+            Destination::Folder(dir) => Some(dir.join(subfolder).join(file_name)),
         }
     }
 }
 
-/// Refuses `output` if it is an input, or if an earlier input of this run
-/// already wrote it (`written` keeps their absolute paths).
-pub fn claim(output: &Path, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
+/// Refuses `output` (of `input`) if it is an input, or if an earlier input
+/// of this run already wrote it (`written` keeps their absolute paths).
+pub fn claim(output: &Path, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
     ids.refuse_overwrite(output)?;
     let key = std::path::absolute(output).unwrap_or_else(|_| output.to_path_buf());
     if !written.insert(key) {
         return Err(Failure::file(
             output,
-            "is the output of an earlier input of this run; give the inputs distinct names or separate -o folders",
+            format!(
+                "is the output of an earlier input of this run, so {} is skipped; give the inputs distinct names or separate -o folders",
+                input.name().display()
+            ),
         ));
     }
     Ok(())

@@ -68,7 +68,7 @@ impl Plan {
     fn shade_one(&self, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
         let target = self.destination.path_for(input, &format!("{}_lit.png", input.stem()));
         if let Some(path) = &target {
-            output::claim(path, ids, written)?;
+            output::claim(path, input, ids, written)?;
         }
         let in_failure = |e: normalfit::Error| Failure::file(input.name(), e);
         let raster = read_input(input, &ReadOptions::default())?;

@@ -16,6 +16,7 @@ pub mod write;
 pub use memory::check_memory;
 pub use read::{Channel, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
 pub use write::{
-    ExrDepth, PngCompression, encode_exr, encode_png_gray8, encode_png_rgb8, encode_png_rgb16, write_atomically,
+    ExrDepth, Layout, PngCompression, PngSample, Sample, encode_exr, encode_exr_gray, encode_exr_normals,
+    encode_png_gray8, encode_png_gray16, encode_png_normals, encode_png_rgb8, encode_png_rgb16, write_atomically,
     write_file_atomically,
 };

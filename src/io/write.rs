@@ -1,10 +1,14 @@
-//! Writing normal maps: PNG (8/16-bit RGB), OpenEXR (half/float RGB), and
-//! files that appear whole or not at all.
+//! Writing normal maps: PNG (8/16-bit RGB or RGBA), OpenEXR (half/float
+//! RGB, RGBA or RG), one-channel maps (the fit's residual), and files that
+//! appear whole or not at all.
 //!
 //! The encoders take texels as the fit produces them (`[u8; 3]`,
 //! `[u16; 3]`, `[f32; 3]`, see [`crate::FromNormal`]), so no float copy of
-//! the image is made between the fit and the file.
+//! the image is made between the fit and the file. A [`Layout`] says which
+//! channels the file holds; the streaming writers ([`crate::io::stream`])
+//! lay texels out with the same code, so both give the same samples.
 
+use std::borrow::Cow;
 use std::io::{Seek, Write};
 
 pub use super::atomic::{write_atomically, write_file_atomically};
@@ -60,6 +64,167 @@ pub enum ExrDepth {
     Float,
 }
 
+/// Which channels a normal map file holds. R, G and B are the normal's
+/// x, y and z, encoded as the contract says (SPEC §3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Layout {
+    /// R, G, B. The default.
+    #[default]
+    Rgb,
+    /// R, G, B and an alpha channel holding each texel's height, for
+    /// parallax mapping: the height as the fit read it (SPEC §1 units, not
+    /// scaled by the gain), clamped to [0, 1] in a PNG, as it is in an EXR.
+    RgbHeight,
+    /// R, G, B and an opaque alpha (1), for pipelines that want four
+    /// channels.
+    RgbOpaque,
+    /// The normal's x and y alone, for two-channel (BC5) pipelines whose
+    /// shaders rebuild z = √(1 − x² − y²). An EXR holds channels R and G; a
+    /// PNG, which has no red-green type, stays RGB with B = 0, which BC5
+    /// encoders ignore and deflate stores almost for free.
+    Rg,
+}
+
+impl Layout {
+    /// Samples per texel in a PNG.
+    pub(crate) fn png_samples(self) -> usize {
+        match self {
+            Layout::Rgb | Layout::Rg => 3,
+            Layout::RgbHeight | Layout::RgbOpaque => 4,
+        }
+    }
+
+    /// The EXR channels, in the order [`lay_out`] gives their samples.
+    pub(crate) fn exr_channels(self) -> &'static [&'static str] {
+        match self {
+            Layout::Rgb => &["R", "G", "B"],
+            Layout::RgbHeight | Layout::RgbOpaque => &["R", "G", "B", "A"],
+            Layout::Rg => &["R", "G"],
+        }
+    }
+
+    /// Whether the texels' heights are needed.
+    #[must_use]
+    pub fn needs_heights(self) -> bool {
+        self == Layout::RgbHeight
+    }
+}
+
+/// A sample of an encoded normal map: `u8` and `u16` (PNG), `f32` (EXR).
+pub trait Sample: Copy + Default + Send + Sync + 'static {
+    /// An opaque alpha.
+    const ONE: Self;
+    /// The sample of a height in an alpha channel: `round(h · max)` of h
+    /// clamped to [0, 1] for integers, h itself for floats.
+    fn from_height(h: f32) -> Self;
+}
+
+impl Sample for u8 {
+    const ONE: Self = u8::MAX;
+    fn from_height(h: f32) -> Self {
+        (f64::from(h.clamp(0.0, 1.0)) * 255.0).round() as u8
+    }
+}
+
+impl Sample for u16 {
+    const ONE: Self = u16::MAX;
+    fn from_height(h: f32) -> Self {
+        (f64::from(h.clamp(0.0, 1.0)) * 65535.0).round() as u16
+    }
+}
+
+impl Sample for f32 {
+    const ONE: Self = 1.0;
+    fn from_height(h: f32) -> Self {
+        h
+    }
+}
+
+/// Where a layout's samples go: a PNG keeps the blue slot of [`Layout::Rg`]
+/// (as 0), an EXR drops the channel.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Container {
+    Png,
+    Exr,
+}
+
+/// Appends the samples of `normals` laid out as `layout` says, texel after
+/// texel, to `out`. `heights` (one per texel) is read for
+/// [`Layout::RgbHeight`] alone.
+pub(crate) fn lay_out<S: Sample>(
+    normals: &[[S; 3]],
+    heights: &[f32],
+    layout: Layout,
+    container: Container,
+    out: &mut Vec<S>,
+) {
+    match (layout, container) {
+        (Layout::Rgb, _) => out.extend_from_slice(normals.as_flattened()),
+        (Layout::RgbHeight, _) => {
+            out.extend(normals.iter().zip(heights).flat_map(|(&[r, g, b], &h)| [r, g, b, S::from_height(h)]));
+        }
+        (Layout::RgbOpaque, _) => out.extend(normals.iter().flat_map(|&[r, g, b]| [r, g, b, S::ONE])),
+        (Layout::Rg, Container::Png) => out.extend(normals.iter().flat_map(|&[r, g, _]| [r, g, S::default()])),
+        (Layout::Rg, Container::Exr) => out.extend(normals.iter().flat_map(|&[r, g, _]| [r, g])),
+    }
+}
+
+/// The heights a layout reads: `heights`, checked against the texel count,
+/// or nothing when the layout needs none.
+fn checked_heights(heights: Option<&[f32]>, layout: Layout, texels: usize) -> Result<&[f32]> {
+    match heights {
+        _ if !layout.needs_heights() => Ok(&[]),
+        Some(h) if h.len() == texels => Ok(h),
+        Some(h) => Err(Error::BufferSize { expected: texels, actual: h.len() }),
+        None => Err(Error::InvalidOption("an alpha of heights needs the heights".into())),
+    }
+}
+
+/// A PNG sample type (`u8`, `u16`): its depth and its bytes.
+pub trait PngSample: Sample {
+    /// Bits per sample.
+    const BITS: u8;
+    /// The samples as native-endian bytes (what `image`'s encoder takes).
+    #[doc(hidden)]
+    fn ne_bytes(samples: &[Self]) -> Cow<'_, [u8]>;
+    /// The samples as big-endian bytes (what a PNG stores).
+    #[doc(hidden)]
+    fn be_bytes(samples: &[Self]) -> Cow<'_, [u8]>;
+}
+
+impl PngSample for u8 {
+    const BITS: u8 = 8;
+    fn ne_bytes(samples: &[Self]) -> Cow<'_, [u8]> {
+        Cow::Borrowed(samples)
+    }
+    fn be_bytes(samples: &[Self]) -> Cow<'_, [u8]> {
+        Cow::Borrowed(samples)
+    }
+}
+
+impl PngSample for u16 {
+    const BITS: u8 = 16;
+    fn ne_bytes(samples: &[Self]) -> Cow<'_, [u8]> {
+        Cow::Owned(samples.iter().flat_map(|v| v.to_ne_bytes()).collect())
+    }
+    fn be_bytes(samples: &[Self]) -> Cow<'_, [u8]> {
+        Cow::Owned(samples.iter().flat_map(|v| v.to_be_bytes()).collect())
+    }
+}
+
+/// `image`'s colour type of `channels` (1, 3 or 4) samples of `bits` bits.
+fn color_type(bits: u8, channels: usize) -> ExtendedColorType {
+    match (bits, channels) {
+        (8, 1) => ExtendedColorType::L8,
+        (8, 3) => ExtendedColorType::Rgb8,
+        (8, _) => ExtendedColorType::Rgba8,
+        (_, 1) => ExtendedColorType::L16,
+        (_, 3) => ExtendedColorType::Rgb16,
+        _ => ExtendedColorType::Rgba16,
+    }
+}
+
 /// Writes an 8-bit RGB PNG of `width` × `height` texels, row-major.
 ///
 /// Errors: [`Error::BufferSize`] if `texels` does not hold
@@ -72,10 +237,7 @@ pub fn encode_png_rgb8(
     compression: PngCompression,
     out: impl Write,
 ) -> Result<()> {
-    let (w, h) = png_size(texels.len(), width, height)?;
-    png_encoder(out, compression)
-        .write_image(texels.as_flattened(), w, h, ExtendedColorType::Rgb8)
-        .map_err(from_image_error)
+    encode_png_normals(texels, None, width, height, Layout::Rgb, compression, out)
 }
 
 /// Writes an 8-bit gray PNG of `width` × `height` texels, row-major: a
@@ -96,9 +258,6 @@ pub fn encode_png_gray8(
 
 /// Writes a 16-bit RGB PNG of `width` × `height` texels, row-major.
 ///
-/// `image`'s `PngEncoder::write_image` takes 16-bit samples as
-/// native-endian bytes and swaps them to PNG's big-endian order itself.
-///
 /// Errors: as [`encode_png_rgb8`].
 pub fn encode_png_rgb16(
     texels: &[[u16; 3]],
@@ -107,11 +266,62 @@ pub fn encode_png_rgb16(
     compression: PngCompression,
     out: impl Write,
 ) -> Result<()> {
+    encode_png_normals(texels, None, width, height, Layout::Rgb, compression, out)
+}
+
+/// Writes a PNG normal map of `width` × `height` texels, row-major, 8 or
+/// 16 bits by the sample type, with the channels of `layout`: RGB, or RGBA
+/// with an alpha of `heights` (one per texel, needed for
+/// [`Layout::RgbHeight`] alone) or of 1.
+///
+/// `image`'s `PngEncoder::write_image` takes 16-bit samples as
+/// native-endian bytes and swaps them to PNG's big-endian order itself.
+///
+/// Errors: [`Error::BufferSize`] if `texels` (or `heights`) does not hold
+/// `width * height`, [`Error::InvalidOption`] for an alpha of heights
+/// without them, [`Error::Encode`] for sizes PNG cannot hold, [`Error::Io`]
+/// if `out` fails.
+pub fn encode_png_normals<S: PngSample>(
+    texels: &[[S; 3]],
+    heights: Option<&[f32]>,
+    width: usize,
+    height: usize,
+    layout: Layout,
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<()> {
     let (w, h) = png_size(texels.len(), width, height)?;
-    let mut bytes = Vec::new();
-    bytes.try_reserve_exact(texels.len() * 6).map_err(|_| Error::Encode("out of memory for the png rows".into()))?;
-    bytes.extend(texels.as_flattened().iter().flat_map(|v| v.to_ne_bytes()));
-    png_encoder(out, compression).write_image(&bytes, w, h, ExtendedColorType::Rgb16).map_err(from_image_error)
+    let heights = checked_heights(heights, layout, texels.len())?;
+    let channels = layout.png_samples();
+    let color = color_type(S::BITS, channels);
+    if layout == Layout::Rgb {
+        // Written as they are: no copy of the image.
+        let bytes = S::ne_bytes(texels.as_flattened());
+        return png_encoder(out, compression).write_image(&bytes, w, h, color).map_err(from_image_error);
+    }
+    let mut samples = Vec::new();
+    samples
+        .try_reserve_exact(texels.len() * channels)
+        .map_err(|_| Error::Encode("out of memory for the png rows".into()))?;
+    lay_out(texels, heights, layout, Container::Png, &mut samples);
+    png_encoder(out, compression).write_image(&S::ne_bytes(&samples), w, h, color).map_err(from_image_error)
+}
+
+/// Writes a one-channel 16-bit PNG (gray) of `width` × `height` values,
+/// row-major: a map of a quantity per texel, such as the fit's residual.
+///
+/// Errors: as [`encode_png_rgb8`].
+pub fn encode_png_gray16(
+    values: &[u16],
+    width: usize,
+    height: usize,
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<()> {
+    let (w, h) = png_size(values.len(), width, height)?;
+    png_encoder(out, compression)
+        .write_image(&u16::ne_bytes(values), w, h, ExtendedColorType::L16)
+        .map_err(from_image_error)
 }
 
 /// Writes an OpenEXR file with channels R, G, B of `width` × `height`
@@ -132,21 +342,66 @@ pub fn encode_exr(
     depth: ExrDepth,
     out: impl Write + Seek,
 ) -> Result<()> {
+    encode_exr_normals(texels, None, width, height, Layout::Rgb, depth, out)
+}
+
+/// Like [`encode_exr`], with the channels of `layout`: R, G, B; R, G, B, A
+/// with an alpha of `heights` (one per texel, needed for
+/// [`Layout::RgbHeight`] alone, written as they are) or of 1; or R and G.
+///
+/// Errors: as [`encode_exr`], and those of [`encode_png_normals`] for
+/// `heights`.
+pub fn encode_exr_normals(
+    texels: &[[f32; 3]],
+    heights: Option<&[f32]>,
+    width: usize,
+    height: usize,
+    layout: Layout,
+    depth: ExrDepth,
+    out: impl Write + Seek,
+) -> Result<()> {
     check_buffer(texels.len(), width, height)?;
-    write_exr_rows(out, width, height, depth, |push| {
-        // A few hundred rows at a time: the blocks being compressed stay few.
-        texels.chunks(width.saturating_mul(256).max(1)).try_for_each(push)
+    let heights = checked_heights(heights, layout, texels.len())?;
+    // A few hundred rows at a time: the blocks being compressed stay few.
+    let rows = width.saturating_mul(256).max(1);
+    write_exr_rows(out, width, height, depth, layout.exr_channels(), |push| {
+        let mut samples = Vec::new();
+        texels.chunks(rows).enumerate().try_for_each(|(k, chunk)| {
+            let band_heights = if heights.is_empty() { heights } else { &heights[k * rows..][..chunk.len()] };
+            samples.clear();
+            lay_out(chunk, band_heights, layout, Container::Exr, &mut samples);
+            push(&samples)
+        })
+    })
+}
+
+/// Writes a one-channel OpenEXR file (channel `Y`) of `width` × `height`
+/// values, row-major: a map of a quantity per texel, such as the fit's
+/// residual.
+///
+/// Errors: as [`encode_exr`].
+pub fn encode_exr_gray(
+    values: &[f32],
+    width: usize,
+    height: usize,
+    depth: ExrDepth,
+    out: impl Write + Seek,
+) -> Result<()> {
+    check_buffer(values.len(), width, height)?;
+    write_exr_rows(out, width, height, depth, &["Y"], |push| {
+        values.chunks(width.saturating_mul(256).max(1)).try_for_each(push)
     })
 }
 
 /// Rows per EXR block with ZIP compression, what [`write_exr_rows`] writes.
 const EXR_BLOCK_ROWS: usize = 16;
 
-/// Writes an OpenEXR file with channels R, G, B (half or float by `depth`),
-/// ZIP compression in blocks of 16 rows, whose texels `fill` pushes in
-/// order, any number of whole rows at a time. Blocks are compressed in
-/// parallel as soon as their rows are in, so memory holds a few blocks,
-/// not the image.
+/// Writes an OpenEXR file with the named `channels` (half or float by
+/// `depth`), ZIP compression in blocks of 16 rows, whose samples `fill`
+/// pushes in order, texel after texel with one sample per channel in the
+/// order `channels` names them, any number of whole rows at a time.
+/// Blocks are compressed in parallel as soon as their rows are in, so
+/// memory holds a few blocks, not the image.
 ///
 /// Errors: [`Error::Encode`] for a zero size, rows pushed that do not fit
 /// or are missing at the end, or an encoder failure; [`Error::Io`] if
@@ -156,7 +411,8 @@ pub(crate) fn write_exr_rows<W: Write + Seek>(
     width: usize,
     height: usize,
     depth: ExrDepth,
-    fill: impl FnOnce(&mut dyn FnMut(&[[f32; 3]]) -> Result<()>) -> Result<()>,
+    channels: &[&str],
+    fill: impl FnOnce(&mut dyn FnMut(&[f32]) -> Result<()>) -> Result<()>,
 ) -> Result<()> {
     if width == 0 || height == 0 {
         return Err(Error::Encode("image has zero size".into()));
@@ -165,14 +421,17 @@ pub(crate) fn write_exr_rows<W: Write + Seek>(
         ExrDepth::Half => ExrSample::F16,
         ExrDepth::Float => ExrSample::F32,
     };
-    // Channels in the file's order, which is by name: B, G, R.
-    let channels = ["B", "G", "R"].map(|name| ChannelDescription::named(name, sample));
-    let header = Header::new(Text::from(""), (width, height), SmallVec::from_iter(channels))
+    // The file lists channels, and stores their samples, sorted by name
+    // (B, G, R): `order` holds the index of each in a texel's samples.
+    let mut order: Vec<usize> = (0..channels.len()).collect();
+    order.sort_by_key(|&k| channels[k]);
+    let descriptions = order.iter().map(|&k| ChannelDescription::named(channels[k], sample));
+    let header = Header::new(Text::from(""), (width, height), SmallVec::from_iter(descriptions))
         .with_encoding(Compression::ZIP16, BlockDescription::ScanLines, LineOrder::Increasing)
         .with_attributes(LayerAttributes::default());
     let mut outcome = Ok(());
     let written = exr::block::write(out, SmallVec::from_elem(header, 1), true, |_, chunks| {
-        let mut blocks = ExrBlocks { chunks, width, height, depth, pending: Vec::new(), done: 0 };
+        let mut blocks = ExrBlocks { chunks, width, height, depth, order: &order, pending: Vec::new(), done: 0 };
         outcome = fill(&mut |rows| blocks.push(rows)).and_then(|()| blocks.finish());
         // Our own error is kept in `outcome`; this only stops the writer.
         if outcome.is_err() { Err(exr::error::Error::Aborted) } else { Ok(()) }
@@ -187,37 +446,39 @@ struct ExrBlocks<'a, W> {
     width: usize,
     height: usize,
     depth: ExrDepth,
-    /// Texels of the rows not yet written, from row `done`.
-    pending: Vec<[f32; 3]>,
+    /// The index in a texel's samples of each channel, in the file's order.
+    order: &'a [usize],
+    /// Samples of the rows not yet written, from row `done`.
+    pending: Vec<f32>,
     done: usize,
 }
 
 impl<W: Write + Seek> ExrBlocks<'_, W> {
     /// Takes more rows; writes every block they complete.
-    fn push(&mut self, rows: &[[f32; 3]]) -> Result<()> {
-        let w = self.width;
-        if rows.len() % w != 0 || self.done + (self.pending.len() + rows.len()) / w > self.height {
-            return Err(Error::Encode(format!("{} texels are not whole rows of the image", rows.len())));
+    fn push(&mut self, rows: &[f32]) -> Result<()> {
+        let row_len = self.width * self.order.len();
+        if rows.len() % row_len != 0 || self.done + (self.pending.len() + rows.len()) / row_len > self.height {
+            return Err(Error::Encode(format!("{} samples are not whole rows of the image", rows.len())));
         }
         self.pending.extend_from_slice(rows);
-        let block = EXR_BLOCK_ROWS * w;
-        let last = self.done + self.pending.len() / w == self.height;
+        let block = EXR_BLOCK_ROWS * row_len;
+        let last = self.done + self.pending.len() / row_len == self.height;
         let ready = if last { self.pending.len() } else { self.pending.len() - self.pending.len() % block };
         if ready == 0 {
             return Ok(());
         }
-        let (first_row, depth) = (self.done, self.depth);
+        let (first_row, depth, order) = (self.done, self.depth, self.order);
         let compressed: Vec<_> = self.pending[..ready]
             .par_chunks(block)
             .enumerate()
-            .map(|(k, texels)| zip_chunk(texels, w, first_row + k * EXR_BLOCK_ROWS, depth))
+            .map(|(k, samples)| zip_chunk(samples, row_len, order, first_row + k * EXR_BLOCK_ROWS, depth))
             .collect();
         for (k, chunk) in compressed.into_iter().enumerate() {
             let index = first_row / EXR_BLOCK_ROWS + k;
             self.chunks.write_chunk(index, chunk?).map_err(from_exr_error)?;
         }
         self.pending.drain(..ready);
-        self.done += ready / w;
+        self.done += ready / row_len;
         Ok(())
     }
 
@@ -243,8 +504,8 @@ const EXR_ZLIB_LEVEL: u8 = 1;
 /// took 85 % of an EXR conversion's time; fdeflate is several times
 /// faster on these bytes and about as small. A block that does not shrink
 /// is stored as it is, which is how EXR readers tell the two apart.
-fn zip_chunk(texels: &[[f32; 3]], width: usize, y0: usize, depth: ExrDepth) -> Result<Chunk> {
-    let raw = exr_block_bytes(texels, width, depth);
+fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth: ExrDepth) -> Result<Chunk> {
+    let raw = exr_block_bytes(samples, row_len, order, depth);
     let mut split = vec![0u8; raw.len()];
     let (even, odd) = split.split_at_mut(raw.len().div_ceil(2));
     for ((e, o), pair) in even.iter_mut().zip(odd.iter_mut()).zip(raw.chunks_exact(2)) {
@@ -269,18 +530,21 @@ fn zip_chunk(texels: &[[f32; 3]], width: usize, y0: usize, depth: ExrDepth) -> R
 }
 
 /// One block's bytes as EXR stores them before compression: row by row,
-/// each row's B samples, then G, then R, little-endian.
-fn exr_block_bytes(texels: &[[f32; 3]], width: usize, depth: ExrDepth) -> Vec<u8> {
+/// each channel's samples in the file's order (`order`: the index of each
+/// in a texel's samples), little-endian.
+fn exr_block_bytes(samples: &[f32], row_len: usize, order: &[usize], depth: ExrDepth) -> Vec<u8> {
     let size = match depth {
         ExrDepth::Half => 2,
         ExrDepth::Float => 4,
     };
-    let mut data = Vec::with_capacity(texels.len() * 3 * size);
-    for row in texels.chunks_exact(width) {
-        for c in [2, 1, 0] {
+    let stride = order.len();
+    let mut data = Vec::with_capacity(samples.len() * size);
+    for row in samples.chunks_exact(row_len) {
+        for &c in order {
+            let channel = row.iter().skip(c).step_by(stride);
             match depth {
-                ExrDepth::Half => data.extend(row.iter().flat_map(|t| f16::from_f32(t[c]).to_le_bytes())),
-                ExrDepth::Float => data.extend(row.iter().flat_map(|t| t[c].to_le_bytes())),
+                ExrDepth::Half => data.extend(channel.flat_map(|&v| f16::from_f32(v).to_le_bytes())),
+                ExrDepth::Float => data.extend(channel.flat_map(|&v| v.to_le_bytes())),
             }
         }
     }

@@ -34,8 +34,8 @@ pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
     }
 }
 
-/// The reference normal of texel (x, y).
-pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> [f64; 3] {
+/// The N² points (u, v, z) of texel (x, y)'s patch.
+fn patch_points(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> Vec<[f64; 3]> {
     let n = opts.patch as i64;
     let r = n / 2;
     let s = opts.scale_for_width(w);
@@ -51,6 +51,46 @@ pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, 
             pts.push([i as f64, sigma * j as f64, s * heights[sy * w + sx] as f64]);
         }
     }
+    pts
+}
+
+/// The reference residual of texel (x, y): the root-mean-square distance
+/// of the patch's points from the plane the reference fits, measured
+/// point by point. Orthogonal fit: perpendicular distance from the plane
+/// through the points' centroid with the reference normal (the flat
+/// normal's horizontal plane included). Vertical fit: z minus the least
+/// squares plane c0 + c1·u + c2·v, or minus the mean where the contract
+/// calls the patch flat.
+pub fn residual_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> f64 {
+    let pts = patch_points(heights, w, h, opts, x, y);
+    let count = pts.len() as f64;
+    let mean: Vec<f64> = (0..3).map(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count).collect();
+    let normal = normal_at(heights, w, h, opts, x, y);
+    let flat = normal == [0.0, 0.0, 1.0];
+    let squared: f64 = match opts.fit {
+        Fit::Orthogonal => pts.iter().map(|p| (0..3).map(|k| normal[k] * (p[k] - mean[k])).sum::<f64>().powi(2)).sum(),
+        Fit::Vertical if flat => pts.iter().map(|p| (p[2] - mean[2]).powi(2)).sum(),
+        Fit::Vertical => {
+            let mut m = [[0.0f64; 4]; 3];
+            for p in &pts {
+                let row = [1.0, p[0], p[1]];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        m[a][b] += row[a] * row[b];
+                    }
+                    m[a][3] += row[a] * p[2];
+                }
+            }
+            let c = solve3(m);
+            pts.iter().map(|p| (p[2] - (c[0] + c[1] * p[0] + c[2] * p[1])).powi(2)).sum()
+        }
+    };
+    (squared / count).sqrt()
+}
+
+/// The reference normal of texel (x, y).
+pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> [f64; 3] {
+    let pts = patch_points(heights, w, h, opts, x, y);
     let count = pts.len() as f64;
     let mean: Vec<f64> = (0..3).map(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count).collect();
     let mut cov = [[0.0f64; 3]; 3];

@@ -311,9 +311,25 @@ pub struct Run {
 }
 
 impl Run {
+    /// Standard error's lines, less a batch's closing summary line, which
+    /// is not a message about a file.
     pub fn stderr_lines(&self) -> Vec<&str> {
-        self.stderr.lines().collect()
+        self.stderr.lines().filter(|l| !is_summary(l)).collect()
     }
+
+    /// A batch's summary line: `normalfit: C converted, S skipped, F failed in T s`.
+    pub fn summary(&self) -> Option<&str> {
+        self.stderr.lines().find(|l| is_summary(l))
+    }
+}
+
+fn is_summary(line: &str) -> bool {
+    let words: Vec<&str> = line.split(' ').collect();
+    matches!(
+        words[..],
+        ["normalfit:", c, "converted,", s, "skipped,", f, "failed", "in", t, "s"]
+            if [c, s, f].iter().all(|n| n.parse::<usize>().is_ok()) && t.parse::<f64>().is_ok()
+    )
 }
 
 /// Runs the binary with `args` (standard input from `stdin` if given),

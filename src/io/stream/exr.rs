@@ -13,14 +13,14 @@ use exr::meta::BlockDescription;
 use exr::meta::attribute::{ChannelList, SampleType as ExrSample};
 use exr::prelude::{Vec2, f16};
 
-use super::{RowSource, Stages, checked_tail, run};
+use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
 use crate::io::read::{
     Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer, from_exr_error, luma,
     select_channel,
 };
-use crate::io::write::{ExrDepth, write_exr_rows};
+use crate::io::write::{Container, ExrDepth, Layout, lay_out, write_exr_rows};
 use crate::options::Options;
 
 /// The decompressed blocks of a file, in the order they finish.
@@ -239,9 +239,22 @@ fn not_streamable() -> Error {
     Error::Unsupported("only scan-line EXR files of one layer can be read by rows".into())
 }
 
-/// Converts the rows of `rows` to an OpenEXR normal map (R, G, B channels,
-/// ZIP compression in blocks of 16 rows) written to `out`, band by band:
-/// the values are (n + 1)/2, or n itself with `signed`, as half or float.
+/// How a streamed OpenEXR normal map is written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ExrFormat {
+    /// Half or float samples. Default: float.
+    pub depth: ExrDepth,
+    /// Write n itself, in [−1, 1], instead of (n + 1)/2. Default: off.
+    pub signed: bool,
+    /// Which channels. Default: R, G, B.
+    pub layout: Layout,
+}
+
+/// Converts the rows of `rows` to an OpenEXR normal map (ZIP compression
+/// in blocks of 16 rows) written to `out`, band by band: the values are
+/// (n + 1)/2, or n itself with `signed`, as half or float, in the channels
+/// of the layout; the same file as
+/// [`encode_exr_normals`](crate::io::encode_exr_normals) writes.
 ///
 /// EXR's offset table comes before the pixels and is filled in at the end,
 /// so `out` must seek. The rows are written in order, so `tail` (the
@@ -255,22 +268,25 @@ pub fn convert_exr<W: Write + Seek>(
     rows: impl RowSource,
     tail: Option<&[f32]>,
     opts: &Options,
-    depth: ExrDepth,
-    signed: bool,
+    format: ExrFormat,
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<()> {
     let (w, h) = (rows.width(), rows.height());
     let tail = checked_tail(tail, w, h, opts)?;
     let fit = BandFit::new(w, h, opts)?;
-    write_exr_rows(out, w, h, depth, |push| {
-        let prepare = |_: Range<usize>, mut normals: Vec<[f32; 3]>| {
+    let ExrFormat { depth, signed, layout } = format;
+    write_exr_rows(out, w, h, depth, layout.exr_channels(), |push| {
+        let prepare = |rows: Range<usize>, mut normals: Vec<[f32; 3]>, row: &Rows<'_>| {
             if !signed {
                 normals.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
             }
-            normals
+            let heights = heights_for(layout, rows, row);
+            let mut samples = Vec::with_capacity(normals.len() * layout.exr_channels().len());
+            lay_out(&normals, &heights, layout, Container::Exr, &mut samples);
+            samples
         };
-        let consume = |_: usize, texels: Vec<[f32; 3]>| push(&texels);
+        let consume = |_: usize, samples: Vec<f32>| push(&samples);
         run(rows, &fit, tail, false, visit, Stages { prepare, consume })
     })
 }

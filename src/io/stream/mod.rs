@@ -30,11 +30,12 @@ mod png;
 use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
-pub use self::exr::{ExrRows, convert_exr};
+pub use self::exr::{ExrFormat, ExrRows, convert_exr};
 pub use self::png::{PngDepth, PngOutput, PngRows, convert_png, convert_png_seekable};
 
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal, first_non_finite};
+use crate::io::write::Layout;
 use crate::options::{Border, Options};
 
 /// The rows of a height map, top to bottom, decoded as they are asked for.
@@ -87,14 +88,23 @@ fn checked_tail<'a>(tail: Option<&'a [f32]>, w: usize, h: usize, opts: &Options)
     }
 }
 
+/// The heights of the image's `rows`, one row after the other, for a
+/// layout that writes them (an alpha of heights); nothing otherwise.
+fn heights_for(layout: Layout, rows: Range<usize>, row: &Rows<'_>) -> Vec<f32> {
+    if layout.needs_heights() { rows.flat_map(|y| row(y).iter().copied()).collect() } else { Vec::new() }
+}
+
 /// A band of rows between stages: its first row and its values (heights,
 /// or what the encoder takes).
 type Band<T> = Result<(usize, Vec<T>)>;
 
+/// Source row y of the image, while the band that reads it is fitted.
+type Rows<'a> = dyn Fn(usize) -> &'a [f32] + 'a;
+
 /// What is done with each fitted band.
 struct Stages<Prepare, Consume> {
     /// On the fit thread: turns the band's rows (range, texels) into what
-    /// the encoder takes.
+    /// the encoder takes; it may read the band's heights.
     prepare: Prepare,
     /// On the caller's thread: encodes and writes a prepared band, given
     /// with its first row.
@@ -116,7 +126,7 @@ where
     S: RowSource,
     T: FromNormal + Default,
     B: Send,
-    Prepare: FnMut(Range<usize>, Vec<T>) -> Vec<B> + Send,
+    Prepare: for<'r> FnMut(Range<usize>, Vec<T>, &Rows<'r>) -> Vec<B> + Send,
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     let Stages { prepare, mut consume } = stages;
@@ -182,7 +192,7 @@ fn fit_stage<T: FromNormal + Default, B>(
     tail: Option<&[f32]>,
     deferred: bool,
     visit: &mut dyn FnMut(&[f32]),
-    mut prepare: impl FnMut(Range<usize>, Vec<T>) -> Vec<B>,
+    mut prepare: impl for<'r> FnMut(Range<usize>, Vec<T>, &Rows<'r>) -> Vec<B>,
     rx: Receiver<Band<f32>>,
     tx: &SyncSender<Band<B>>,
 ) {
@@ -246,7 +256,7 @@ fn fit_stage<T: FromNormal + Default, B>(
             }
         };
         let mut normals = vec![T::default(); (y1 - y0) * w];
-        let result = fit.fit_band(rows.clone(), &row, &mut normals).map(|()| prepare(rows, normals));
+        let result = fit.fit_band(rows.clone(), &row, &mut normals).map(|()| prepare(rows, normals, &row));
         let failed = result.is_err();
         if tx.send(result.map(|values| (y0, values))).is_err() || failed {
             return;

@@ -10,13 +10,13 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::{RowSource, Stages, checked_tail, run};
+use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::io::read::{
     Channel, InputFormat, PNG_SIGNATURE, ReadOptions, check_png_header, check_size, luma, message, no_layers,
 };
-use crate::io::write::PngCompression;
+use crate::io::write::{Container, Layout, PngCompression, PngSample, lay_out};
 use crate::options::Options;
 
 /// The rows of a PNG file, top to bottom, as heights in contract units.
@@ -157,39 +157,44 @@ impl RowSource for PngRows {
     }
 }
 
-/// How the streamed normal map is written.
+/// How deep the streamed normal map's samples are.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PngDepth {
-    /// 8-bit RGB.
+    /// 8 bits a sample.
     Eight,
-    /// 16-bit RGB.
+    /// 16 bits a sample.
     Sixteen,
 }
 
-/// The streamed PNG's depth and compression. A [`PngDepth`] alone means
-/// [`PngCompression::Fast`]: every row Avg-filtered (22.6 MiB for a 4096²
-/// map). `Default` and `Best` choose each row's filter (19.9 MiB, the
-/// filtering taking twice as long).
+/// The streamed PNG's depth, compression and channels. A [`PngDepth`]
+/// alone means [`PngCompression::Fast`] and RGB: every row Avg-filtered
+/// (22.6 MiB for a 4096² map). `Default` and `Best` choose each row's
+/// filter (19.9 MiB, the filtering taking twice as long).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PngOutput {
     /// Bits per sample.
     pub depth: PngDepth,
     /// How hard the rows are deflated.
     pub compression: PngCompression,
+    /// Which channels: RGB, RGBA with an alpha of heights or of 1, or
+    /// red-green (B = 0); the samples
+    /// [`encode_png_normals`](crate::io::encode_png_normals) writes.
+    pub layout: Layout,
 }
 
 impl From<PngDepth> for PngOutput {
     fn from(depth: PngDepth) -> Self {
-        PngOutput { depth, compression: PngCompression::Fast }
+        PngOutput { depth, compression: PngCompression::Fast, layout: Layout::Rgb }
     }
 }
 
-/// How `convert_as` writes: its compression, and whether the top rows come
-/// last (into room kept after the header).
+/// How `convert_as` writes: its compression, whether the top rows come
+/// last (into room kept after the header), and its channels.
 #[derive(Clone, Copy)]
-struct Layout {
+struct Writing {
     compression: PngCompression,
     deferred: bool,
+    layout: Layout,
 }
 
 /// Converts the rows of `rows` to a PNG normal map written in order to
@@ -212,11 +217,11 @@ pub fn convert_png(
     out: &mut dyn Write,
 ) -> Result<()> {
     let tail = checked_tail(tail, rows.width(), rows.height(), opts)?;
-    let PngOutput { depth, compression } = output.into();
-    let how = Layout { compression, deferred: false };
+    let PngOutput { depth, compression, layout } = output.into();
+    let how = Writing { compression, deferred: false, layout };
     match depth {
-        PngDepth::Eight => convert_as::<[u8; 3], _, _>(rows, tail, opts, visit, out, how),
-        PngDepth::Sixteen => convert_as::<[u16; 3], _, _>(rows, tail, opts, visit, out, how),
+        PngDepth::Eight => convert_as::<u8, _, _>(rows, tail, opts, visit, out, how),
+        PngDepth::Sixteen => convert_as::<u16, _, _>(rows, tail, opts, visit, out, how),
     }?;
     out.flush()?;
     Ok(())
@@ -237,11 +242,11 @@ pub fn convert_png_seekable<W: Write + Seek>(
     out: &mut W,
 ) -> Result<()> {
     let start = out.stream_position()?;
-    let PngOutput { depth, compression } = output.into();
-    let how = Layout { compression, deferred: true };
+    let PngOutput { depth, compression, layout } = output.into();
+    let how = Writing { compression, deferred: true, layout };
     let first_idat = match depth {
-        PngDepth::Eight => convert_as::<[u8; 3], _, _>(rows, None, opts, visit, out, how),
-        PngDepth::Sixteen => convert_as::<[u16; 3], _, _>(rows, None, opts, visit, out, how),
+        PngDepth::Eight => convert_as::<u8, _, _>(rows, None, opts, visit, out, how),
+        PngDepth::Sixteen => convert_as::<u16, _, _>(rows, None, opts, visit, out, how),
     }?;
     // The room kept for the first IDAT chunk follows the signature and IHDR.
     let end = out.stream_position()?;
@@ -250,30 +255,6 @@ pub fn convert_png_seekable<W: Write + Seek>(
     out.seek(std::io::SeekFrom::Start(end))?;
     out.flush()?;
     Ok(())
-}
-
-/// A texel type the streamed PNG can hold, with its big-endian bytes.
-trait PngTexel: FromNormal + Default {
-    /// Bits per sample.
-    const BITS: u8;
-    /// Bytes per texel (three samples).
-    const BYTES: usize = 3 * (Self::BITS as usize / 8);
-    /// The samples of `texels`, big-endian (8-bit ones as they are).
-    fn bytes(texels: &[Self]) -> Cow<'_, [u8]>;
-}
-
-impl PngTexel for [u8; 3] {
-    const BITS: u8 = 8;
-    fn bytes(texels: &[Self]) -> Cow<'_, [u8]> {
-        Cow::Borrowed(texels.as_flattened())
-    }
-}
-
-impl PngTexel for [u16; 3] {
-    const BITS: u8 = 16;
-    fn bytes(texels: &[Self]) -> Cow<'_, [u8]> {
-        Cow::Owned(texels.as_flattened().iter().flat_map(|v| v.to_be_bytes()).collect())
-    }
 }
 
 /// Bytes of the PNG signature (8) and the IHDR chunk (25), after which the
@@ -285,20 +266,25 @@ const HEADER_BYTES: u64 = 8 + 25;
 /// and the chunk's data (zlib header and the top rows, stored) is returned
 /// for the caller to write there; otherwise everything is written in order
 /// and nothing is returned.
-fn convert_as<T: PngTexel, S: RowSource, W: Write + ?Sized>(
-    rows: S,
+fn convert_as<S: PngSample, R: RowSource, W: Write + ?Sized>(
+    rows: R,
     tail: Option<&[f32]>,
     opts: &Options,
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
-    Layout { compression, deferred }: Layout,
-) -> Result<Vec<u8>> {
+    Writing { compression, deferred, layout }: Writing,
+) -> Result<Vec<u8>>
+where
+    [S; 3]: FromNormal + Default,
+{
     let (w, h) = (rows.width(), rows.height());
     let fit = BandFit::new(w, h, opts)?;
-    let stride = T::BYTES * w;
+    let samples = layout.png_samples();
+    let texel_bytes = samples * usize::from(S::BITS / 8);
+    let stride = texel_bytes * w;
     let top_len = fit.radius().min(h) * (stride + 1);
 
-    write_signature_and_header(out, w, h, T::BITS)?;
+    write_signature_and_header(out, w, h, S::BITS, samples)?;
     if deferred {
         // Room for the first IDAT chunk: zlib header and the top rows as
         // stored blocks, filled in at the end.
@@ -318,13 +304,21 @@ fn convert_as<T: PngTexel, S: RowSource, W: Write + ?Sized>(
     // The last row of the band before, which the next band's first row is
     // filtered against.
     let mut prior: Option<Vec<u8>> = None;
-    let prepare = |rows: Range<usize>, normals: Vec<T>| -> Vec<u8> {
-        let raw = T::bytes(&normals);
+    let prepare = |rows: Range<usize>, normals: Vec<[S; 3]>, row: &Rows<'_>| -> Vec<u8> {
+        let laid_out = if layout == Layout::Rgb {
+            Cow::Borrowed(normals.as_flattened())
+        } else {
+            let heights = heights_for(layout, rows.clone(), row);
+            let mut laid_out = Vec::with_capacity(normals.len() * samples);
+            lay_out(&normals, &heights, layout, Container::Png, &mut laid_out);
+            Cow::Owned(laid_out)
+        };
+        let raw = S::be_bytes(&laid_out);
         if deferred && rows.start == 0 {
             // Stored as they are: filter type 0 before each row.
             raw.chunks_exact(stride).flat_map(|row| std::iter::once(0).chain(row.iter().copied())).collect()
         } else {
-            let filtered = filter_rows(&raw, stride, T::BYTES, prior.as_deref(), adaptive);
+            let filtered = filter_rows(&raw, stride, texel_bytes, prior.as_deref(), adaptive);
             prior = Some(raw[raw.len() - stride..].to_vec());
             filtered
         }
@@ -461,8 +455,15 @@ fn paeth(a: u8, b: u8, c: u8) -> u8 {
     }
 }
 
-/// The PNG signature and the IHDR of a `bits`-bit RGB image.
-fn write_signature_and_header<W: Write + ?Sized>(out: &mut W, w: usize, h: usize, bits: u8) -> Result<()> {
+/// The PNG signature and the IHDR of a `bits`-bit RGB (3 `samples`) or
+/// RGBA (4) image.
+fn write_signature_and_header<W: Write + ?Sized>(
+    out: &mut W,
+    w: usize,
+    h: usize,
+    bits: u8,
+    samples: usize,
+) -> Result<()> {
     let side = |n: usize| u32::try_from(n).ok().filter(|&n| n <= i32::MAX as u32);
     let (Some(w), Some(h)) = (side(w), side(h)) else {
         return Err(Error::Encode(format!("{w} × {h} is too large for PNG")));
@@ -471,8 +472,10 @@ fn write_signature_and_header<W: Write + ?Sized>(out: &mut W, w: usize, h: usize
     let mut ihdr = Vec::with_capacity(13);
     ihdr.extend_from_slice(&w.to_be_bytes());
     ihdr.extend_from_slice(&h.to_be_bytes());
-    // Bit depth, colour type 2 (RGB), deflate, adaptive filtering, no interlace.
-    ihdr.extend_from_slice(&[bits, 2, 0, 0, 0]);
+    // Bit depth, colour type (2: RGB, 6: RGBA), deflate, adaptive
+    // filtering, no interlace.
+    let color_type = if samples == 4 { 6 } else { 2 };
+    ihdr.extend_from_slice(&[bits, color_type, 0, 0, 0]);
     write_chunk(out, b"IHDR", &ihdr)
 }
 
