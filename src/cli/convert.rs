@@ -335,10 +335,12 @@ impl Plan {
             })
             .map_err(|e| Failure::file(out, e)),
             (None, Encoding::Exr(depth)) => {
-                // EXR seeks back to its offset table: the file is assembled first.
+                // EXR seeks back to its offset table: the file is assembled
+                // first, and must leave the stream room to work.
                 let mut bytes = InMemory::default();
                 let format = ExrFormat { depth, signed: target.signed, layout: self.layout };
-                stream::convert_exr(rows, tail, &fit, format, visit, &mut bytes)
+                check_assembly_memory(target, width, height)
+                    .and_then(|()| stream::convert_exr(rows, tail, &fit, format, visit, &mut bytes))
                     .inspect_err(&mut on_input)
                     .and_then(|()| write_stdout(bytes.0.get_ref()))
                     .map_err(|e| Failure::file(stdout_name, e))
@@ -673,6 +675,23 @@ fn check_encode_memory(target: &Target, normals: bool, residual: bool, w: usize,
     let per_texel = map + if normals { encode + assembled } else { 0 } + if residual { 4 + 10 } else { 0 };
     let texels = (w as u64).saturating_mul(h as u64);
     io::check_memory("encoding the normal map", texels.saturating_mul(per_texel))
+}
+
+/// Refuses to assemble an EXR for standard output in memory when the
+/// memory limits leave no room for it (its raw size, which ZIP does not
+/// exceed) beside the stream's own buffers.
+fn check_assembly_memory(target: &Target, w: usize, h: usize) -> normalfit::Result<()> {
+    let channels: u64 = match target.layout {
+        Layout::Rg => 2,
+        Layout::Rgb => 3,
+        _ => 4,
+    };
+    let sample = match target.encoding {
+        Encoding::Exr(ExrDepth::Half) => 2,
+        _ => 4,
+    };
+    let texels = (w as u64).saturating_mul(h as u64);
+    io::check_memory("assembling the output in memory", texels.saturating_mul(channels * sample))
 }
 
 /// A buffer of `len` values, or an error when the memory is not there:
