@@ -381,11 +381,17 @@ fn a_batch_with_one_failing_output_still_writes_the_others() {
     untouched.check("batch");
 }
 
-/// Whether new files in `dir` can be kept unnamed (O_TMPFILE), which is
-/// what lets a killed process leave nothing behind.
+/// Whether new files in `dir` can be kept unnamed (O_TMPFILE, Linux),
+/// which is what lets a killed process leave nothing behind.
+#[cfg(target_os = "linux")]
 fn unnamed_files_in(dir: &Path) -> bool {
     use rustix::fs::{CWD, Mode, OFlags, openat};
     openat(CWD, dir, OFlags::WRONLY | OFlags::TMPFILE | OFlags::CLOEXEC, Mode::from_raw_mode(0o600)).is_ok()
+}
+
+#[cfg(not(target_os = "linux"))]
+fn unnamed_files_in(_dir: &Path) -> bool {
+    false
 }
 
 /// The size of the file process `pid` has open in `folder`, if any.
