@@ -4,7 +4,7 @@
 
 use normalfit::io::{Raster, ReadOptions, decode};
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
-use normalfit::{Border, Borders, Options, normals_into};
+use normalfit::{Border, Borders, Fit, Options, Strength, normals_into};
 
 /// The fuzzers' limit: small, so a case never costs much.
 const READ: ReadOptions = ReadOptions { max_texels: 1 << 20 };
@@ -66,4 +66,55 @@ fn exr_b44_block_whose_arithmetic_wraps_decodes() {
     for opts in [Options::new(), Options::new().with_patch(5).with_borders(Borders::both(Border::Mirror))] {
         decode_fit(&bytes, &opts).expect("the decoded heights fit");
     }
+}
+
+/// A Radiance HDR whose texels reach 1.7·10³⁸: their differences overflowed
+/// f32 in the tiling kernels, and both scores were NaN ("x NaN SEAM").
+#[test]
+fn hdr_with_texels_near_f32_range_scores_finite() {
+    let raster = decode(&case("hdr-huge-values.hdr"), &READ).expect("a valid HDR");
+    let top = raster.planes.iter().flat_map(|p| &p.data).fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(top > 1e38, "the case is about huge texels, its largest is {top}");
+    let [all, whole, streamed] = tiling_reports(&raster);
+    for r in [&all, &whole, &streamed] {
+        assert_finite(r);
+    }
+    assert_eq!((whole.x.score, whole.y.score), (streamed.x.score, streamed.y.score));
+    // The fit of the same heights was never the problem: its sums are f64.
+    let opts = Options::new().with_fit(Fit::Vertical).with_strength(Strength::Scale(1e30));
+    decode_fit(&case("hdr-huge-values.hdr"), &opts).expect("finite heights fit");
+}
+
+/// The tiling score is a ratio of sums, so a map and the same map times a
+/// power of two score the same. Up to f32's range too: the kernels scale
+/// the heights down before they sum, and back up exactly.
+#[test]
+fn heights_near_f32_range_score_as_the_same_map_near_one() {
+    let (w, h) = (48, 40);
+    // A ridge with noise: both the value and the crease sums are non-zero.
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let unit: Vec<f32> = (0..w * h)
+        .map(|k| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let noise = (state >> 40) as f32 / (1u64 << 24) as f32;
+            ((k % w) as f32 / w as f32 - 0.5).abs() + 0.1 * noise - 0.3
+        })
+        .collect();
+    let huge: Vec<f32> = unit.iter().map(|v| v * 2f32.powi(127)).collect();
+    assert!(huge.iter().all(|v| v.is_finite()));
+    let opts = TilingOptions::new().with_kind(KindChoice::Height);
+    let small = check(&[&unit], w, h, &opts);
+    let large = check(&[&huge], w, h, &opts);
+    assert_finite(&large);
+    assert_eq!((small.x.score, small.y.score), (large.x.score, large.y.score));
+    let mut seams = HeightSeams::new(w, h);
+    huge.chunks_exact(w).for_each(|row| seams.push_row(row));
+    let streamed = seams.finish(&opts);
+    assert_eq!((streamed.x.score, streamed.y.score), (large.x.score, large.y.score));
+    // Colour: luma of three such planes, the largest weight's plane at −f32::MAX.
+    let low = vec![-f32::MAX; w * h];
+    let report = check(&[&huge, &low, &huge], w, h, &opts);
+    assert_finite(&report);
 }
