@@ -24,6 +24,9 @@ fi
 export RUSTC_BOOTSTRAP=1
 cargo fuzz build
 
+# One known false leak, see the file.
+export LSAN_OPTIONS="suppressions=$PWD/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
+
 # -rss_limit_mb also caps a single allocation (libFuzzer's -malloc_limit_mb
 # defaults to it), so a forged size that reaches an allocator is a finding.
 # -timeout: no case of at most 2^20 texels takes seconds; one that does is a
