@@ -2,9 +2,10 @@
 //! asserting the clean result. The files in `tests/data/fuzz/` are the
 //! minimised cases (`cargo fuzz tmin`), as the fuzzers wrote them.
 
+use normalfit::io::stream::PngRows;
 use normalfit::io::{Raster, ReadOptions, decode};
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
-use normalfit::{Border, Borders, Fit, Options, Strength, normals_into};
+use normalfit::{Border, Borders, Error, Fit, Options, Strength, normals_into};
 
 /// The fuzzers' limit: small, so a case never costs much.
 const READ: ReadOptions = ReadOptions { max_texels: 1 << 20 };
@@ -117,4 +118,27 @@ fn heights_near_f32_range_score_as_the_same_map_near_one() {
     let low = vec![-f32::MAX; w * h];
     let report = check(&[&huge, &low, &huge], w, h, &opts);
     assert_finite(&report);
+}
+
+/// A PNG whose PLTE chunk holds 56 bytes, not a whole number of RGB
+/// entries: png 0.18.1 panicked (slice index out of range) expanding the
+/// palette into the first row, when `decode` read it through `image` and
+/// when the streaming reader did (`normalfit convert` and `tiling` exited
+/// with 101). Now a decode error from the header, before any row.
+#[test]
+fn png_palette_of_partial_entries_is_a_decode_error() {
+    let bytes = case("png-palette-not-rgb.png");
+    match decode(&bytes, &READ) {
+        Err(Error::Decode(m)) => assert!(m.contains("palette of 56 bytes"), "{m}"),
+        other => panic!("expected a decode error, got {other:?}"),
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("case.png");
+    std::fs::write(&path, &bytes).unwrap();
+    for channel in [None, Some(normalfit::io::Channel::A)] {
+        let Err(Error::Decode(m)) = PngRows::open(&path, &READ, channel) else {
+            panic!("the streaming reader must refuse the palette");
+        };
+        assert!(m.contains("palette"), "{m}");
+    }
 }

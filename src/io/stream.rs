@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
-use super::read::{Channel, LUMA, ReadOptions, check_size};
+use super::read::{Channel, LUMA, ReadOptions, check_png_palette, check_size};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::options::{Border, Options};
@@ -77,6 +77,7 @@ impl PngRows {
         decoder.set_transformations(png::Transformations::EXPAND);
         let reader = decoder.read_info().map_err(png_error)?;
         let info = reader.info();
+        check_png_palette(info)?;
         let (width, height) = (info.width, info.height);
         check_size(u64::from(width), u64::from(height), opts)?;
         if info.interlaced {
