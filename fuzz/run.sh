@@ -54,7 +54,7 @@ for t in "${targets[@]}"; do
     [ -n "$execs" ] || execs=$(sed -nE 's/^#([0-9]+).*/\1/p' <<<"$last")
     [ -n "$rate" ] || rate=$(field 'exec/s')
     corpus_files=$(find "corpus/$t" -type f | wc -l)
-    corpus_kb=$(du -sk "corpus/$t" | cut -f1)
+    corpus_kb=$(du -sk --apparent-size "corpus/$t" | cut -f1)
     findings=$(find "artifacts/$t" -type f -newer "$stamp" | sort)
     rm -f "$stamp"
 
