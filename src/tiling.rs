@@ -129,6 +129,9 @@
 //! * A zero-sized image tiles on both axes, score 1.
 //! * Non-finite texels are taken as 0 (a NaN must not make the verdict
 //!   NaN); callers that care reject them before, as `normalfit::io` does.
+//! * Finite heights anywhere in f32's range give finite scores: the sums
+//!   run on the heights times 2⁻³², exactly, and are scaled back in f64,
+//!   so that the difference of ±3.4·10³⁸ and its sums do not overflow f32.
 //!
 //! # Cost
 //!
@@ -161,6 +164,21 @@ const RANK_FRACTION: f64 = 0.01;
 /// ε relative to the mean neighbour difference: above f32 rounding and
 /// 16-bit quantisation noise, far below any visible seam.
 const FLOOR_FRACTION: f64 = 1e-3;
+
+/// The f32 kernels measure the heights times this, and the profiles are
+/// scaled back in f64. Without it, finite heights near f32's range (an HDR
+/// or float file of ±3.4·10³⁸, found by fuzzing) overflow to infinite
+/// differences and sums, and the score to NaN. A power of two, so the
+/// scaling is exact and the scores are the same bit for bit, except for
+/// heights within about 10⁻²⁸ of zero whose differences become subnormal:
+/// they lose what lies below 10⁻³⁵, far below the ε floor (10⁻³⁰) that
+/// decides such scores anyway. With it, |Δ| ≤ 2⁹⁷ and a crease ≤ 2⁹⁸: the
+/// x sums of 32 rows, and a y lane of up to 2²⁹ texels (rows of 2³² texels,
+/// 16 GiB of f32), stay below f32's largest value, 2¹²⁸.
+const JUDGE_SCALE: f32 = 1.0 / 4_294_967_296.0;
+
+/// 1 / [`JUDGE_SCALE`], to bring the sums back to height units.
+const UNSCALE: f64 = 4_294_967_296.0;
 
 /// What the planes of an image hold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -479,7 +497,7 @@ impl HeightSeams {
         }
         let slot = &mut self.ring[(y % 4) * w..][..w];
         for (o, &v) in slot.iter_mut().zip(row) {
-            *o = finite(v);
+            *o = judged(v);
         }
         let ring = &self.ring;
         let ring_row = |j: usize| &ring[(j % 4) * w..][..w];
@@ -536,7 +554,7 @@ impl HeightSeams {
 /// Adds the f32 block sums into the f64 totals and clears them.
 fn flush(total: &mut [f64], block: &mut [f32]) {
     for (t, b) in total.iter_mut().zip(block.iter_mut()) {
-        *t += f64::from(*b);
+        *t += unscaled(*b);
         *b = 0.0;
     }
 }
@@ -579,13 +597,15 @@ impl Signal<'_> {
         match *self {
             Signal::Plane(p) => {
                 for (o, &v) in out.iter_mut().zip(&p[y * w..][..w]) {
-                    *o = finite(v);
+                    *o = judged(v);
                 }
             }
             Signal::Luma(r, g, b) => {
                 let rows = r[y * w..][..w].iter().zip(&g[y * w..][..w]).zip(&b[y * w..][..w]);
+                // The weights carry the scale: w·S·r is S·(w·r) exactly.
+                let [wr, wg, wb] = [0.2126, 0.7152, 0.0722].map(|w: f32| w * JUDGE_SCALE);
                 for (o, ((&r, &g), &b)) in out.iter_mut().zip(rows) {
-                    *o = finite(0.2126 * r + 0.7152 * g + 0.0722 * b);
+                    *o = finite(wr * r + wg * g + wb * b);
                 }
             }
         }
@@ -655,10 +675,10 @@ impl Profiles {
                             *acc += s;
                         }
                         for (acc, &s) in vx.iter_mut().zip(&block.vx) {
-                            *acc += f64::from(s);
+                            *acc += unscaled(s);
                         }
                         for (acc, &s) in cx.iter_mut().zip(&block.cx) {
-                            *acc += f64::from(s);
+                            *acc += unscaled(s);
                         }
                     }
                     (vx, cx, block)
@@ -750,6 +770,19 @@ fn finite(v: f32) -> f32 {
     if v.is_finite() { v } else { 0.0 }
 }
 
+/// A height as the kernels measure it: times [`JUDGE_SCALE`], non-finite
+/// values as 0.
+#[inline]
+fn judged(v: f32) -> f32 {
+    finite(v * JUDGE_SCALE)
+}
+
+/// A kernel's f32 sum back in height units, exactly.
+#[inline]
+fn unscaled(s: f32) -> f64 {
+    f64::from(s) * UNSCALE
+}
+
 /// Adds the x pairs of one row `r` (W ≥ 1 values) to the f32 sums `vx` and,
 /// with `crease`, its x creases to `cx`. `padded` is scratch of W + 3
 /// values. The one x kernel of [`check`] and [`HeightSeams`].
@@ -786,7 +819,7 @@ fn y_crease(a: &[f32], b: &[f32], c: &[f32], d: &[f32]) -> f64 {
 }
 
 /// Σ f(x) for x in 0 … n − 1, in 8 f32 lanes (so the loop vectorises)
-/// added in f64.
+/// added in f64, and scaled back to height units.
 #[inline]
 fn lane_sum(n: usize, f: impl Fn(usize) -> f32) -> f64 {
     let mut lanes = [0.0f32; 8];
@@ -797,7 +830,7 @@ fn lane_sum(n: usize, f: impl Fn(usize) -> f32) -> f64 {
         }
     }
     let tail: f64 = (whole..n).map(|x| f64::from(f(x))).sum();
-    tail + lanes.iter().map(|&l| f64::from(l)).sum::<f64>()
+    (tail + lanes.iter().map(|&l| f64::from(l)).sum::<f64>()) * UNSCALE
 }
 
 #[cfg(test)]

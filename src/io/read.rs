@@ -499,6 +499,9 @@ fn lower_first(s: &str) -> String {
 /// Decodes with the `image` crate: header first, size check, then pixels.
 fn decode_with_image(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let format = guess_format(bytes)?;
+    if format == ImageFormat::Png {
+        check_png_bytes(bytes)?;
+    }
     let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
     reader.limits(image_limits(opts));
     let decoder = reader.into_decoder().map_err(from_image_error)?;
@@ -520,6 +523,34 @@ fn decode_with_image(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         sample,
         planes,
     })
+}
+
+/// Refuses a PNG palette that is not a whole number of RGB entries, which
+/// the PNG spec makes an error. `png` 0.18.1 does not check it, and panics
+/// (a slice index out of range) expanding such a palette into the first
+/// row, in `image` and in our streaming reader alike. Found by fuzzing
+/// (tests/fuzz_regressions.rs); the `png` crate's header has the palette
+/// before any row is decoded.
+pub(crate) fn check_png_palette(info: &png::Info) -> Result<()> {
+    match info.palette.as_deref() {
+        Some(p) if p.len() % 3 != 0 => {
+            Err(Error::Decode(format!("png palette of {} bytes is not a whole number of 3-byte RGB entries", p.len())))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// [`check_png_palette`] for PNG bytes on their way to `image`, whose
+/// decoder keeps the header to itself: the `png` crate reads it again, up
+/// to the image data (text chunks skipped). Errors in the header are left
+/// to `image`, which reports them as it always has.
+fn check_png_bytes(bytes: &[u8]) -> Result<()> {
+    let mut decoder = png::Decoder::new(Cursor::new(bytes));
+    decoder.set_ignore_text_chunk(true);
+    match decoder.read_info() {
+        Ok(reader) => check_png_palette(reader.info()),
+        Err(_) => Ok(()),
+    }
 }
 
 /// The format from the magic bytes. TGA has none, so bytes no signature

@@ -14,7 +14,8 @@ use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::io::read::{
-    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, check_png_header, check_size, luma, message, no_layers,
+    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, check_png_header, check_png_palette, check_size, luma, message,
+    no_layers,
 };
 use crate::io::write::{Container, Layout, PngCompression, PngSample, lay_out};
 use crate::options::Options;
@@ -73,6 +74,7 @@ impl PngRows {
         decoder.set_transformations(png::Transformations::EXPAND);
         let reader = decoder.read_info().map_err(png_error)?;
         let info = reader.info();
+        check_png_palette(info)?;
         let (width, height) = (info.width, info.height);
         check_size(u64::from(width), u64::from(height), opts)?;
         if info.interlaced {

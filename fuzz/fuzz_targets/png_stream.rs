@@ -1,0 +1,70 @@
+//! Bytes in a file → `PngRows` → `convert_png_seekable`, the streaming path
+//! of `normalfit convert` for PNG, against the whole-image path on the same
+//! bytes (`decode` → heights → `normals_into`).
+//!
+//! Must hold for any bytes: no panic, abort or hang; failures are `Err`
+//! with a one-line message; and when both paths succeed, the streamed
+//! heights and the streamed PNG's texels are those of the whole-image path,
+//! bit for bit (the documented promise of the streaming module).
+#![no_main]
+
+use std::io::Cursor;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+use libfuzzer_sys::fuzz_target;
+use normalfit::io::decode;
+use normalfit::io::stream::{PngDepth, PngRows, convert_png_seekable};
+use normalfit::normals_into;
+use normalfit_fuzz::{Case, assert_clean_error, read_options};
+
+/// One file per process, rewritten for every case: `PngRows` reads a path.
+fn path() -> &'static PathBuf {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| std::env::temp_dir().join(format!("normalfit-fuzz-png-stream-{}.png", std::process::id())))
+}
+
+fuzz_target!(|data: &[u8]| {
+    let case = Case::of(data);
+    std::fs::write(path(), data).expect("write the case to a temporary file");
+    let rows = match PngRows::open(path(), &read_options(), case.channel) {
+        Ok(Some(rows)) => rows,
+        // Not a PNG that streams: the caller reads it whole, another target's path.
+        Ok(None) => return,
+        Err(e) => return assert_clean_error(&e),
+    };
+    let (w, h) = (rows.width(), rows.height());
+    let depth = if case.sixteen { PngDepth::Sixteen } else { PngDepth::Eight };
+    let mut streamed_heights = Vec::new();
+    let mut png = Cursor::new(Vec::new());
+    let streamed =
+        convert_png_seekable(rows, &case.fit, depth, |row| streamed_heights.extend_from_slice(row), &mut png);
+    if let Err(e) = &streamed {
+        assert_clean_error(e);
+    }
+
+    let whole = decode(data, &read_options()).and_then(|r| r.into_heights(case.channel));
+    let (Ok(()), Ok(heights)) = (streamed, whole) else { return };
+    assert_eq!(streamed_heights.len(), w * h, "the stream visited {} heights of {w} × {h}", streamed_heights.len());
+    let same = streamed_heights.iter().zip(&heights).all(|(a, b)| a.to_bits() == b.to_bits());
+    assert!(same, "streamed heights differ from the decoded ones");
+
+    // The streamed PNG's texels against the whole-image fit.
+    let out = decode(png.get_ref(), &read_options()).expect("the streamed PNG decodes");
+    assert_eq!((out.width, out.height, out.planes.len()), (w, h, 3));
+    let top = if case.sixteen { 65535.0 } else { 255.0 };
+    let texel = |k: usize| out.planes.iter().map(|p| (p.data[k] * top).round() as u16).collect::<Vec<_>>();
+    if case.sixteen {
+        let mut rgb = vec![[0u16; 3]; w * h];
+        normals_into(&heights, w, h, &case.fit, &mut rgb).expect("finite heights and valid options must fit");
+        for (k, c) in rgb.iter().enumerate() {
+            assert_eq!(texel(k), c, "texel {k} of the streamed 16-bit PNG");
+        }
+    } else {
+        let mut rgb = vec![[0u8; 3]; w * h];
+        normals_into(&heights, w, h, &case.fit, &mut rgb).expect("finite heights and valid options must fit");
+        for (k, c) in rgb.iter().enumerate() {
+            assert_eq!(texel(k), c.map(u16::from), "texel {k} of the streamed 8-bit PNG");
+        }
+    }
+});

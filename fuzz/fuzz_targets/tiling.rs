@@ -1,0 +1,52 @@
+//! Bytes → `decode` → `tiling::check`, as `normalfit tiling` does, and the
+//! same heights through `HeightSeams` row by row, as `normalfit convert
+//! --border auto` does while it streams.
+//!
+//! Must hold for any bytes: no panic; scores finite and positive, verdicts
+//! the score against the threshold (the documented `AxisReport::score`);
+//! and `HeightSeams` gives `check`'s report of the same heights, whole or
+//! cut short after any number of rows (its documented promise).
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use normalfit::io::decode;
+use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, check};
+use normalfit_fuzz::{
+    Case, assert_clean_error, assert_raster, assert_report, assert_same_report, check_heights, read_options,
+};
+
+fuzz_target!(|data: &[u8]| {
+    let case = Case::of(data);
+    let raster = match decode(data, &read_options()) {
+        Ok(raster) => raster,
+        Err(e) => return assert_clean_error(&e),
+    };
+    assert_raster(&raster);
+    let (w, h) = (raster.width, raster.height);
+
+    // Every plane, the kind detected or forced.
+    let opts = TilingOptions::new().with_kind(case.kind);
+    let planes: Vec<&[f32]> = raster.planes.iter().map(|p| p.data.as_slice()).collect();
+    assert_report(&check(&planes, w, h, &opts), &opts);
+
+    // The height alone, whole and streamed.
+    let Some(heights) = check_heights(raster.heights(case.channel), w * h) else { return };
+    let opts = TilingOptions::new().with_kind(KindChoice::Height);
+    let whole = check(&[&heights], w, h, &opts);
+    assert_report(&whole, &opts);
+    let mut seams = HeightSeams::new(w, h);
+    for row in heights.chunks_exact(w) {
+        seams.push_row(row);
+    }
+    assert_eq!(seams.rows(), h);
+    assert_same_report(&whole, &seams.finish(&opts), &opts);
+
+    // A stream cut short: the report of the rows pushed.
+    let rows = (h * (usize::from(case.fraction) + 1)).div_ceil(256).clamp(1, h);
+    let mut seams = HeightSeams::new(w, h);
+    for row in heights.chunks_exact(w).take(rows) {
+        seams.push_row(row);
+    }
+    let part = check(&[&heights[..rows * w]], w, rows, &opts);
+    assert_same_report(&part, &seams.finish(&opts), &opts);
+});

@@ -1,0 +1,159 @@
+//! What the fuzz targets share: the read limit, the options a case runs
+//! with, and the invariants every result must keep.
+//!
+//! A case is the input bytes, whole. The options are taken from its last two
+//! bytes *without removing them*: every seed is then a plain image file
+//! (tools and tests can open it as it is), most formats ignore bytes past
+//! their data, and the fuzzer can still steer the options by mutating or
+//! appending trailing bytes.
+
+#![forbid(unsafe_code)]
+
+use normalfit::io::{Channel, Raster, ReadOptions};
+use normalfit::tiling::{AxisReport, KindChoice, TilingOptions, TilingReport};
+use normalfit::{Border, Borders, Convention, Error, Fit, Options, Strength};
+
+/// Small enough that a forged header costs the fuzzer little (a 1024² map
+/// decodes and fits in milliseconds), large enough for every code path:
+/// the fit's tiles are at most 8 × 9 = 72 texels for the patches used here.
+pub const MAX_TEXELS: u64 = 1 << 20;
+
+/// The read options of every target.
+#[must_use]
+pub fn read_options() -> ReadOptions {
+    ReadOptions { max_texels: MAX_TEXELS }
+}
+
+/// What one case asks for besides its bytes.
+#[derive(Clone, Debug)]
+pub struct Case {
+    /// The channel the heights come from.
+    pub channel: Option<Channel>,
+    /// The fit's options: patch 3, 5 or 9, every border pair, both fits and
+    /// conventions, gains from 1 to the largest accepted, inverted or not.
+    pub fit: Options,
+    /// How the tiling check is told the kind.
+    pub kind: KindChoice,
+    /// Rows of a truncated stream, as a fraction 1/256 … 256/256 of the height.
+    pub fraction: u8,
+    /// 16-bit output instead of 8-bit, where a target writes PNG.
+    pub sixteen: bool,
+}
+
+impl Case {
+    /// The case of these bytes (see the module docs).
+    #[must_use]
+    pub fn of(data: &[u8]) -> Case {
+        let last = |k: usize| data.len().checked_sub(k).map_or(0, |i| data[i]);
+        let mut c = u32::from(u16::from_le_bytes([last(2), last(1)]));
+        let mut pick = |n: u32| {
+            let v = c % n;
+            c /= n;
+            v as usize
+        };
+        let channel =
+            [None, Some(Channel::Luma), Some(Channel::R), Some(Channel::G), Some(Channel::B), Some(Channel::A)]
+                [pick(6)];
+        let patch = [3, 5, 9][pick(3)];
+        let modes = [Border::Wrap, Border::Clamp, Border::Mirror];
+        let borders = Borders { x: modes[pick(3)], y: modes[pick(3)] };
+        let fit = [Fit::Orthogonal, Fit::Vertical][pick(2)];
+        let convention = [Convention::OpenGl, Convention::DirectX][pick(2)];
+        let invert = pick(2) == 1;
+        // 1e30 is MAX_GAIN: with heights up to f32's range, the sums must
+        // still stay finite.
+        let strength =
+            [Strength::Scale(1.0), Strength::Scale(8.0), Strength::Relief(0.5), Strength::Scale(1e30)][pick(4)];
+        let kind = [KindChoice::Auto, KindChoice::Height, KindChoice::Normal][pick(3)];
+        let sixteen = pick(2) == 1;
+        let fit = Options::new()
+            .with_patch(patch)
+            .with_borders(borders)
+            .with_fit(fit)
+            .with_convention(convention)
+            .with_invert(invert)
+            .with_strength(strength);
+        Case { channel, fit, kind, fraction: last(3), sixteen }
+    }
+}
+
+/// An error must be a clean one: one non-empty line (the crate's rule for
+/// messages, which callers prefix with the file name).
+pub fn assert_clean_error(e: &Error) {
+    let msg = e.to_string();
+    assert!(!msg.trim().is_empty(), "empty error message: {e:?}");
+    assert!(!msg.contains('\n'), "error message of several lines: {msg:?}");
+}
+
+/// What `decode` promises of a raster: a non-zero size within the limit,
+/// and every plane `width * height` long.
+pub fn assert_raster(raster: &Raster) {
+    let (w, h) = (raster.width, raster.height);
+    assert!(w >= 1 && h >= 1, "decode gave a zero size {w} × {h}");
+    assert!((w as u64) * (h as u64) <= MAX_TEXELS, "decode gave {w} × {h}, above the limit {MAX_TEXELS}");
+    assert!(!raster.planes.is_empty(), "decode gave no planes");
+    for p in &raster.planes {
+        assert_eq!(p.data.len(), w * h, "plane {:?} of a {w} × {h} raster", p.name);
+    }
+}
+
+/// Heights are `Ok` only when finite; otherwise the error is the channel's
+/// absence or a non-finite height, cleanly.
+pub fn check_heights(result: normalfit::Result<Vec<f32>>, texels: usize) -> Option<Vec<f32>> {
+    match result {
+        Ok(h) => {
+            assert_eq!(h.len(), texels, "heights of the wrong length");
+            assert!(h.iter().all(|v| v.is_finite()), "non-finite height passed the check");
+            Some(h)
+        }
+        Err(e) => {
+            assert!(
+                matches!(e, Error::Unsupported(_) | Error::NonFiniteHeight { .. }),
+                "heights failed with an unexpected error: {e:?}"
+            );
+            assert_clean_error(&e);
+            None
+        }
+    }
+}
+
+/// A unit normal within 1e-4, finite, facing up (z ≥ 0).
+pub fn assert_unit_normal(n: [f32; 3], at: usize) {
+    let len = n.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>().sqrt();
+    assert!(n.iter().all(|c| c.is_finite()), "normal {n:?} at texel {at} is not finite");
+    assert!((len - 1.0).abs() <= 1e-4, "normal {n:?} at texel {at} has length {len}");
+    assert!(n[2] >= 0.0, "normal {n:?} at texel {at} faces down");
+}
+
+/// The contract's 8-bit encoding of a normal component, round(255 (n + 1) / 2).
+#[must_use]
+pub fn encode8(c: f32) -> i32 {
+    ((f64::from(c) + 1.0) * 127.5).round() as i32
+}
+
+/// A tiling report keeps its documented promises: scores finite and
+/// positive, verdicts the score against the threshold.
+pub fn assert_report(report: &TilingReport, opts: &TilingOptions) {
+    for (name, axis) in [("x", &report.x), ("y", &report.y)] {
+        assert_axis(name, axis, opts);
+    }
+}
+
+fn assert_axis(name: &str, axis: &AxisReport, opts: &TilingOptions) {
+    assert!(axis.score.is_finite() && axis.score > 0.0, "{name} score {} is not finite and positive", axis.score);
+    assert_eq!(axis.seamless, axis.score <= opts.threshold, "{name} verdict does not follow its score");
+}
+
+/// Two reports of the same heights by different routes (`check` and
+/// `HeightSeams`): the same kind, scores equal up to the f64 summation order
+/// (documented as at worst about 1e-15 relative; 1e-9 leaves room), and the
+/// same verdicts unless a score is that close to the threshold.
+pub fn assert_same_report(a: &TilingReport, b: &TilingReport, opts: &TilingOptions) {
+    assert_eq!(a.kind, b.kind);
+    for (name, x, y) in [("x", &a.x, &b.x), ("y", &a.y, &b.y)] {
+        let rel = (x.score - y.score).abs() / x.score.abs().max(y.score.abs()).max(f64::MIN_POSITIVE);
+        assert!(rel <= 1e-9, "{name} scores differ: {} against {}", x.score, y.score);
+        let near = (x.score - opts.threshold).abs() <= 1e-9 * opts.threshold;
+        assert!(x.seamless == y.seamless || near, "{name} verdicts differ at scores {} and {}", x.score, y.score);
+    }
+}

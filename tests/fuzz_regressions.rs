@@ -1,0 +1,144 @@
+//! Inputs the fuzzers (`fuzz/`) found, each fed through the path it broke,
+//! asserting the clean result. The files in `tests/data/fuzz/` are the
+//! minimised cases (`cargo fuzz tmin`), as the fuzzers wrote them.
+
+use normalfit::io::stream::PngRows;
+use normalfit::io::{Raster, ReadOptions, decode};
+use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
+use normalfit::{Border, Borders, Error, Fit, Options, Strength, normals_into};
+
+/// The fuzzers' limit: small, so a case never costs much.
+const READ: ReadOptions = ReadOptions { max_texels: 1 << 20 };
+
+fn case(name: &str) -> Vec<u8> {
+    let path = format!("{}/tests/data/fuzz/{name}", env!("CARGO_MANIFEST_DIR"));
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// `decode_fit`'s path: bytes → raster → heights → normals, f32 and 8-bit.
+/// Returns the first error; on success checks every normal.
+fn decode_fit(bytes: &[u8], opts: &Options) -> normalfit::Result<()> {
+    let raster = decode(bytes, &READ)?;
+    let (w, h) = (raster.width, raster.height);
+    let heights = raster.into_heights(None)?;
+    let mut n = vec![[0.0f32; 3]; w * h];
+    normals_into(&heights, w, h, opts, &mut n)?;
+    for v in &n {
+        let len = v.iter().map(|c| c * c).sum::<f32>().sqrt();
+        assert!(v.iter().all(|c| c.is_finite()) && (len - 1.0).abs() <= 1e-4 && v[2] >= 0.0, "bad normal {v:?}");
+    }
+    let mut rgb = vec![[0u8; 3]; w * h];
+    normals_into(&heights, w, h, opts, &mut rgb)
+}
+
+fn assert_finite(r: &TilingReport) {
+    for axis in [r.x, r.y] {
+        assert!(axis.score.is_finite() && axis.score > 0.0, "score {} in {r:?}", axis.score);
+    }
+}
+
+/// `tiling`'s path: every plane, the kind detected; then the heights whole
+/// and streamed row by row.
+fn tiling_reports(raster: &Raster) -> [TilingReport; 3] {
+    let (w, h) = (raster.width, raster.height);
+    let planes: Vec<&[f32]> = raster.planes.iter().map(|p| p.data.as_slice()).collect();
+    let all = check(&planes, w, h, &TilingOptions::new());
+    let heights = raster.heights(None).expect("finite heights");
+    let opts = TilingOptions::new().with_kind(KindChoice::Height);
+    let whole = check(&[&heights], w, h, &opts);
+    let mut seams = HeightSeams::new(w, h);
+    heights.chunks_exact(w).for_each(|row| seams.push_row(row));
+    [all, whole, seams.finish(&opts)]
+}
+
+/// exr's B44 decoder computes in u16 arithmetic that wraps (as OpenEXR's
+/// C code does). With overflow checks, as in test and dev builds, that
+/// wrap panicked in exr's decoder thread and rayon aborted the whole
+/// process; the root Cargo.toml now builds exr without them. The wrapped
+/// values are ordinary halves: the file converts and is checked.
+#[test]
+fn exr_b44_block_whose_arithmetic_wraps_decodes() {
+    let bytes = case("exr-b44-wrap.exr");
+    let raster = decode(&bytes, &READ).expect("the B44 blocks decode");
+    assert_eq!((raster.width, raster.height), (8, 6));
+    for r in tiling_reports(&raster) {
+        assert_finite(&r);
+    }
+    for opts in [Options::new(), Options::new().with_patch(5).with_borders(Borders::both(Border::Mirror))] {
+        decode_fit(&bytes, &opts).expect("the decoded heights fit");
+    }
+}
+
+/// A Radiance HDR whose texels reach 1.7·10³⁸: their differences overflowed
+/// f32 in the tiling kernels, and both scores were NaN ("x NaN SEAM").
+#[test]
+fn hdr_with_texels_near_f32_range_scores_finite() {
+    let raster = decode(&case("hdr-huge-values.hdr"), &READ).expect("a valid HDR");
+    let top = raster.planes.iter().flat_map(|p| &p.data).fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(top > 1e38, "the case is about huge texels, its largest is {top}");
+    let [all, whole, streamed] = tiling_reports(&raster);
+    for r in [&all, &whole, &streamed] {
+        assert_finite(r);
+    }
+    assert_eq!((whole.x.score, whole.y.score), (streamed.x.score, streamed.y.score));
+    // The fit of the same heights was never the problem: its sums are f64.
+    let opts = Options::new().with_fit(Fit::Vertical).with_strength(Strength::Scale(1e30));
+    decode_fit(&case("hdr-huge-values.hdr"), &opts).expect("finite heights fit");
+}
+
+/// The tiling score is a ratio of sums, so a map and the same map times a
+/// power of two score the same. Up to f32's range too: the kernels scale
+/// the heights down before they sum, and back up exactly.
+#[test]
+fn heights_near_f32_range_score_as_the_same_map_near_one() {
+    let (w, h) = (48, 40);
+    // A ridge with noise: both the value and the crease sums are non-zero.
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let unit: Vec<f32> = (0..w * h)
+        .map(|k| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let noise = (state >> 40) as f32 / (1u64 << 24) as f32;
+            ((k % w) as f32 / w as f32 - 0.5).abs() + 0.1 * noise - 0.3
+        })
+        .collect();
+    let huge: Vec<f32> = unit.iter().map(|v| v * 2f32.powi(127)).collect();
+    assert!(huge.iter().all(|v| v.is_finite()));
+    let opts = TilingOptions::new().with_kind(KindChoice::Height);
+    let small = check(&[&unit], w, h, &opts);
+    let large = check(&[&huge], w, h, &opts);
+    assert_finite(&large);
+    assert_eq!((small.x.score, small.y.score), (large.x.score, large.y.score));
+    let mut seams = HeightSeams::new(w, h);
+    huge.chunks_exact(w).for_each(|row| seams.push_row(row));
+    let streamed = seams.finish(&opts);
+    assert_eq!((streamed.x.score, streamed.y.score), (large.x.score, large.y.score));
+    // Colour: luma of three such planes, the largest weight's plane at −f32::MAX.
+    let low = vec![-f32::MAX; w * h];
+    let report = check(&[&huge, &low, &huge], w, h, &opts);
+    assert_finite(&report);
+}
+
+/// A PNG whose PLTE chunk holds 56 bytes, not a whole number of RGB
+/// entries: png 0.18.1 panicked (slice index out of range) expanding the
+/// palette into the first row, when `decode` read it through `image` and
+/// when the streaming reader did (`normalfit convert` and `tiling` exited
+/// with 101). Now a decode error from the header, before any row.
+#[test]
+fn png_palette_of_partial_entries_is_a_decode_error() {
+    let bytes = case("png-palette-not-rgb.png");
+    match decode(&bytes, &READ) {
+        Err(Error::Decode(m)) => assert!(m.contains("palette of 56 bytes"), "{m}"),
+        other => panic!("expected a decode error, got {other:?}"),
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("case.png");
+    std::fs::write(&path, &bytes).unwrap();
+    for channel in [None, Some(normalfit::io::Channel::A)] {
+        let Err(Error::Decode(m)) = PngRows::open(&path, &READ, channel) else {
+            panic!("the streaming reader must refuse the palette");
+        };
+        assert!(m.contains("palette"), "{m}");
+    }
+}
