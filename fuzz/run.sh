@@ -18,7 +18,7 @@ shift
 cd "$(dirname "$0")"
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(decode_fit tiling png_stream)
+    targets=(decode_fit tiling png_stream exr_stream)
 fi
 
 export RUSTC_BOOTSTRAP=1

@@ -14,7 +14,7 @@ use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
 use normalfit::io::decode;
-use normalfit::io::stream::{PngDepth, PngRows, convert_png_seekable};
+use normalfit::io::stream::{PngDepth, PngRows, RowSource, convert_png_seekable};
 use normalfit::normals_into;
 use normalfit_fuzz::{Case, assert_clean_error, read_options};
 

@@ -21,7 +21,7 @@ pub const MAX_TEXELS: u64 = 1 << 20;
 /// The read options of every target.
 #[must_use]
 pub fn read_options() -> ReadOptions {
-    ReadOptions { max_texels: MAX_TEXELS }
+    ReadOptions::default().with_max_texels(MAX_TEXELS)
 }
 
 /// What one case asks for besides its bytes.

@@ -1,0 +1,73 @@
+//! Bytes in a file → `ExrRows` → `convert_exr`, the streaming path of
+//! `normalfit convert` for scan-line OpenEXR, against the whole-image path
+//! on the same bytes (`decode` → heights → `normals_into`).
+//!
+//! Must hold for any bytes: no panic, abort or hang; failures are `Err`
+//! with a one-line message; and when both paths succeed, the streamed
+//! heights are the decoded ones and the streamed EXR holds the whole-image
+//! fit's values, bit for bit.
+#![no_main]
+
+use std::io::Cursor;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+use libfuzzer_sys::fuzz_target;
+use normalfit::io::decode;
+use normalfit::io::stream::{ExrFormat, ExrRows, RowSource, convert_exr};
+use normalfit::normals_into;
+use normalfit_fuzz::{Case, assert_clean_error, read_options};
+
+/// One file per process, rewritten for every case: `ExrRows` reads a path.
+fn path() -> &'static PathBuf {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| std::env::temp_dir().join(format!("normalfit-fuzz-exr-stream-{}.exr", std::process::id())))
+}
+
+fuzz_target!(|data: &[u8]| {
+    let case = Case::of(data);
+    std::fs::write(path(), data).expect("write the case to a temporary file");
+    let open = || ExrRows::open(path(), &read_options(), case.channel);
+    let rows = match open() {
+        Ok(Some(rows)) => rows,
+        // Not an EXR that streams: the caller reads it whole, another target's path.
+        Ok(None) => return,
+        Err(e) => return assert_clean_error(&e),
+    };
+    let (w, h) = (rows.width(), rows.height());
+    // A wrap in y takes the last rows first, from the file's last blocks.
+    let tail = if case.fit.borders.y == normalfit::Border::Wrap {
+        match ExrRows::last_rows(path(), &read_options(), case.channel, case.fit.patch / 2) {
+            Ok(tail) => Some(tail),
+            Err(e) => return assert_clean_error(&e),
+        }
+    } else {
+        None
+    };
+    let mut streamed_heights = Vec::new();
+    let mut exr = Cursor::new(Vec::new());
+    let format = ExrFormat::default();
+    let streamed = convert_exr(rows, tail.as_deref(), &case.fit, format, |row| streamed_heights.extend_from_slice(row), &mut exr);
+    if let Err(e) = &streamed {
+        assert_clean_error(e);
+    }
+
+    let whole = decode(data, &read_options()).and_then(|r| r.into_heights(case.channel));
+    let (Ok(()), Ok(heights)) = (streamed, whole) else { return };
+    assert_eq!(streamed_heights.len(), w * h, "the stream visited {} heights of {w} × {h}", streamed_heights.len());
+    let same = streamed_heights.iter().zip(&heights).all(|(a, b)| a.to_bits() == b.to_bits());
+    assert!(same, "streamed heights differ from the decoded ones");
+
+    // The streamed EXR's values against the whole-image fit, (n + 1)/2 in f32.
+    let out = decode(exr.get_ref(), &read_options()).expect("the streamed EXR decodes");
+    assert_eq!((out.width, out.height), (w, h));
+    let mut normals = vec![[0f32; 3]; w * h];
+    normals_into(&heights, w, h, &case.fit, &mut normals).expect("finite heights and valid options must fit");
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        let plane = &out.plane(name).expect("the streamed EXR has R, G and B").data;
+        for (k, n) in normals.iter().enumerate() {
+            let expected = (n[c] + 1.0) * 0.5;
+            assert_eq!(plane[k].to_bits(), expected.to_bits(), "texel {k} channel {name} of the streamed EXR");
+        }
+    }
+});
