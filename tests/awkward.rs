@@ -776,15 +776,34 @@ fn extreme_heights_through_the_binary() {
 }
 
 #[test]
-fn a_wrong_extension_is_read_by_content_and_the_output_follows_it() {
+fn a_wrong_extension_is_refused_and_standard_input_is_read_by_content() {
     let dir = tempfile::tempdir().unwrap();
-    let png_named_exr = file(dir.path(), "actually_png.exr", &png_gray8(8, 8, |x, y| ((x * 30 + y * 3) % 256) as u8));
+    let png = png_gray8(8, 8, |x, y| ((x * 30 + y * 3) % 256) as u8);
+    let png_named_exr = file(dir.path(), "actually_png.exr", &png);
     let exr_named_png = file(dir.path(), "actually_exr.png", &exr_gray(8, 8, &[0.5; 64]));
-    ok(&[os("convert"), png_named_exr.as_os_str()], None);
-    ok(&[os("convert"), exr_named_png.as_os_str()], None);
-    assert_eq!(
-        files_in(dir.path()),
-        ["actually_exr.png", "actually_exr_normal.exr", "actually_png.exr", "actually_png_normal.png"]
-    );
-    assert!(normals_of(&dir.path().join("actually_exr_normal.exr")).iter().all(|&n| n == [0.5, 0.5, 1.0]));
+    let no_extension = file(dir.path(), "height", &png);
+    for (path, message) in [
+        (&png_named_exr, "is named .exr but its content is png"),
+        (&exr_named_png, "is named .png but its content is exr"),
+    ] {
+        for command in ["convert", "tiling"] {
+            let out = std::process::Command::new(env!("CARGO_BIN_EXE_normalfit"))
+                .args([os(command), path.as_os_str()])
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{command} {path:?}: {stderr}");
+            assert!(stderr.contains(message) && stderr.contains(&*path.to_string_lossy()), "{command}: {stderr}");
+        }
+    }
+    // No extension, or standard input: read by content.
+    ok(&[os("convert"), no_extension.as_os_str()], None);
+    let piped = std::process::Command::new(env!("CARGO_BIN_EXE_normalfit"))
+        .args(["convert", "-", "-o", "-"])
+        .stdin(std::fs::File::open(&png_named_exr).unwrap())
+        .output()
+        .unwrap();
+    assert_eq!(piped.status.code(), Some(0), "{}", String::from_utf8_lossy(&piped.stderr));
+    assert!(piped.stdout.starts_with(b"\x89PNG"));
+    assert_eq!(files_in(dir.path()), ["actually_exr.png", "actually_png.exr", "height", "height_normal.png"]);
 }

@@ -14,7 +14,7 @@ use normalfit::{Border, Borders, FromNormal, Options, normals_and_residual_into,
 use super::args::{AlphaArg, AxisBorder, BorderArg, ChannelsArg, CompressionArg, ConvertArgs, FormatArg, OverwriteArg};
 use super::batch::{self, ClaimOrder, Job, RESIDUAL_SUFFIX};
 use super::fitting;
-use super::input::{Input, InputIds, read_input, stdin_at_most_once};
+use super::input::{Input, InputIds, check_extension, read_input, stdin_at_most_once};
 use super::output::{self, Destination};
 use super::progress::Progress;
 use super::report::{Failure, print_line, warn};
@@ -186,6 +186,9 @@ impl Plan {
     /// residual map is asked for (it is made from the whole image).
     fn convert_one(&self, job: &Job, k: usize, shared: &Shared) -> Result<Outcome, Failure> {
         let input = &job.input;
+        if let Input::File(path) = input {
+            check_extension(path)?;
+        }
         if let (Input::File(path), None) = (input, &self.residual) {
             let in_failure = |e: normalfit::Error| Failure::file(path, e);
             if let Some(rows) = PngRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {

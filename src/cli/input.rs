@@ -45,6 +45,7 @@ pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> 
             if p.is_dir() {
                 return Err(Failure::file(p, "is a folder, not an image"));
             }
+            check_extension(p)?;
             io::read_path(p, opts).map_err(fail)
         }
         Input::Stdin => {
@@ -83,4 +84,76 @@ impl InputIds {
             _ => Ok(()),
         }
     }
+}
+
+/// Refuses a file whose extension names one image format while its first
+/// bytes are another's: in a pipeline that is a mix-up upstream (a file
+/// saved under the wrong name, or a name reused for the wrong output), and
+/// converting it anyway would hide it. Files without an extension, with one
+/// that names no image format, or whose content is not recognised (the
+/// decoder then says what is wrong), and standard input, are read by
+/// content.
+pub fn check_extension(path: &Path) -> Result<(), Failure> {
+    let Some(ext) = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()) else { return Ok(()) };
+    let Some(named) = format_named_by(&ext) else { return Ok(()) };
+    let mut head = Vec::with_capacity(16);
+    let Ok(file) = std::fs::File::open(path) else { return Ok(()) };
+    if file.take(16).read_to_end(&mut head).is_err() {
+        return Ok(());
+    }
+    match content_format(&head) {
+        Some(found) if found != named => Err(Failure::file(
+            path,
+            format!(
+                "is named .{ext} but its content is {found}: rename it, or pass it on standard input to read it by content"
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// The image format an extension (lower case) names.
+fn format_named_by(ext: &str) -> Option<&'static str> {
+    Some(match ext {
+        "png" => "png",
+        "exr" => "exr",
+        "tif" | "tiff" => "tiff",
+        "jpg" | "jpeg" => "jpeg",
+        "bmp" => "bmp",
+        "gif" => "gif",
+        "webp" => "webp",
+        "qoi" => "qoi",
+        "hdr" => "hdr",
+        "pbm" | "pgm" | "ppm" | "pnm" | "pam" => "pnm",
+        // TGA has no signature to compare with: an extension of .tga says nothing.
+        _ => return None,
+    })
+}
+
+/// The image format of a file's first bytes, from its signature.
+fn content_format(head: &[u8]) -> Option<&'static str> {
+    let starts = |magic: &[u8]| head.starts_with(magic);
+    Some(if starts(b"\x89PNG\r\n\x1a\n") {
+        "png"
+    } else if starts(&[0x76, 0x2f, 0x31, 0x01]) {
+        "exr"
+    } else if starts(b"II*\0") || starts(b"MM\0*") || starts(b"II+\0") || starts(b"MM\0+") {
+        "tiff"
+    } else if starts(&[0xff, 0xd8, 0xff]) {
+        "jpeg"
+    } else if starts(b"BM") {
+        "bmp"
+    } else if starts(b"GIF87a") || starts(b"GIF89a") {
+        "gif"
+    } else if starts(b"RIFF") && head.get(8..12) == Some(b"WEBP") {
+        "webp"
+    } else if starts(b"qoif") {
+        "qoi"
+    } else if starts(b"#?RADIANCE") || starts(b"#?RGBE") {
+        "hdr"
+    } else if head.len() >= 2 && head[0] == b'P' && (b'1'..=b'7').contains(&head[1]) {
+        "pnm"
+    } else {
+        return None;
+    })
 }
