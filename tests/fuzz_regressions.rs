@@ -8,7 +8,9 @@ use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, ch
 use normalfit::{Border, Borders, Error, Fit, Options, Strength, normals_into};
 
 /// The fuzzers' limit: small, so a case never costs much.
-const READ: ReadOptions = ReadOptions { max_texels: 1 << 20 };
+fn read() -> ReadOptions {
+    ReadOptions::default().with_max_texels(1 << 20)
+}
 
 fn case(name: &str) -> Vec<u8> {
     let path = format!("{}/tests/data/fuzz/{name}", env!("CARGO_MANIFEST_DIR"));
@@ -18,7 +20,7 @@ fn case(name: &str) -> Vec<u8> {
 /// `decode_fit`'s path: bytes → raster → heights → normals, f32 and 8-bit.
 /// Returns the first error; on success checks every normal.
 fn decode_fit(bytes: &[u8], opts: &Options) -> normalfit::Result<()> {
-    let raster = decode(bytes, &READ)?;
+    let raster = decode(bytes, &read())?;
     let (w, h) = (raster.width, raster.height);
     let heights = raster.into_heights(None)?;
     let mut n = vec![[0.0f32; 3]; w * h];
@@ -56,10 +58,19 @@ fn tiling_reports(raster: &Raster) -> [TilingReport; 3] {
 /// wrap panicked in exr's decoder thread and rayon aborted the whole
 /// process; the root Cargo.toml now builds exr without them. The wrapped
 /// values are ordinary halves: the file converts and is checked.
+/// A tiled EXR whose offset table lists a full-resolution tile but whose
+/// chunk says it is of level (1, 0): `exr` only checks that in a debug
+/// assertion, so debug builds (tests, fuzzing) panicked; it is an error.
+#[test]
+fn exr_block_of_a_resolution_level_not_asked_for_is_an_error() {
+    let err = decode(&case("exr-block-of-another-level.exr"), &read()).expect_err("a corrupt block");
+    assert!(matches!(err, Error::Decode(_)), "{err:?}");
+}
+
 #[test]
 fn exr_b44_block_whose_arithmetic_wraps_decodes() {
     let bytes = case("exr-b44-wrap.exr");
-    let raster = decode(&bytes, &READ).expect("the B44 blocks decode");
+    let raster = decode(&bytes, &read()).expect("the B44 blocks decode");
     assert_eq!((raster.width, raster.height), (8, 6));
     for r in tiling_reports(&raster) {
         assert_finite(&r);
@@ -73,7 +84,7 @@ fn exr_b44_block_whose_arithmetic_wraps_decodes() {
 /// f32 in the tiling kernels, and both scores were NaN ("x NaN SEAM").
 #[test]
 fn hdr_with_texels_near_f32_range_scores_finite() {
-    let raster = decode(&case("hdr-huge-values.hdr"), &READ).expect("a valid HDR");
+    let raster = decode(&case("hdr-huge-values.hdr"), &read()).expect("a valid HDR");
     let top = raster.planes.iter().flat_map(|p| &p.data).fold(0.0f32, |m, v| m.max(v.abs()));
     assert!(top > 1e38, "the case is about huge texels, its largest is {top}");
     let [all, whole, streamed] = tiling_reports(&raster);
@@ -128,7 +139,7 @@ fn heights_near_f32_range_score_as_the_same_map_near_one() {
 #[test]
 fn png_palette_of_partial_entries_is_a_decode_error() {
     let bytes = case("png-palette-not-rgb.png");
-    match decode(&bytes, &READ) {
+    match decode(&bytes, &read()) {
         Err(Error::Decode(m)) => assert!(m.contains("palette of 56 bytes"), "{m}"),
         other => panic!("expected a decode error, got {other:?}"),
     }
@@ -136,7 +147,7 @@ fn png_palette_of_partial_entries_is_a_decode_error() {
     let path = dir.path().join("case.png");
     std::fs::write(&path, &bytes).unwrap();
     for channel in [None, Some(normalfit::io::Channel::A)] {
-        let Err(Error::Decode(m)) = PngRows::open(&path, &READ, channel) else {
+        let Err(Error::Decode(m)) = PngRows::open(&path, &read(), channel) else {
             panic!("the streaming reader must refuse the palette");
         };
         assert!(m.contains("palette"), "{m}");

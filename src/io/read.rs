@@ -991,6 +991,13 @@ impl<R: exr::image::read::layers::ChannelsReader> exr::image::read::image::Layer
         block: exr::block::UncompressedBlock,
     ) -> exr::error::UnitResult {
         let header = headers.get(self.part).ok_or_else(|| exr::error::Error::Invalid("layer index".into()))?;
+        // Only the full-resolution level is read (its blocks alone pass the
+        // filter, by the offset table); a block whose own data names
+        // another level is corrupt, and `exr` would only notice it in a
+        // debug assertion (a panic in debug builds, found by fuzzing).
+        if block.index.level != exr::math::Vec2(0, 0) {
+            return Err(exr::error::Error::Invalid("block of a resolution level that was not asked for".into()));
+        }
         self.channels.read_block(header, block)
     }
 
