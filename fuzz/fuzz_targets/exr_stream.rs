@@ -9,25 +9,17 @@
 #![no_main]
 
 use std::io::Cursor;
-use std::path::PathBuf;
-use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
 use normalfit::io::decode;
 use normalfit::io::stream::{ExrFormat, ExrRows, RowSource, convert_exr};
 use normalfit::normals_into;
-use normalfit_fuzz::{Case, assert_clean_error, read_options};
-
-/// One file per process, rewritten for every case: `ExrRows` reads a path.
-fn path() -> &'static PathBuf {
-    static PATH: OnceLock<PathBuf> = OnceLock::new();
-    PATH.get_or_init(|| std::env::temp_dir().join(format!("normalfit-fuzz-exr-stream-{}.exr", std::process::id())))
-}
+use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options};
 
 fuzz_target!(|data: &[u8]| {
     let case = Case::of(data);
-    std::fs::write(path(), data).expect("write the case to a temporary file");
-    let open = || ExrRows::open(path(), &read_options(), case.channel);
+    let path = case_file("exr-stream", "exr", data);
+    let open = || ExrRows::open(path, &read_options(), case.channel);
     let rows = match open() {
         Ok(Some(rows)) => rows,
         // Not an EXR that streams: the caller reads it whole, another target's path.
@@ -37,7 +29,7 @@ fuzz_target!(|data: &[u8]| {
     let (w, h) = (rows.width(), rows.height());
     // A wrap in y takes the last rows first, from the file's last blocks.
     let tail = if case.fit.borders.y == normalfit::Border::Wrap {
-        match ExrRows::last_rows(path(), &read_options(), case.channel, case.fit.patch / 2) {
+        match ExrRows::last_rows(path, &read_options(), case.channel, case.fit.patch / 2) {
             Ok(tail) => Some(tail),
             Err(e) => return assert_clean_error(&e),
         }

@@ -9,25 +9,17 @@
 #![no_main]
 
 use std::io::Cursor;
-use std::path::PathBuf;
-use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
 use normalfit::io::decode;
 use normalfit::io::stream::{PngDepth, PngRows, RowSource, convert_png_seekable};
 use normalfit::normals_into;
-use normalfit_fuzz::{Case, assert_clean_error, read_options};
-
-/// One file per process, rewritten for every case: `PngRows` reads a path.
-fn path() -> &'static PathBuf {
-    static PATH: OnceLock<PathBuf> = OnceLock::new();
-    PATH.get_or_init(|| std::env::temp_dir().join(format!("normalfit-fuzz-png-stream-{}.png", std::process::id())))
-}
+use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options};
 
 fuzz_target!(|data: &[u8]| {
     let case = Case::of(data);
-    std::fs::write(path(), data).expect("write the case to a temporary file");
-    let rows = match PngRows::open(path(), &read_options(), case.channel) {
+    let path = case_file("png-stream", "png", data);
+    let rows = match PngRows::open(path, &read_options(), case.channel) {
         Ok(Some(rows)) => rows,
         // Not a PNG that streams: the caller reads it whole, another target's path.
         Ok(None) => return,

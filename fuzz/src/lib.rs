@@ -24,6 +24,17 @@ pub fn read_options() -> ReadOptions {
     ReadOptions::default().with_max_texels(MAX_TEXELS)
 }
 
+/// Writes a case's bytes to this process's temporary file for `target`
+/// (the streaming readers read a path) and returns the path.
+pub fn case_file(target: &str, extension: &str, data: &[u8]) -> &'static std::path::Path {
+    static PATH: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    let path = PATH.get_or_init(|| {
+        std::env::temp_dir().join(format!("normalfit-fuzz-{target}-{}.{extension}", std::process::id()))
+    });
+    std::fs::write(path, data).expect("write the case to a temporary file");
+    path
+}
+
 /// What one case asks for besides its bytes.
 #[derive(Clone, Debug)]
 pub struct Case {
