@@ -15,6 +15,9 @@
 //!   threads, or `RAYON_NUM_THREADS`). Ids read `u8/orthogonal/3`.
 //! * `threads`: N = 3, orthogonal, to `[u8; 3]`, on a pool of 1 thread and
 //!   on a pool of all threads. Ids read `threads/N3-orthogonal-u8/1`.
+//! * `seams`: the tiling check of the same map as a height map, streamed
+//!   row by row on one thread (`seams/streamed`, what `convert` runs beside
+//!   the fit) and whole on all threads (`seams/whole`, `normalfit tiling`).
 //!
 //! Each output buffer is allocated and touched once, before timing, and
 //! reused by every iteration.
@@ -24,6 +27,7 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
+use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, check};
 use normalfit::{Fit, FromNormal, Options, Strength, normals_into};
 
 /// Side of the square height map; `NORMALFIT_BENCH_SIZE` overrides it.
@@ -159,6 +163,24 @@ fn bench_threads(c: &mut Criterion) {
     g.finish();
 }
 
+/// The tiling check of the map, streamed and whole.
+fn bench_seams(c: &mut Criterion) {
+    let (n, heights) = input();
+    let opts = TilingOptions::new().with_kind(KindChoice::Height);
+    let mut g = c.benchmark_group("seams");
+    g.sampling_mode(SamplingMode::Flat);
+    g.throughput(Throughput::Elements((n * n) as u64));
+    g.bench_function("streamed", |b| {
+        b.iter(|| {
+            let mut seams = HeightSeams::new(n, n);
+            heights.chunks_exact(n).for_each(|row| seams.push_row(black_box(row)));
+            black_box(seams.finish(&opts))
+        })
+    });
+    g.bench_function("whole", |b| b.iter(|| black_box(check(&[black_box(heights)], n, n, &opts))));
+    g.finish();
+}
+
 /// Few samples and short times: one 4096² pass takes a sizeable fraction of
 /// a second, so the groups also sample flat (the same iteration count in
 /// every sample, one or two a sample here) rather than 1, 2, …, 10 of them. Command-line flags (`--sample-size`, `--measurement-time`,
@@ -170,6 +192,6 @@ fn config() -> Criterion {
 criterion_group! {
     name = benches;
     config = config();
-    targets = bench_fit, bench_threads
+    targets = bench_fit, bench_threads, bench_seams
 }
 criterion_main!(benches);

@@ -808,28 +808,32 @@ fn add_row_x(r: &[f32], padded: &mut [f32], vx: &mut [f32], cx: &mut [f32], crea
 /// The y value sum of the row pair `b` → `c`.
 #[inline]
 fn y_value(b: &[f32], c: &[f32]) -> f64 {
-    lane_sum(b.len(), |x| (c[x] - b[x]).abs())
+    lane_sum([b, c], |[b, c]| (c - b).abs())
 }
 
 /// The y crease sum of the row pair `b` → `c`, `a` the row before `b` and
 /// `d` the row after `c`.
 #[inline]
 fn y_crease(a: &[f32], b: &[f32], c: &[f32], d: &[f32]) -> f64 {
-    lane_sum(b.len(), |x| ((d[x] - c[x]) - (b[x] - a[x])).abs())
+    lane_sum([a, b, c, d], |[a, b, c, d]| ((d - c) - (b - a)).abs())
 }
 
-/// Σ f(x) for x in 0 … n − 1, in 8 f32 lanes (so the loop vectorises)
-/// added in f64, and scaled back to height units.
-#[inline]
-fn lane_sum(n: usize, f: impl Fn(usize) -> f32) -> f64 {
-    let mut lanes = [0.0f32; 8];
+/// Σ f(rows at x) for x in 0 … n − 1 (n the first row's length), in 8 f32
+/// lanes (lane l takes x ≡ l mod 8; the loop over fixed chunks
+/// vectorises) added in f64, and scaled back to height units.
+#[inline(always)]
+fn lane_sum<const K: usize>(rows: [&[f32]; K], f: impl Fn([f32; K]) -> f32) -> f64 {
+    let n = rows[0].len();
     let whole = n - n % 8;
+    let rows_whole = rows.map(|r| &r[..whole]);
+    let mut lanes = [0.0f32; 8];
     for x0 in (0..whole).step_by(8) {
+        let at: [&[f32; 8]; K] = rows_whole.map(|r| r[x0..x0 + 8].try_into().expect("8 values"));
         for (l, lane) in lanes.iter_mut().enumerate() {
-            *lane += f(x0 + l);
+            *lane += f(at.map(|c| c[l]));
         }
     }
-    let tail: f64 = (whole..n).map(|x| f64::from(f(x))).sum();
+    let tail: f64 = (whole..n).map(|x| f64::from(f(rows.map(|r| r[x])))).sum();
     (tail + lanes.iter().map(|&l| f64::from(l)).sum::<f64>()) * UNSCALE
 }
 

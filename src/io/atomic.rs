@@ -82,9 +82,11 @@ fn write_in(path: &Path, place: Where, write: impl FnOnce(&mut BufWriter<File>) 
         .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;
     let folder = folder_of(path);
     let (file, named) = create(folder, name, place)?;
+    let write_back = WriteBack::start(&file);
     let mut out = BufWriter::new(file);
     write(&mut out)?;
     let file = out.into_inner().map_err(|e| Error::Io(e.into_error()))?;
+    drop(write_back);
     file.sync_all()?;
     match named {
         Some(temp) => {
@@ -98,6 +100,50 @@ fn write_in(path: &Path, place: Where, write: impl FnOnce(&mut BufWriter<File>) 
     sync_folder(folder);
     Ok(())
 }
+
+/// Writes a file's data to disk in the background while it is being
+/// written, so the final sync waits only for the last few milliseconds'
+/// worth: syncing a 23 MB file took 20 ms at the end of a 0.26 s
+/// conversion. Stops (and waits for its last sync) when dropped; its
+/// errors are ignored, since the final sync reports them.
+struct WriteBack {
+    stop: Option<std::sync::mpsc::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl WriteBack {
+    /// How often the data written so far is synced.
+    const INTERVAL: std::time::Duration = std::time::Duration::from_millis(WRITE_BACK_MS);
+
+    /// Starts syncing `file` every [`INTERVAL`](Self::INTERVAL); does
+    /// nothing if its descriptor cannot be shared or no thread started.
+    fn start(file: &File) -> WriteBack {
+        let (stop, stopped) = std::sync::mpsc::channel::<()>();
+        let thread = file.try_clone().ok().and_then(|file| {
+            std::thread::Builder::new()
+                .name("normalfit-write-back".into())
+                .spawn(move || {
+                    // Woken by the sender's drop, or each interval to sync.
+                    while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = stopped.recv_timeout(Self::INTERVAL) {
+                        let _ = file.sync_data();
+                    }
+                })
+                .ok()
+        });
+        WriteBack { stop: Some(stop), thread }
+    }
+}
+
+impl Drop for WriteBack {
+    fn drop(&mut self) {
+        drop(self.stop.take());
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+const WRITE_BACK_MS: u64 = 25;
 
 /// The folder a path's file is in ("." for a bare file name).
 fn folder_of(path: &Path) -> &Path {
