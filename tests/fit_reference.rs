@@ -321,6 +321,37 @@ fn parallel_equals_serial_bit_for_bit() {
     }
 }
 
+/// Images wider than one parallel strip of the fit (about 512 columns, in
+/// whole segments of max(8N, 64)), with a last strip cut short, against
+/// the reference: normals and residuals at every texel of every strip edge
+/// and of a sample in between, all borders.
+#[test]
+fn wide_images_cut_into_strips_match_the_reference() {
+    for (w, h, n) in [(1100, 7, 3), (1300, 5, 9), (1111, 4, 63)] {
+        let heights = random_heights(w, h, 11);
+        for border in BORDERS {
+            let opts = Options::new()
+                .with_patch(n)
+                .with_strength(Strength::Scale(7.0))
+                .with_borders(Borders { x: border, y: Border::Wrap });
+            let (fast, fast_residual) = residual(&heights, w, h, &opts);
+            let edges = [0, 1, 503, 504, 505, 511, 512, 513, 1007, 1008, 1023, 1024, 1025];
+            let columns = edges.into_iter().chain((0..w).step_by(37)).chain([w - 2, w - 1]).filter(|&x| x < w);
+            for x in columns {
+                for y in 0..h {
+                    let slow = reference::normal_at(&heights, w, h, &opts, x, y);
+                    let got = fast[y * w + x];
+                    let err = (0..3).map(|c| (f64::from(got[c]) - slow[c]).abs()).fold(0.0, f64::max);
+                    assert!(err < 1e-5, "{w}x{h} N {n} {border:?} ({x}, {y}): fast {got:?} slow {slow:?}");
+                    let slow = reference::residual_at(&heights, w, h, &opts, x, y);
+                    let got = f64::from(fast_residual[y * w + x]);
+                    assert!((got - slow).abs() <= 1e-5 * 8.0, "{w}x{h} N {n} residual ({x}, {y}): {got} vs {slow}");
+                }
+            }
+        }
+    }
+}
+
 /// Bad calls are errors, never panics.
 #[test]
 fn bad_calls_are_errors() {
