@@ -536,7 +536,14 @@ impl Plan {
             let c = reference[x0];
             // The segment's texels with their borders: padded[q] is column start + q − r.
             padded.clear();
-            padded.extend(self.xmap[start..end + 2 * r].iter().map(|&sx| self.scale * f64::from(src[sx]) - c));
+            let to_z = |h: f32| self.scale * f64::from(h) - c;
+            if start >= r && end + r <= src.len() {
+                // Away from the borders the columns are the source's own, in
+                // order: read as a slice, the loop vectorises.
+                padded.extend(src[start - r..end + r].iter().map(|&h| to_z(h)));
+            } else {
+                padded.extend(self.xmap[start..end + 2 * r].iter().map(|&sx| to_z(src[sx])));
+            }
             let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
             for (q, &z) in padded[..n].iter().enumerate() {
                 s0 += z;
