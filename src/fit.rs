@@ -341,6 +341,10 @@ pub(crate) fn first_non_finite(heights: &[f32], width: usize) -> Option<(usize, 
     heights.iter().position(|h| !h.is_finite()).map(|k| (k % width, k / width))
 }
 
+/// Texels per branch between the two loops of the orthogonal fit's
+/// normals (see [`Plan::emit_with`]).
+const EMIT_CHUNK: usize = 32;
+
 /// Columns per parallel task of the fit, rounded to whole segments: the
 /// task's sums (a few rows of f64 per column) then fit in a core's cache.
 const STRIP_COLS: usize = 512;
@@ -587,14 +591,25 @@ impl Plan {
         let w = nx.len();
         let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
         let (ny, nz) = (&mut ny[..w], &mut nz[..w]);
-        for x in 0..w {
-            let cx = si[x];
-            let cy = self.sigma * sj[x];
-            let czz = (szz[x] - s0[x] * s0[x] * inv_n2).max(0.0);
-            let [a, b, c] = normal_from_sums::<ORTHOGONAL>(self.a, cx, cy, czz);
-            nx[x] = a;
-            ny[x] = b;
-            nz[x] = c;
+        let czz_at = |x: usize| (szz[x] - s0[x] * s0[x] * inv_n2).max(0.0);
+        for start in (0..w).step_by(EMIT_CHUNK) {
+            let texels = start..(start + EMIT_CHUNK).min(w);
+            // Only a patch whose heights spread more than its columns and
+            // rows (Czz > A) needs the orthogonal fit's division; most
+            // chunks have none, and their loop leaves it out (the
+            // division took a tenth of the fit), with the same results.
+            let steep = ORTHOGONAL && texels.clone().any(|x| czz_at(x) > self.a);
+            if steep {
+                for x in texels {
+                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, si[x], self.sigma * sj[x], czz_at(x));
+                    [nx[x], ny[x], nz[x]] = n;
+                }
+            } else {
+                for x in texels {
+                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, si[x], self.sigma * sj[x], czz_at(x));
+                    [nx[x], ny[x], nz[x]] = n;
+                }
+            }
         }
     }
 
@@ -651,15 +666,22 @@ fn squared_distance_sum<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: f64, czz: f
 /// docs), written without branches: every case is computed and the right
 /// one selected, so that a loop of it vectorises. The unused
 /// cases may divide by zero; their values are discarded.
+///
+/// `STEEP`: some patch of the loop may have Czz > A (d < 0), the case that
+/// divides; without it, d ≥ 0 is taken as given.
 #[inline(always)]
-fn normal_from_sums<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
+fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(a: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
     let tilt2 = cx * cx + cy * cy;
     let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
     let nz = if ORTHOGONAL {
         let d = 0.5 * (a - czz);
         let q = (d * d + tilt2).sqrt();
-        let sloped = tilt2 / (q - d);
-        if d >= 0.0 { d + q } else { sloped }
+        if STEEP {
+            let sloped = tilt2 / (q - d);
+            if d >= 0.0 { d + q } else { sloped }
+        } else {
+            d + q
+        }
     } else {
         a
     };
@@ -729,5 +751,46 @@ impl WindowSums {
             si[x] += ei[x] - li[x];
             szz[x] += ezz[x] - lzz[x];
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The orthogonal fit's normals, a chunk of texels at a time: chunks
+    /// without a steep patch (Czz ≤ A) leave the division out, and get the
+    /// same bits as the formula with it; a chunk with one divides.
+    #[test]
+    fn chunks_with_and_without_steep_patches_give_the_formula_bit_for_bit() {
+        let w = 3 * EMIT_CHUNK + 5;
+        let plan = Plan::new(w, 4, &Options::new().with_patch(3)).unwrap();
+        let steep = |x: usize| (EMIT_CHUNK + 3..EMIT_CHUNK + 9).contains(&x) || x == w - 2;
+        let mut v = WindowSums::zeros(w);
+        for x in 0..w {
+            let t = x as f64;
+            v.s0[x] = 0.37 * t - 3.0;
+            v.si[x] = 0.9 - 0.031 * t;
+            v.sj[x] = 0.2 + 0.017 * t;
+            let czz = if steep(x) { 40.0 + t } else { 0.05 * t };
+            v.szz[x] = czz + v.s0[x] * v.s0[x] / 9.0;
+        }
+        let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        plan.emit_with::<true>(&v, &mut normal);
+        let mut cancelling = 0;
+        for x in 0..w {
+            let czz = (v.szz[x] - v.s0[x] * v.s0[x] * (1.0 / 9.0)).max(0.0);
+            assert_eq!(czz > plan.a, steep(x), "texel {x}: czz {czz}");
+            let with_division = normal_from_sums::<true, true>(plan.a, v.si[x], plan.sigma * v.sj[x], czz);
+            let got = [normal[0][x], normal[1][x], normal[2][x]];
+            assert_eq!(got.map(f64::to_bits), with_division.map(f64::to_bits), "texel {x}");
+            let without = normal_from_sums::<true, false>(plan.a, v.si[x], plan.sigma * v.sj[x], czz);
+            if without.map(f64::to_bits) != with_division.map(f64::to_bits) {
+                assert!(steep(x), "texel {x}: gentle, but the formulas differ");
+                cancelling += 1;
+            }
+        }
+        // The steep texels are ones where leaving the division out would show.
+        assert!(cancelling >= 4, "{cancelling}");
     }
 }
