@@ -762,6 +762,7 @@ mod tests {
     /// without a steep patch (Czz ≤ A) leave the division out, and get the
     /// same bits as the formula with it; a chunk with one divides.
     #[test]
+    #[allow(clippy::needless_range_loop)] // x indexes the sums and the three planes
     fn chunks_with_and_without_steep_patches_give_the_formula_bit_for_bit() {
         let w = 3 * EMIT_CHUNK + 5;
         let plan = Plan::new(w, 4, &Options::new().with_patch(3)).unwrap();
