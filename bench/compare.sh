@@ -435,6 +435,23 @@ for entry in "${TOOLS[@]}"; do
 done
 
 small=${SIZES[0]} large=${SIZES[-1]}
+
+# normalfit's output size against `image`'s default PNG settings on the same
+# pixels: its large output re-encoded by the imageproc peer's --reencode.
+SIZE_LINE=
+nf_out=$WORK/out/normalfit-$large.png
+if [[ -z ${UNAVAILABLE[imageproc]:-} && -f $nf_out && ${T[normalfit,$large]:-failed} != failed ]]; then
+    reencoded=$WORK/out/normalfit-$large-image-default.png
+    log "re-encoding normalfit's ${large}² output with image's default PNG settings"
+    if "$IMAGEPROC_BIN" --reencode "$nf_out" "$reencoded" 2>"$WORK/log/reencode.err"; then
+        nf_bytes=$(stat -c %s "$nf_out") default_bytes=$(stat -c %s "$reencoded")
+        SIZE_LINE="Output size: normalfit's ${large}² PNG is $(fmt_size "$nf_bytes"); the same pixels written with \`image\`'s default PNG settings (\`imageproc-normals --reencode\`, \`DynamicImage::save\`) take $(fmt_size "$default_bytes"): normalfit's is $(ratio "$nf_bytes" "$default_bytes")× that."
+        rm -f "$reencoded"
+    else
+        SIZE_LINE="Output size: re-encoding normalfit's ${large}² PNG with \`image\` failed: $(head -c 200 "$WORK/log/reencode.err")"
+    fi
+fi
+
 {
     echo "## normalfit and its peers"
     echo
@@ -463,6 +480,10 @@ small=${SIZES[0]} large=${SIZES[-1]}
         echo "| $name | ${VER[$id]} | $(cell "$computes") | $t_small | $t_large | $rss | $r_small / $r_large | $size | $(cell "$(summarize_checks "$large" <<<"${CHK[$id]:-}")") |"
     done
     echo
+    if [[ -n $SIZE_LINE ]]; then
+        echo "$SIZE_LINE"
+        echo
+    fi
     echo "Commands (${large}²; paths relative to \`bench/.work\`, the repository and cargo's target directory):"
     echo
     echo '```'

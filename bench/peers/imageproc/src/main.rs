@@ -10,6 +10,12 @@
 //! Sobel sums divided by 8 (the slope per texel), the normal is
 //! (−S·∂h/∂x, +S·∂h/∂row, 1) normalised (OpenGL, green up), written as
 //! round(255 · (n + 1) / 2) in an 8-bit RGB PNG.
+//!
+//!     imageproc-normals --reencode IN.png OUT.png
+//!
+//! Reads any PNG and writes it again with `image`'s default PNG settings
+//! (`DynamicImage::save`, as above): the size `compare.sh` measures
+//! normalfit's output against.
 
 use image::{ImageBuffer, Luma, RgbImage};
 use imageproc::filter::filter_clamped_parallel;
@@ -18,6 +24,12 @@ use rayon::prelude::*;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if let [flag, input, output] = args.as_slice() {
+        if flag == "--reencode" {
+            image::open(input)?.save(output)?;
+            return Ok(());
+        }
+    }
     let [input, output, scale] = args.as_slice() else {
         return Err("usage: imageproc-normals IN.png OUT.png SCALE".into());
     };
