@@ -6,22 +6,11 @@ mod common;
 use std::fs;
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Output, Stdio};
 
+use common::cli::{bin, is_summary, listing, run, s};
 use common::reference;
 use normalfit::{Border, Borders, Convention, Fit, Options, Strength};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_normalfit"))
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("the binary runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// A 16-bit gray height map with real detail: a bump on a slope.
 fn write_gray16(path: &Path, w: u32, h: u32) -> Vec<f32> {
@@ -42,16 +31,6 @@ fn write_gray8(path: &Path, w: u32, h: u32) {
     img.save(path).unwrap();
 }
 
-/// Whether a line of standard error is a batch's summary line.
-fn is_summary(line: &str) -> bool {
-    let words: Vec<&str> = line.split(' ').collect();
-    matches!(
-        words[..],
-        ["normalfit:", a, "converted,", b, "skipped,", c, "failed", "in", t, "s"]
-            if [a, b, c].iter().all(|n| n.parse::<usize>().is_ok()) && t.parse::<f64>().is_ok()
-    )
-}
-
 /// The one error line on standard error. Warnings (the wrap-seam hint) may
 /// precede it, each on its own line, and a batch's summary line follow it.
 fn one_line_error(out: &Output) -> String {
@@ -60,13 +39,6 @@ fn one_line_error(out: &Output) -> String {
     let errors: Vec<&str> = all.lines().filter(|l| !l.starts_with("normalfit: warning: ") && !is_summary(l)).collect();
     assert_eq!(errors.len(), 1, "want one error line on stderr, got {all:?}");
     errors[0].to_string()
-}
-
-fn files_in(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> =
-        fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    v.sort();
-    v
 }
 
 #[test]
@@ -123,7 +95,7 @@ fn default_output_sits_beside_the_input_and_is_8_bit_for_8_bit_input() {
     assert_eq!(out.color(), image::ColorType::Rgb8);
     let mode = fs::metadata(dir.path().join("stone_normal.png")).unwrap().permissions().mode() & 0o777;
     assert_ne!(mode, 0o600, "the output has an ordinary file's permissions");
-    assert_eq!(files_in(dir.path()), ["stone.png", "stone_normal.png"], "no temporary files left");
+    assert_eq!(listing(dir.path()), ["stone.png", "stone_normal.png"], "no temporary files left");
 }
 
 #[test]
@@ -149,7 +121,7 @@ fn bad_arguments_exit_2_with_one_line_and_no_output() {
         one_line_error(&r);
         assert!(!out.exists(), "{bad:?} left an output");
     }
-    assert_eq!(files_in(dir.path()), ["h.png"]);
+    assert_eq!(listing(dir.path()), ["h.png"]);
 }
 
 #[test]
@@ -169,7 +141,7 @@ fn unreadable_inputs_are_named_in_one_line() {
         assert!(err.contains(name), "{err}");
         assert!(!out.exists());
     }
-    assert_eq!(files_in(dir.path()), ["empty.exr", "notes.png"], "no output, no temporary file");
+    assert_eq!(listing(dir.path()), ["empty.exr", "notes.png"], "no output, no temporary file");
 }
 
 #[test]
@@ -184,7 +156,7 @@ fn a_bad_file_in_a_batch_does_not_stop_the_others() {
     assert_eq!(r.status.code(), Some(2), "one input failed");
     let err = one_line_error(&r);
     assert!(err.contains("bad.png"), "{err}");
-    assert_eq!(files_in(&outdir), ["a_normal.png", "b_normal.png"]);
+    assert_eq!(listing(&outdir), ["a_normal.png", "b_normal.png"]);
     assert_eq!(image::open(outdir.join("b_normal.png")).unwrap().color(), image::ColorType::Rgb16);
 }
 
@@ -232,7 +204,7 @@ fn a_failed_write_keeps_the_old_output() {
     let r = run(&["convert", s(&input), "-o", s(&missing_dir)]);
     assert_eq!(r.status.code(), Some(2));
     assert!(one_line_error(&r).contains("nope"));
-    assert_eq!(files_in(dir.path()), ["h.png", "o.png"]);
+    assert_eq!(listing(dir.path()), ["h.png", "o.png"]);
 }
 
 #[test]
@@ -313,7 +285,7 @@ fn a_float_tiff_becomes_a_float_exr_by_default_as_the_reference() {
     let heights = write_float_tiff(&input, 29, 17);
     let r = run(&["convert", s(&input), "--scale", "0.5", "--border", "clamp"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    assert_eq!(files_in(dir.path()), ["terrain.tif", "terrain_normal.exr"], "float input gives EXR output");
+    assert_eq!(listing(dir.path()), ["terrain.tif", "terrain_normal.exr"], "float input gives EXR output");
     let raster = normalfit::io::read_path(&dir.path().join("terrain_normal.exr"), &Default::default()).unwrap();
     assert_eq!(raster.sample, normalfit::io::SampleType::Float);
     let opts =
@@ -369,7 +341,7 @@ fn many_inputs_go_into_the_output_folder() {
     args.extend(["-o", s(&outdir)]);
     let r = run(&args);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    assert_eq!(files_in(&outdir), ["t0_normal.png", "t1_normal.png", "t2_normal.png"]);
+    assert_eq!(listing(&outdir), ["t0_normal.png", "t1_normal.png", "t2_normal.png"]);
     let r = run(&["convert", s(&inputs[0]), s(&inputs[1]), "-o", "-"]);
     assert_eq!(r.status.code(), Some(2), "many images cannot share standard output");
 }
@@ -390,7 +362,7 @@ fn a_png_truncated_in_its_pixels_leaves_no_output() {
         assert_eq!(r.status.code(), Some(2), "{border}");
         let err = one_line_error(&r);
         assert!(err.contains("cut.png"), "{err}");
-        assert_eq!(files_in(dir.path()), vec!["cut.png".to_string()], "{border}");
+        assert_eq!(listing(dir.path()), vec!["cut.png".to_string()], "{border}");
     }
 }
 

@@ -3,39 +3,20 @@
 //! skipped, link loops harmless), `--suffix`, `--overwrite`, `--jobs`, the
 //! progress bar and summary line, `--alpha`, `--channels` and `--residual`.
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant, SystemTime};
+use std::process::{Command, Stdio};
+use std::time::{Duration, SystemTime};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_normalfit"))
-}
-
-/// Runs the binary; a run that takes over a minute (a folder loop, say)
-/// is killed and fails the test instead of hanging it.
-fn run(args: &[&str]) -> Output {
-    let mut child = bin().args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the binary starts");
-    let started = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if started.elapsed() > Duration::from_secs(60) {
-            child.kill().unwrap();
-            panic!("normalfit {args:?} still runs after a minute");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    child.wait_with_output().unwrap()
-}
+use common::cli::{run, s};
 
 fn ok(args: &[&str]) -> String {
     let r = run(args);
     let stderr = String::from_utf8_lossy(&r.stderr).into_owned();
     assert!(r.status.success(), "normalfit {args:?}: {stderr}");
     stderr
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 /// The summary line's counts, from the last line of standard error.

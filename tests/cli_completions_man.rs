@@ -3,12 +3,12 @@
 //! option. The list of commands is read from `normalfit --help`, so a new
 //! command is checked here without editing this file.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_normalfit")).args(args).output().expect("the binary runs")
-}
+use common::cli::run;
 
 fn stdout(out: &Output) -> String {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

@@ -3,20 +3,15 @@
 //! against Lambert's law computed here; tiling, the light's direction,
 //! outputs and errors.
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use common::cli::{run, s};
 use normalfit::io::{ExrDepth, encode_exr};
 use normalfit::shade::AMBIENT;
-
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_normalfit")).args(args).output().expect("the binary runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn ok(out: &Output) {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

@@ -2,17 +2,13 @@
 //! the command line: verdicts, JSON Lines, exit codes, previews, the wrap
 //! warning and `--border auto`.
 
+mod common;
+
 use std::f64::consts::TAU;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_normalfit")).args(args).output().expect("the binary runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::cli::{run, s};
 
 /// Periodic along x with `px` cycles; along y periodic when `tiles_y`,
 /// else a slow drift that makes the last row unlike the first.

@@ -6,6 +6,8 @@
 //! fill); the tests that need it say SKIPPED, with the reason, when they
 //! cannot have it. CI runs as root.
 
+mod common;
+
 use std::fs;
 use std::io::{BufWriter, Write};
 use std::os::unix::fs::{MetadataExt, PermissionsExt};
@@ -14,17 +16,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_normalfit"))
-}
-
-fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("the binary runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::cli::{bin, is_summary, listing, run, s};
 
 /// A 16-bit gray height map, a slope with a bump and some noise, so its
 /// normal map compresses poorly and takes a while to write.
@@ -46,14 +38,6 @@ fn write_gray16(path: &Path, w: u32, h: u32) {
 
 fn write_gray8(path: &Path, w: u32, h: u32) {
     image::GrayImage::from_fn(w, h, |x, y| image::Luma([((x * 37 + y * 11) % 256) as u8])).save(path).unwrap();
-}
-
-/// The names in a folder, sorted.
-fn listing(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> =
-        fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    v.sort();
-    v
 }
 
 /// Files whose bytes must come out of a run as they went in.
@@ -86,12 +70,6 @@ fn expect_fault(out: &Output, subject: &Path, problem: &[&str]) -> String {
     let lower = line.to_lowercase();
     assert!(problem.iter().any(|p| lower.contains(p)), "says one of {problem:?}: {line}");
     line
-}
-
-/// A batch's closing line, `normalfit: C converted, S skipped, F failed in
-/// T s`: a count, not an error.
-fn is_summary(line: &str) -> bool {
-    line.starts_with("normalfit: ") && line.contains(" converted, ") && line.contains(" failed in ")
 }
 
 fn is_root() -> bool {
