@@ -64,35 +64,46 @@ fn patch_points(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y
 pub fn residual_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> f64 {
     let pts = patch_points(heights, w, h, opts, x, y);
     let count = pts.len() as f64;
-    let mean: Vec<f64> = (0..3).map(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count).collect();
+    let mean = centroid(&pts);
     let normal = normal_at(heights, w, h, opts, x, y);
     let flat = normal == [0.0, 0.0, 1.0];
     let squared: f64 = match opts.fit {
         Fit::Orthogonal => pts.iter().map(|p| (0..3).map(|k| normal[k] * (p[k] - mean[k])).sum::<f64>().powi(2)).sum(),
         Fit::Vertical if flat => pts.iter().map(|p| (p[2] - mean[2]).powi(2)).sum(),
         Fit::Vertical => {
-            let mut m = [[0.0f64; 4]; 3];
-            for p in &pts {
-                let row = [1.0, p[0], p[1]];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        m[a][b] += row[a] * row[b];
-                    }
-                    m[a][3] += row[a] * p[2];
-                }
-            }
-            let c = solve3(m);
+            let c = least_squares_plane(&pts);
             pts.iter().map(|p| (p[2] - (c[0] + c[1] * p[0] + c[2] * p[1])).powi(2)).sum()
         }
     };
     (squared / count).sqrt()
 }
 
+/// The mean of the points, coordinate by coordinate.
+fn centroid(pts: &[[f64; 3]]) -> [f64; 3] {
+    let count = pts.len() as f64;
+    std::array::from_fn(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count)
+}
+
+/// (c0, c1, c2) of the plane z = c0 + c1 u + c2 v closest to the points in
+/// z, by least squares: the normal equations, solved by elimination.
+fn least_squares_plane(pts: &[[f64; 3]]) -> [f64; 3] {
+    let mut m = [[0.0f64; 4]; 3];
+    for p in pts {
+        let row = [1.0, p[0], p[1]];
+        for a in 0..3 {
+            for b in 0..3 {
+                m[a][b] += row[a] * row[b];
+            }
+            m[a][3] += row[a] * p[2];
+        }
+    }
+    solve3(m)
+}
+
 /// The reference normal of texel (x, y).
 pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> [f64; 3] {
     let pts = patch_points(heights, w, h, opts, x, y);
-    let count = pts.len() as f64;
-    let mean: Vec<f64> = (0..3).map(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count).collect();
+    let mean = centroid(&pts);
     let mut cov = [[0.0f64; 3]; 3];
     for p in &pts {
         for a in 0..3 {
@@ -109,18 +120,8 @@ pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, 
     let n = match opts.fit {
         Fit::Orthogonal => smallest_eigenvector(cov),
         Fit::Vertical => {
-            // z = c0 + c1 u + c2 v by least squares; the normal is (−c1, −c2, 1).
-            let mut m = [[0.0f64; 4]; 3];
-            for p in &pts {
-                let row = [1.0, p[0], p[1]];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        m[a][b] += row[a] * row[b];
-                    }
-                    m[a][3] += row[a] * p[2];
-                }
-            }
-            let c = solve3(m);
+            // The normal of z = c0 + c1 u + c2 v is (−c1, −c2, 1).
+            let c = least_squares_plane(&pts);
             [-c[1], -c[2], 1.0]
         }
     };
