@@ -9,19 +9,12 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use normalfit::io::decode;
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, check};
-use normalfit_fuzz::{
-    Case, assert_clean_error, assert_raster, assert_report, assert_same_report, check_heights, read_options,
-};
+use normalfit_fuzz::{Case, assert_report, assert_same_report, check_heights, decoded};
 
 fuzz_target!(|data: &[u8]| {
     let case = Case::of(data);
-    let raster = match decode(data, &read_options()) {
-        Ok(raster) => raster,
-        Err(e) => return assert_clean_error(&e),
-    };
-    assert_raster(&raster);
+    let Some(raster) = decoded(data) else { return };
     let (w, h) = (raster.width, raster.height);
 
     // Every plane, the kind detected or forced.

@@ -108,6 +108,43 @@ pub fn assert_raster(raster: &Raster) {
     }
 }
 
+/// `decode` of the bytes, as the whole-image path reads them: the raster,
+/// checked against `decode`'s promises, or `None` after a clean error.
+pub fn decoded(data: &[u8]) -> Option<Raster> {
+    match normalfit::io::decode(data, &read_options()) {
+        Ok(raster) => {
+            assert_raster(&raster);
+            Some(raster)
+        }
+        Err(e) => {
+            assert_clean_error(&e);
+            None
+        }
+    }
+}
+
+/// After a streamed conversion of the bytes: when it and the whole-image
+/// decode both succeed, the rows the stream visited (`streamed`, of a `w` ×
+/// `h` image) are the decoded heights bit for bit, which are returned for
+/// the comparison of the outputs; `None` when either failed (cleanly).
+pub fn streamed_heights_match(
+    data: &[u8],
+    channel: Option<Channel>,
+    conversion: &normalfit::Result<()>,
+    streamed: &[f32],
+    (w, h): (usize, usize),
+) -> Option<Vec<f32>> {
+    if let Err(e) = conversion {
+        assert_clean_error(e);
+    }
+    let whole = normalfit::io::decode(data, &read_options()).and_then(|r| r.into_heights(channel));
+    let (Ok(()), Ok(heights)) = (conversion, whole) else { return None };
+    assert_eq!(streamed.len(), w * h, "the stream visited {} heights of {w} × {h}", streamed.len());
+    let same = streamed.iter().zip(&heights).all(|(a, b)| a.to_bits() == b.to_bits());
+    assert!(same, "streamed heights differ from the decoded ones");
+    Some(heights)
+}
+
 /// Heights are `Ok` only when finite; otherwise the error is the channel's
 /// absence or a non-finite height, cleanly.
 pub fn check_heights(result: normalfit::Result<Vec<f32>>, texels: usize) -> Option<Vec<f32>> {
