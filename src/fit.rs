@@ -49,6 +49,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::options::{Border, Fit, Options};
+use crate::samples::Sample;
 
 /// A type an output texel can be made from a unit normal.
 ///
@@ -95,9 +96,12 @@ impl FromNormal for [u16; 3] {
 /// Unit normals of a `width` × `height` height map, as `[x, y, z]` in
 /// [−1, 1], row-major.
 ///
-/// `heights` is row-major, `width * height` long; heights are in the
-/// contract's units (integer images divided by 2^bits − 1). Rows are
-/// computed in parallel on rayon's current pool.
+/// `heights` is row-major, `width * height` long, of any [`Sample`] type:
+/// `f32` and `f64` are heights in the contract's units, `u8` and `u16`
+/// stored integer values whose heights are v / 255 and v / 65535 (SPEC
+/// §1). Integers are read as they are and 1 / (2^bits − 1) goes into the
+/// gain, in f64, so no rounding comes between the file and the fit. Rows
+/// are computed in parallel on rayon's current pool.
 ///
 /// ```
 /// use normalfit::{normals, Options};
@@ -109,7 +113,7 @@ impl FromNormal for [u16; 3] {
 /// let [nx, ny, nz] = n[w + 3];
 /// assert!(nx < 0.0 && ny.abs() < 1e-6 && nz > 0.0);
 /// ```
-pub fn normals(heights: &[f32], width: usize, height: usize, opts: &Options) -> Result<Vec<[f32; 3]>> {
+pub fn normals<H: Sample>(heights: &[H], width: usize, height: usize, opts: &Options) -> Result<Vec<[f32; 3]>> {
     let mut out = vec![[0.0f32; 3]; checked_len(width, height)?];
     normals_into(heights, width, height, opts, &mut out)?;
     Ok(out)
@@ -118,8 +122,8 @@ pub fn normals(heights: &[f32], width: usize, height: usize, opts: &Options) -> 
 /// Like [`normals`], but writes into `out` (`width * height` texels) in
 /// any texel type: `[f32; 3]` for the normal itself, `[u8; 3]` or
 /// `[u16; 3]` for the encoded RGB of the contract.
-pub fn normals_into<T: FromNormal>(
-    heights: &[f32],
+pub fn normals_into<H: Sample, T: FromNormal>(
+    heights: &[H],
     width: usize,
     height: usize,
     opts: &Options,
@@ -162,8 +166,8 @@ pub fn normals_into<T: FromNormal>(
 ///
 /// Errors: as [`normals_into`]; [`Error::BufferSize`] also for a
 /// `residual` of the wrong length.
-pub fn normals_and_residual_into<T: FromNormal>(
-    heights: &[f32],
+pub fn normals_and_residual_into<H: Sample, T: FromNormal>(
+    heights: &[H],
     width: usize,
     height: usize,
     opts: &Options,
@@ -175,8 +179,8 @@ pub fn normals_and_residual_into<T: FromNormal>(
 
 /// The whole-image fit behind [`normals_into`] and
 /// [`normals_and_residual_into`].
-fn fit_image<T: FromNormal>(
-    heights: &[f32],
+fn fit_image<H: Sample, T: FromNormal>(
+    heights: &[H],
     width: usize,
     height: usize,
     opts: &Options,
@@ -194,7 +198,7 @@ fn fit_image<T: FromNormal>(
         return Err(Error::NonFiniteHeight { x, y });
     }
     let source_row = |y: usize| &heights[y * width..][..width];
-    plan.fit_rows(&source_row, 0, out, residual);
+    plan.fit_rows(&source_row, H::UNIT, 0, out, residual);
     Ok(())
 }
 
@@ -232,6 +236,8 @@ pub struct BandFit {
     plan: Plan,
     height: usize,
     band_rows: usize,
+    /// The height of a row value of 1, when not the sample type's own.
+    unit: Option<f64>,
 }
 
 impl BandFit {
@@ -243,7 +249,19 @@ impl BandFit {
         // Enough blocks per band to keep every core busy.
         let blocks = rayon::current_num_threads().max(1);
         let band_rows = plan.block_rows * blocks;
-        Ok(BandFit { plan, height, band_rows })
+        Ok(BandFit { plan, height, band_rows, unit: None })
+    }
+
+    /// The same fit of rows whose values are heights in units of `unit`
+    /// (a height is value × `unit`), whatever their type: for a decoder
+    /// that gives 16-bit samples as `f64` values, 1 / 65535. The texels
+    /// are then the same, bit for bit, as the whole-image fit of the
+    /// samples in their own type. Without it, the sample type's
+    /// [`Sample::UNIT`].
+    #[must_use]
+    pub fn with_unit(mut self, unit: f64) -> BandFit {
+        self.unit = Some(unit);
+        self
     }
 
     /// Columns.
@@ -287,10 +305,10 @@ impl BandFit {
     /// Errors: [`Error::BufferSize`] for a range that is not a band or a
     /// wrong `out` length, [`Error::NonFiniteHeight`] if a row read holds NaN
     /// or ±inf.
-    pub fn fit_band<'a, T: FromNormal>(
+    pub fn fit_band<'a, H: Sample, T: FromNormal>(
         &self,
         rows: Range<usize>,
-        row: &(dyn Fn(usize) -> &'a [f32] + Sync),
+        row: &(dyn Fn(usize) -> &'a [H] + Sync),
         out: &mut [T],
     ) -> Result<()> {
         let w = self.plan.width;
@@ -314,7 +332,7 @@ impl BandFit {
                 return Err(Error::NonFiniteHeight { x, y });
             }
         }
-        self.plan.fit_rows(row, rows.start, out, None);
+        self.plan.fit_rows(row, self.unit.unwrap_or(H::UNIT), rows.start, out, None);
         Ok(())
     }
 }
@@ -330,7 +348,7 @@ pub(crate) fn checked_len(width: usize, height: usize) -> Result<usize> {
 }
 
 /// The first texel (x, y) in row order whose height is NaN or infinite.
-pub(crate) fn first_non_finite(heights: &[f32], width: usize) -> Option<(usize, usize)> {
+pub(crate) fn first_non_finite<H: Sample>(heights: &[H], width: usize) -> Option<(usize, usize)> {
     // A loop without an early exit vectorises (a search one value at a time
     // took 2.5 % of a conversion): it finds whether there is one, and only
     // then is it looked for.
@@ -364,7 +382,8 @@ struct Plan {
     width: usize,
     n: usize,
     r: usize,
-    /// S: surface z per unit of height, sign included.
+    /// S: surface z per unit of height, sign included. The fit multiplies
+    /// the samples by S times their unit ([`Sample::UNIT`]).
     scale: f64,
     sigma: f64,
     fit: Fit,
@@ -420,9 +439,10 @@ impl Plan {
     /// cores busy beside the pipeline's other threads (two tasks a band left
     /// one core idle while the other finished its tile) and a strip's sums
     /// stay in the core's cache.
-    fn fit_rows<'a, T: FromNormal>(
+    fn fit_rows<'a, H: Sample, T: FromNormal>(
         &self,
-        source_row: &(dyn Fn(usize) -> &'a [f32] + Sync),
+        source_row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        unit: f64,
         y0: usize,
         out: &mut [T],
         residual: Option<&mut [f32]>,
@@ -463,7 +483,10 @@ impl Plan {
             rest = tail;
             rest_residual = residual_tail;
         }
-        tasks.into_par_iter().for_each(|task| self.fit_strip(source_row, task));
+        // The product of S and the unit, once: every path that fits these
+        // samples forms the same gain, and so the same bits.
+        let gain = self.scale * unit;
+        tasks.into_par_iter().for_each(|task| self.fit_strip(source_row, gain, task));
     }
 
     /// Columns per parallel task: whole segments, about 512 columns.
@@ -472,7 +495,12 @@ impl Plan {
     }
 
     /// Fits one strip: the output rows from `y0`, the columns from `x0`.
-    fn fit_strip<'a, T: FromNormal>(&self, source_row: &(dyn Fn(usize) -> &'a [f32] + Sync), strip: Strip<'_, T>) {
+    fn fit_strip<'a, H: Sample, T: FromNormal>(
+        &self,
+        source_row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        gain: f64,
+        strip: Strip<'_, T>,
+    ) {
         let Strip { y0, x0, mut out, mut residual } = strip;
         let Some(first) = out.first() else { return };
         let (n, r) = (self.n, self.r);
@@ -485,7 +513,7 @@ impl Plan {
             .clone()
             .map(|x| {
                 let s0 = x - x % self.segment_cols;
-                self.scale * f64::from(row_of(y0 + r)[self.xmap[s0 + r]])
+                gain * row_of(y0 + r)[self.xmap[s0 + r]].to_f64()
             })
             .collect();
 
@@ -493,7 +521,7 @@ impl Plan {
         let mut ring: Vec<RowSums> = (y0..y0 + n)
             .map(|p| {
                 let mut sums = RowSums::zeros(w);
-                self.horizontal_sums(row_of(p), cols.clone(), &reference, &mut sums);
+                self.horizontal_sums(row_of(p), gain, cols.clone(), &reference, &mut sums);
                 sums
             })
             .collect();
@@ -515,7 +543,7 @@ impl Plan {
                 // Slide down one row: padded row p_in enters, p_out leaves.
                 let p_out = y0 + k - 1;
                 let p_in = p_out + n;
-                self.horizontal_sums(row_of(p_in), cols.clone(), &reference, &mut entering);
+                self.horizontal_sums(row_of(p_in), gain, cols.clone(), &reference, &mut entering);
                 v.slide(&ring[p_out % n], &entering, rf, r1);
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
@@ -528,7 +556,14 @@ impl Plan {
 
     /// Σz, Σiz, Σz² over each column's horizontal window of one source row,
     /// z relative to the column's reference.
-    fn horizontal_sums(&self, src: &[f32], cols: Range<usize>, reference: &[f64], out: &mut RowSums) {
+    fn horizontal_sums<H: Sample>(
+        &self,
+        src: &[H],
+        gain: f64,
+        cols: Range<usize>,
+        reference: &[f64],
+        out: &mut RowSums,
+    ) {
         let padded = &mut out.padded;
         let (n, r) = (self.n, self.r);
         let (rf, r1) = (r as f64, r as f64 + 1.0);
@@ -540,7 +575,7 @@ impl Plan {
             let c = reference[x0];
             // The segment's texels with their borders: padded[q] is column start + q − r.
             padded.clear();
-            let to_z = |h: f32| self.scale * f64::from(h) - c;
+            let to_z = |h: H| gain * h.to_f64() - c;
             if start >= r && end + r <= src.len() {
                 // Away from the borders the columns are the source's own, in
                 // order: read as a slice, the loop vectorises.

@@ -125,9 +125,11 @@ pub mod error;
 pub mod fit;
 pub mod io;
 pub mod options;
+pub mod samples;
 pub mod shade;
 pub mod tiling;
 
 pub use error::{Error, Result};
 pub use fit::{FromNormal, normals, normals_and_residual_into, normals_into};
 pub use options::{Border, Borders, Convention, Fit, Options, Strength};
+pub use samples::{Sample, Samples};

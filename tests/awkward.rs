@@ -53,7 +53,7 @@ fn file(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
 /// The R, G, B planes of an output file.
 fn rgb_of(path: &Path) -> (usize, usize, [Vec<f32>; 3]) {
     let raster = read_path(path, &ReadOptions::default()).unwrap();
-    let plane = |c: &str| raster.plane(c).unwrap_or_else(|| panic!("{path:?} has no {c}")).data.clone();
+    let plane = |c: &str| raster.plane(c).unwrap_or_else(|| panic!("{path:?} has no {c}")).data.to_f32().unwrap();
     (raster.width, raster.height, [plane("R"), plane("G"), plane("B")])
 }
 
@@ -313,17 +313,17 @@ fn a_16_bit_ramp_of_one_step_per_texel_gives_the_slopes_normal() {
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (4096usize, 4usize);
     let ramp = file(dir.path(), "ramp.png", &png_gray16(w as u32, h as u32, |x, _| x as u16));
-    // The heights as SPEC §1 and the reader have them: value / 65535, f32.
-    let heights: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 / 65535.0).collect();
+    // The heights as SPEC §1 defines them: value / 65535, in f64.
+    let heights: Vec<f64> = (0..w * h).map(|k| (k % w) as f64 / 65535.0).collect();
     let out_exr = dir.path().join("o.exr");
     let out_png = dir.path().join("o.png");
     // One stored step per texel is a slope of 1/65535 in height units, so
     // s = S/65535 in texel units: a plane, whose fitted normal (either fit)
     // is (−s, 0, 1)/√(1 + s²) wherever the patch stays inside (clamp in x
-    // bends the first and last columns). Heights held as f32 round each
-    // value / 65535 by up to 2^−24 relative, a part in 4000 of one step
-    // here, which is what bounds the steep cases' distance to the plane.
-    for (scale, to_plane) in [(1.0f64, 1e-8), (65535.0, 2e-4), (3.0 * 65535.0, 2e-4)] {
+    // bends the first and last columns). The samples reach the fit as the
+    // integers they are (no value / 65535 rounded to f32 first, which moved
+    // the steep cases by 2e-4), so only the f32 output rounds.
+    for (scale, to_plane) in [(1.0f64, 1e-7), (65535.0, 1e-7), (3.0 * 65535.0, 1e-7)] {
         let s = scale / 65535.0;
         let plane = [-s / (1.0 + s * s).sqrt(), 0.0, 1.0 / (1.0 + s * s).sqrt()];
         for fit in [Fit::Orthogonal, Fit::Vertical] {
@@ -488,22 +488,22 @@ fn exr_half_float_u32_and_mixed_channels() {
     let (a, b, c) = (values(3), values(5), values(11));
     let ints: Vec<u32> = (0..w * h).map(|k| (k * 13 % 7) as u32).collect();
     let ints_f32: Vec<f32> = ints.iter().map(|&n| n as f32).collect();
-    let luma = |r: &[f32], g: &[f32], b: &[f32]| -> Vec<f32> {
-        (0..w * h)
-            .map(|k| (0.2126 * f64::from(r[k]) + 0.7152 * f64::from(g[k]) + 0.0722 * f64::from(b[k])) as f32)
-            .collect()
+    let wide = |v: &[f32]| -> Vec<f64> { v.iter().map(|&x| f64::from(x)).collect() };
+    // Luma in f64, not rounded to f32: the heights the fit reads.
+    let luma = |r: &[f32], g: &[f32], b: &[f32]| -> Vec<f64> {
+        (0..w * h).map(|k| 0.2126 * f64::from(r[k]) + 0.7152 * f64::from(g[k]) + 0.0722 * f64::from(b[k])).collect()
     };
     // Name, channels, the heights they must give.
-    type Case<'a> = (&'a str, Vec<AnyChannel<FlatSamples>>, Vec<f32>);
+    type Case<'a> = (&'a str, Vec<AnyChannel<FlatSamples>>, Vec<f64>);
     let cases: Vec<Case> = vec![
-        ("half", vec![AnyChannel::new("Y", FlatSamples::F16(halves(&a)))], as_half(&a)),
-        ("float", vec![AnyChannel::new("Y", FlatSamples::F32(a.clone()))], a.clone()),
-        ("u32", vec![AnyChannel::new("Y", FlatSamples::U32(ints.clone()))], ints_f32.clone()),
+        ("half", vec![AnyChannel::new("Y", FlatSamples::F16(halves(&a)))], wide(&as_half(&a))),
+        ("float", vec![AnyChannel::new("Y", FlatSamples::F32(a.clone()))], wide(&a)),
+        ("u32", vec![AnyChannel::new("Y", FlatSamples::U32(ints.clone()))], wide(&ints_f32)),
         // Y half beside an alpha of floats: Y is the height.
         (
             "y_half_a_float",
             vec![AnyChannel::new("A", FlatSamples::F32(b.clone())), AnyChannel::new("Y", FlatSamples::F16(halves(&a)))],
-            as_half(&a),
+            wide(&as_half(&a)),
         ),
         // R half, G float, B u32: luma of the three as numbers.
         (
@@ -533,9 +533,8 @@ fn exr_layers_the_first_part_by_default_and_layer_picks_one() {
     let (w, h) = (10usize, 8usize);
     let wave = |f: f32| -> Vec<f32> { (0..w * h).map(|k| ((k % w) as f32 * f).sin() + (k / w) as f32 * 0.1).collect() };
     let (r, g, b, height) = (wave(0.3), wave(0.7), wave(1.1), wave(0.5));
-    let luma: Vec<f32> = (0..w * h)
-        .map(|k| (0.2126 * f64::from(r[k]) + 0.7152 * f64::from(g[k]) + 0.0722 * f64::from(b[k])) as f32)
-        .collect();
+    let luma: Vec<f64> =
+        (0..w * h).map(|k| 0.2126 * f64::from(r[k]) + 0.7152 * f64::from(g[k]) + 0.0722 * f64::from(b[k])).collect();
     let layer = |name: &str, channels: Vec<AnyChannel<FlatSamples>>| {
         let channels = AnyChannels::sort(SmallVec::from_vec(channels));
         Layer::new(Vec2(w, h), LayerAttributes::named(name), Encoding::SMALL_LOSSLESS, channels)

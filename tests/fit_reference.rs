@@ -84,6 +84,97 @@ proptest! {
 /// A tilted plane z = a·x + b·y has one exact normal everywhere the patch
 /// lies inside the image (clamp only distorts the texels near its edges).
 /// The fast residual and the normals that come with it.
+/// An integer ramp as a terrain or a 16-bit bake stores it: values from
+/// `base`, `steps` tenths of a value per texel along an angle, and a
+/// little grain; the heights are value / (2^bits − 1), computed plainly in
+/// f64 for the reference.
+fn integer_ramp(w: usize, h: usize, top: u32, base: u32, steps: u32, angle: usize) -> (Vec<u32>, Vec<f64>) {
+    let values: Vec<u32> = (0..w * h)
+        .map(|k| {
+            let (x, y) = ((k % w) as u32, (k / w) as u32);
+            let along = (x * steps + y * steps * angle as u32 / 4) / 10;
+            (base + along + (x * 7 + y * 3) % 3).min(top)
+        })
+        .collect();
+    let heights = values.iter().map(|&v| f64::from(v) / f64::from(top)).collect();
+    (values, heights)
+}
+
+/// Options for the high-gain ramps: either fit, N = 3 or 63, any borders.
+fn high_gain_options(n: usize, fit: Fit, borders: (usize, usize), gain: f64) -> Options {
+    Options::new()
+        .with_patch(n)
+        .with_fit(fit)
+        .with_borders(Borders { x: BORDERS[borders.0], y: BORDERS[borders.1] })
+        .with_strength(Strength::Scale(gain))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    // SPEC's 1e-5 at any gain up to 10⁵ for integer heights: the samples
+    // reach the fit as integers and 1/(2^bits − 1) goes into the gain in
+    // f64. (Heights rounded to f32 as value / 65535 first were off by
+    // 1.4e-5 at S = 1000 and 2e-4 at S = 10⁵ on such ramps.)
+    #[test]
+    fn sixteen_bit_ramps_at_high_gain_match_the_reference(
+        (w, h) in (1usize..=72, 1usize..=12),
+        base in 0u32..60000,
+        steps in 1u32..40,
+        angle in 0usize..4,
+        n in prop_oneof![Just(3usize), Just(63)],
+        fit in prop_oneof![Just(Fit::Orthogonal), Just(Fit::Vertical)],
+        borders in (0usize..3, 0usize..3),
+        gain in prop_oneof![Just(1e5), 100.0f64..1e5],
+    ) {
+        let (values, heights) = integer_ramp(w, h, 65535, base, steps, angle);
+        let samples: Vec<u16> = values.iter().map(|&v| v as u16).collect();
+        let opts = high_gain_options(n, fit, borders, gain);
+        let fast = normals(&samples, w, h, &opts).unwrap();
+        let slow = reference::normal_map(&heights, w, h, &opts);
+        let (err, at) = max_error(&fast, &slow);
+        prop_assert!(err < 1e-5, "error {err:e} at texel {at} of {w}x{h}: fast {:?} slow {:?}", fast[at], slow[at]);
+    }
+
+    #[test]
+    fn eight_bit_ramps_at_high_gain_match_the_reference(
+        (w, h) in (1usize..=72, 1usize..=12),
+        base in 0u32..200,
+        steps in 1u32..20,
+        angle in 0usize..4,
+        n in prop_oneof![Just(3usize), Just(63)],
+        fit in prop_oneof![Just(Fit::Orthogonal), Just(Fit::Vertical)],
+        borders in (0usize..3, 0usize..3),
+        gain in prop_oneof![Just(1e5), 100.0f64..1e5],
+    ) {
+        let (values, heights) = integer_ramp(w, h, 255, base, steps, angle);
+        let samples: Vec<u8> = values.iter().map(|&v| v as u8).collect();
+        let opts = high_gain_options(n, fit, borders, gain);
+        let fast = normals(&samples, w, h, &opts).unwrap();
+        let slow = reference::normal_map(&heights, w, h, &opts);
+        let (err, at) = max_error(&fast, &slow);
+        prop_assert!(err < 1e-5, "error {err:e} at texel {at} of {w}x{h}: fast {:?} slow {:?}", fast[at], slow[at]);
+    }
+}
+
+/// The same ramp as u16 samples, as f64 heights and as f32 heights: the
+/// integers and f64 give the formula's normals at a gain of 10⁵, f32
+/// heights (value / 65535 rounded) do not: the test can tell them apart.
+#[test]
+fn integers_keep_what_f32_heights_lose_at_high_gain() {
+    let (w, h) = (64, 4);
+    let (values, heights) = integer_ramp(w, h, 65535, 30000, 30, 0);
+    let samples: Vec<u16> = values.iter().map(|&v| v as u16).collect();
+    let rounded: Vec<f32> = heights.iter().map(|&v| v as f32).collect();
+    let opts = high_gain_options(3, Fit::Orthogonal, (1, 1), 1e5);
+    let slow = reference::normal_map(&heights, w, h, &opts);
+    let (from_integers, _) = max_error(&normals(&samples, w, h, &opts).unwrap(), &slow);
+    let (from_f64, _) = max_error(&normals(&heights, w, h, &opts).unwrap(), &slow);
+    let (from_f32, _) = max_error(&normals(&rounded, w, h, &opts).unwrap(), &slow);
+    assert!(from_integers < 1e-6 && from_f64 < 1e-6, "{from_integers:e} {from_f64:e}");
+    assert!(from_f32 > 1e-5, "f32 heights should lose precision here: {from_f32:e}");
+}
+
 fn residual(heights: &[f32], w: usize, h: usize, opts: &Options) -> (Vec<[f32; 3]>, Vec<f32>) {
     let mut normals = vec![[0.0f32; 3]; w * h];
     let mut residual = vec![0.0f32; w * h];
@@ -356,7 +447,7 @@ fn wide_images_cut_into_strips_match_the_reference() {
 #[test]
 fn bad_calls_are_errors() {
     let opts = Options::new();
-    assert!(normals(&[], 0, 0, &opts).is_err());
+    assert!(normals::<f32>(&[], 0, 0, &opts).is_err());
     assert!(normals(&[0.0; 5], 2, 3, &opts).is_err());
     let err = normals(&[0.0, 1.0, f32::NAN, 0.0], 2, 2, &opts).unwrap_err();
     assert!(matches!(err, normalfit::Error::NonFiniteHeight { x: 0, y: 1 }), "{err}");

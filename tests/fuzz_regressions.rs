@@ -5,7 +5,7 @@
 use normalfit::io::stream::PngRows;
 use normalfit::io::{Raster, ReadOptions, decode};
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
-use normalfit::{Border, Borders, Error, Fit, Options, Strength, normals_into};
+use normalfit::{Border, Borders, Error, Fit, Options, Strength};
 
 /// The fuzzers' limit: small, so a case never costs much.
 fn read() -> ReadOptions {
@@ -24,13 +24,13 @@ fn decode_fit(bytes: &[u8], opts: &Options) -> normalfit::Result<()> {
     let (w, h) = (raster.width, raster.height);
     let heights = raster.into_heights(None)?;
     let mut n = vec![[0.0f32; 3]; w * h];
-    normals_into(&heights, w, h, opts, &mut n)?;
+    heights.normals_into(w, h, opts, &mut n)?;
     for v in &n {
         let len = v.iter().map(|c| c * c).sum::<f32>().sqrt();
         assert!(v.iter().all(|c| c.is_finite()) && (len - 1.0).abs() <= 1e-4 && v[2] >= 0.0, "bad normal {v:?}");
     }
     let mut rgb = vec![[0u8; 3]; w * h];
-    normals_into(&heights, w, h, opts, &mut rgb)
+    heights.normals_into(w, h, opts, &mut rgb)
 }
 
 fn assert_finite(r: &TilingReport) {
@@ -43,7 +43,8 @@ fn assert_finite(r: &TilingReport) {
 /// and streamed row by row.
 fn tiling_reports(raster: &Raster) -> [TilingReport; 3] {
     let (w, h) = (raster.width, raster.height);
-    let planes: Vec<&[f32]> = raster.planes.iter().map(|p| p.data.as_slice()).collect();
+    let planes: Vec<Vec<f32>> = raster.planes.iter().map(|p| p.data.to_f32().unwrap()).collect();
+    let planes: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
     let all = check(&planes, w, h, &TilingOptions::new());
     let heights = raster.heights(None).expect("finite heights");
     let opts = TilingOptions::new().with_kind(KindChoice::Height);
@@ -85,7 +86,7 @@ fn exr_b44_block_whose_arithmetic_wraps_decodes() {
 #[test]
 fn hdr_with_texels_near_f32_range_scores_finite() {
     let raster = decode(&case("hdr-huge-values.hdr"), &read()).expect("a valid HDR");
-    let top = raster.planes.iter().flat_map(|p| &p.data).fold(0.0f32, |m, v| m.max(v.abs()));
+    let top = raster.planes.iter().flat_map(|p| p.data.to_f32().unwrap()).fold(0.0f32, |m, v| m.max(v.abs()));
     assert!(top > 1e38, "the case is about huge texels, its largest is {top}");
     let [all, whole, streamed] = tiling_reports(&raster);
     for r in [&all, &whole, &streamed] {

@@ -133,12 +133,15 @@ fn names(r: &Raster) -> Vec<&str> {
     r.planes.iter().map(|p| p.name.as_str()).collect()
 }
 
-fn data<'a>(r: &'a Raster, name: &str) -> &'a [f32] {
-    &r.plane(name).unwrap_or_else(|| panic!("no plane {name}")).data
+/// A plane's heights in contract units, as f32.
+fn data(r: &Raster, name: &str) -> Vec<f32> {
+    r.plane(name).unwrap_or_else(|| panic!("no plane {name}")).data.to_f32().unwrap()
 }
 
-fn luma(r: f32, g: f32, b: f32) -> f32 {
-    (0.2126 * f64::from(r) + 0.7152 * f64::from(g) + 0.0722 * f64::from(b)) as f32
+/// Luma of heights in contract units, in f64 (the fit's heights), then
+/// rounded to f32 as [`Raster::heights`] gives it.
+fn luma(r: f64, g: f64, b: f64) -> f32 {
+    (0.2126 * r + 0.7152 * g + 0.0722 * b) as f32
 }
 
 fn is_unsupported(e: &Error) -> bool {
@@ -166,7 +169,7 @@ fn png_gray8_values_and_channels() {
         assert_eq!(r.heights(c).unwrap(), expected, "{c:?}");
     }
     assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
-    assert_eq!(r.into_heights(None).unwrap(), expected);
+    assert_eq!(r.into_heights(None).unwrap().into_f32().unwrap(), expected);
 }
 
 #[test]
@@ -216,7 +219,8 @@ fn png_rgb8_luma_and_channels() {
     assert_eq!(r.heights(Some(Channel::R)).unwrap(), expect(0));
     assert_eq!(r.heights(Some(Channel::G)).unwrap(), expect(1));
     assert_eq!(r.heights(Some(Channel::B)).unwrap(), expect(2));
-    let lum: Vec<f32> = (0..6).map(|i| luma(expect(0)[i], expect(1)[i], expect(2)[i])).collect();
+    let height = |c: usize, i: usize| f64::from(rgba8(i % 3, i / 3)[c]) / 255.0;
+    let lum: Vec<f32> = (0..6).map(|i| luma(height(0, i), height(1, i), height(2, i))).collect();
     assert_eq!(r.heights(None).unwrap(), lum);
     assert_eq!(r.heights(Some(Channel::Luma)).unwrap(), lum);
     // The weights, not an average: pure green is 0.7152.
@@ -465,7 +469,7 @@ fn tiff_float32_gray_values_as_stored() {
         assert_eq!(r.heights(c).unwrap(), v, "{c:?}");
     }
     assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
-    assert_eq!(r.clone().into_heights(None).unwrap(), v);
+    assert_eq!(r.clone().into_heights(None).unwrap().into_f32().unwrap(), v);
     use tiff::encoder::{Compression, DeflateLevel, colortype::Gray32Float};
     for compression in [Compression::Lzw, Compression::Deflate(DeflateLevel::Best), Compression::Packbits] {
         let packed = tiff_gray::<Gray32Float>(4, 2, &v, compression);
@@ -491,7 +495,7 @@ fn tiff_float32_gray_many_strips_and_both_byte_orders() {
 }
 
 #[test]
-fn tiff_float64_gray_rounds_to_f32_and_overflow_is_infinite() {
+fn tiff_float64_gray_is_kept_in_f64_and_its_f32_view_rounds() {
     let v = [0.1f64, -1.0 / 3.0, 1e-30, 8848.86, -0.0, 1.0];
     let r =
         read(&tiff_gray::<tiff::encoder::colortype::Gray64Float>(3, 2, &v, tiff::encoder::Compression::Uncompressed));
@@ -499,15 +503,19 @@ fn tiff_float64_gray_rounds_to_f32_and_overflow_is_infinite() {
     assert_eq!(names(&r), ["Y"]);
     let expected: Vec<f32> = v.iter().map(|&x| x as f32).collect();
     assert_eq!(r.heights(None).unwrap(), expected);
+    // The fit reads the doubles themselves.
+    assert_eq!(r.clone().into_heights(None).unwrap(), normalfit::Samples::F64(v.to_vec()));
 
-    // Beyond f32's range a double becomes an infinite height: an error that
-    // names the texel, like any infinity.
+    // Beyond f32's range a double is still a height the fit takes, but
+    // its f32 view (for checks and previews) would be infinite: an error
+    // that names the texel, like any infinity.
     let big = [0.0f64, 1.0, 2.0, -1e39, 4.0, 5.0];
     let r =
         read(&tiff_gray::<tiff::encoder::colortype::Gray64Float>(3, 2, &big, tiff::encoder::Compression::Uncompressed));
     assert_eq!(data(&r, "Y")[3], f32::NEG_INFINITY);
     let e = r.heights(None).unwrap_err();
     assert!(matches!(e, Error::NonFiniteHeight { x: 0, y: 1 }), "{e}");
+    assert_eq!(r.into_heights(None).unwrap(), normalfit::Samples::F64(big.to_vec()));
 
     // Big-endian doubles, by hand.
     let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_be_bytes()).collect();
@@ -735,7 +743,7 @@ fn exr_prefers_y_and_explicit_channel_overrides() {
 #[test]
 fn exr_rgb_uses_luma_and_layer_names_match() {
     let (red, green, blue) = ([1.0f32, 0.3, -2.0], [0.0f32, 0.6, 10.0], [0.0f32, 0.9, 0.5]);
-    let expected: Vec<f32> = (0..3).map(|i| luma(red[i], green[i], blue[i])).collect();
+    let expected: Vec<f32> = (0..3).map(|i| luma(f64::from(red[i]), f64::from(green[i]), f64::from(blue[i]))).collect();
     let r = read(&exr_bytes(
         (3, 1),
         (0, 0),
@@ -757,7 +765,7 @@ fn exr_rgb_uses_luma_and_layer_names_match() {
     assert_eq!(r.heights(None).unwrap(), expected);
     assert_eq!(r.heights(Some(Channel::G)).unwrap(), green);
     assert_eq!(r.heights(Some(Channel::A)).unwrap(), [0.25, 0.5, 0.75]);
-    assert_eq!(r.into_heights(Some(Channel::B)).unwrap(), blue);
+    assert_eq!(r.into_heights(Some(Channel::B)).unwrap().into_f32().unwrap(), blue);
 }
 
 #[test]
@@ -985,7 +993,7 @@ fn png_gray8_round_trip() {
     assert_eq!((r.width, r.height, r.sample), (4, 3, SampleType::Int { bits: 8 }));
     assert_eq!(r.planes.len(), 1, "one gray plane");
     let expected: Vec<f32> = texels.iter().map(|&t| f32::from(t) / 255.0).collect();
-    assert_eq!(r.planes[0].data, expected);
+    assert_eq!(r.planes[0].data.to_f32().unwrap(), expected);
     let e = encode_png_gray8(&texels, 5, 3, PngCompression::Fast, Vec::new()).unwrap_err();
     assert!(matches!(e, Error::BufferSize { expected: 15, actual: 12 }), "{e}");
 }

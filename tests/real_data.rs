@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::{Convention, Options, Strength, normals};
+use normalfit::{Convention, Options, Strength};
 
 fn data_dir() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
@@ -41,11 +41,13 @@ fn agreement(height: &Path, normal: &Path, convention: Convention) -> (f64, f64)
     let heights = raster.into_heights(None).unwrap();
     // Relief keeps slopes comparable across the sets' resolutions.
     let fit = Options::new().with_patch(5).with_convention(convention).with_strength(Strength::Relief(0.05));
-    let ours = normals(&heights, w, h, &fit).unwrap();
+    let mut ours = vec![[0.0f32; 3]; w * h];
+    heights.normals_into(w, h, &fit, &mut ours).unwrap();
     let theirs = read_path(normal, &opts).unwrap();
     assert_eq!((theirs.width, theirs.height), (w, h), "{}", normal.display());
-    let channel =
-        |name: &str| -> Vec<f64> { theirs.plane(name).unwrap().data.iter().map(|&c| 2.0 * c as f64 - 1.0).collect() };
+    let channel = |name: &str| -> Vec<f64> {
+        theirs.plane(name).unwrap().data.to_f32().unwrap().iter().map(|&c| 2.0 * c as f64 - 1.0).collect()
+    };
     let ours_c = |c: usize| -> Vec<f64> { ours.iter().map(|n| n[c] as f64).collect() };
     (correlation(&ours_c(0), &channel("R")), correlation(&ours_c(1), &channel("G")))
 }

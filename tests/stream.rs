@@ -8,7 +8,7 @@ use std::path::Path;
 use image::{ExtendedColorType, ImageEncoder};
 use normalfit::io::stream::{PngDepth, PngOutput, PngRows, RowSource, convert_png, convert_png_seekable};
 use normalfit::io::{Channel, Layout, PngCompression, ReadOptions, encode_png_normals, read_path};
-use normalfit::{Border, Borders, Options, Strength, normals_into};
+use normalfit::{Border, Borders, Options, Strength};
 
 /// Heights with detail in both directions and no symmetry, as 16-bit.
 fn field(w: usize, h: usize, seed: u64) -> Vec<u16> {
@@ -71,16 +71,17 @@ fn streamed_as(path: &Path, channel: Option<Channel>, opts: &Options, depth: Png
 fn whole(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth) -> Vec<u16> {
     let raster = read_path(path, &ReadOptions::default()).unwrap();
     let (w, h) = (raster.width, raster.height);
-    let heights = raster.heights(channel).unwrap();
+    // The samples as stored (integers stay integers), as the fit reads them.
+    let heights = raster.into_heights(channel).unwrap();
     match depth {
         PngDepth::Eight => {
             let mut out = vec![[0u8; 3]; w * h];
-            normals_into(&heights, w, h, opts, &mut out).unwrap();
+            heights.normals_into(w, h, opts, &mut out).unwrap();
             out.as_flattened().iter().map(|&v| u16::from(v)).collect()
         }
         PngDepth::Sixteen => {
             let mut out = vec![[0u16; 3]; w * h];
-            normals_into(&heights, w, h, opts, &mut out).unwrap();
+            heights.normals_into(w, h, opts, &mut out).unwrap();
             out.into_flattened()
         }
     }
@@ -130,6 +131,7 @@ fn every_channel_layout_streams_the_whole_image_path_s_samples() {
         let ne: Vec<u8> = field(w, h, 3).iter().flat_map(|x| x.to_ne_bytes()).collect();
         write_png(&path, w, h, ExtendedColorType::L16, &ne);
         let raster = read_path(&path, &ReadOptions::default()).unwrap();
+        let samples = raster.clone().into_heights(None).unwrap();
         let heights = raster.heights(None).unwrap();
         for y in [Border::Wrap, Border::Mirror] {
             let opts = Options::new().with_patch(5).with_borders(Borders { x: Border::Wrap, y });
@@ -139,12 +141,12 @@ fn every_channel_layout_streams_the_whole_image_path_s_samples() {
                     match depth {
                         PngDepth::Eight => {
                             let mut t = vec![[0u8; 3]; w * h];
-                            normals_into(&heights, w, h, &opts, &mut t).unwrap();
+                            samples.normals_into(w, h, &opts, &mut t).unwrap();
                             encode_png_normals(&t, Some(&heights), w, h, layout, PngCompression::Fast, &mut whole)
                         }
                         PngDepth::Sixteen => {
                             let mut t = vec![[0u16; 3]; w * h];
-                            normals_into(&heights, w, h, &opts, &mut t).unwrap();
+                            samples.normals_into(w, h, &opts, &mut t).unwrap();
                             encode_png_normals(&t, Some(&heights), w, h, layout, PngCompression::Fast, &mut whole)
                         }
                     }

@@ -13,7 +13,6 @@ use std::io::Cursor;
 use libfuzzer_sys::fuzz_target;
 use normalfit::io::decode;
 use normalfit::io::stream::{ExrFormat, ExrRows, RowSource, convert_exr};
-use normalfit::normals_into;
 use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options, streamed_heights_match};
 
 fuzz_target!(|data: &[u8]| {
@@ -49,9 +48,9 @@ fuzz_target!(|data: &[u8]| {
     let out = decode(exr.get_ref(), &read_options()).expect("the streamed EXR decodes");
     assert_eq!((out.width, out.height), (w, h));
     let mut normals = vec![[0f32; 3]; w * h];
-    normals_into(&heights, w, h, &case.fit, &mut normals).expect("finite heights and valid options must fit");
+    heights.normals_into(w, h, &case.fit, &mut normals).expect("finite heights and valid options must fit");
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
-        let plane = &out.plane(name).expect("the streamed EXR has R, G and B").data;
+        let plane = out.plane(name).expect("the streamed EXR has R, G and B").data.to_f32().expect("memory");
         for (k, n) in normals.iter().enumerate() {
             let expected = (n[c] + 1.0) * 0.5;
             assert_eq!(plane[k].to_bits(), expected.to_bits(), "texel {k} channel {name} of the streamed EXR");

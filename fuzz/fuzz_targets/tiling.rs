@@ -19,7 +19,8 @@ fuzz_target!(|data: &[u8]| {
 
     // Every plane, the kind detected or forced.
     let opts = TilingOptions::new().with_kind(case.kind);
-    let planes: Vec<&[f32]> = raster.planes.iter().map(|p| p.data.as_slice()).collect();
+    let planes: Vec<Vec<f32>> = raster.planes.iter().map(|p| p.data.to_f32().expect("memory")).collect();
+    let planes: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
     assert_report(&check(&planes, w, h, &opts), &opts);
 
     // The height alone, whole and streamed.

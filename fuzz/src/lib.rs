@@ -11,7 +11,7 @@
 
 use normalfit::io::{Channel, Raster, ReadOptions};
 use normalfit::tiling::{AxisReport, KindChoice, TilingOptions, TilingReport};
-use normalfit::{Border, Borders, Convention, Error, Fit, Options, Strength};
+use normalfit::{Border, Borders, Convention, Error, Fit, Options, Samples, Strength};
 
 /// Small enough that a forged header costs the fuzzer little (a 1024² map
 /// decodes and fits in milliseconds), large enough for every code path:
@@ -125,33 +125,35 @@ pub fn decoded(data: &[u8]) -> Option<Raster> {
 
 /// After a streamed conversion of the bytes: when it and the whole-image
 /// decode both succeed, the rows the stream visited (`streamed`, of a `w` ×
-/// `h` image) are the decoded heights bit for bit, which are returned for
-/// the comparison of the outputs; `None` when either failed (cleanly).
+/// `h` image) are the decoded heights (in contract units, as f32) bit for
+/// bit, and the decoded samples are returned for the comparison of the
+/// outputs; `None` when either failed (cleanly).
 pub fn streamed_heights_match(
     data: &[u8],
     channel: Option<Channel>,
     conversion: &normalfit::Result<()>,
     streamed: &[f32],
     (w, h): (usize, usize),
-) -> Option<Vec<f32>> {
+) -> Option<Samples> {
     if let Err(e) = conversion {
         assert_clean_error(e);
     }
     let whole = normalfit::io::decode(data, &read_options()).and_then(|r| r.into_heights(channel));
     let (Ok(()), Ok(heights)) = (conversion, whole) else { return None };
     assert_eq!(streamed.len(), w * h, "the stream visited {} heights of {w} × {h}", streamed.len());
-    let same = streamed.iter().zip(&heights).all(|(a, b)| a.to_bits() == b.to_bits());
+    let whole = heights.to_f32().expect("memory for a copy");
+    let same = streamed.iter().zip(&whole).all(|(a, b)| a.to_bits() == b.to_bits());
     assert!(same, "streamed heights differ from the decoded ones");
     Some(heights)
 }
 
 /// Heights are `Ok` only when finite; otherwise the error is the channel's
 /// absence or a non-finite height, cleanly.
-pub fn check_heights(result: normalfit::Result<Vec<f32>>, texels: usize) -> Option<Vec<f32>> {
+pub fn check_heights<H: Heights>(result: normalfit::Result<H>, texels: usize) -> Option<H> {
     match result {
         Ok(h) => {
-            assert_eq!(h.len(), texels, "heights of the wrong length");
-            assert!(h.iter().all(|v| v.is_finite()), "non-finite height passed the check");
+            assert_eq!(h.count(), texels, "heights of the wrong length");
+            assert!((0..texels).all(|k| h.at(k).is_finite()), "non-finite height passed the check");
             Some(h)
         }
         Err(e) => {
@@ -162,6 +164,32 @@ pub fn check_heights(result: normalfit::Result<Vec<f32>>, texels: usize) -> Opti
             assert_clean_error(&e);
             None
         }
+    }
+}
+
+/// Heights as the fuzz targets check them: the f32 view or the samples.
+pub trait Heights {
+    /// How many.
+    fn count(&self) -> usize;
+    /// Height `k` in contract units.
+    fn at(&self, k: usize) -> f64;
+}
+
+impl Heights for Vec<f32> {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn at(&self, k: usize) -> f64 {
+        f64::from(self[k])
+    }
+}
+
+impl Heights for Samples {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn at(&self, k: usize) -> f64 {
+        self.height(k)
     }
 }
 

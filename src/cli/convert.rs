@@ -8,8 +8,8 @@ use std::sync::Mutex;
 
 use normalfit::io::stream::{self, ExrFormat, ExrRows, PngDepth, PngOutput, PngRows, RowSource};
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, Layout, PngCompression, ReadOptions, SampleType};
-use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
-use normalfit::{Border, Borders, FromNormal, Options, normals_and_residual_into, normals_into};
+use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions, TilingReport};
+use normalfit::{Border, Borders, FromNormal, Options, Samples};
 
 use super::args::{AlphaArg, AxisBorder, BorderArg, ChannelsArg, CompressionArg, ConvertArgs, FormatArg, OverwriteArg};
 use super::batch::{self, ClaimOrder, Job, RESIDUAL_SUFFIX};
@@ -211,9 +211,7 @@ impl Plan {
         }
         let (width, height) = (raster.width, raster.height);
         let heights = raster.into_heights(self.channel).map_err(|e| Failure::file(input.name(), e))?;
-        let report = self
-            .needs_check()
-            .then(|| tiling::check(&[&heights], width, height, &TilingOptions::new().with_kind(KindChoice::Height)));
+        let report = self.needs_check().then(|| seams_of(&heights, width, height));
         if let Some(report) = &report {
             self.warn_seams(report, input);
         }
@@ -231,6 +229,12 @@ impl Plan {
             .map_err(|e| Failure::file(input.name(), e))?;
         let texels = Texels::fit(&heights, width, height, &fit, &target, distances.as_deref_mut())
             .map_err(|e| Failure::file(input.name(), e))?;
+        // An alpha of heights takes them in contract units, as f32.
+        let heights = if target.layout.needs_heights() {
+            heights.into_f32().map_err(|e| Failure::file(input.name(), e))?
+        } else {
+            Vec::new()
+        };
         if write_normals {
             match &target.path {
                 Some(path) => {
@@ -563,7 +567,7 @@ impl Texels {
     /// Fits the normals for `target`'s encoding; with `residual`, the fit's
     /// RMS distances too (in surface units).
     fn fit(
-        heights: &[f32],
+        heights: &Samples,
         w: usize,
         h: usize,
         opts: &Options,
@@ -571,7 +575,7 @@ impl Texels {
         residual: Option<&mut [f32]>,
     ) -> normalfit::Result<Texels> {
         fn fitted<T: FromNormal + Default>(
-            heights: &[f32],
+            heights: &Samples,
             w: usize,
             h: usize,
             opts: &Options,
@@ -579,8 +583,8 @@ impl Texels {
         ) -> normalfit::Result<Vec<T>> {
             let mut texels = texel_buffer::<T>(heights.len())?;
             match residual {
-                Some(r) => normals_and_residual_into(heights, w, h, opts, &mut texels, r)?,
-                None => normals_into(heights, w, h, opts, &mut texels)?,
+                Some(r) => heights.normals_and_residual_into(w, h, opts, &mut texels, r)?,
+                None => heights.normals_into(w, h, opts, &mut texels)?,
             }
             Ok(texels)
         }
@@ -775,7 +779,7 @@ trait Reopen: RowSource + Sized {
         opts: &ReadOptions,
         channel: Option<Channel>,
         rows: usize,
-    ) -> Option<normalfit::Result<Vec<f32>>>;
+    ) -> Option<normalfit::Result<Vec<f64>>>;
 }
 
 impl Reopen for PngRows {
@@ -783,7 +787,7 @@ impl Reopen for PngRows {
         PngRows::open(path, opts, channel)
     }
 
-    fn last_rows(_: &Path, _: &ReadOptions, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f32>>> {
+    fn last_rows(_: &Path, _: &ReadOptions, _: Option<Channel>, _: usize) -> Option<normalfit::Result<Vec<f64>>> {
         // PNG cannot seek: its last rows come from a pass over the file.
         None
     }
@@ -799,7 +803,19 @@ impl Reopen for ExrRows {
         opts: &ReadOptions,
         channel: Option<Channel>,
         rows: usize,
-    ) -> Option<normalfit::Result<Vec<f32>>> {
+    ) -> Option<normalfit::Result<Vec<f64>>> {
         Some(ExrRows::last_rows(path, opts, channel, rows))
     }
+}
+
+/// The tiling check of heights held whole, a row at a time: the report
+/// `check` gives, without an `f32` copy of the image.
+fn seams_of(heights: &Samples, width: usize, height: usize) -> TilingReport {
+    let mut seams = HeightSeams::new(width, height);
+    let mut row = vec![0.0f32; width];
+    for y in 0..height {
+        heights.heights_f32_into(y * width, &mut row);
+        seams.push_row(&row);
+    }
+    seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))
 }

@@ -100,12 +100,12 @@ impl Plan {
     /// A normal map's stored colours back to normals: n = 2c − 1 per
     /// channel (c in [0, 1] as read), or n = c for `--signed` float maps.
     fn decode_normals(&self, raster: &Raster) -> Result<Vec<[f32; 3]>, String> {
-        let planes = rgb_planes(raster).ok_or("a normal map needs R, G and B channels")?;
+        let planes = rgb_planes(raster).map_err(|e| e.to_string())?.ok_or("a normal map needs R, G and B channels")?;
         if self.signed && raster.sample != SampleType::Float {
             return Err("--signed is for float (EXR) normal maps; an integer image stores (n + 1)/2".into());
         }
         let decode = |c: f32| if self.signed { c } else { 2.0 * c - 1.0 };
-        Ok((0..raster.width * raster.height).map(|k| planes.map(|p| decode(p[k]))).collect())
+        Ok((0..raster.width * raster.height).map(|k| planes.each_ref().map(|p| decode(p[k]))).collect())
     }
 
     /// A height map's normals, fitted with the command's options; `auto`

@@ -126,17 +126,19 @@ impl Previews {
         let (w, h) = (raster.width, raster.height);
         let fail = |e: normalfit::Error| Failure::file(input.name(), e);
         if let Some(target) = &self.plain {
-            let rgb = match (report.kind, rgb_planes(raster)) {
-                (ImageKind::Normal, Some(planes)) => {
-                    (0..w * h).map(|k| planes.map(|p| (p[k].clamp(0.0, 1.0) * 255.0).round() as u8)).collect()
-                }
+            let rgb = match (report.kind, rgb_planes(raster).map_err(fail)?) {
+                (ImageKind::Normal, Some(planes)) => (0..w * h)
+                    .map(|k| planes.each_ref().map(|p| (p[k].clamp(0.0, 1.0) * 255.0).round() as u8))
+                    .collect(),
                 _ => stretched_gray(&raster.heights(channel).map_err(fail)?),
             };
             self.save(&target.path_for(input, "preview"), &tiling::shift_half(&rgb, w, h), w, h)?;
         }
         if let Some(target) = &self.lit {
-            let normals: Vec<[f32; 3]> = match (report.kind, rgb_planes(raster)) {
-                (ImageKind::Normal, Some(planes)) => (0..w * h).map(|k| planes.map(|p| 2.0 * p[k] - 1.0)).collect(),
+            let normals: Vec<[f32; 3]> = match (report.kind, rgb_planes(raster).map_err(fail)?) {
+                (ImageKind::Normal, Some(planes)) => {
+                    (0..w * h).map(|k| planes.each_ref().map(|p| 2.0 * p[k] - 1.0)).collect()
+                }
                 _ => {
                     let heights = raster.heights(channel).map_err(fail)?;
                     let opts = Options::new().with_strength(Strength::Scale(exposure(&heights, w)));
@@ -157,11 +159,12 @@ impl Previews {
     }
 }
 
-/// The R, G and B planes, when the image has all three.
-pub fn rgb_planes(raster: &Raster) -> Option<[&[f32]; 3]> {
+/// The R, G and B planes as stored values in [0, 1] (integers divided by
+/// their top value), when the image has all three.
+pub fn rgb_planes(raster: &Raster) -> normalfit::Result<Option<[Vec<f32>; 3]>> {
     match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
-        (Some(r), Some(g), Some(b)) => Some([&r.data, &g.data, &b.data]),
-        _ => None,
+        (Some(r), Some(g), Some(b)) => Ok(Some([r.data.to_f32()?, g.data.to_f32()?, b.data.to_f32()?])),
+        _ => Ok(None),
     }
 }
 
@@ -190,11 +193,11 @@ pub fn report_of(
     opts: &TilingOptions,
 ) -> normalfit::Result<TilingReport> {
     let (w, h) = (raster.width, raster.height);
-    let rgb = rgb_planes(raster);
+    let rgb = rgb_planes(raster)?;
     let kind = kind_of(raster, kind, channel)?;
     let fixed = TilingOptions { kind: kind_choice(kind), ..*opts };
     Ok(match (kind, rgb) {
-        (ImageKind::Normal, Some(planes)) => tiling::check(&planes, w, h, &fixed),
+        (ImageKind::Normal, Some(planes)) => tiling::check(&planes.each_ref().map(Vec::as_slice), w, h, &fixed),
         _ => {
             let heights = raster.heights(channel)?;
             tiling::check(&[&heights], w, h, &fixed)
@@ -205,13 +208,15 @@ pub fn report_of(
 /// What a decoded image holds: as asked, or detected from its R, G, B
 /// planes. Naming a height channel (`channel`) says it is a height map.
 pub fn kind_of(raster: &Raster, kind: KindArg, channel: Option<Channel>) -> normalfit::Result<ImageKind> {
-    Ok(match (kind, rgb_planes(raster)) {
+    Ok(match (kind, rgb_planes(raster)?) {
         (KindArg::Height, _) => ImageKind::Height,
         (KindArg::Normal, Some(_)) => ImageKind::Normal,
         (KindArg::Normal, None) => {
             return Err(normalfit::Error::Unsupported("a normal map needs R, G and B channels".into()));
         }
-        (KindArg::Auto, Some(planes)) if channel.is_none() => ImageKind::detect(&planes, raster.width, raster.height),
+        (KindArg::Auto, Some(planes)) if channel.is_none() => {
+            ImageKind::detect(&planes.each_ref().map(Vec::as_slice), raster.width, raster.height)
+        }
         (KindArg::Auto, _) => ImageKind::Height,
     })
 }

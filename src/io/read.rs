@@ -18,8 +18,10 @@
 //!   must be in the file).
 //! * Large buffers are reserved with `try_reserve_exact`, so running out of
 //!   memory for an image under the limit is an error, not an abort.
-//! * Values are stored already in contract units (SPEC §1): integer samples
-//!   divided by 2^bits − 1, float samples as stored. NaN and infinities are
+//! * Values are kept as they were stored ([`Samples`]): 8- and 16-bit
+//!   integers as integers, whose height is value / (2^bits − 1) (SPEC §1),
+//!   floats as floats. Dividing first and rounding to `f32` would move
+//!   normals at high gains (see [`crate::samples`]). NaN and infinities are
 //!   kept in the planes; only [`Raster::heights`] rejects them, because only
 //!   the channel that becomes the height matters.
 
@@ -33,6 +35,7 @@ use tiff::tags::{SampleFormat, Tag};
 
 use super::memory;
 use crate::error::{Error, Result, one_line};
+use crate::samples::{Samples, luma, try_vec};
 
 /// Which channel of the image gives the height (SPEC §1, `--channel`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -124,16 +127,16 @@ impl SampleType {
     }
 }
 
-/// One channel of an image: row-major, `width * height` values in contract
-/// units.
+/// One channel of an image: row-major, `width * height` samples as stored
+/// (see [`Samples`] for their heights in contract units).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plane {
     /// The channel's name: "Y" (gray), "R", "G", "B", "A" for the formats
     /// `image` and `tiff` read; the file's own channel names for EXR
     /// ("height", "diffuse.R", …).
     pub name: String,
-    /// The values, row 0 first.
-    pub data: Vec<f32>,
+    /// The samples, row 0 first.
+    pub data: Samples,
 }
 
 /// A decoded image, one plane per channel.
@@ -197,16 +200,6 @@ pub(crate) const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 /// big-endian.
 const TIFF_MAGIC: [[u8; 4]; 4] = [*b"II*\0", *b"MM\0*", *b"II+\0", *b"MM\0+"];
 
-/// Rec. 709 luma weights of R, G and B (SPEC §1).
-pub(crate) const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
-
-/// The luma of one texel, computed in f64 and rounded to f32 once, so it
-/// does not depend on summation order (and every reader gets the same bits).
-#[inline]
-pub(crate) fn luma(r: f32, g: f32, b: f32) -> f32 {
-    (LUMA[0] * f64::from(r) + LUMA[1] * f64::from(g) + LUMA[2] * f64::from(b)) as f32
-}
-
 /// Decodes an image from its bytes, choosing the decoder from the content.
 ///
 /// Errors: [`Error::Decode`] for empty, unknown, corrupt, truncated or
@@ -255,21 +248,31 @@ impl Raster {
     ///   dot-separated part ("diffuse.R" is R).
     /// * `A` gives alpha, an error when there is none.
     ///
+    /// The heights are rounded to `f32`, for views and checks; the fit
+    /// takes the samples themselves ([`Raster::into_heights`]).
+    ///
     /// Errors: [`Error::Unsupported`] when the channel is missing,
     /// [`Error::NonFiniteHeight`] naming the first NaN or infinite height in
     /// row order.
     pub fn heights(&self, channel: Option<Channel>) -> Result<Vec<f32>> {
         let heights = match self.select(channel)? {
-            Source::Plane(i) => copy_plane(&self.planes[i].data)?,
-            Source::Luma(rgb) => self.luma(rgb)?,
+            Source::Plane(i) => self.planes[i].data.to_f32()?,
+            Source::Luma(rgb) => self.luma(rgb)?.into_f32()?,
         };
-        self.check_finite(&heights)?;
-        Ok(heights)
+        // After the rounding: a double beyond f32's range is infinite here.
+        match crate::fit::first_non_finite(&heights, self.width.max(1)) {
+            None => Ok(heights),
+            Some((x, y)) => Err(Error::NonFiniteHeight { x, y }),
+        }
     }
 
-    /// Like [`Raster::heights`], but moves the chosen plane out instead of
-    /// copying it when the heights are one stored channel.
-    pub fn into_heights(mut self, channel: Option<Channel>) -> Result<Vec<f32>> {
+    /// The samples the heights are made of, chosen as [`Raster::heights`]
+    /// chooses them, as stored (one channel, moved out, not copied) or as
+    /// luma in f64: what the fit reads, with no rounding between the file
+    /// and the fit.
+    ///
+    /// Errors: as [`Raster::heights`].
+    pub fn into_heights(mut self, channel: Option<Channel>) -> Result<Samples> {
         let heights = match self.select(channel)? {
             Source::Plane(i) => self.planes.swap_remove(i).data,
             Source::Luma(rgb) => self.luma(rgb)?,
@@ -290,21 +293,22 @@ impl Raster {
         select_channel(&names, channel)
     }
 
-    /// Luma of three planes, each texel computed in f64 and rounded to f32
-    /// once, so the result does not depend on f32 summation order.
-    fn luma(&self, [r, g, b]: [usize; 3]) -> Result<Vec<f32>> {
+    /// Luma of three planes in contract units, each texel in f64 by the one
+    /// formula every reader uses ([`luma`]).
+    fn luma(&self, [r, g, b]: [usize; 3]) -> Result<Samples> {
         let (r, g, b) = (&self.planes[r].data, &self.planes[g].data, &self.planes[b].data);
-        let mut out = try_vec(r.len())?;
-        out.par_extend(r.par_iter().zip(g.par_iter()).zip(b.par_iter()).map(|((&r, &g), &b)| luma(r, g, b)));
-        Ok(out)
+        let len = r.len().min(g.len()).min(b.len());
+        let mut out = try_vec(len)?;
+        out.par_extend((0..len).into_par_iter().map(|i| luma(r.height(i), g.height(i), b.height(i))));
+        Ok(Samples::F64(out))
     }
 
     /// SPEC §1: a NaN or infinite height is an error naming the first such
     /// texel in row order.
-    fn check_finite(&self, heights: &[f32]) -> Result<()> {
-        match heights.par_iter().position_first(|h| !h.is_finite()) {
-            None => Ok(()),
-            Some(i) => Err(Error::NonFiniteHeight { x: i % self.width.max(1), y: i / self.width.max(1) }),
+    fn check_finite<'s>(&self, heights: &'s Samples) -> Result<&'s Samples> {
+        match heights.first_non_finite(self.width.max(1)) {
+            None => Ok(heights),
+            Some((x, y)) => Err(Error::NonFiniteHeight { x, y }),
         }
     }
 }
@@ -403,22 +407,6 @@ impl Names<'_> {
         }
         self.0.join(", ")
     }
-}
-
-/// A vector with room for `len` values, or [`Error::Limits`] if the memory
-/// is not there (instead of the abort a plain allocation would give).
-fn try_vec<T>(len: usize) -> Result<Vec<T>> {
-    let mut v = Vec::new();
-    v.try_reserve_exact(len)
-        .map_err(|_| Error::Limits(format!("cannot allocate {len} values of {} bytes", size_of::<T>())))?;
-    Ok(v)
-}
-
-/// A copy of a plane, allocated fallibly.
-fn copy_plane(data: &[f32]) -> Result<Vec<f32>> {
-    let mut out = try_vec(data.len())?;
-    out.extend_from_slice(data);
-    Ok(out)
 }
 
 /// The error for a layer asked for in a format without layers.
@@ -613,7 +601,7 @@ fn layout(color: ColorType) -> Result<(&'static [&'static str], SampleType)> {
     })
 }
 
-/// Splits interleaved native-endian samples into planes in contract units.
+/// Splits interleaved native-endian samples into planes, as stored.
 fn deinterleave(buf: &[u8], names: &[&str], sample: SampleType, texels: usize) -> Result<Vec<Plane>> {
     let bytes = match sample {
         SampleType::Int { bits: 8 } => 1,
@@ -630,13 +618,15 @@ fn deinterleave(buf: &[u8], names: &[&str], sample: SampleType, texels: usize) -
         .enumerate()
         .map(|(c, name)| {
             let o = c * bytes;
-            let mut data = try_vec(texels)?;
             let px = buf.par_chunks_exact(stride);
-            match bytes {
-                1 => data.par_extend(px.map(|p| f32::from(p[o]) / 255.0)),
-                2 => data.par_extend(px.map(|p| f32::from(u16::from_ne_bytes([p[o], p[o + 1]])) / 65535.0)),
-                _ => data.par_extend(px.map(|p| f32::from_ne_bytes([p[o], p[o + 1], p[o + 2], p[o + 3]]))),
-            }
+            let data = match bytes {
+                1 => Samples::U8(par_collect(texels, px.map(|p| p[o]))?),
+                2 => Samples::U16(par_collect(texels, px.map(|p| u16::from_ne_bytes([p[o], p[o + 1]])))?),
+                _ => Samples::F32(par_collect(
+                    texels,
+                    px.map(|p| f32::from_ne_bytes([p[o], p[o + 1], p[o + 2], p[o + 3]])),
+                )?),
+            };
             Ok(Plane { name: (*name).to_string(), data })
         })
         .collect()
@@ -809,9 +799,10 @@ fn tiff_limits(opts: &ReadOptions, kind: TiffGray) -> tiff::decoder::Limits {
     limits
 }
 
-/// Native-endian samples (as `tiff` leaves them) to heights in contract
-/// units.
-fn tiff_samples(buf: &[u8], kind: TiffGray, texels: usize) -> Result<Vec<f32>> {
+/// Native-endian samples (as `tiff` leaves them) to samples the fit reads:
+/// floats as stored (half widened to `f32`), other integers as heights in
+/// contract units in f64.
+fn tiff_samples(buf: &[u8], kind: TiffGray, texels: usize) -> Result<Samples> {
     let size = kind.bytes();
     if buf.len() != texels.saturating_mul(size) {
         return Err(Error::Decode(format!("decoder gave {} bytes for {texels} texels of {size} bytes", buf.len())));
@@ -822,19 +813,27 @@ fn tiff_samples(buf: &[u8], kind: TiffGray, texels: usize) -> Result<Vec<f32>> {
     // 2^32 − 1 and 2^64 − 1 (the latter rounds to 2^64 in f64).
     const U32_TOP: f64 = u32::MAX as f64;
     const U64_TOP: f64 = u64::MAX as f64;
-    let mut data = try_vec(texels)?;
     let px = buf.par_chunks_exact(size);
+    let f32s = |f: fn(&[u8]) -> f32| par_collect(texels, px.clone().map(f)).map(Samples::F32);
+    let f64s = |f: fn(&[u8]) -> f64| par_collect(texels, px.clone().map(f)).map(Samples::F64);
     match kind {
-        TiffGray::F16 => data.par_extend(px.map(|p| exr::prelude::f16::from_bits(u16::from_ne_bytes(ne(p))).to_f32())),
-        TiffGray::F32 => data.par_extend(px.map(|p| f32::from_ne_bytes(ne(p)))),
-        TiffGray::F64 => data.par_extend(px.map(|p| f64::from_ne_bytes(ne(p)) as f32)),
-        TiffGray::U32 => data.par_extend(px.map(|p| (f64::from(u32::from_ne_bytes(ne(p))) / U32_TOP) as f32)),
-        TiffGray::U64 => data.par_extend(px.map(|p| (u64::from_ne_bytes(ne(p)) as f64 / U64_TOP) as f32)),
-        TiffGray::I8 => data.par_extend(px.map(|p| f32::from(i8::from_ne_bytes(ne(p))) / 255.0)),
-        TiffGray::I16 => data.par_extend(px.map(|p| f32::from(i16::from_ne_bytes(ne(p))) / 65535.0)),
-        TiffGray::I32 => data.par_extend(px.map(|p| (f64::from(i32::from_ne_bytes(ne(p))) / U32_TOP) as f32)),
-        TiffGray::I64 => data.par_extend(px.map(|p| (i64::from_ne_bytes(ne(p)) as f64 / U64_TOP) as f32)),
+        TiffGray::F16 => f32s(|p| exr::prelude::f16::from_bits(u16::from_ne_bytes(ne(p))).to_f32()),
+        TiffGray::F32 => f32s(|p| f32::from_ne_bytes(ne(p))),
+        TiffGray::F64 => f64s(|p| f64::from_ne_bytes(ne(p))),
+        TiffGray::U32 => f64s(|p| f64::from(u32::from_ne_bytes(ne(p))) / U32_TOP),
+        TiffGray::U64 => f64s(|p| u64::from_ne_bytes(ne(p)) as f64 / U64_TOP),
+        TiffGray::I8 => f64s(|p| f64::from(i8::from_ne_bytes(ne(p))) / 255.0),
+        TiffGray::I16 => f64s(|p| f64::from(i16::from_ne_bytes(ne(p))) / 65535.0),
+        TiffGray::I32 => f64s(|p| f64::from(i32::from_ne_bytes(ne(p))) / U32_TOP),
+        TiffGray::I64 => f64s(|p| i64::from_ne_bytes(ne(p)) as f64 / U64_TOP),
     }
+}
+
+/// The values of a parallel iterator of `len` items in a vector allocated
+/// fallibly.
+fn par_collect<T: Send>(len: usize, values: impl ParallelIterator<Item = T>) -> Result<Vec<T>> {
+    let mut data = try_vec(len)?;
+    data.par_extend(values);
     Ok(data)
 }
 
@@ -1099,17 +1098,18 @@ fn exr_plane(channel: exr::prelude::AnyChannel<exr::prelude::FlatSamples>, texel
     use exr::prelude::FlatSamples;
     let name = channel.name.to_string();
     let data = match channel.sample_data {
-        FlatSamples::F32(v) => v,
+        FlatSamples::F32(v) => Samples::F32(v),
         FlatSamples::F16(v) => {
             let mut out = try_vec(v.len())?;
             out.par_extend(v.par_iter().map(|h| h.to_f32()));
-            out
+            Samples::F32(out)
         }
         FlatSamples::U32(v) => {
+            // SPEC treats EXR as a float image: the value is the height.
+            // f64 holds every u32 exactly (f32 would round above 2^24).
             let mut out = try_vec(v.len())?;
-            // u32 → f32 rounds above 2^24; SPEC treats EXR as a float image.
-            out.par_extend(v.par_iter().map(|&n| n as f32));
-            out
+            out.par_extend(v.par_iter().map(|&n| f64::from(n)));
+            Samples::F64(out)
         }
     };
     if data.len() != texels {

@@ -35,7 +35,14 @@ pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
 }
 
 /// The N² points (u, v, z) of texel (x, y)'s patch.
-fn patch_points(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> Vec<[f64; 3]> {
+fn patch_points<H: Copy + Into<f64>>(
+    heights: &[H],
+    w: usize,
+    h: usize,
+    opts: &Options,
+    x: usize,
+    y: usize,
+) -> Vec<[f64; 3]> {
     let n = opts.patch as i64;
     let r = n / 2;
     let s = opts.scale_for_width(w);
@@ -48,7 +55,7 @@ fn patch_points(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y
         for i in -r..=r {
             let sx = source_index(x as i64 + i, w as i64, opts.borders.x) as usize;
             let sy = source_index(y as i64 + j, h as i64, opts.borders.y) as usize;
-            pts.push([i as f64, sigma * j as f64, s * heights[sy * w + sx] as f64]);
+            pts.push([i as f64, sigma * j as f64, s * heights[sy * w + sx].into()]);
         }
     }
     pts
@@ -61,7 +68,7 @@ fn patch_points(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y
 /// normal's horizontal plane included). Vertical fit: z minus the least
 /// squares plane c0 + c1·u + c2·v, or minus the mean where the contract
 /// calls the patch flat.
-pub fn residual_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> f64 {
+pub fn residual_at<H: Copy + Into<f64>>(heights: &[H], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> f64 {
     let pts = patch_points(heights, w, h, opts, x, y);
     let count = pts.len() as f64;
     let mean = centroid(&pts);
@@ -101,7 +108,14 @@ fn least_squares_plane(pts: &[[f64; 3]]) -> [f64; 3] {
 }
 
 /// The reference normal of texel (x, y).
-pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> [f64; 3] {
+pub fn normal_at<H: Copy + Into<f64>>(
+    heights: &[H],
+    w: usize,
+    h: usize,
+    opts: &Options,
+    x: usize,
+    y: usize,
+) -> [f64; 3] {
     let pts = patch_points(heights, w, h, opts, x, y);
     let mean = centroid(&pts);
     let mut cov = [[0.0f64; 3]; 3];
@@ -131,7 +145,7 @@ pub fn normal_at(heights: &[f32], w: usize, h: usize, opts: &Options, x: usize, 
 }
 
 /// The whole reference normal map.
-pub fn normal_map(heights: &[f32], w: usize, h: usize, opts: &Options) -> Vec<[f64; 3]> {
+pub fn normal_map<H: Copy + Into<f64>>(heights: &[H], w: usize, h: usize, opts: &Options) -> Vec<[f64; 3]> {
     let mut out = Vec::with_capacity(w * h);
     for y in 0..h {
         for x in 0..w {

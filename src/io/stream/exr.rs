@@ -17,11 +17,12 @@ use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
 use crate::io::read::{
-    Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer, from_exr_error, luma,
+    Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer, from_exr_error,
     select_channel,
 };
 use crate::io::write::{Container, ExrDepth, Layout, lay_out, write_exr_rows};
 use crate::options::Options;
+use crate::samples::luma;
 
 /// The decompressed blocks of a file, in the order they finish.
 type Blocks = Box<dyn Iterator<Item = exr::error::Result<UncompressedBlock>> + Send>;
@@ -42,7 +43,7 @@ pub struct ExrRows {
     /// Blocks that arrived before their turn, by first row.
     early: BTreeMap<usize, UncompressedBlock>,
     /// The heights of the block being handed out, from row `current_y0`.
-    current: Vec<f32>,
+    current: Vec<f64>,
     current_y0: usize,
     /// The next row handed out.
     next: usize,
@@ -70,13 +71,13 @@ impl ExrRows {
     ///
     /// Errors: as [`ExrRows::open`], and [`Error::Unsupported`] if the file
     /// cannot stream.
-    pub fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Result<Vec<f32>> {
+    pub fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Result<Vec<f64>> {
         let probe = Self::open(path, opts, channel)?.ok_or_else(not_streamable)?;
         let (w, h) = (probe.width, probe.height);
         drop(probe);
         let keep = rows.min(h);
         let mut source = Self::open_from(path, opts, channel, h - keep)?.ok_or_else(not_streamable)?;
-        let mut tail = vec![0.0f32; keep * w];
+        let mut tail = super::zeroed(keep * w)?;
         tail.chunks_exact_mut(w.max(1)).try_for_each(|row| source.next_row(row))?;
         Ok(tail)
     }
@@ -177,24 +178,30 @@ impl ExrRows {
             Source::Plane(c) => vec![c],
             Source::Luma(rgb) => rgb.to_vec(),
         };
-        let mut planes = vec![vec![0.0f32; rows * w]; wanted.len()];
+        let mut planes = vec![vec![0.0f64; rows * w]; wanted.len()];
         for line in block.lines(&self.channels) {
             let Some(k) = wanted.iter().position(|&c| c == line.location.channel) else { continue };
             let row = line.location.position.y() - y0;
             let out = &mut planes[k][row * w..][..w];
+            // Every sample type widened to f64, exactly (the whole-image
+            // reader keeps u32 in f64 too).
             let read = match self.channels.list[line.location.channel].sample_type {
-                ExrSample::F32 => line.read_samples_into_slice(out),
+                ExrSample::F32 => {
+                    let mut floats = vec![0.0f32; w];
+                    line.read_samples_into_slice(&mut floats).map(|()| {
+                        out.iter_mut().zip(&floats).for_each(|(o, &v)| *o = f64::from(v));
+                    })
+                }
                 ExrSample::F16 => {
                     let mut halves = vec![f16::ZERO; w];
                     line.read_samples_into_slice(&mut halves).map(|()| {
-                        out.iter_mut().zip(&halves).for_each(|(o, h)| *o = h.to_f32());
+                        out.iter_mut().zip(&halves).for_each(|(o, h)| *o = f64::from(h.to_f32()));
                     })
                 }
                 ExrSample::U32 => {
                     let mut ints = vec![0u32; w];
-                    // u32 → f32 rounds above 2^24, as the whole-image reader does.
                     line.read_samples_into_slice(&mut ints).map(|()| {
-                        out.iter_mut().zip(&ints).for_each(|(o, &n)| *o = n as f32);
+                        out.iter_mut().zip(&ints).for_each(|(o, &n)| *o = f64::from(n));
                     })
                 }
             };
@@ -218,7 +225,11 @@ impl RowSource for ExrRows {
         self.height
     }
 
-    fn next_row(&mut self, out: &mut [f32]) -> Result<()> {
+    fn unit(&self) -> f64 {
+        1.0
+    }
+
+    fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
         let (w, y) = (self.width, self.next);
         if y >= self.height {
             return Err(Error::Decode(format!("all {} rows have been read", self.height)));
@@ -266,7 +277,7 @@ pub struct ExrFormat {
 /// a wrap in y without `tail`, [`Error::Io`] if writing fails.
 pub fn convert_exr<W: Write + Seek>(
     rows: impl RowSource,
-    tail: Option<&[f32]>,
+    tail: Option<&[f64]>,
     opts: &Options,
     format: ExrFormat,
     visit: impl FnMut(&[f32]) + Send,
@@ -274,14 +285,15 @@ pub fn convert_exr<W: Write + Seek>(
 ) -> Result<()> {
     let (w, h) = (rows.width(), rows.height());
     let tail = checked_tail(tail, w, h, opts)?;
-    let fit = BandFit::new(w, h, opts)?;
+    let unit = rows.unit();
+    let fit = BandFit::new(w, h, opts)?.with_unit(unit);
     let ExrFormat { depth, signed, layout } = format;
     write_exr_rows(out, w, h, depth, layout.exr_channels(), |push| {
         let prepare = |rows: Range<usize>, mut normals: Vec<[f32; 3]>, row: &Rows<'_>| {
             if !signed {
                 normals.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
             }
-            let heights = heights_for(layout, rows, row);
+            let heights = heights_for(layout, rows, row, unit);
             let mut samples = Vec::with_capacity(normals.len() * layout.exr_channels().len());
             lay_out(&normals, &heights, layout, Container::Exr, &mut samples);
             samples

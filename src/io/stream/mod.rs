@@ -37,8 +37,16 @@ use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal, first_non_finite};
 use crate::io::write::Layout;
 use crate::options::{Border, Options};
+use crate::samples::try_vec;
 
 /// The rows of a height map, top to bottom, decoded as they are asked for.
+///
+/// Rows are `f64` values, each the stored sample (an 8- or 16-bit
+/// integer, or a float) or a height computed from several (luma): `f64`
+/// holds them all exactly, and the height of a value v is
+/// v · [`unit`](Self::unit). Integers are not divided before the fit,
+/// which folds the unit into its gain, as it does for the same samples
+/// decoded whole ([`crate::samples`]), and so gives the same bits.
 pub trait RowSource: Send {
     /// Columns.
     fn width(&self) -> usize;
@@ -46,26 +54,36 @@ pub trait RowSource: Send {
     /// Rows.
     fn height(&self) -> usize;
 
-    /// Decodes the next row into `out` (`width` heights, in contract units).
+    /// The height of a row value of 1: 1 / (2^bits − 1) for integer
+    /// samples as stored, 1 for floats and heights.
+    fn unit(&self) -> f64;
+
+    /// Decodes the next row into `out` (`width` values).
     ///
     /// Errors: [`Error::Decode`] for corrupt or truncated data, or when all
     /// rows have been read.
-    fn next_row(&mut self, out: &mut [f32]) -> Result<()>;
+    fn next_row(&mut self, out: &mut [f64]) -> Result<()>;
 
-    /// Reads every row, giving each to `visit`, and returns the last
-    /// `rows` rows (fewer if the image is shorter): the first pass of a
-    /// conversion that wraps across the top and bottom.
-    fn read_tail(mut self, rows: usize, mut visit: impl FnMut(&[f32])) -> Result<Vec<f32>>
+    /// Reads every row, giving each to `visit` as heights in contract
+    /// units, and returns the last `rows` rows (fewer if the image is
+    /// shorter), as stored: the first pass of a conversion that wraps
+    /// across the top and bottom.
+    ///
+    /// Errors: those of [`next_row`](Self::next_row); [`Error::Limits`]
+    /// if the memory for the rows is not there.
+    fn read_tail(mut self, rows: usize, mut visit: impl FnMut(&[f32])) -> Result<Vec<f64>>
     where
         Self: Sized,
     {
-        let (w, h) = (self.width(), self.height());
+        let (w, h, unit) = (self.width(), self.height(), self.unit());
         let keep = rows.min(h);
-        let mut tail = vec![0.0f32; keep * w];
-        let mut row = vec![0.0f32; w];
+        let mut tail = zeroed(keep * w)?;
+        let mut row = zeroed(w)?;
+        let mut heights = zeroed(w)?;
         for y in 0..h {
             self.next_row(&mut row)?;
-            visit(&row);
+            to_heights(&row, unit, &mut heights);
+            visit(&heights);
             if y + keep >= h {
                 tail[(y + keep - h) * w..][..w].copy_from_slice(&row);
             }
@@ -74,9 +92,27 @@ pub trait RowSource: Send {
     }
 }
 
+/// `len` zeros, allocated fallibly: a row of a very wide image may not fit
+/// in what the process may still take, which is an error, not an abort.
+fn zeroed<T: Default + Clone>(len: usize) -> Result<Vec<T>> {
+    let mut v = try_vec(len)?;
+    v.resize(len, T::default());
+    Ok(v)
+}
+
+/// A row of values in units of `unit` as heights in contract units,
+/// rounded to `f32` (what the tiling check and an alpha of heights take):
+/// the same numbers as [`crate::Samples::to_f32`] gives of the same
+/// samples decoded whole.
+fn to_heights(row: &[f64], unit: f64, out: &mut [f32]) {
+    for (o, &v) in out.iter_mut().zip(row) {
+        *o = (v * unit) as f32;
+    }
+}
+
 /// `tail` if it is what a conversion with `opts` of a `w` × `h` image
 /// needs: the last N/2 rows when it wraps in y (where it is required).
-fn checked_tail<'a>(tail: Option<&'a [f32]>, w: usize, h: usize, opts: &Options) -> Result<Option<&'a [f32]>> {
+fn checked_tail<'a>(tail: Option<&'a [f64]>, w: usize, h: usize, opts: &Options) -> Result<Option<&'a [f64]>> {
     let expected = (opts.patch / 2).min(h) * w;
     match tail {
         Some(t) if t.len() == expected => Ok(Some(t)),
@@ -88,10 +124,15 @@ fn checked_tail<'a>(tail: Option<&'a [f32]>, w: usize, h: usize, opts: &Options)
     }
 }
 
-/// The heights of the image's `rows`, one row after the other, for a
-/// layout that writes them (an alpha of heights); nothing otherwise.
-fn heights_for(layout: Layout, rows: Range<usize>, row: &Rows<'_>) -> Vec<f32> {
-    if layout.needs_heights() { rows.flat_map(|y| row(y).iter().copied()).collect() } else { Vec::new() }
+/// The heights of the image's `rows` in contract units, one row after the
+/// other, for a layout that writes them (an alpha of heights); nothing
+/// otherwise.
+fn heights_for(layout: Layout, rows: Range<usize>, row: &Rows<'_>, unit: f64) -> Vec<f32> {
+    if layout.needs_heights() {
+        rows.flat_map(|y| row(y).iter().map(move |&v| (v * unit) as f32)).collect()
+    } else {
+        Vec::new()
+    }
 }
 
 /// A band of rows between stages: its first row and its values (heights,
@@ -99,7 +140,7 @@ fn heights_for(layout: Layout, rows: Range<usize>, row: &Rows<'_>) -> Vec<f32> {
 type Band<T> = Result<(usize, Vec<T>)>;
 
 /// Source row y of the image, while the band that reads it is fitted.
-type Rows<'a> = dyn Fn(usize) -> &'a [f32] + 'a;
+type Rows<'a> = dyn Fn(usize) -> &'a [f64] + 'a;
 
 /// What is done with each fitted band.
 struct Stages<Prepare, Consume> {
@@ -117,7 +158,7 @@ struct Stages<Prepare, Consume> {
 fn run<S, T, B, Prepare, Consume>(
     mut rows: S,
     fit: &BandFit,
-    tail: Option<&[f32]>,
+    tail: Option<&[f64]>,
     deferred: bool,
     mut visit: impl FnMut(&[f32]) + Send,
     stages: Stages<Prepare, Consume>,
@@ -132,12 +173,13 @@ where
     let Stages { prepare, mut consume } = stages;
     // Two bands in flight between stages keep every stage busy without
     // holding more than a few bands.
-    let (heights_tx, heights_rx) = sync_channel::<Band<f32>>(2);
+    let (heights_tx, heights_rx) = sync_channel::<Band<f64>>(2);
     let (out_tx, out_rx) = sync_channel::<Band<B>>(2);
     let band = fit.band_rows();
+    let unit = rows.unit();
     std::thread::scope(|scope| -> Result<()> {
         scope.spawn(move || decode_stage(&mut rows, band, &heights_tx));
-        scope.spawn(move || fit_stage(fit, tail, deferred, &mut visit, prepare, heights_rx, &out_tx));
+        scope.spawn(move || fit_stage(fit, unit, tail, deferred, &mut visit, prepare, heights_rx, &out_tx));
         // Returning early drops the receiver, which stops the other stages.
         for message in out_rx {
             let (y0, values) = message?;
@@ -150,11 +192,17 @@ where
 /// Decodes bands of `band` rows and sends them on; stops at the first
 /// error (sent on) or when the receiver is gone. Decoding is the one stage
 /// that cannot be split, so it does nothing else.
-fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f32>>) {
+fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f64>>) {
     let (w, h) = (rows.width(), rows.height());
     for y0 in (0..h).step_by(band) {
         let n = band.min(h - y0);
-        let mut heights = vec![0.0f32; n * w];
+        let mut heights = match zeroed(n * w) {
+            Ok(heights) => heights,
+            Err(e) => {
+                let _ = tx.send(Err(e));
+                return;
+            }
+        };
         let result = heights.chunks_exact_mut(w).try_for_each(|row| rows.next_row(row));
         let failed = result.is_err();
         if tx.send(result.map(|()| (y0, heights))).is_err() || failed {
@@ -166,7 +214,7 @@ fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f32
 /// The first NaN or infinite height in row order among the bands `rx`
 /// delivers, knowing that texel `known` of a later row is one: the error
 /// that names it (or the decoder's error, if one comes first).
-fn first_bad_texel(rx: Receiver<Band<f32>>, w: usize, known: (usize, usize)) -> Error {
+fn first_bad_texel(rx: Receiver<Band<f64>>, w: usize, known: (usize, usize)) -> Error {
     for band in rx {
         match band {
             Ok((first, rows)) => {
@@ -184,16 +232,18 @@ fn first_bad_texel(rx: Receiver<Band<f32>>, w: usize, known: (usize, usize)) -> 
 }
 
 /// Fits each band once the rows it reads are in, prepares it for the
-/// encoder and sends it on; gives every row that comes in to `visit`.
-/// `deferred`: the top band is fitted last, when the image's last rows are
-/// in.
+/// encoder and sends it on; gives every row that comes in to `visit`, as
+/// heights (values times `unit`). `deferred`: the top band is fitted last,
+/// when the image's last rows are in.
+#[allow(clippy::too_many_arguments)] // the stage's inputs, outputs and the two ends of its channels
 fn fit_stage<T: FromNormal + Default, B>(
     fit: &BandFit,
-    tail: Option<&[f32]>,
+    unit: f64,
+    tail: Option<&[f64]>,
     deferred: bool,
     visit: &mut dyn FnMut(&[f32]),
     mut prepare: impl for<'r> FnMut(Range<usize>, Vec<T>, &Rows<'r>) -> Vec<B>,
-    rx: Receiver<Band<f32>>,
+    rx: Receiver<Band<f64>>,
     tx: &SyncSender<Band<B>>,
 ) {
     let (w, h, r) = (fit.width(), fit.height(), fit.radius());
@@ -210,10 +260,11 @@ fn fit_stage<T: FromNormal + Default, B>(
     // The decoded bands that later bands still read, as they came (first
     // row, heights), and a copy of the image's first 2r rows, which the top
     // band and a wrap at the bottom read after they have left.
-    let mut window: std::collections::VecDeque<(usize, Vec<f32>)> = std::collections::VecDeque::new();
+    let mut window: std::collections::VecDeque<(usize, Vec<f64>)> = std::collections::VecDeque::new();
     let mut decoded = 0;
     let head_rows = (2 * r).min(h);
-    let mut head: Vec<f32> = Vec::new();
+    let mut head: Vec<f64> = Vec::new();
+    let mut heights = vec![0.0f32; w];
     let mut incoming = rx.into_iter();
     let mut bands: Vec<_> = fit.bands().collect();
     if deferred {
@@ -225,7 +276,10 @@ fn fit_stage<T: FromNormal + Default, B>(
         while decoded < needed {
             match incoming.next() {
                 Some(Ok((first, rows))) => {
-                    rows.chunks_exact(w).for_each(&mut *visit);
+                    for row in rows.chunks_exact(w) {
+                        to_heights(row, unit, &mut heights);
+                        visit(&heights);
+                    }
                     let wanted = (head_rows * w).saturating_sub(head.len()).min(rows.len());
                     head.extend_from_slice(&rows[..wanted]);
                     decoded = first + rows.len() / w;
@@ -242,7 +296,7 @@ fn fit_stage<T: FromNormal + Default, B>(
             }
         }
         let in_window = &window;
-        let row = |y: usize| -> &[f32] {
+        let row = |y: usize| -> &[f64] {
             if let Some((first, rows)) =
                 in_window.iter().find(|(first, rows)| (*first..first + rows.len() / w).contains(&y))
             {

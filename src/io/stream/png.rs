@@ -14,13 +14,15 @@ use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::io::read::{
-    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, check_png_header, check_png_palette, check_size, luma, message,
+    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, check_png_header, check_png_palette, check_size, message,
     no_layers,
 };
 use crate::io::write::{Container, Layout, PngCompression, PngSample, lay_out};
 use crate::options::Options;
+use crate::samples::{Sample, luma};
 
-/// The rows of a PNG file, top to bottom, as heights in contract units.
+/// The rows of a PNG file, top to bottom: one channel's samples as stored,
+/// or luma in contract units ([`RowSource`]).
 pub struct PngRows {
     reader: png::Reader<BufReader<File>>,
     width: usize,
@@ -124,7 +126,15 @@ impl RowSource for PngRows {
         self.height
     }
 
-    fn next_row(&mut self, out: &mut [f32]) -> Result<()> {
+    fn unit(&self) -> f64 {
+        match (self.layout.pick, self.layout.bytes) {
+            (Pick::Luma, _) => 1.0,
+            (Pick::Channel(_), 1) => u8::UNIT,
+            (Pick::Channel(_), _) => u16::UNIT,
+        }
+    }
+
+    fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
         let layout = self.layout;
         let row = self.reader.next_row().map_err(png_error)?;
         let row =
@@ -134,18 +144,17 @@ impl RowSource for PngRows {
         if data.len() != stride * out.len() {
             return Err(Error::Decode(format!("row of {} bytes for {} texels", data.len(), out.len())));
         }
-        let sample = |px: &[u8], c: usize| -> f32 {
-            if layout.bytes == 1 {
-                f32::from(px[c]) / 255.0
-            } else {
-                f32::from(u16::from_be_bytes([px[2 * c], px[2 * c + 1]])) / 65535.0
-            }
+        // The stored value, and for luma each channel's height, by the
+        // formulas the whole-image reader uses ([`crate::samples`]).
+        let value = |px: &[u8], c: usize| -> f64 {
+            if layout.bytes == 1 { f64::from(px[c]) } else { f64::from(u16::from_be_bytes([px[2 * c], px[2 * c + 1]])) }
         };
+        let unit = if layout.bytes == 1 { u8::UNIT } else { u16::UNIT };
         let texels = data.chunks_exact(stride);
         match layout.pick {
-            Pick::Channel(c) => out.iter_mut().zip(texels).for_each(|(o, px)| *o = sample(px, c)),
+            Pick::Channel(c) => out.iter_mut().zip(texels).for_each(|(o, px)| *o = value(px, c)),
             Pick::Luma => out.iter_mut().zip(texels).for_each(|(o, px)| {
-                *o = luma(sample(px, 0), sample(px, 1), sample(px, 2));
+                *o = luma(value(px, 0) * unit, value(px, 1) * unit, value(px, 2) * unit);
             }),
         }
         self.next += 1;
@@ -212,7 +221,7 @@ struct Writing {
 /// a wrap in y without `tail`, [`Error::Io`] if writing fails.
 pub fn convert_png(
     rows: impl RowSource,
-    tail: Option<&[f32]>,
+    tail: Option<&[f64]>,
     opts: &Options,
     output: impl Into<PngOutput>,
     visit: impl FnMut(&[f32]) + Send,
@@ -270,7 +279,7 @@ const HEADER_BYTES: u64 = 8 + 25;
 /// and nothing is returned.
 fn convert_as<S: PngSample, R: RowSource, W: Write + ?Sized>(
     rows: R,
-    tail: Option<&[f32]>,
+    tail: Option<&[f64]>,
     opts: &Options,
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
@@ -280,7 +289,8 @@ where
     [S; 3]: FromNormal + Default,
 {
     let (w, h) = (rows.width(), rows.height());
-    let fit = BandFit::new(w, h, opts)?;
+    let unit = rows.unit();
+    let fit = BandFit::new(w, h, opts)?.with_unit(unit);
     let samples = layout.png_samples();
     let texel_bytes = samples * usize::from(S::BITS / 8);
     let stride = texel_bytes * w;
@@ -310,7 +320,7 @@ where
         let laid_out = if layout == Layout::Rgb {
             Cow::Borrowed(normals.as_flattened())
         } else {
-            let heights = heights_for(layout, rows.clone(), row);
+            let heights = heights_for(layout, rows.clone(), row, unit);
             let mut laid_out = Vec::with_capacity(normals.len() * samples);
             lay_out(&normals, &heights, layout, Container::Png, &mut laid_out);
             Cow::Owned(laid_out)
