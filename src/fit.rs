@@ -42,13 +42,24 @@
 //!   bits as the whole-image path.
 //! * Tiles are at least 8·N long, so restarting (N steps) costs at most an
 //!   eighth of the sliding work (2 steps a texel): the cost stays flat in N.
+//! * A block of rows holds between 2^14 and 2^24 texels, whatever the
+//!   image's shape: a narrow image (one column, 2^24 rows) gets blocks tall
+//!   enough that the work of a block outweighs its setup, and a very wide one
+//!   (2^26 columns) blocks of fewer rows, so that a band of blocks, which a
+//!   streaming caller holds, stays a bounded number of texels. (Only beyond
+//!   2^24 / (8·N) columns do blocks get shorter than 8·N, and the cost grows
+//!   with N there.) Each task's own sums are a strip of ~512 columns, and
+//!   borders are mapped as they are read, so the fit's working memory does
+//!   not grow with the image's width or height.
 
 use std::ops::Range;
 
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::options::{Border, Fit, Options};
+#[cfg(test)]
+use crate::options::Border;
+use crate::options::{Borders, Fit, Options};
 use crate::samples::Sample;
 
 /// A type an output texel can be made from a unit normal.
@@ -246,8 +257,10 @@ impl BandFit {
     /// Errors: [`Error::InvalidOption`] for invalid options or a zero size.
     pub fn new(width: usize, height: usize, opts: &Options) -> Result<BandFit> {
         let plan = Plan::new(width, height, opts)?;
-        // Enough blocks per band to keep every core busy.
-        let blocks = rayon::current_num_threads().max(1);
+        // Enough blocks per band to keep every core busy, but a band of at
+        // most 2^24 texels: a block already holds enough strips (tasks) to
+        // share among the threads.
+        let blocks = rayon::current_num_threads().clamp(1, (MAX_BLOCK_TEXELS / (plan.block_rows * width)).max(1));
         let band_rows = plan.block_rows * blocks;
         Ok(BandFit { plan, height, band_rows, unit: None })
     }
@@ -323,7 +336,8 @@ impl BandFit {
         if !is_band || out.len() != rows.len() * w {
             return Err(Error::BufferSize { expected: rows.len() * w, actual: out.len() });
         }
-        for &y in &self.plan.ymap[rows.start..rows.end + 2 * self.plan.r] {
+        for p in rows.start..rows.end + 2 * self.plan.r {
+            let y = self.plan.source_y(p);
             let r = row(y);
             if r.len() != w {
                 return Err(Error::BufferSize { expected: w, actual: r.len() });
@@ -367,6 +381,16 @@ const EMIT_CHUNK: usize = 32;
 /// task's sums (a few rows of f64 per column) then fit in a core's cache.
 const STRIP_COLS: usize = 512;
 
+/// Texels a block of rows holds at least (unless the image is smaller):
+/// a narrow image's blocks are tall enough that a block's work outweighs
+/// setting it up.
+const MIN_BLOCK_TEXELS: usize = 1 << 14;
+
+/// Texels a block of rows, and a band of blocks, holds at most (unless one
+/// row is longer): what a streaming caller holds stays bounded whatever the
+/// width.
+const MAX_BLOCK_TEXELS: usize = 1 << 24;
+
 /// One parallel task of the fit: a strip of a tile, its rows from `y0`,
 /// its columns from `x0`, as pieces of the output rows (and of the
 /// residual rows, when asked for).
@@ -389,10 +413,8 @@ struct Plan {
     fit: Fit,
     /// A = Σ i² over the patch.
     a: f64,
-    /// Source column of padded column p = x + i + r.
-    xmap: Vec<usize>,
-    /// Source row of padded row p = y + j + r.
-    ymap: Vec<usize>,
+    borders: Borders,
+    height: usize,
     block_rows: usize,
     segment_cols: usize,
 }
@@ -403,10 +425,10 @@ impl Plan {
         checked_len(width, height)?;
         let n = opts.patch;
         let r = n / 2;
-        let padded = |len: usize, mode: Border| -> Vec<usize> {
-            (0..len + 2 * r).map(|p| mode.map(p as isize - r as isize, len)).collect()
-        };
         let tile = (8 * n).max(64);
+        // Rows of a block: at least a tile, more for a narrow image, fewer
+        // (down to one) for a very wide one (see the module docs).
+        let block_rows = tile.max(MIN_BLOCK_TEXELS.div_ceil(width)).min((MAX_BLOCK_TEXELS / width).max(1));
         let rf = r as f64;
         Ok(Plan {
             width,
@@ -416,9 +438,9 @@ impl Plan {
             sigma: opts.convention.sigma(),
             fit: opts.fit,
             a: n as f64 * rf * (rf + 1.0) * (2.0 * rf + 1.0) / 3.0,
-            xmap: padded(width, opts.borders.x),
-            ymap: padded(height, opts.borders.y),
-            block_rows: tile,
+            borders: opts.borders,
+            height,
+            block_rows,
             segment_cols: tile,
         })
     }
@@ -489,6 +511,12 @@ impl Plan {
         tasks.into_par_iter().for_each(|task| self.fit_strip(source_row, gain, task));
     }
 
+    /// The source row of padded row p = y + j + r, through the y border.
+    #[inline]
+    fn source_y(&self, p: usize) -> usize {
+        self.borders.y.map(p as isize - self.r as isize, self.height)
+    }
+
     /// Columns per parallel task: whole segments, about 512 columns.
     fn strip_cols(&self) -> usize {
         self.segment_cols * (STRIP_COLS / self.segment_cols).max(1)
@@ -506,14 +534,15 @@ impl Plan {
         let (n, r) = (self.n, self.r);
         let cols = x0..x0 + first.len();
         let w = cols.len();
-        let row_of = |p: usize| source_row(self.ymap[p]);
+        let row_of = |p: usize| source_row(self.source_y(p));
 
         // The reference c of each column: one texel per (block, segment).
         let reference: Vec<f64> = cols
             .clone()
             .map(|x| {
                 let s0 = x - x % self.segment_cols;
-                gain * row_of(y0 + r)[self.xmap[s0 + r]].to_f64()
+                // Column s0 is inside the image: its own value.
+                gain * row_of(y0 + r)[s0].to_f64()
             })
             .collect();
 
@@ -581,7 +610,8 @@ impl Plan {
                 // order: read as a slice, the loop vectorises.
                 padded.extend(src[start - r..end + r].iter().map(|&h| to_z(h)));
             } else {
-                padded.extend(self.xmap[start..end + 2 * r].iter().map(|&sx| to_z(src[sx])));
+                let (x_border, r) = (self.borders.x, r as isize);
+                padded.extend((start..end + 2 * self.r).map(|p| to_z(src[x_border.map(p as isize - r, self.width)])));
             }
             let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
             for (q, &z) in padded[..n].iter().enumerate() {
@@ -792,6 +822,61 @@ impl WindowSums {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::options::Border;
+
+    /// The whole-image fit with blocks of `block_rows` rows.
+    fn fitted_with_blocks(heights: &[f32], w: usize, h: usize, opts: &Options, block_rows: usize) -> Vec<[f32; 3]> {
+        let mut plan = Plan::new(w, h, opts).unwrap();
+        plan.block_rows = block_rows;
+        let mut out = vec![[0.0f32; 3]; w * h];
+        plan.fit_rows(&|y: usize| &heights[y * w..][..w], 1.0, 0, &mut out, None);
+        out
+    }
+
+    /// Blocks of a few rows, as a very wide image gets, and taller ones, as
+    /// a narrow image gets: the sums restart at other rows, the normals are
+    /// the same up to rounding.
+    #[test]
+    fn blocks_of_any_height_give_the_same_normals() {
+        let (w, h) = (150, 70);
+        let heights: Vec<f32> =
+            (0..w * h).map(|k| (((k * 7919) % 1013) as f32 / 1013.0) + (k % w) as f32 * 0.01).collect();
+        for n in [3, 9] {
+            for borders in [Borders::both(Border::Wrap), Borders::both(Border::Mirror), Borders::both(Border::Clamp)] {
+                let opts =
+                    Options::new().with_patch(n).with_borders(borders).with_strength(crate::Strength::Scale(3.0));
+                let default = fitted_with_blocks(&heights, w, h, &opts, Plan::new(w, h, &opts).unwrap().block_rows);
+                for rows in [1, 2, 3, 7, 200] {
+                    let other = fitted_with_blocks(&heights, w, h, &opts, rows);
+                    for (k, (a, b)) in default.iter().zip(&other).enumerate() {
+                        for c in 0..3 {
+                            assert!(
+                                (a[c] - b[c]).abs() < 1e-6,
+                                "N {n} {borders:?} blocks of {rows}: texel {k} {a:?} {b:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The rows of a block for the shapes of the module docs.
+    #[test]
+    fn blocks_hold_a_bounded_number_of_texels() {
+        let rows = |w: usize, h: usize, n: usize| Plan::new(w, h, &Options::new().with_patch(n)).unwrap().block_rows;
+        assert_eq!(rows(4096, 4096, 3), 64);
+        assert_eq!(rows(4096, 4096, 63), 504);
+        assert_eq!(rows(32768, 32768, 63), 504, "flat in N up to 2^24 / 504 columns");
+        assert_eq!(rows(1, 1 << 24, 3), 1 << 14);
+        assert_eq!(rows(100, 100, 3), 164);
+        assert_eq!(rows(1 << 24, 1, 3), 1);
+        assert_eq!(rows(1 << 26, 16, 3), 1);
+        assert_eq!(rows(1 << 20, 16, 63), 16);
+        let band = |w: usize, h: usize| BandFit::new(w, h, &Options::new()).unwrap().band_rows() * w;
+        assert!(band(1 << 20, 64) <= MAX_BLOCK_TEXELS);
+        assert!(band(1 << 26, 16) == 1 << 26, "one row when a row is more than the bound");
+    }
 
     /// The orthogonal fit's normals, a chunk of texels at a time: chunks
     /// without a steep patch (Czz ≤ A) leave the division out, and get the

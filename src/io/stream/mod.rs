@@ -171,6 +171,7 @@ where
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     let Stages { prepare, mut consume } = stages;
+    check_stream_memory::<T, B>(fit, tail.map_or(0, <[f64]>::len))?;
     // Two bands in flight between stages keep every stage busy without
     // holding more than a few bands.
     let (heights_tx, heights_rx) = sync_channel::<Band<f64>>(2);
@@ -187,6 +188,29 @@ where
         }
         Ok(())
     })
+}
+
+/// Refuses a streamed conversion whose bands do not fit in the memory the
+/// process may still take (under `ulimit -v` and the like), in one line,
+/// before any band is allocated: a failed allocation in a stage would
+/// otherwise abort the process. Bands are at most 2^24 texels or one row
+/// ([`BandFit`]), so only images some 10^7 texels wide get here.
+///
+/// What is held at once, per texel of a band: the heights (f64) of the
+/// band being decoded, two queued and two that the fit reads (the band and
+/// the rows above it); the normals (`T`) and what the encoder takes (`B`,
+/// counted as one more `T` and 4 bytes) of the band being fitted, two
+/// queued and the one being written. Besides, a copy of the first 2r rows,
+/// the tail and a row of heights for `visit`.
+fn check_stream_memory<T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
+    let (w, h, r, band) = (fit.width() as u64, fit.height() as u64, fit.radius() as u64, fit.band_rows() as u64);
+    // No more rows than the image has.
+    let height_rows = (5 * band).min(h);
+    let output_rows = (4 * band).min(h);
+    let output_bytes = (2 * size_of::<T>() as u64 + 4).max(size_of::<B>() as u64);
+    let head_rows = (2 * r).min(h);
+    let bytes = (height_rows + head_rows) * w * 8 + tail_len as u64 * 8 + output_rows * w * output_bytes + 4 * w;
+    crate::io::check_memory("converting by rows", bytes)
 }
 
 /// Decodes bands of `band` rows and sends them on; stops at the first
