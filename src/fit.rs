@@ -57,8 +57,6 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-#[cfg(test)]
-use crate::options::Border;
 use crate::options::{Borders, Fit, Options};
 use crate::samples::Sample;
 
