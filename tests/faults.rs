@@ -660,3 +660,105 @@ fn whole_image_conversions_under_tightening_limits_never_abort() {
     }
     assert_eq!(listing(dir.path()), ["h.png"]);
 }
+
+/// An 8-bit gray PNG of `w` × `h` texels, value (7x + 13y) mod 251 at
+/// (x, y): a slope in both directions that wraps, streamed row by row so
+/// a 2^26-wide file takes no more memory to write than a row.
+fn write_pattern_png8(path: &Path, w: u32, h: u32) {
+    let mut encoder = png::Encoder::new(BufWriter::new(fs::File::create(path).unwrap()), w, h);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
+    let mut writer = encoder.write_header().unwrap();
+    let mut stream = writer.stream_writer().unwrap();
+    let mut row = vec![0u8; w as usize];
+    for y in 0..u64::from(h) {
+        for (x, v) in row.iter_mut().enumerate() {
+            *v = pattern(x as u64, y);
+        }
+        stream.write_all(&row).unwrap();
+    }
+    stream.finish().unwrap();
+}
+
+fn pattern(x: u64, y: u64) -> u8 {
+    ((7 * x + 13 * y) % 251) as u8
+}
+
+/// The contract's 8-bit texel at (x, y) of the pattern image, the fit
+/// with N = 3, gain 1 and `border` on both axes, by the slow reference
+/// fit over the texel's own 3 × 3 patch (looked up through the border).
+fn pattern_texel(w: u64, h: u64, x: u64, y: u64, border: normalfit::Border) -> [u8; 3] {
+    use common::reference::{normal_at, source_index};
+    let mut patch = Vec::new();
+    for j in -1i64..=1 {
+        for i in -1i64..=1 {
+            let sx = source_index(x as i64 + i, w as i64, border) as u64;
+            let sy = source_index(y as i64 + j, h as i64, border) as u64;
+            patch.push(f64::from(pattern(sx, sy)) / 255.0);
+        }
+    }
+    // The 3 × 3 patch as an image of its own: its centre's patch is itself.
+    let n = normal_at(&patch, 3, 3, &normalfit::Options::new(), 1, 1);
+    n.map(|c| (255.0 * (c + 1.0) / 2.0).round() as u8)
+}
+
+/// Images of extreme shapes inside the texel limit, under a 1 GiB address
+/// space: a column of 2^24 texels and a row of 2^24 convert (streamed
+/// from a file, and decoded whole from standard input), with the texels
+/// the reference gives; 2^26 × 16 (a 1 GiB raster, whose rows alone are
+/// 512 MiB in f64) converts or is refused in one line, never an abort, and
+/// leaves no output.
+#[test]
+fn extreme_shapes_under_1_gib_convert_or_are_refused_in_one_line() {
+    use normalfit::Border;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("n.png");
+    for (w, h, must_convert) in [(1u32, 1u32 << 24, true), (1 << 24, 1, true), (1 << 26, 16, false)] {
+        let input = dir.path().join(format!("{w}x{h}.png"));
+        write_pattern_png8(&input, w, h);
+        let untouched = Untouched::of(&[&input]);
+        for (border, stdin) in [("wrap", false), ("clamp", false), ("mirror", true)] {
+            let what = format!("{w}×{h} --border {border}{}", if stdin { " from standard input" } else { "" });
+            let args = ["convert", if stdin { "-" } else { s(&input) }, "-o", s(&out), "--border", border];
+            let started = Instant::now();
+            let r = limited(GIB, &args, stdin.then_some(input.as_path()));
+            let took = started.elapsed();
+            assert!(r.status.signal().is_none(), "{what}: killed by a signal: {:?}", r.status);
+            let stderr = String::from_utf8_lossy(&r.stderr);
+            assert!(!stderr.contains("memory allocation") && !stderr.contains("panicked"), "{what}: {stderr}");
+            if r.status.success() {
+                let raster = normalfit::io::read_path(&out, &Default::default()).unwrap();
+                assert_eq!((raster.width, raster.height), (w as usize, h as usize), "{what}");
+                let mode = match border {
+                    "wrap" => Border::Wrap,
+                    "clamp" => Border::Clamp,
+                    _ => Border::Mirror,
+                };
+                let (w, h) = (u64::from(w), u64::from(h));
+                let last = w * h - 1;
+                for k in [0, 1, 2, w * h / 2 + 3, last - 1, last] {
+                    let (x, y) = (k % w, k / w);
+                    let got = ["R", "G", "B"].map(|c| (raster.plane(c).unwrap().data.height(k as usize) * 255.0) as u8);
+                    let want = pattern_texel(w, h, x, y, mode);
+                    // Within the contract's 1e-5 a component at a rounding
+                    // tie (0 → 127.5) may round either way.
+                    let close = got.iter().zip(&want).all(|(&g, &w)| g.abs_diff(w) <= 1);
+                    assert!(close, "{what}: texel ({x}, {y}): {got:?}, the reference {want:?}");
+                }
+                println!("{what}: converted in {took:.2?}");
+                fs::remove_file(&out).unwrap();
+            } else {
+                assert!(!must_convert, "{what} must convert: {stderr}");
+                let subject = if stdin { Path::new("<standard input>") } else { input.as_path() };
+                let line = expect_fault(&r, subject, &["memory"]);
+                assert!(line.contains("too large"), "{line}");
+                assert!(!out.exists(), "{what}: {}", out.display());
+                println!("{what}: refused in {took:.2?}: {line}");
+            }
+        }
+        untouched.check(&format!("{w}×{h}"));
+        fs::remove_file(&input).unwrap();
+    }
+    assert_eq!(listing(dir.path()), Vec::<String>::new(), "no output, no temporary file");
+}
