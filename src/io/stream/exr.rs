@@ -17,8 +17,8 @@ use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
 use crate::io::read::{
-    Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer, from_exr_error, luma,
-    select_channel,
+    Channel, EXR_MAGIC, InputFormat, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer,
+    from_exr_error, luma, select_channel,
 };
 use crate::io::write::{Container, ExrDepth, Layout, lay_out, write_exr_rows};
 use crate::options::Options;
@@ -61,7 +61,7 @@ impl ExrRows {
     /// [`Error::Limits`] for a size above `opts.max_texels`,
     /// [`Error::Unsupported`] for a missing channel or layer.
     pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<ExrRows>> {
-        Self::open_from(path, opts, channel, 0)
+        Self::open_from(path, opts, channel.as_ref(), 0)
     }
 
     /// The last `rows` rows of `path` (fewer if the image is shorter),
@@ -71,7 +71,8 @@ impl ExrRows {
     /// Errors: as [`ExrRows::open`], and [`Error::Unsupported`] if the file
     /// cannot stream.
     pub fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Result<Vec<f32>> {
-        let probe = Self::open(path, opts, channel)?.ok_or_else(not_streamable)?;
+        let channel = channel.as_ref();
+        let probe = Self::open_from(path, opts, channel, 0)?.ok_or_else(not_streamable)?;
         let (w, h) = (probe.width, probe.height);
         drop(probe);
         let keep = rows.min(h);
@@ -86,7 +87,7 @@ impl ExrRows {
     fn open_from(
         path: &Path,
         opts: &ReadOptions,
-        channel: Option<Channel>,
+        channel: Option<&Channel>,
         first_row: usize,
     ) -> Result<Option<ExrRows>> {
         let file = File::open(path)?;
@@ -112,7 +113,7 @@ impl ExrRows {
             .filter(|(_, name)| layer.holds(name))
             .unzip();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        let source = match select_channel(&names, channel)? {
+        let source = match select_channel(&names, channel, &InputFormat::Exr)? {
             Source::Plane(i) => Source::Plane(indices[i]),
             Source::Luma(rgb) => Source::Luma(rgb.map(|i| indices[i])),
         };
