@@ -31,7 +31,7 @@ use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limit
 use rayon::prelude::*;
 use tiff::tags::{SampleFormat, Tag};
 
-use super::memory;
+use super::{exr_subsampled, memory};
 use crate::error::{Error, Result, one_line};
 
 /// Which channel of the image gives the height (SPEC §1, `--channel`).
@@ -985,9 +985,13 @@ fn from_tiff_error(e: tiff::TiffError) -> Error {
 /// all its channels.
 fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     check_exr_windows(Cursor::new(bytes))?;
+    let mut read = Cursor::new(bytes);
+    if let Some(headers) = exr_subsampled::read_headers(&mut read).filter(exr_subsampled::Headers::subsampled) {
+        return decode_exr_subsampled(read, headers, opts);
+    }
     let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(from_exr_error)?;
     check_exr_meta(&meta, bytes.len() as u64, opts)?;
-    let choice = choose_exr_layer(&meta.headers, opts.layer.as_deref())?;
+    let choice = choose_exr_layer(&exr_parts(&meta.headers), opts.layer.as_deref())?;
     // `exr` allocates the image itself, and aborts if that fails.
     memory::check_memory("decoding", memory::exr_decode_bytes(&meta.headers[choice.part]))?;
     use exr::prelude::ReadLayers;
@@ -1006,6 +1010,31 @@ fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         .filter(|channel| choice.holds(&channel.name.to_string()))
         .map(|channel| exr_plane(channel, texels))
         .collect::<Result<Vec<_>>>()?;
+    Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
+}
+
+/// Decodes an EXR with subsampled channels, which the `exr` crate refuses
+/// (see [`exr_subsampled`]): the full-resolution channels of the layer
+/// asked for, block by block. `read` is at the offset tables.
+fn decode_exr_subsampled(
+    mut read: Cursor<&[u8]>,
+    headers: exr_subsampled::Headers,
+    opts: &ReadOptions,
+) -> Result<Raster> {
+    let file_len = read.get_ref().len() as u64;
+    let part = exr_subsampled::ScanLines::open(headers, &mut read, file_len, opts)?;
+    let (width, height) = (part.width(), part.height());
+    let texels = to_usize((width as u64).saturating_mul(height as u64))?;
+    let (wanted, names): (Vec<usize>, Vec<String>) = part.channels().map(|(i, n)| (i, n.to_string())).unzip();
+    memory::check_memory("decoding", (texels as u64).saturating_mul(4 * wanted.len() as u64))?;
+    let mut planes =
+        names.into_iter().map(|name| Ok(Plane { name, data: try_vec(texels)? })).collect::<Result<Vec<_>>>()?;
+    for y0 in (0..height).step_by(part.lines_per_block()) {
+        let block = part.read_block(&mut read, y0, &wanted)?;
+        for (plane, rows) in planes.iter_mut().zip(block) {
+            plane.data.extend_from_slice(&rows);
+        }
+    }
     Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
 }
 
@@ -1029,36 +1058,53 @@ impl ExrLayer {
     }
 }
 
-/// Finds the layer `name` among an OpenEXR file's headers (see
+/// What the layer choice needs of one part of an OpenEXR file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct ExrPart {
+    /// Its `name` attribute.
+    pub name: Option<String>,
+    /// Whether it holds deep data.
+    pub deep: bool,
+    /// Its channels' names.
+    pub channels: Vec<String>,
+}
+
+/// The parts of a file as the `exr` crate read its headers.
+pub(crate) fn exr_parts(headers: &[exr::meta::header::Header]) -> Vec<ExrPart> {
+    let part = |h: &exr::meta::header::Header| ExrPart {
+        name: h.own_attributes.layer_name.as_ref().map(|n| n.to_string()),
+        deep: h.deep,
+        channels: h.channels.list.iter().map(|c| c.name.to_string()).collect(),
+    };
+    headers.iter().map(part).collect()
+}
+
+/// Finds the layer `name` among an OpenEXR file's parts (see
 /// [`ReadOptions::layer`]): a part of that name, else the first part with
 /// channels named `name.…`; `None` is the first part of flat samples.
 ///
 /// Errors: [`Error::Unsupported`] naming the layers there are when none
 /// matches, or when every part holds deep data.
-pub(crate) fn choose_exr_layer(headers: &[exr::meta::header::Header], name: Option<&str>) -> Result<ExrLayer> {
+pub(crate) fn choose_exr_layer(parts: &[ExrPart], name: Option<&str>) -> Result<ExrLayer> {
     let Some(name) = name else {
-        return headers
+        return parts
             .iter()
-            .position(|h| !h.deep)
+            .position(|p| !p.deep)
             .map(|part| ExrLayer { part, prefix: None })
             .ok_or_else(|| Error::Unsupported("exr file holds only deep data".into()));
     };
-    let part_name = |h: &exr::meta::header::Header| h.own_attributes.layer_name.as_ref().map(|n| n.to_string());
-    if let Some(part) = headers.iter().position(|h| part_name(h).as_deref() == Some(name)) {
+    if let Some(part) = parts.iter().position(|p| p.name.as_deref() == Some(name)) {
         return Ok(ExrLayer { part, prefix: None });
     }
     let group = ExrLayer { part: 0, prefix: Some(name.to_string()) };
-    if let Some(part) =
-        headers.iter().position(|h| !h.deep && h.channels.list.iter().any(|c| group.holds(&c.name.to_string())))
-    {
+    if let Some(part) = parts.iter().position(|p| !p.deep && p.channels.iter().any(|c| group.holds(c))) {
         return Ok(ExrLayer { part, ..group });
     }
     // The names there are: parts, and the channel groups of each part.
     let mut layers: Vec<String> = Vec::new();
-    for header in headers {
-        layers.extend(part_name(header));
-        for channel in &header.channels.list {
-            let channel = channel.name.to_string();
+    for part in parts {
+        layers.extend(part.name.clone());
+        for channel in &part.channels {
             if let Some((group, _)) = channel.rsplit_once('.') {
                 if !layers.iter().any(|l| l == group) {
                     layers.push(group.to_string());
