@@ -3,9 +3,11 @@
 //! Rules this module keeps, and why:
 //! * The decoder is chosen from the content, never the file name: a `.png`
 //!   that is really a JPEG still reads, and a renamed file cannot pick a
-//!   decoder that then misreads it. OpenEXR goes to the `exr` crate, gray
-//!   TIFF with samples `image` refuses (float, half, 32/64-bit and signed
-//!   integers) to the `tiff` crate, everything else to `image`.
+//!   decoder that then misreads it. OpenEXR goes to the `exr` crate (a
+//!   file with subsampled channels, which it refuses, to
+//!   `io/exr_subsampled.rs`), gray TIFF with samples `image` refuses
+//!   (float, half, 32/64-bit and signed integers) to the `tiff` crate,
+//!   everything else to `image`.
 //! * The size a header claims is checked against [`ReadOptions::max_texels`]
 //!   before any pixel buffer exists. A 100-byte file can claim
 //!   100000 × 100000 texels, and both `image` and `exr` would otherwise try
@@ -183,7 +185,9 @@ pub struct Raster {
     pub format: InputFormat,
     /// How the samples were stored.
     pub sample: SampleType,
-    /// The channels, in the file's order.
+    /// The channels, in the file's order. An OpenEXR file's subsampled
+    /// channels (a luminance/chroma file's RY and BY) are left out: they
+    /// have fewer samples than texels and are never heights.
     pub planes: Vec<Plane>,
 }
 
