@@ -638,6 +638,35 @@ fn broken_luminance_chroma_files_are_clean_errors() {
     );
     let path = save(dir.path(), "odd.exr", &odd);
     refused(&path, None, None, "channel RY has sampling 2 × 2, which does not divide the data window");
+
+    // Forged headers: a size above the limit, more chunks than the file
+    // holds, a chunk larger than its block. Refused before any allocation
+    // of the size claimed.
+    let good = yc_file(w, h, (0, 0), &[Part { name: None, compression: 3, channels: channels() }]);
+    let key = b"dataWindow\0box2i\0";
+    let at = good.windows(key.len()).position(|k| k == key).unwrap() + key.len() + 4;
+    let with_window = |corners: [i32; 4]| {
+        let mut bad = good.clone();
+        bad[at..at + 16].copy_from_slice(&corners.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>());
+        bad
+    };
+    let huge = save(dir.path(), "huge.exr", &with_window([0, 0, 99_999, 99_999]));
+    refused(&huge, None, None, "too large: 100000 × 100000 is 10000000000 texels");
+    let tall = save(dir.path(), "tall.exr", &with_window([0, 0, 9, 99_999]));
+    refused(&tall, None, None, "header claims 6250 chunks, more than the file holds");
+    // The offset table of the 3 blocks (16 rows each) ends where the
+    // first chunk starts: its first entry points 24 bytes past itself.
+    let u64_at = |i: usize| u64::from_le_bytes(good[i..i + 8].try_into().unwrap());
+    let table = (0..good.len() - 8).find(|&i| u64_at(i) == i as u64 + 24).unwrap();
+    let first_chunk = u64_at(table) as usize;
+    let mut oversized = good.clone();
+    oversized[first_chunk + 4..first_chunk + 8].copy_from_slice(&i32::MAX.to_le_bytes());
+    let oversized = save(dir.path(), "oversized.exr", &oversized);
+    refused(&oversized, None, None, "invalid exr: the chunk for row 0 holds 2147483647 bytes, more than its");
+    let mut beyond = good.clone();
+    beyond[table + 16..table + 24].copy_from_slice(&(good.len() as u64 - 2).to_le_bytes());
+    let beyond = save(dir.path(), "beyond.exr", &beyond);
+    refused(&beyond, None, None, "truncated or corrupt: the file ends before the chunk for row 32");
 }
 
 // ---------------------------------------------------------------------------

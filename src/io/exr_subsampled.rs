@@ -230,6 +230,8 @@ pub(crate) struct ScanLines {
     compression: u8,
     /// Where each block's chunk starts, top block first.
     offsets: Vec<u64>,
+    /// The file's length, which no chunk may pass.
+    file_len: u64,
     width: usize,
     height: usize,
     y_min: i64,
@@ -321,6 +323,7 @@ impl ScanLines {
             part: multipart.then_some(part as i32),
             compression,
             offsets,
+            file_len,
             width,
             height,
             y_min: i64::from(y0),
@@ -380,6 +383,11 @@ impl ScanLines {
             return Err(corrupt(&format!(
                 "the chunk for row {y0} holds {size} bytes, more than its {raw_size} raw bytes"
             )));
+        }
+        // The chunk's header: y and size, after the part number if any.
+        let header = if self.part.is_some() { 12 } else { 8 };
+        if offset.saturating_add(header).saturating_add(size as u64) > self.file_len {
+            return Err(missing(y0));
         }
         let mut data = vec![0u8; size];
         read.read_exact(&mut data).map_err(|_| missing(y0))?;

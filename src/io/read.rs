@@ -1031,11 +1031,16 @@ fn decode_exr_subsampled(
     let texels = to_usize((width as u64).saturating_mul(height as u64))?;
     let (wanted, names): (Vec<usize>, Vec<String>) = part.channels().map(|(i, n)| (i, n.to_string())).unzip();
     memory::check_memory("decoding", (texels as u64).saturating_mul(4 * wanted.len() as u64))?;
-    let mut planes =
-        names.into_iter().map(|name| Ok(Plane { name, data: try_vec(texels)? })).collect::<Result<Vec<_>>>()?;
+    // The planes grow block by block, so a header that claims far more
+    // texels than the file holds fails at its first missing chunk, before
+    // the memory is taken.
+    let mut planes: Vec<Plane> = names.into_iter().map(|name| Plane { name, data: Vec::new() }).collect();
     for y0 in (0..height).step_by(part.lines_per_block()) {
         let block = part.read_block(&mut read, y0, &wanted)?;
         for (plane, rows) in planes.iter_mut().zip(block) {
+            plane.data.try_reserve(rows.len()).map_err(|_| {
+                Error::Limits(format!("cannot allocate {texels} values of 4 bytes for channel {}", plane.name))
+            })?;
             plane.data.extend_from_slice(&rows);
         }
     }
