@@ -596,7 +596,7 @@ fn exr_layers_the_first_part_by_default_and_layer_picks_one() {
     refused(
         &[os("convert"), grouped.as_os_str(), os("-o"), out.as_os_str()],
         None,
-        "channel y is ambiguous: bump.Y, rough.Y",
+        "every channel is in a layer (bump, rough) and none is at the root",
     );
     assert_eq!(convert(&grouped, &["--layer", "bump"]), normals(&height, w, h, &opts).unwrap());
     assert_eq!(convert(&grouped, &["--layer", "rough"]), normals(&r, w, h, &opts).unwrap());

@@ -166,7 +166,7 @@ fn png_gray8_values_and_channels() {
     assert_eq!(data(&r, "Y"), expected);
     assert_eq!(data(&r, "Y")[5], 1.0);
     for c in [None, Some(Channel::Luma), Some(Channel::R), Some(Channel::G), Some(Channel::B)] {
-        assert_eq!(r.heights(c).unwrap(), expected, "{c:?}");
+        assert_eq!(r.heights(c.clone()).unwrap(), expected, "{c:?}");
     }
     assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
     assert_eq!(r.into_heights(None).unwrap().into_f32().unwrap(), expected);
@@ -466,7 +466,7 @@ fn tiff_float32_gray_values_as_stored() {
     assert_eq!(data(&r, "Y"), v);
     assert!(data(&r, "Y")[5].is_sign_negative(), "-0.0 stays -0.0");
     for c in [None, Some(Channel::Luma), Some(Channel::R), Some(Channel::G), Some(Channel::B)] {
-        assert_eq!(r.heights(c).unwrap(), v, "{c:?}");
+        assert_eq!(r.heights(c.clone()).unwrap(), v, "{c:?}");
     }
     assert!(is_unsupported(&r.heights(Some(Channel::A)).unwrap_err()));
     assert_eq!(r.clone().into_heights(None).unwrap().into_f32().unwrap(), v);

@@ -55,7 +55,7 @@ fn streamed(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDep
 
 /// [`streamed`] with the channels of `layout`.
 fn streamed_as(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth, layout: Layout) -> Vec<u16> {
-    let open = || PngRows::open(path, &ReadOptions::default(), channel).unwrap().expect("streamable");
+    let open = || PngRows::open(path, &ReadOptions::default(), channel.clone()).unwrap().expect("streamable");
     let tail = (opts.borders.y == Border::Wrap).then(|| open().read_tail(opts.patch / 2, |_| {}).unwrap());
     let mut ordered = Vec::new();
     let output = PngOutput { depth, compression: PngCompression::Fast, layout };
@@ -88,7 +88,7 @@ fn whole(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth)
 }
 
 fn assert_same(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth, what: &str) {
-    let (s, w) = (streamed(path, channel, opts, depth), whole(path, channel, opts, depth));
+    let (s, w) = (streamed(path, channel.clone(), opts, depth), whole(path, channel, opts, depth));
     assert_eq!(s.len(), w.len(), "{what}");
     if let Some(k) = s.iter().zip(&w).position(|(a, b)| a != b) {
         panic!("{what}: sample {k} differs: streamed {} whole {}", s[k], w[k]);
@@ -196,7 +196,8 @@ fn colour_alpha_and_8_bit_layouts_pick_the_same_heights() {
         write_png(&path, w, h, color, &samples);
         for channel in channels {
             let opts = Options::new().with_patch(5).with_strength(Strength::Scale(12.0));
-            assert_same(&path, channel, &opts, PngDepth::Sixteen, &format!("{name} {channel:?}"));
+            let what = format!("{name} {channel:?}");
+            assert_same(&path, channel, &opts, PngDepth::Sixteen, &what);
         }
     }
 }

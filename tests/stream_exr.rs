@@ -88,7 +88,11 @@ fn rows_equal_the_whole_image_reader_for_every_compression_type_and_order() {
                 write_exr(&rgb, w, h, compression, order, channels);
                 let whole = read_path(&rgb, &ReadOptions::default()).unwrap();
                 for channel in [None, Some(Channel::G)] {
-                    assert_eq!(streamed_rows(&rgb, channel), whole.heights(channel).unwrap(), "{what} {channel:?}");
+                    assert_eq!(
+                        streamed_rows(&rgb, channel.clone()),
+                        whole.heights(channel.clone()).unwrap(),
+                        "{what} {channel:?}"
+                    );
                 }
             }
         }

@@ -14,7 +14,7 @@ fuzz_target!(|data: &[u8]| {
     let case = Case::of(data);
     let Some(raster) = decoded(data) else { return };
     let (w, h) = (raster.width, raster.height);
-    let Some(heights) = check_heights(raster.into_heights(case.channel), w * h) else { return };
+    let Some(heights) = check_heights(raster.into_heights(case.channel.clone()), w * h) else { return };
 
     let mut normals = vec![[0.0f32; 3]; w * h];
     heights.normals_into(w, h, &case.fit, &mut normals).expect("finite heights and valid options must fit");

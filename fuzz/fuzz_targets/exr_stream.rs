@@ -18,7 +18,7 @@ use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options, streamed
 fuzz_target!(|data: &[u8]| {
     let case = Case::of(data);
     let path = case_file("exr-stream", "exr", data);
-    let open = || ExrRows::open(path, &read_options(), case.channel);
+    let open = || ExrRows::open(path, &read_options(), case.channel.clone());
     let rows = match open() {
         Ok(Some(rows)) => rows,
         // Not an EXR that streams: the caller reads it whole, another target's path.
@@ -28,7 +28,7 @@ fuzz_target!(|data: &[u8]| {
     let (w, h) = (rows.width(), rows.height());
     // A wrap in y takes the last rows first, from the file's last blocks.
     let tail = if case.fit.borders.y == normalfit::Border::Wrap {
-        match ExrRows::last_rows(path, &read_options(), case.channel, case.fit.patch / 2) {
+        match ExrRows::last_rows(path, &read_options(), case.channel.clone(), case.fit.patch / 2) {
             Ok(tail) => Some(tail),
             Err(e) => return assert_clean_error(&e),
         }
@@ -40,7 +40,7 @@ fuzz_target!(|data: &[u8]| {
     let format = ExrFormat::default();
     let streamed =
         convert_exr(rows, tail.as_deref(), &case.fit, format, |row| streamed_heights.extend_from_slice(row), &mut exr);
-    let Some(heights) = streamed_heights_match(data, case.channel, &streamed, &streamed_heights, (w, h)) else {
+    let Some(heights) = streamed_heights_match(data, case.channel.clone(), &streamed, &streamed_heights, (w, h)) else {
         return;
     };
 

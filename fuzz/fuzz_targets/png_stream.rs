@@ -18,7 +18,7 @@ use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options, streamed
 fuzz_target!(|data: &[u8]| {
     let case = Case::of(data);
     let path = case_file("png-stream", "png", data);
-    let rows = match PngRows::open(path, &read_options(), case.channel) {
+    let rows = match PngRows::open(path, &read_options(), case.channel.clone()) {
         Ok(Some(rows)) => rows,
         // Not a PNG that streams: the caller reads it whole, another target's path.
         Ok(None) => return,
@@ -30,7 +30,7 @@ fuzz_target!(|data: &[u8]| {
     let mut png = Cursor::new(Vec::new());
     let streamed =
         convert_png_seekable(rows, &case.fit, depth, |row| streamed_heights.extend_from_slice(row), &mut png);
-    let Some(heights) = streamed_heights_match(data, case.channel, &streamed, &streamed_heights, (w, h)) else {
+    let Some(heights) = streamed_heights_match(data, case.channel.clone(), &streamed, &streamed_heights, (w, h)) else {
         return;
     };
 

@@ -24,7 +24,7 @@ fuzz_target!(|data: &[u8]| {
     assert_report(&check(&planes, w, h, &opts), &opts);
 
     // The height alone, whole and streamed.
-    let Some(heights) = check_heights(raster.heights(case.channel), w * h) else { return };
+    let Some(heights) = check_heights(raster.heights(case.channel.clone()), w * h) else { return };
     let opts = TilingOptions::new().with_kind(KindChoice::Height);
     let whole = check(&[&heights], w, h, &opts);
     assert_report(&whole, &opts);

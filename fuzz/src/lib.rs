@@ -64,7 +64,8 @@ impl Case {
         };
         let channel =
             [None, Some(Channel::Luma), Some(Channel::R), Some(Channel::G), Some(Channel::B), Some(Channel::A)]
-                [pick(6)];
+                [pick(6)]
+            .clone();
         let patch = [3, 5, 9][pick(3)];
         let modes = [Border::Wrap, Border::Clamp, Border::Mirror];
         let borders = Borders { x: modes[pick(3)], y: modes[pick(3)] };

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
 use normalfit::Border;
-use normalfit::io::ReadOptions;
+use normalfit::io::{Channel, ReadOptions};
 use normalfit::options::MAX_PATCH;
 use normalfit::shade::Light;
 
@@ -95,9 +95,11 @@ pub struct ConvertArgs {
     #[arg(short, long, value_name = "OUTPUT")]
     pub output: Option<PathBuf>,
 
-    /// Channel of a colour image that holds the height (gray images use gray).
-    #[arg(long, value_enum)]
-    pub channel: Option<ChannelArg>,
+    /// Channel that holds the height: luma, r, g, b or a of a colour image
+    /// (gray images use gray), or an OpenEXR channel by name (Z, height,
+    /// diffuse.R). Default: gray; for EXR, Y, the only channel, else luma.
+    #[arg(long, value_name = "C", value_parser = parse_channel)]
+    pub channel: Option<Channel>,
 
     /// Bits per output channel: 8 or 16 for PNG, 16 (half) or 32 (float) for
     /// EXR. Default: 16 for inputs of more than 8 bits, else 8; 32 for EXR.
@@ -241,9 +243,10 @@ pub struct ShadeArgs {
     #[arg(long, value_enum, default_value_t = KindArg::Auto)]
     pub kind: KindArg,
 
-    /// Channel of a colour height map that holds the height.
-    #[arg(long, value_enum)]
-    pub channel: Option<ChannelArg>,
+    /// Channel of a height map that holds the height: luma, r, g, b, a, or
+    /// an OpenEXR channel by name.
+    #[arg(long, value_name = "C", value_parser = parse_channel)]
+    pub channel: Option<Channel>,
 
     /// Float (EXR) normal maps hold the normal n in [−1, 1], not (n + 1)/2.
     #[arg(long)]
@@ -293,9 +296,10 @@ pub struct TilingArgs {
     #[arg(long, value_enum, default_value_t = KindArg::Auto)]
     pub kind: KindArg,
 
-    /// Channel of a colour height map that holds the height.
-    #[arg(long, value_enum)]
-    pub channel: Option<ChannelArg>,
+    /// Channel of a height map that holds the height: luma, r, g, b, a, or
+    /// an OpenEXR channel by name.
+    #[arg(long, value_name = "C", value_parser = parse_channel)]
+    pub channel: Option<Channel>,
 
     /// Write the image shifted by half its width and height, so both wrap
     /// seams cross the middle (PNG; a folder when there are many images).
@@ -349,15 +353,6 @@ pub enum ConventionArg {
     Directx,
 }
 
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum ChannelArg {
-    Luma,
-    R,
-    G,
-    B,
-    A,
-}
-
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FormatArg {
     Png,
@@ -400,6 +395,15 @@ fn parse_bits(s: &str) -> Result<u8, String> {
         "32" => Ok(32),
         _ => Err(format!("bits must be 8, 16 or 32, got '{s}'")),
     }
+}
+
+/// `--channel`: a keyword or an EXR channel's name, resolved per file by
+/// the library's rule (exact name first, then the keywords in any case).
+fn parse_channel(s: &str) -> Result<Channel, String> {
+    if s.is_empty() {
+        return Err("expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name".into());
+    }
+    Ok(Channel::Named(s.to_string()))
 }
 
 fn parse_finite(s: &str) -> Result<f64, String> {

@@ -18,7 +18,6 @@ use super::input::{Input, InputIds, check_extension, read_input, stdin_at_most_o
 use super::output::{self, Destination};
 use super::progress::Progress;
 use super::report::{Failure, print_line, warn};
-use super::tiling::channel_of;
 
 /// What `convert` does with every input, decided once from the arguments.
 struct Plan {
@@ -164,7 +163,7 @@ impl Plan {
         Ok(Plan {
             fit,
             border: args.fit.border,
-            channel: args.channel.map(channel_of),
+            channel: args.channel.clone(),
             bits: args.bits,
             format: args.format,
             signed: args.signed,
@@ -191,12 +190,12 @@ impl Plan {
         }
         if let (Input::File(path), None) = (input, &self.residual) {
             let in_failure = |e: normalfit::Error| Failure::file(path, e);
-            if let Some(rows) = PngRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
+            if let Some(rows) = PngRows::reopen(path, &self.read, self.channel.clone()).map_err(in_failure)? {
                 let sample = SampleType::Int { bits: if rows.more_than_8_bits() { 16 } else { 8 } };
                 let target = self.target(job, InputFormat::Png, sample)?;
                 return self.convert_streaming(job, k, shared, rows, &target);
             }
-            if let Some(rows) = ExrRows::reopen(path, &self.read, self.channel).map_err(in_failure)? {
+            if let Some(rows) = ExrRows::reopen(path, &self.read, self.channel.clone()).map_err(in_failure)? {
                 let target = self.target(job, InputFormat::Exr, SampleType::Float)?;
                 return self.convert_streaming(job, k, shared, rows, &target);
             }
@@ -210,7 +209,7 @@ impl Plan {
             return Ok(Outcome::Skipped);
         }
         let (width, height) = (raster.width, raster.height);
-        let heights = raster.into_heights(self.channel).map_err(|e| Failure::file(input.name(), e))?;
+        let heights = raster.into_heights(self.channel.clone()).map_err(|e| Failure::file(input.name(), e))?;
         let report = self.needs_check().then(|| seams_of(&heights, width, height));
         if let Some(report) = &report {
             self.warn_seams(report, input);
@@ -299,11 +298,12 @@ impl Plan {
         let png_file = target.path.is_some() && target.png_depth().is_some();
         let needs_tail = may_wrap_y && !png_file;
         let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let cheap_tail = if needs_tail && !auto { S::last_rows(path, &self.read, self.channel, r) } else { None };
+        let cheap_tail =
+            if needs_tail && !auto { S::last_rows(path, &self.read, self.channel.clone(), r) } else { None };
         let (report, tail) = match cheap_tail {
             Some(tail) => (None, Some(tail.map_err(in_failure)?)),
             None if auto || needs_tail => {
-                let first = S::reopen(path, &self.read, self.channel).map_err(in_failure)?;
+                let first = S::reopen(path, &self.read, self.channel.clone()).map_err(in_failure)?;
                 let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
                 let mut seams = HeightSeams::new(width, height);
                 let tail = first.read_tail(r, |row| seams.push_row(row)).map_err(in_failure)?;

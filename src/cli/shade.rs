@@ -15,7 +15,7 @@ use super::fitting;
 use super::input::{Input, InputIds, read_input, stdin_at_most_once};
 use super::output::{self, Destination};
 use super::report::Failure;
-use super::tiling::{channel_of, kind_of, rgb_planes};
+use super::tiling::{kind_of, rgb_planes};
 
 /// What `shade` does with every input, decided once from the arguments.
 struct Plan {
@@ -47,7 +47,7 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
         light: args.light.0,
         tile: args.tile,
         kind: args.kind,
-        channel: args.channel.map(channel_of),
+        channel: args.channel.clone(),
         signed: args.signed,
         destination,
     };
@@ -73,7 +73,7 @@ impl Plan {
         let in_failure = |e: normalfit::Error| Failure::file(input.name(), e);
         let raster = read_input(input, &ReadOptions::default())?;
         let (w, h) = (raster.width, raster.height);
-        let normals = match kind_of(&raster, self.kind, self.channel).map_err(in_failure)? {
+        let normals = match kind_of(&raster, self.kind, self.channel.as_ref()).map_err(in_failure)? {
             ImageKind::Normal => {
                 self.decode_normals(&raster).map_err(|problem| Failure::file(input.name(), problem))?
             }
@@ -118,7 +118,7 @@ impl Plan {
             ));
         }
         let (w, h) = (raster.width, raster.height);
-        let heights = raster.heights(self.channel)?;
+        let heights = raster.heights(self.channel.clone())?;
         let report = self
             .border
             .needs_check()

@@ -7,7 +7,7 @@ use normalfit::shade::{self, Light};
 use normalfit::tiling::{self, ImageKind, KindChoice, TilingOptions, TilingReport};
 use normalfit::{Convention, Options, Strength};
 
-use super::args::{ChannelArg, KindArg, TilingArgs};
+use super::args::{KindArg, TilingArgs};
 use super::exit;
 use super::input::{Input, InputIds, read_input};
 use super::report::Failure;
@@ -21,7 +21,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
         }
         opts.threshold = t;
     }
-    let channel = args.channel.map(channel_of);
+    let channel = args.channel.as_ref();
     let read = args.read.options();
     let many = args.inputs.len() > 1;
     let previews = Previews {
@@ -60,22 +60,12 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
     })
 }
 
-pub fn channel_of(c: ChannelArg) -> Channel {
-    match c {
-        ChannelArg::Luma => Channel::Luma,
-        ChannelArg::R => Channel::R,
-        ChannelArg::G => Channel::G,
-        ChannelArg::B => Channel::B,
-        ChannelArg::A => Channel::A,
-    }
-}
-
 /// Reads one image and checks it.
 fn check_one(
     input: &Input,
     read: &ReadOptions,
     kind: KindArg,
-    channel: Option<Channel>,
+    channel: Option<&Channel>,
     opts: &TilingOptions,
 ) -> Result<(Raster, TilingReport), Failure> {
     let raster = read_input(input, read)?;
@@ -121,7 +111,7 @@ impl Previews {
         input: &Input,
         raster: &Raster,
         report: &TilingReport,
-        channel: Option<Channel>,
+        channel: Option<&Channel>,
     ) -> Result<(), Failure> {
         let (w, h) = (raster.width, raster.height);
         let fail = |e: normalfit::Error| Failure::file(input.name(), e);
@@ -130,7 +120,7 @@ impl Previews {
                 (ImageKind::Normal, Some(planes)) => (0..w * h)
                     .map(|k| planes.each_ref().map(|p| (p[k].clamp(0.0, 1.0) * 255.0).round() as u8))
                     .collect(),
-                _ => stretched_gray(&raster.heights(channel).map_err(fail)?),
+                _ => stretched_gray(&raster.heights(channel.cloned()).map_err(fail)?),
             };
             self.save(&target.path_for(input, "preview"), &tiling::shift_half(&rgb, w, h), w, h)?;
         }
@@ -140,7 +130,7 @@ impl Previews {
                     (0..w * h).map(|k| planes.each_ref().map(|p| 2.0 * p[k] - 1.0)).collect()
                 }
                 _ => {
-                    let heights = raster.heights(channel).map_err(fail)?;
+                    let heights = raster.heights(channel.cloned()).map_err(fail)?;
                     let opts = Options::new().with_strength(Strength::Scale(exposure(&heights, w)));
                     normalfit::normals(&heights, w, h, &opts).map_err(fail)?
                 }
@@ -189,7 +179,7 @@ fn exposure(heights: &[f32], width: usize) -> f64 {
 pub fn report_of(
     raster: &Raster,
     kind: KindArg,
-    channel: Option<Channel>,
+    channel: Option<&Channel>,
     opts: &TilingOptions,
 ) -> normalfit::Result<TilingReport> {
     let (w, h) = (raster.width, raster.height);
@@ -199,7 +189,7 @@ pub fn report_of(
     Ok(match (kind, rgb) {
         (ImageKind::Normal, Some(planes)) => tiling::check(&planes.each_ref().map(Vec::as_slice), w, h, &fixed),
         _ => {
-            let heights = raster.heights(channel)?;
+            let heights = raster.heights(channel.cloned())?;
             tiling::check(&[&heights], w, h, &fixed)
         }
     })
@@ -207,7 +197,7 @@ pub fn report_of(
 
 /// What a decoded image holds: as asked, or detected from its R, G, B
 /// planes. Naming a height channel (`channel`) says it is a height map.
-pub fn kind_of(raster: &Raster, kind: KindArg, channel: Option<Channel>) -> normalfit::Result<ImageKind> {
+pub fn kind_of(raster: &Raster, kind: KindArg, channel: Option<&Channel>) -> normalfit::Result<ImageKind> {
     Ok(match (kind, rgb_planes(raster)?) {
         (KindArg::Height, _) => ImageKind::Height,
         (KindArg::Normal, Some(_)) => ImageKind::Normal,

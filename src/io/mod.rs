@@ -8,6 +8,7 @@
 //! files, streaming rows from decoder to encoder.
 
 mod atomic;
+pub(crate) mod exr_subsampled;
 mod memory;
 pub mod read;
 pub mod stream;

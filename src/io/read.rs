@@ -3,9 +3,11 @@
 //! Rules this module keeps, and why:
 //! * The decoder is chosen from the content, never the file name: a `.png`
 //!   that is really a JPEG still reads, and a renamed file cannot pick a
-//!   decoder that then misreads it. OpenEXR goes to the `exr` crate, gray
-//!   TIFF with samples `image` refuses (float, half, 32/64-bit and signed
-//!   integers) to the `tiff` crate, everything else to `image`.
+//!   decoder that then misreads it. OpenEXR goes to the `exr` crate (a
+//!   file with subsampled channels, which it refuses, to
+//!   `io/exr_subsampled.rs`), gray TIFF with samples `image` refuses
+//!   (float, half, 32/64-bit and signed integers) to the `tiff` crate,
+//!   everything else to `image`.
 //! * The size a header claims is checked against [`ReadOptions::max_texels`]
 //!   before any pixel buffer exists. A 100-byte file can claim
 //!   100000 × 100000 texels, and both `image` and `exr` would otherwise try
@@ -33,12 +35,12 @@ use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limit
 use rayon::prelude::*;
 use tiff::tags::{SampleFormat, Tag};
 
-use super::memory;
+use super::{exr_subsampled, memory};
 use crate::error::{Error, Result, one_line};
 use crate::samples::{Samples, luma, try_vec};
 
 /// Which channel of the image gives the height (SPEC §1, `--channel`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Channel {
     /// 0.2126 R + 0.7152 G + 0.0722 B of the stored values; the gray
     /// channel of a gray image.
@@ -51,6 +53,42 @@ pub enum Channel {
     B,
     /// Alpha; an error when the image has none.
     A,
+    /// A channel by name, as `--channel` passes it: an OpenEXR channel of
+    /// exactly this name ("Z", "height", "disparityL.x"; with a layer
+    /// chosen, also the name within it), else one of the keywords above
+    /// in any case ("luma", "R"), else the one OpenEXR channel whose name
+    /// matches in any case. Formats other than OpenEXR take the keywords
+    /// only.
+    Named(String),
+}
+
+impl Channel {
+    /// The keyword this channel is: itself, or for [`Channel::Named`] the
+    /// keyword its name spells in any case.
+    fn keyword(&self) -> Option<Channel> {
+        let Channel::Named(name) = self else { return Some(self.clone()) };
+        Some(match name.to_ascii_lowercase().as_str() {
+            "luma" => Channel::Luma,
+            "r" => Channel::R,
+            "g" => Channel::G,
+            "b" => Channel::B,
+            "a" => Channel::A,
+            _ => return None,
+        })
+    }
+}
+
+impl fmt::Display for Channel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Channel::Luma => "luma",
+            Channel::R => "r",
+            Channel::G => "g",
+            Channel::B => "b",
+            Channel::A => "a",
+            Channel::Named(name) => name,
+        })
+    }
 }
 
 /// The file format the bytes were decoded as, found from their content.
@@ -150,7 +188,9 @@ pub struct Raster {
     pub format: InputFormat,
     /// How the samples were stored.
     pub sample: SampleType,
-    /// The channels, in the file's order.
+    /// The channels, in the file's order. An OpenEXR file's subsampled
+    /// channels (a luminance/chroma file's RY and BY) are left out: they
+    /// have fewer samples than texels and are never heights.
     pub planes: Vec<Plane>,
 }
 
@@ -243,10 +283,18 @@ impl Raster {
     ///   channel for `None`, `Luma`, `R`, `G` and `B`.
     /// * A colour image gives luma of R, G, B for `None` and `Luma`, else
     ///   the channel asked for.
-    /// * An EXR prefers "Y", then its only channel, then luma of R, G, B.
-    ///   Channel names match case-insensitively, also by their last
-    ///   dot-separated part ("diffuse.R" is R).
+    /// * An EXR applies the rule to its root channels, those whose names
+    ///   have no dot: "Y", then its only root channel, then luma of R, G,
+    ///   B, matching names in any case. A channel `layer.name` is a layer's
+    ///   ("disparityL.y" is never the image's Y); the layers are read by
+    ///   choosing one ([`ReadOptions::layer`]) or a channel by its full
+    ///   name. When every channel shares one layer ("diffuse.R",
+    ///   "diffuse.G", …), the names within it are the root; when they are
+    ///   spread over several layers and none is at the root, the default
+    ///   is an error naming the layers.
     /// * `A` gives alpha, an error when there is none.
+    /// * [`Channel::Named`] picks an EXR channel by its exact name first
+    ///   (see there).
     ///
     /// The heights are rounded to `f32`, for views and checks; the fit
     /// takes the samples themselves ([`Raster::into_heights`]).
@@ -255,7 +303,7 @@ impl Raster {
     /// [`Error::NonFiniteHeight`] naming the first NaN or infinite height in
     /// row order.
     pub fn heights(&self, channel: Option<Channel>) -> Result<Vec<f32>> {
-        let heights = match self.select(channel)? {
+        let heights = match self.select(channel.as_ref())? {
             Source::Plane(i) => self.planes[i].data.to_f32()?,
             Source::Luma(rgb) => self.luma(rgb)?.into_f32()?,
         };
@@ -273,7 +321,7 @@ impl Raster {
     ///
     /// Errors: as [`Raster::heights`].
     pub fn into_heights(mut self, channel: Option<Channel>) -> Result<Samples> {
-        let heights = match self.select(channel)? {
+        let heights = match self.select(channel.as_ref())? {
             Source::Plane(i) => self.planes.swap_remove(i).data,
             Source::Luma(rgb) => self.luma(rgb)?,
         };
@@ -288,9 +336,9 @@ impl Raster {
     }
 
     /// Applies SPEC §1's channel rule to this raster's plane names.
-    fn select(&self, channel: Option<Channel>) -> Result<Source> {
+    fn select(&self, channel: Option<&Channel>) -> Result<Source> {
         let names: Vec<&str> = self.planes.iter().map(|p| p.name.as_str()).collect();
-        select_channel(&names, channel)
+        select_channel(&names, channel, &self.format)
     }
 
     /// Luma of three planes in contract units, each texel in f64 by the one
@@ -322,52 +370,150 @@ pub(crate) enum Source {
 }
 
 /// SPEC §1's channel rule (see [`Raster::heights`]) over a list of channel
-/// names: which channel, or which three for luma, hold the height.
-pub(crate) fn select_channel(names: &[&str], channel: Option<Channel>) -> Result<Source> {
-    let names = Names(names);
-    let wanted = match channel {
-        None | Some(Channel::Luma) => None,
-        Some(Channel::R) => Some("r"),
-        Some(Channel::G) => Some("g"),
-        Some(Channel::B) => Some("b"),
-        Some(Channel::A) => {
+/// names: which channel, or which three for luma, hold the height. The
+/// names are an OpenEXR file's own when `format` is [`InputFormat::Exr`];
+/// the other formats' planes have fixed names ("Y", "R", …) that
+/// [`Channel::Named`] cannot pick, only its keywords.
+pub(crate) fn select_channel(names: &[&str], channel: Option<&Channel>, format: &InputFormat) -> Result<Source> {
+    let names = Names::new(names);
+    let exr = *format == InputFormat::Exr;
+    let keyword = match channel {
+        None => Channel::Luma,
+        Some(Channel::Named(name)) => {
+            if let Some(i) = names.exact(name).filter(|_| exr) {
+                return Ok(Source::Plane(i));
+            }
+            match channel.and_then(Channel::keyword) {
+                Some(keyword) => keyword,
+                None if exr => {
+                    return names.unique_ignoring_case(name).map(Source::Plane).ok_or_else(|| {
+                        Error::Unsupported(format!("no channel {name} (channels: {})", names.channel_list()))
+                    });
+                }
+                None => {
+                    return Err(Error::Unsupported(format!(
+                        "no channel {name}: {format} images take luma, r, g, b or a (only OpenEXR channels are \
+                         chosen by name)"
+                    )));
+                }
+            }
+        }
+        Some(keyword) => keyword.clone(),
+    };
+    let roots = names.roots()?;
+    let wanted = match keyword {
+        Channel::R => Some("r"),
+        Channel::G => Some("g"),
+        Channel::B => Some("b"),
+        Channel::A => {
             return names
-                .find("a")?
+                .find(&roots, "a")
                 .map(Source::Plane)
                 .ok_or_else(|| Error::Unsupported("image has no alpha channel".into()));
         }
+        Channel::Luma | Channel::Named(_) => None,
     };
     // An explicit R, G or B names a stored channel when there is one,
     // overriding an EXR's "Y"; a gray image has none and gives gray.
-    if let Some(name) = wanted {
-        if let Some(i) = names.find(name)? {
-            return Ok(Source::Plane(i));
-        }
+    if let Some(i) = wanted.and_then(|name| names.find(&roots, name)) {
+        return Ok(Source::Plane(i));
     }
-    match (names.gray_plane()?, wanted) {
+    match (names.gray_plane(&roots), wanted) {
         (Some(i), _) => Ok(Source::Plane(i)),
         (None, Some(name)) => {
             Err(Error::Unsupported(format!("image has no {name} channel (channels: {})", names.channel_list())))
         }
-        (None, None) => names.rgb().map(Source::Luma),
+        (None, None) => names.rgb(&roots).map(Source::Luma),
     }
 }
 
 /// Channel names, for the channel rule.
-struct Names<'a>(&'a [&'a str]);
+///
+/// OpenEXR names channels `layer.name` ("diffuse.R", "disparityL.x"); a
+/// name without a dot is a root channel. The rule's keywords (the default,
+/// luma, r, g, b, a) look at the root channels only, so a layer's "x" or
+/// "R" is never mistaken for the image's own. When every name shares a
+/// layer prefix (a file or `--layer` holding one layer only), the names
+/// after that prefix are the root.
+struct Names<'a> {
+    all: &'a [&'a str],
+    /// The length of the layer prefix every name shares ("diffuse."), or 0.
+    shared: usize,
+}
 
-impl Names<'_> {
-    /// The gray channel: "Y" if present, else the only channel there is.
-    fn gray_plane(&self) -> Result<Option<usize>> {
-        if let Some(i) = self.find("y")? {
-            return Ok(Some(i));
+impl<'a> Names<'a> {
+    fn new(all: &'a [&'a str]) -> Self {
+        let mut shared = 0;
+        if let Some(first) = all.first() {
+            for (dot, _) in first.match_indices('.') {
+                let prefix = &first[..=dot];
+                if !all.iter().all(|name| name.starts_with(prefix)) {
+                    break;
+                }
+                shared = dot + 1;
+            }
         }
-        Ok((self.0.len() == 1).then_some(0))
+        Names { all, shared }
+    }
+
+    /// A name after the shared layer prefix.
+    fn relative(&self, i: usize) -> &'a str {
+        &self.all[i][self.shared..]
+    }
+
+    /// The root channels, by index: names (after the shared prefix) without
+    /// a dot. An error when every channel is in a layer and the layers
+    /// differ: which one holds the height is the user's choice.
+    fn roots(&self) -> Result<Vec<usize>> {
+        let roots: Vec<usize> = (0..self.all.len()).filter(|&i| !self.relative(i).contains('.')).collect();
+        if roots.is_empty() && !self.all.is_empty() {
+            let mut layers: Vec<&str> = Vec::new();
+            for i in 0..self.all.len() {
+                let layer = self.relative(i).split('.').next().unwrap_or_default();
+                let layer = &self.all[i][..self.shared + layer.len()];
+                if !layers.contains(&layer) {
+                    layers.push(layer);
+                }
+            }
+            return Err(Error::Unsupported(format!(
+                "every channel is in a layer ({}) and none is at the root: choose a layer, or a channel by its \
+                 full name",
+                layers.join(", ")
+            )));
+        }
+        Ok(roots)
+    }
+
+    /// The channel of exactly this name, or of this name after the shared
+    /// layer prefix ("x" for "disparityL.x" when the layer was chosen).
+    fn exact(&self, name: &str) -> Option<usize> {
+        (self.all.iter().position(|n| *n == name)).or_else(|| (0..self.all.len()).find(|&i| self.relative(i) == name))
+    }
+
+    /// The one channel whose name, whole or after the shared prefix,
+    /// matches in any case; none when no channel or several do.
+    fn unique_ignoring_case(&self, name: &str) -> Option<usize> {
+        let matches: Vec<usize> = (0..self.all.len())
+            .filter(|&i| self.all[i].eq_ignore_ascii_case(name) || self.relative(i).eq_ignore_ascii_case(name))
+            .collect();
+        match matches.as_slice() {
+            [i] => Some(*i),
+            _ => None,
+        }
+    }
+
+    /// The gray channel: "Y" if present, else the only root channel.
+    fn gray_plane(&self, roots: &[usize]) -> Option<usize> {
+        let only = match roots {
+            [only] => Some(*only),
+            _ => None,
+        };
+        self.find(roots, "y").or(only)
     }
 
     /// The R, G and B planes that luma is made of.
-    fn rgb(&self) -> Result<[usize; 3]> {
-        match (self.find("r")?, self.find("g")?, self.find("b")?) {
+    fn rgb(&self, roots: &[usize]) -> Result<[usize; 3]> {
+        match (self.find(roots, "r"), self.find(roots, "g"), self.find(roots, "b")) {
             (Some(r), Some(g), Some(b)) => Ok([r, g, b]),
             _ => Err(Error::Unsupported(format!(
                 "no usable height channel: need y, a single channel, or r, g and b (channels: {})",
@@ -376,36 +522,20 @@ impl Names<'_> {
         }
     }
 
-    /// Finds the plane for a channel letter (lower case): the name itself
-    /// in any case, or a layer's channel whose last dot-separated part is
-    /// the letter. An exact match wins; several layer matches are ambiguous,
-    /// an error rather than a silent guess.
-    fn find(&self, letter: &str) -> Result<Option<usize>> {
-        let matches: Vec<usize> = (0..self.0.len())
-            .filter(|&i| {
-                let name = self.0[i];
-                let last = name.rsplit('.').next().unwrap_or(name);
-                last.eq_ignore_ascii_case(letter)
-            })
-            .collect();
-        let exact = matches.iter().copied().find(|&i| self.0[i].eq_ignore_ascii_case(letter));
-        match (exact, matches.as_slice()) {
-            (Some(i), _) => Ok(Some(i)),
-            (None, []) => Ok(None),
-            (None, [i]) => Ok(Some(*i)),
-            (None, _) => Err(Error::Unsupported(format!(
-                "channel {letter} is ambiguous: {}",
-                matches.iter().map(|&i| self.0[i]).collect::<Vec<_>>().join(", ")
-            ))),
-        }
+    /// The root channel for a letter (lower case), in any case; the upper
+    /// case one, OpenEXR's spelling, when both are there.
+    fn find(&self, roots: &[usize], letter: &str) -> Option<usize> {
+        let upper = letter.to_ascii_uppercase();
+        (roots.iter().copied().find(|&i| self.relative(i) == upper))
+            .or_else(|| roots.iter().copied().find(|&i| self.relative(i).eq_ignore_ascii_case(letter)))
     }
 
     /// The channel names, for messages.
     fn channel_list(&self) -> String {
-        if self.0.is_empty() {
+        if self.all.is_empty() {
             return "none".into();
         }
-        self.0.join(", ")
+        self.all.join(", ")
     }
 }
 
@@ -858,9 +988,13 @@ fn from_tiff_error(e: tiff::TiffError) -> Error {
 /// all its channels.
 fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     check_exr_windows(Cursor::new(bytes))?;
+    let mut read = Cursor::new(bytes);
+    if let Some(headers) = exr_subsampled::read_headers(&mut read).filter(exr_subsampled::Headers::subsampled) {
+        return decode_exr_subsampled(read, headers, opts);
+    }
     let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(from_exr_error)?;
     check_exr_meta(&meta, bytes.len() as u64, opts)?;
-    let choice = choose_exr_layer(&meta.headers, opts.layer.as_deref())?;
+    let choice = choose_exr_layer(&exr_parts(&meta.headers), opts.layer.as_deref())?;
     // `exr` allocates the image itself, and aborts if that fails.
     memory::check_memory("decoding", memory::exr_decode_bytes(&meta.headers[choice.part]))?;
     use exr::prelude::ReadLayers;
@@ -879,6 +1013,37 @@ fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         .filter(|channel| choice.holds(&channel.name.to_string()))
         .map(|channel| exr_plane(channel, texels))
         .collect::<Result<Vec<_>>>()?;
+    Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
+}
+
+/// Decodes an EXR with subsampled channels, which the `exr` crate refuses
+/// (see [`exr_subsampled`]): the full-resolution channels of the layer
+/// asked for, block by block. `read` is at the offset tables.
+fn decode_exr_subsampled(
+    mut read: Cursor<&[u8]>,
+    headers: exr_subsampled::Headers,
+    opts: &ReadOptions,
+) -> Result<Raster> {
+    let file_len = read.get_ref().len() as u64;
+    let part = exr_subsampled::ScanLines::open(headers, &mut read, file_len, opts)?;
+    let (width, height) = (part.width(), part.height());
+    let texels = to_usize((width as u64).saturating_mul(height as u64))?;
+    let (wanted, names): (Vec<usize>, Vec<String>) = part.channels().map(|(i, n)| (i, n.to_string())).unzip();
+    memory::check_memory("decoding", (texels as u64).saturating_mul(8 * wanted.len() as u64))?;
+    // The planes grow block by block, so a header that claims far more
+    // texels than the file holds fails at its first missing chunk, before
+    // the memory is taken. They are f64, as the streamed rows are: every
+    // sample type (half, float, u32) exactly, and the same bits either way.
+    let mut planes: Vec<(String, Vec<f64>)> = names.into_iter().map(|name| (name, Vec::new())).collect();
+    for y0 in (0..height).step_by(part.lines_per_block()) {
+        let block = part.read_block(&mut read, y0, &wanted)?;
+        for ((name, data), rows) in planes.iter_mut().zip(block) {
+            data.try_reserve(rows.len())
+                .map_err(|_| Error::Limits(format!("cannot allocate {texels} values of 8 bytes for channel {name}")))?;
+            data.extend_from_slice(&rows);
+        }
+    }
+    let planes = planes.into_iter().map(|(name, data)| Plane { name, data: Samples::F64(data) }).collect();
     Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
 }
 
@@ -902,36 +1067,53 @@ impl ExrLayer {
     }
 }
 
-/// Finds the layer `name` among an OpenEXR file's headers (see
+/// What the layer choice needs of one part of an OpenEXR file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct ExrPart {
+    /// Its `name` attribute.
+    pub name: Option<String>,
+    /// Whether it holds deep data.
+    pub deep: bool,
+    /// Its channels' names.
+    pub channels: Vec<String>,
+}
+
+/// The parts of a file as the `exr` crate read its headers.
+pub(crate) fn exr_parts(headers: &[exr::meta::header::Header]) -> Vec<ExrPart> {
+    let part = |h: &exr::meta::header::Header| ExrPart {
+        name: h.own_attributes.layer_name.as_ref().map(|n| n.to_string()),
+        deep: h.deep,
+        channels: h.channels.list.iter().map(|c| c.name.to_string()).collect(),
+    };
+    headers.iter().map(part).collect()
+}
+
+/// Finds the layer `name` among an OpenEXR file's parts (see
 /// [`ReadOptions::layer`]): a part of that name, else the first part with
 /// channels named `name.…`; `None` is the first part of flat samples.
 ///
 /// Errors: [`Error::Unsupported`] naming the layers there are when none
 /// matches, or when every part holds deep data.
-pub(crate) fn choose_exr_layer(headers: &[exr::meta::header::Header], name: Option<&str>) -> Result<ExrLayer> {
+pub(crate) fn choose_exr_layer(parts: &[ExrPart], name: Option<&str>) -> Result<ExrLayer> {
     let Some(name) = name else {
-        return headers
+        return parts
             .iter()
-            .position(|h| !h.deep)
+            .position(|p| !p.deep)
             .map(|part| ExrLayer { part, prefix: None })
             .ok_or_else(|| Error::Unsupported("exr file holds only deep data".into()));
     };
-    let part_name = |h: &exr::meta::header::Header| h.own_attributes.layer_name.as_ref().map(|n| n.to_string());
-    if let Some(part) = headers.iter().position(|h| part_name(h).as_deref() == Some(name)) {
+    if let Some(part) = parts.iter().position(|p| p.name.as_deref() == Some(name)) {
         return Ok(ExrLayer { part, prefix: None });
     }
     let group = ExrLayer { part: 0, prefix: Some(name.to_string()) };
-    if let Some(part) =
-        headers.iter().position(|h| !h.deep && h.channels.list.iter().any(|c| group.holds(&c.name.to_string())))
-    {
+    if let Some(part) = parts.iter().position(|p| !p.deep && p.channels.iter().any(|c| group.holds(c))) {
         return Ok(ExrLayer { part, ..group });
     }
     // The names there are: parts, and the channel groups of each part.
     let mut layers: Vec<String> = Vec::new();
-    for header in headers {
-        layers.extend(part_name(header));
-        for channel in &header.channels.list {
-            let channel = channel.name.to_string();
+    for part in parts {
+        layers.extend(part.name.clone());
+        for channel in &part.channels {
             if let Some((group, _)) = channel.rsplit_once('.') {
                 if !layers.iter().any(|l| l == group) {
                     layers.push(group.to_string());

@@ -16,9 +16,10 @@ use exr::prelude::{Vec2, f16};
 use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
+use crate::io::exr_subsampled::{self, Headers, ScanLines};
 use crate::io::read::{
-    Channel, EXR_MAGIC, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer, from_exr_error,
-    select_channel,
+    Channel, EXR_MAGIC, InputFormat, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer,
+    exr_parts, from_exr_error, select_channel,
 };
 use crate::io::write::{Container, ExrDepth, Layout, lay_out, write_exr_rows};
 use crate::options::Options;
@@ -33,15 +34,14 @@ type Blocks = Box<dyn Iterator<Item = exr::error::Result<UncompressedBlock>> + S
 /// threads ahead of the rows asked for; a block that arrives before its
 /// turn waits. Files written top to bottom (line order "increasing", what
 /// writers use) then hold a few blocks in memory, whatever their height.
+/// Files with subsampled channels, which the `exr` crate refuses, are read
+/// block by block through their offset table instead.
 pub struct ExrRows {
-    blocks: Blocks,
-    channels: ChannelList,
+    decoder: Decoder,
     source: Source,
     width: usize,
     height: usize,
     lines_per_block: usize,
-    /// Blocks that arrived before their turn, by first row.
-    early: BTreeMap<usize, UncompressedBlock>,
     /// The heights of the block being handed out, from row `current_y0`.
     current: Vec<f64>,
     current_y0: usize,
@@ -49,20 +49,35 @@ pub struct ExrRows {
     next: usize,
 }
 
+/// Where the blocks come from.
+enum Decoder {
+    /// The `exr` crate's decompressors, over the blocks of one part.
+    Exr {
+        blocks: Blocks,
+        channels: ChannelList,
+        part: usize,
+        /// Blocks that arrived before their turn, by first row.
+        early: BTreeMap<usize, UncompressedBlock>,
+    },
+    /// A file with subsampled channels ([`ScanLines`]).
+    Subsampled { file: BufReader<File>, part: ScanLines },
+}
+
 impl ExrRows {
     /// Opens `path` for streaming if it is an OpenEXR file that can stream:
-    /// one part of scan lines, one resolution level, no subsampled or deep
-    /// channels. `Ok(None)` otherwise (not EXR, tiled, several parts, …),
-    /// and the caller reads the image whole. Reads only the header.
-    /// `opts.layer` may pick a group of the part's channels
-    /// ([`ReadOptions::layer`]).
+    /// a part of scan lines (the first, or the one `opts.layer` names),
+    /// one resolution level, no deep data. `Ok(None)` otherwise (not EXR,
+    /// tiled, …), and the caller reads the image whole. Reads only the
+    /// headers. `opts.layer` may also pick a group of the part's channels
+    /// ([`ReadOptions::layer`]). Subsampled channels (luminance/chroma
+    /// files) are skipped, as the whole-image reader skips them.
     ///
     /// Errors: [`Error::Io`] if the file cannot be opened, [`Error::Decode`]
     /// for a corrupt header (an inverted window among them),
     /// [`Error::Limits`] for a size above `opts.max_texels`,
     /// [`Error::Unsupported`] for a missing channel or layer.
     pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<ExrRows>> {
-        Self::open_from(path, opts, channel, 0)
+        Self::open_from(path, opts, channel.as_ref(), 0)
     }
 
     /// The last `rows` rows of `path` (fewer if the image is shorter),
@@ -72,7 +87,8 @@ impl ExrRows {
     /// Errors: as [`ExrRows::open`], and [`Error::Unsupported`] if the file
     /// cannot stream.
     pub fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Result<Vec<f64>> {
-        let probe = Self::open(path, opts, channel)?.ok_or_else(not_streamable)?;
+        let channel = channel.as_ref();
+        let probe = Self::open_from(path, opts, channel, 0)?.ok_or_else(not_streamable)?;
         let (w, h) = (probe.width, probe.height);
         drop(probe);
         let keep = rows.min(h);
@@ -87,7 +103,7 @@ impl ExrRows {
     fn open_from(
         path: &Path,
         opts: &ReadOptions,
-        channel: Option<Channel>,
+        channel: Option<&Channel>,
         first_row: usize,
     ) -> Result<Option<ExrRows>> {
         let file = File::open(path)?;
@@ -98,12 +114,21 @@ impl ExrRows {
         }
         check_exr_windows(&mut file)?;
         file.seek(SeekFrom::Start(0))?;
+        if let Some(headers) = exr_subsampled::read_headers(&mut file).filter(Headers::subsampled) {
+            let part = ScanLines::open(headers, &mut file, file_len, opts)?;
+            let (indices, names): (Vec<usize>, Vec<&str>) = part.channels().unzip();
+            let source = channel_source(&indices, &names, channel)?;
+            let (width, height, lines_per_block) = (part.width(), part.height(), part.lines_per_block());
+            let decoder = Decoder::Subsampled { file, part };
+            return Ok(Some(ExrRows::new(decoder, source, (width, height), lines_per_block, first_row)));
+        }
+        file.seek(SeekFrom::Start(0))?;
         let reader = exr::block::read(file, false).map_err(from_exr_error)?;
         check_exr_meta(reader.meta_data(), file_len, opts)?;
-        let layer = choose_exr_layer(reader.headers(), opts.layer.as_deref())?;
-        let [header] = reader.headers() else { return Ok(None) };
-        let flat = header.channels.list.iter().all(|c| c.sampling == Vec2(1, 1));
-        if header.deep || header.blocks != BlockDescription::ScanLines || !flat {
+        let layer = choose_exr_layer(&exr_parts(reader.headers()), opts.layer.as_deref())?;
+        let part = layer.part;
+        let Some(header) = reader.headers().get(part) else { return Ok(None) };
+        if header.deep || header.blocks != BlockDescription::ScanLines {
             return Ok(None);
         }
         // The channel rule runs on the layer's channels; `source` indexes
@@ -113,100 +138,59 @@ impl ExrRows {
             .filter(|(_, name)| layer.holds(name))
             .unzip();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        let source = match select_channel(&names, channel)? {
-            Source::Plane(i) => Source::Plane(indices[i]),
-            Source::Luma(rgb) => Source::Luma(rgb.map(|i| indices[i])),
-        };
-        let (width, height) = (header.layer_size.0, header.layer_size.1);
+        let source = channel_source(&indices, &names, channel)?;
+        let size = (header.layer_size.0, header.layer_size.1);
         let channels = header.channels.clone();
         let lines_per_block = header.compression.scan_lines_per_block();
         let first_block = first_row - first_row % lines_per_block;
 
         let chunks = reader
-            .filter_chunks(false, |_, _, block| block.pixel_position.y() + block.pixel_size.y() > first_block)
+            .filter_chunks(false, |_, _, block| {
+                block.layer == part && block.pixel_position.y() + block.pixel_size.y() > first_block
+            })
             .map_err(from_exr_error)?;
         let blocks: Blocks = match chunks.parallel_decompressor(false) {
             Ok(parallel) => Box::new(parallel),
             Err(chunks) => Box::new(chunks.sequential_decompressor(false)),
         };
-        Ok(Some(ExrRows {
-            blocks,
-            channels,
+        let decoder = Decoder::Exr { blocks, channels, part, early: BTreeMap::new() };
+        Ok(Some(ExrRows::new(decoder, source, size, lines_per_block, first_row)))
+    }
+
+    fn new(decoder: Decoder, source: Source, size: (usize, usize), lines_per_block: usize, first_row: usize) -> Self {
+        ExrRows {
+            decoder,
             source,
-            width,
-            height,
+            width: size.0,
+            height: size.1,
             lines_per_block,
-            early: BTreeMap::new(),
             current: Vec::new(),
-            current_y0: first_block,
+            current_y0: first_row - first_row % lines_per_block,
             next: first_row,
-        }))
+        }
     }
 
     /// Makes the block that starts at row `y0` the current one.
     fn load_block(&mut self, y0: usize) -> Result<()> {
-        let block = loop {
-            if let Some(block) = self.early.remove(&y0) {
-                break block;
-            }
-            let block = match self.blocks.next() {
-                Some(block) => block.map_err(from_exr_error)?,
-                None => {
-                    return Err(Error::Decode(format!("image data ends after {y0} of {} rows", self.height)));
-                }
-            };
-            let at = block.index.pixel_position.y();
-            if at == y0 {
-                break block;
-            }
-            if at < y0 || at % self.lines_per_block != 0 || self.early.insert(at, block).is_some() {
-                return Err(Error::Decode(format!("block for row {at} is misplaced or repeated")));
-            }
-        };
         let rows = self.lines_per_block.min(self.height - y0);
-        let index = block.index;
-        if index.pixel_position.x() != 0 || index.pixel_size != Vec2(self.width, rows) || index.level != Vec2(0, 0) {
-            return Err(Error::Decode(format!("block for row {y0} has the wrong size")));
-        }
-        self.fill(&block, y0, rows)
-    }
-
-    /// Turns a block into the heights of its rows.
-    fn fill(&mut self, block: &UncompressedBlock, y0: usize, rows: usize) -> Result<()> {
-        let w = self.width;
         let wanted: Vec<usize> = match self.source {
             Source::Plane(c) => vec![c],
             Source::Luma(rgb) => rgb.to_vec(),
         };
-        let mut planes = vec![vec![0.0f64; rows * w]; wanted.len()];
-        for line in block.lines(&self.channels) {
-            let Some(k) = wanted.iter().position(|&c| c == line.location.channel) else { continue };
-            let row = line.location.position.y() - y0;
-            let out = &mut planes[k][row * w..][..w];
-            // Every sample type widened to f64, exactly (the whole-image
-            // reader keeps u32 in f64 too).
-            let read = match self.channels.list[line.location.channel].sample_type {
-                ExrSample::F32 => {
-                    let mut floats = vec![0.0f32; w];
-                    line.read_samples_into_slice(&mut floats).map(|()| {
-                        out.iter_mut().zip(&floats).for_each(|(o, &v)| *o = f64::from(v));
-                    })
+        let mut planes = match &mut self.decoder {
+            Decoder::Exr { blocks, channels, part, early } => {
+                let block = next_block(blocks, early, *part, y0, self.lines_per_block, self.height)?;
+                let index = block.index;
+                if index.pixel_position.x() != 0
+                    || index.pixel_size != Vec2(self.width, rows)
+                    || index.level != Vec2(0, 0)
+                {
+                    return Err(Error::Decode(format!("block for row {y0} has the wrong size")));
                 }
-                ExrSample::F16 => {
-                    let mut halves = vec![f16::ZERO; w];
-                    line.read_samples_into_slice(&mut halves).map(|()| {
-                        out.iter_mut().zip(&halves).for_each(|(o, h)| *o = f64::from(h.to_f32()));
-                    })
-                }
-                ExrSample::U32 => {
-                    let mut ints = vec![0u32; w];
-                    line.read_samples_into_slice(&mut ints).map(|()| {
-                        out.iter_mut().zip(&ints).for_each(|(o, &n)| *o = f64::from(n));
-                    })
-                }
-            };
-            read.map_err(from_exr_error)?;
-        }
+                block_planes(&block, channels, &wanted, self.width, y0, rows)?
+            }
+            Decoder::Subsampled { file, part } => part.read_block(file, y0, &wanted)?,
+        };
         self.current = match planes.as_slice() {
             [r, g, b] => r.iter().zip(g).zip(b).map(|((&r, &g), &b)| luma(r, g, b)).collect(),
             _ => planes.swap_remove(0),
@@ -214,6 +198,87 @@ impl ExrRows {
         self.current_y0 = y0;
         Ok(())
     }
+}
+
+/// SPEC §1's channel rule over a layer's channels, `names`, whose indices
+/// in the part's channel list are `indices`: the source, by the latter.
+fn channel_source(indices: &[usize], names: &[&str], channel: Option<&Channel>) -> Result<Source> {
+    Ok(match select_channel(names, channel, &InputFormat::Exr)? {
+        Source::Plane(i) => Source::Plane(indices[i]),
+        Source::Luma(rgb) => Source::Luma(rgb.map(|i| indices[i])),
+    })
+}
+
+/// The decompressed block of `part` that starts at row `y0`, from those
+/// that arrived early or the next ones to finish.
+fn next_block(
+    blocks: &mut Blocks,
+    early: &mut BTreeMap<usize, UncompressedBlock>,
+    part: usize,
+    y0: usize,
+    lines_per_block: usize,
+    height: usize,
+) -> Result<UncompressedBlock> {
+    loop {
+        if let Some(block) = early.remove(&y0) {
+            return Ok(block);
+        }
+        let block = match blocks.next() {
+            Some(block) => block.map_err(from_exr_error)?,
+            None => return Err(Error::Decode(format!("image data ends after {y0} of {height} rows"))),
+        };
+        if block.index.layer != part {
+            return Err(Error::Decode(format!("a block of part {} is among those of part {part}", block.index.layer)));
+        }
+        let at = block.index.pixel_position.y();
+        if at == y0 {
+            return Ok(block);
+        }
+        if at < y0 || at % lines_per_block != 0 || early.insert(at, block).is_some() {
+            return Err(Error::Decode(format!("block for row {at} is misplaced or repeated")));
+        }
+    }
+}
+
+/// The rows of the `wanted` channels of a block, as `f32`.
+fn block_planes(
+    block: &UncompressedBlock,
+    channels: &ChannelList,
+    wanted: &[usize],
+    w: usize,
+    y0: usize,
+    rows: usize,
+) -> Result<Vec<Vec<f64>>> {
+    let mut planes = vec![vec![0.0f64; rows * w]; wanted.len()];
+    for line in block.lines(channels) {
+        let Some(k) = wanted.iter().position(|&c| c == line.location.channel) else { continue };
+        let row = line.location.position.y() - y0;
+        let out = &mut planes[k][row * w..][..w];
+        // Every sample type widened to f64, exactly (the whole-image
+        // reader keeps u32 in f64 too).
+        let read = match channels.list[line.location.channel].sample_type {
+            ExrSample::F32 => {
+                let mut floats = vec![0.0f32; w];
+                line.read_samples_into_slice(&mut floats).map(|()| {
+                    out.iter_mut().zip(&floats).for_each(|(o, &v)| *o = f64::from(v));
+                })
+            }
+            ExrSample::F16 => {
+                let mut halves = vec![f16::ZERO; w];
+                line.read_samples_into_slice(&mut halves).map(|()| {
+                    out.iter_mut().zip(&halves).for_each(|(o, h)| *o = f64::from(h.to_f32()));
+                })
+            }
+            ExrSample::U32 => {
+                let mut ints = vec![0u32; w];
+                line.read_samples_into_slice(&mut ints).map(|()| {
+                    out.iter_mut().zip(&ints).for_each(|(o, &n)| *o = f64::from(n));
+                })
+            }
+        };
+        read.map_err(from_exr_error)?;
+    }
+    Ok(planes)
 }
 
 impl RowSource for ExrRows {
@@ -247,7 +312,7 @@ impl RowSource for ExrRows {
 }
 
 fn not_streamable() -> Error {
-    Error::Unsupported("only scan-line EXR files of one layer can be read by rows".into())
+    Error::Unsupported("only scan-line EXR parts can be read by rows".into())
 }
 
 /// How a streamed OpenEXR normal map is written.

@@ -3,9 +3,9 @@
 //! the image's height.
 //!
 //! Inputs that stream: PNG that is not interlaced ([`PngRows`]) and
-//! scan-line OpenEXR ([`ExrRows`]). Outputs: PNG ([`convert_png`],
+//! scan-line OpenEXR parts ([`ExrRows`]). Outputs: PNG ([`convert_png`],
 //! [`convert_png_seekable`]) and OpenEXR ([`convert_exr`]). Other inputs
-//! (interlaced PNG, tiled or multi-layer EXR, TIFF, JPEG, …) are decoded
+//! (interlaced PNG, tiled or multi-resolution EXR, TIFF, JPEG, …) are decoded
 //! whole by [`crate::io::read`].
 //!
 //! Three stages run at once: a thread decodes rows into bands of heights;

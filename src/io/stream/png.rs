@@ -14,8 +14,8 @@ use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::io::read::{
-    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, check_png_header, check_png_palette, check_size, message,
-    no_layers,
+    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, Source, check_png_header, check_png_palette, check_size, message,
+    no_layers, select_channel,
 };
 use crate::io::write::{Container, Layout, PngCompression, PngSample, lay_out};
 use crate::options::Options;
@@ -91,15 +91,17 @@ impl PngRows {
         let channels = color.samples();
         let gray = channels <= 2;
         let alpha = matches!(channels, 2 | 4).then_some(channels - 1);
-        let pick = match channel {
-            Some(Channel::A) => {
-                Pick::Channel(alpha.ok_or_else(|| Error::Unsupported("image has no alpha channel".into()))?)
-            }
-            _ if gray => Pick::Channel(0),
-            None | Some(Channel::Luma) => Pick::Luma,
-            Some(Channel::R) => Pick::Channel(0),
-            Some(Channel::G) => Pick::Channel(1),
-            Some(Channel::B) => Pick::Channel(2),
+        // The whole-image rule on the planes this PNG decodes to: the
+        // same choice and the same errors, by construction.
+        let names: &[&str] = match (gray, alpha.is_some()) {
+            (true, false) => &["Y"],
+            (true, true) => &["Y", "A"],
+            (false, false) => &["R", "G", "B"],
+            (false, true) => &["R", "G", "B", "A"],
+        };
+        let pick = match select_channel(names, channel.as_ref(), &InputFormat::Png)? {
+            Source::Plane(c) => Pick::Channel(c),
+            Source::Luma(_) => Pick::Luma,
         };
         Ok(Some(PngRows {
             reader,
