@@ -757,8 +757,12 @@ fn channel_names_on_the_command_line() {
     let png = dir.path().join("rgb.png");
     let pixels: Vec<u8> = (0..w * h * 3).map(|k| (k * 37 % 251) as u8).collect();
     image::save_buffer(&png, &pixels, w as u32, h as u32, image::ExtendedColorType::Rgb8).unwrap();
-    let red: Vec<f32> = (0..w * h).map(|k| f32::from(pixels[3 * k]) / 255.0).collect();
-    assert_eq!(cli_normals(&png, &["--channel", "R"], dir.path()).unwrap(), fit(&red));
+    // The red samples as stored: the fit reads 8-bit values as integers.
+    let red: Vec<u8> = (0..w * h).map(|k| pixels[3 * k]).collect();
+    assert_eq!(
+        cli_normals(&png, &["--channel", "R"], dir.path()).unwrap(),
+        normals(&red, w, h, &Options::default()).unwrap()
+    );
     let e = cli_normals(&png, &["--channel", "Y"], dir.path()).unwrap_err();
     assert!(e.contains("no channel Y: png images take luma, r, g, b or a"), "{e:?}");
 
