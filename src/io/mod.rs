@@ -9,6 +9,7 @@
 
 mod atomic;
 mod memory;
+mod png_zlib;
 pub mod read;
 pub mod stream;
 pub mod write;
