@@ -48,6 +48,7 @@ fn with_args(mut c: Case, args: &[&str]) -> Case {
     c
 }
 
+const ADLER: &[&str] = &["zlib checksum (adler-32) does not match"];
 const TRUNCATED: &[&str] = &["truncated", "end of file", "not enough bytes", "not have enough data"];
 const TOO_LARGE: &[&str] = &["too large"];
 /// A file named for another format is refused for its name; the same bytes
@@ -65,6 +66,22 @@ fn base_png_raw() -> Vec<u8> {
 
 fn base_png() -> Vec<u8> {
     png_file(&ihdr(16, 16, 8, 0), &[], &fdeflate::compress_to_vec(&base_png_raw()))
+}
+
+/// The 16-bit twin of [`base_png`]: 16 × 16 gray, a gradient.
+fn base_png16() -> Vec<u8> {
+    let raw = scanlines(16, |y| (0..16).flat_map(|x| ((x * 4096 + y * 37) as u16).to_be_bytes()).collect());
+    png_file(&ihdr(16, 16, 16, 0), &[], &fdeflate::compress_to_vec(&raw))
+}
+
+/// [`base_png`] (8 bits) or [`base_png16`] (16), Adam7-interlaced: decoded
+/// whole, never streamed.
+fn base_png_adam7(bits: u8) -> Vec<u8> {
+    let raw = match bits {
+        8 => adam7_scanlines(16, 16, |x, y| vec![(x * 16 + y) as u8]),
+        _ => adam7_scanlines(16, 16, |x, y| ((x * 4096 + y * 37) as u16).to_be_bytes().to_vec()),
+    };
+    png_file(&ihdr_adam7(16, 16, bits, 0), &[], &fdeflate::compress_to_vec(&raw))
 }
 
 /// An 8 × 8 palette PNG of two colours.
@@ -140,6 +157,16 @@ fn png_cases() -> Vec<Case> {
         case("png_deflate_bad_block_type.png", with_ihdr(16, 16, 8, 0, &zlib_raw(&[0x07, 0, 0])), &["deflate"]),
         case("png_deflate_bad_zlib_header.png", with_ihdr(16, 16, 8, 0, &[0x12, 0x34, 0, 0, 0, 0]), &["zlib"]),
         case("png_deflate_stored_length_mismatch.png", with_ihdr(16, 16, 8, 0, &zlib_raw(&stored)), &["deflate"]),
+        // The image data's checksum wrong and nothing else: streamed (not
+        // interlaced) and decoded whole (interlaced), 8- and 16-bit, the
+        // checksum in the last IDAT chunk or in one of its own, after the
+        // bytes of the image's last row.
+        case("png_adler32_wrong.png", png_adler_case(&good, true, false), ADLER),
+        case("png_adler32_wrong_16_bit.png", png_adler_case(&base_png16(), true, false), ADLER),
+        case("png_adler32_wrong_interlaced.png", png_adler_case(&base_png_adam7(8), true, false), ADLER),
+        case("png_adler32_wrong_interlaced_16_bit.png", png_adler_case(&base_png_adam7(16), true, false), ADLER),
+        case("png_adler32_wrong_own_idat.png", png_adler_case(&good, true, true), ADLER),
+        case("png_adler32_wrong_own_idat_interlaced.png", png_adler_case(&base_png_adam7(8), true, true), ADLER),
         case("png_filter_type_5.png", filtered(5), &["filter"]),
         case("png_filter_type_255.png", filtered(255), &["filter"]),
         case("png_ihdr_100000x100000.png", with_ihdr(100_000, 100_000, 8, 0, &few_zeros), TOO_LARGE),
@@ -508,6 +535,11 @@ fn the_unbroken_files_convert() {
     let bases: Vec<(&str, Vec<u8>)> = vec![
         ("base.png", base_png()),
         ("base_palette.png", base_palette_png()),
+        ("base16.png", base_png16()),
+        ("base_interlaced.png", base_png_adam7(8)),
+        ("base_interlaced16.png", base_png_adam7(16)),
+        ("base_adler32_own_idat.png", png_adler_case(&base_png(), false, true)),
+        ("base_adler32_own_idat_interlaced.png", png_adler_case(&base_png_adam7(8), false, true)),
         ("base.exr", base_exr()),
         ("base_zip.exr", zip_exr()),
         ("base_offset_window.exr", {

@@ -10,6 +10,7 @@
 mod atomic;
 pub(crate) mod exr_subsampled;
 mod memory;
+mod png_zlib;
 pub mod read;
 pub mod stream;
 pub mod write;

@@ -82,6 +82,60 @@ pub fn png_gray16(width: u32, height: u32, value: impl Fn(usize, usize) -> u16) 
     png_file(&ihdr(width, height, 16, 0), &[], &fdeflate::compress_to_vec(&raw))
 }
 
+/// IHDR data like [`ihdr`]'s, with the interlace method Adam7.
+pub fn ihdr_adam7(width: u32, height: u32, bit_depth: u8, color_type: u8) -> Vec<u8> {
+    let mut d = ihdr(width, height, bit_depth, color_type);
+    d[12] = 1;
+    d
+}
+
+/// The filtered scan lines of an Adam7-interlaced image: its seven passes
+/// in order, each row a filter byte (0, none) and pixel (x, y) as the
+/// bytes `pixel` gives. A pass with no pixels has no rows.
+pub fn adam7_scanlines(width: usize, height: usize, pixel: impl Fn(usize, usize) -> Vec<u8>) -> Vec<u8> {
+    const PASSES: [(usize, usize, usize, usize); 7] =
+        [(0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2)];
+    let mut raw = Vec::new();
+    for (x0, y0, dx, dy) in PASSES {
+        if x0 >= width || y0 >= height {
+            continue;
+        }
+        for y in (y0..height).step_by(dy) {
+            raw.push(0);
+            for x in (x0..width).step_by(dx) {
+                raw.extend(pixel(x, y));
+            }
+        }
+    }
+    raw
+}
+
+/// `png` (one IDAT chunk) with the last four bytes of its zlib stream,
+/// the Adler-32 of the image data, inverted when `corrupt`, and the IDAT
+/// CRC computed for the new bytes, so the checksum is all that is wrong.
+/// With `own_chunk`, those four bytes go in an IDAT chunk of their own,
+/// after the one holding the rest (a decoder that stops reading at the
+/// image's last byte never sees them).
+pub fn png_adler_case(png: &[u8], corrupt: bool, own_chunk: bool) -> Vec<u8> {
+    let at = find_chunk(png, b"IDAT");
+    let len = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+    let mut zlib = png[at + 8..at + 8 + len].to_vec();
+    if corrupt {
+        for b in &mut zlib[len - 4..] {
+            *b = !*b;
+        }
+    }
+    let mut out = png[..at].to_vec();
+    if own_chunk {
+        out.extend(png_chunk(b"IDAT", &zlib[..len - 4]));
+        out.extend(png_chunk(b"IDAT", &zlib[len - 4..]));
+    } else {
+        out.extend(png_chunk(b"IDAT", &zlib));
+    }
+    out.extend(&png[at + 12 + len..]);
+    out
+}
+
 /// Where a chunk of this type starts in a PNG (its length field).
 pub fn find_chunk(png: &[u8], kind: &[u8; 4]) -> usize {
     let mut at = 8;

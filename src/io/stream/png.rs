@@ -6,15 +6,16 @@ use std::borrow::Cow;
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, Write};
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
 use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
+use crate::io::png_zlib::{IdatCount, IdatWatch, decode_options, finish_checked, png_error};
 use crate::io::read::{
-    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, Source, check_png_header, check_png_palette, check_size, message,
+    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, Source, check_png_header, check_png_palette, check_size,
     no_layers, select_channel,
 };
 use crate::io::write::{Container, Layout, PngCompression, PngSample, lay_out};
@@ -24,7 +25,11 @@ use crate::samples::{Sample, luma};
 /// The rows of a PNG file, top to bottom: one channel's samples as stored,
 /// or luma in contract units ([`RowSource`]).
 pub struct PngRows {
-    reader: png::Reader<BufReader<File>>,
+    reader: png::Reader<IdatWatch<BufReader<File>>>,
+    /// The image data the decoder has read, for [`finish_checked`].
+    idat: IdatCount,
+    /// The file, opened again if its image data must be checked again.
+    path: PathBuf,
     width: usize,
     height: usize,
     layout: RowLayout,
@@ -60,7 +65,8 @@ impl PngRows {
     /// `opts.max_texels`, [`Error::Unsupported`] for a missing channel or
     /// a layer asked for (PNG has none). The rows read later may fail with
     /// [`Error::Decode`]; the last one also checks the rest of the file
-    /// up to IEND, as a whole-image decoder does.
+    /// up to IEND and the image data's checksum (zlib's Adler-32), as a
+    /// whole-image decoder does.
     pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<PngRows>> {
         let mut file = BufReader::with_capacity(1 << 16, File::open(path)?);
         let start = std::io::BufRead::fill_buf(&mut file)?;
@@ -72,7 +78,9 @@ impl PngRows {
         }
         check_png_header(start, opts)?;
         // The decoder's own buffers are a few rows; the limit guards them.
-        let mut decoder = png::Decoder::new_with_limits(file, png::Limits { bytes: 1 << 28 });
+        let (file, idat) = IdatWatch::new(file);
+        let mut decoder = png::Decoder::new_with_options(file, decode_options());
+        decoder.set_limits(png::Limits { bytes: 1 << 28 });
         decoder.set_transformations(png::Transformations::EXPAND);
         let reader = decoder.read_info().map_err(png_error)?;
         let info = reader.info();
@@ -105,6 +113,8 @@ impl PngRows {
         };
         Ok(Some(PngRows {
             reader,
+            idat,
+            path: path.to_path_buf(),
             width: width as usize,
             height: height as usize,
             layout: RowLayout { channels, bytes, pick },
@@ -162,9 +172,13 @@ impl RowSource for PngRows {
         self.next += 1;
         if self.next == self.height {
             // The rest of the file is read too, as a whole-image decoder
-            // reads it: a bad CRC in the last IDAT chunk, or a file cut
-            // before IEND, is the same error either way.
-            self.reader.finish().map_err(png_error)?;
+            // reads it: a bad CRC in the last IDAT chunk, a file cut
+            // before IEND, or image data whose checksum does not match,
+            // is the same error either way, and comes before the output
+            // is put in place.
+            let path = &self.path;
+            let at_last_row = self.idat.get();
+            finish_checked(&mut self.reader, &self.idat, at_last_row, || Ok(BufReader::new(File::open(path)?)))?;
         }
         Ok(())
     }
@@ -604,13 +618,4 @@ fn adler32_combine(first: u32, second: u32, second_len: u64) -> u32 {
     let a = (a1 + a2 + BASE - 1) % BASE;
     let b = (rem * a1 % BASE + b1 + b2 + BASE - rem) % BASE;
     ((b << 16) | a) as u32
-}
-
-fn png_error(e: png::DecodingError) -> Error {
-    match e {
-        png::DecodingError::IoError(e) if e.kind() != std::io::ErrorKind::UnexpectedEof => Error::Io(e),
-        png::DecodingError::IoError(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
-        png::DecodingError::LimitsExceeded => Error::Limits("the png decoder needs more memory than allowed".into()),
-        other => Error::Decode(format!("png: {}", message(&other.to_string()))),
-    }
 }
