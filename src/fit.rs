@@ -608,8 +608,14 @@ impl Plan {
                 // order: read as a slice, the loop vectorises.
                 padded.extend(src[start - r..end + r].iter().map(|&h| to_z(h)));
             } else {
-                let (x_border, r) = (self.borders.x, r as isize);
-                padded.extend((start..end + 2 * self.r).map(|p| to_z(src[x_border.map(p as isize - r, self.width)])));
+                // Columns start − r … end + r − 1: those outside the image
+                // through the x border, the rest as a slice.
+                let (lo, hi, w) = (start as isize - r as isize, (end + r) as isize, self.width as isize);
+                let (inside_lo, inside_hi) = (lo.max(0), hi.min(w));
+                let outside = |x: isize| to_z(src[self.borders.x.map(x, self.width)]);
+                padded.extend((lo..inside_lo).map(outside));
+                padded.extend(src[inside_lo as usize..inside_hi as usize].iter().map(|&h| to_z(h)));
+                padded.extend((inside_hi..hi).map(outside));
             }
             let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
             for (q, &z) in padded[..n].iter().enumerate() {
