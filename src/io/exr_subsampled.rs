@@ -345,6 +345,11 @@ impl ScanLines {
         self.lines_per_block
     }
 
+    /// Whether channel `i` of the part holds 32-bit integers.
+    pub fn is_int(&self, i: usize) -> bool {
+        self.header.channels.get(i).is_some_and(|c| c.int)
+    }
+
     /// The full-resolution channels of the layer: index into the part's
     /// channels, and name. The subsampled ones are not among them.
     pub fn channels(&self) -> impl Iterator<Item = (usize, &str)> {
@@ -353,7 +358,7 @@ impl ScanLines {
 
     /// Decodes the block that starts at row `y0` (a multiple of
     /// [`ScanLines::lines_per_block`]): for each of the part's channels in
-    /// `wanted` (full resolution), its rows as `f32`, row-major.
+    /// `wanted` (full resolution), its rows as `f64`, row-major.
     ///
     /// Errors: [`Error::Decode`] for a chunk that is not where the offset
     /// table says, is of another part or block, or does not decompress to

@@ -13,7 +13,7 @@ use exr::meta::BlockDescription;
 use exr::meta::attribute::{ChannelList, SampleType as ExrSample};
 use exr::prelude::{Vec2, f16};
 
-use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
+use super::{RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
 use crate::io::exr_subsampled::{self, Headers, ScanLines};
@@ -309,6 +309,24 @@ impl RowSource for ExrRows {
         self.next += 1;
         Ok(())
     }
+
+    /// One channel of half or float samples; not luma, not u32.
+    fn exact_in_f32(&self) -> bool {
+        match (&self.source, &self.decoder) {
+            (Source::Plane(c), Decoder::Exr { channels, .. }) => {
+                channels.list.get(*c).is_some_and(|ch| ch.sample_type != ExrSample::U32)
+            }
+            (Source::Plane(c), Decoder::Subsampled { part, .. }) => !part.is_int(*c),
+            (Source::Luma(_), _) => false,
+        }
+    }
+
+    fn next_row_f32(&mut self, out: &mut [f32]) -> Result<()> {
+        let mut row = vec![0.0f64; out.len()];
+        self.next_row(&mut row)?;
+        out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f32);
+        Ok(())
+    }
 }
 
 fn not_streamable() -> Error {
@@ -354,16 +372,15 @@ pub fn convert_exr<W: Write + Seek>(
     let fit = BandFit::new(w, h, opts)?.with_unit(unit);
     let ExrFormat { depth, signed, layout } = format;
     write_exr_rows(out, w, h, depth, layout.exr_channels(), |push| {
-        let prepare = |rows: Range<usize>, mut normals: Vec<[f32; 3]>, row: &Rows<'_>| {
+        let prepare = |_: Range<usize>, mut normals: Vec<[f32; 3]>, heights: Vec<f32>| {
             if !signed {
                 normals.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
             }
-            let heights = heights_for(layout, rows, row, unit);
             let mut samples = Vec::with_capacity(normals.len() * layout.exr_channels().len());
             lay_out(&normals, &heights, layout, Container::Exr, &mut samples);
             samples
         };
         let consume = |_: usize, samples: Vec<f32>| push(&samples);
-        run(rows, &fit, tail, false, visit, Stages { prepare, consume })
+        run(rows, &fit, tail, (false, layout.needs_heights()), visit, Stages { prepare, consume })
     })
 }

@@ -35,9 +35,8 @@ pub use self::png::{PngDepth, PngOutput, PngRows, convert_png, convert_png_seeka
 
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal, first_non_finite};
-use crate::io::write::Layout;
 use crate::options::{Border, Options};
-use crate::samples::try_vec;
+use crate::samples::{Sample, try_vec};
 
 /// The rows of a height map, top to bottom, decoded as they are asked for.
 ///
@@ -63,6 +62,25 @@ pub trait RowSource: Send {
     /// Errors: [`Error::Decode`] for corrupt or truncated data, or when all
     /// rows have been read.
     fn next_row(&mut self, out: &mut [f64]) -> Result<()>;
+
+    /// Whether every value [`next_row`](Self::next_row) gives is an `f32`
+    /// exactly (stored 8- and 16-bit integers, half and float samples; not
+    /// luma, not 32-bit integers). A conversion then holds its rows as
+    /// `f32`, half the memory and bandwidth, with the same bits.
+    fn exact_in_f32(&self) -> bool {
+        false
+    }
+
+    /// The next row as `f32`, for a source that is
+    /// [`exact_in_f32`](Self::exact_in_f32) (otherwise the values round).
+    ///
+    /// Errors: as [`next_row`](Self::next_row).
+    fn next_row_f32(&mut self, out: &mut [f32]) -> Result<()> {
+        let mut row = zeroed::<f64>(out.len())?;
+        self.next_row(&mut row)?;
+        out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f32);
+        Ok(())
+    }
 
     /// Reads every row, giving each to `visit` as heights in contract
     /// units, and returns the last `rows` rows (fewer if the image is
@@ -104,9 +122,36 @@ fn zeroed<T: Default + Clone>(len: usize) -> Result<Vec<T>> {
 /// rounded to `f32` (what the tiling check and an alpha of heights take):
 /// the same numbers as [`crate::Samples::to_f32`] gives of the same
 /// samples decoded whole.
-fn to_heights(row: &[f64], unit: f64, out: &mut [f32]) {
+fn to_heights<H: RowValue>(row: &[H], unit: f64, out: &mut [f32]) {
     for (o, &v) in out.iter_mut().zip(row) {
-        *o = (v * unit) as f32;
+        *o = (v.to_f64() * unit) as f32;
+    }
+}
+
+/// The types a conversion holds its rows in: `f32` for sources whose
+/// values are exact in it, `f64` for the others.
+trait RowValue: Sample + Default {
+    /// The next row of `rows`, in this type.
+    fn read(rows: &mut impl RowSource, out: &mut [Self]) -> Result<()>;
+    /// A value given as `f64` (exact where the source is exact in `Self`).
+    fn from_f64(v: f64) -> Self;
+}
+
+impl RowValue for f32 {
+    fn read(rows: &mut impl RowSource, out: &mut [f32]) -> Result<()> {
+        rows.next_row_f32(out)
+    }
+    fn from_f64(v: f64) -> f32 {
+        v as f32
+    }
+}
+
+impl RowValue for f64 {
+    fn read(rows: &mut impl RowSource, out: &mut [f64]) -> Result<()> {
+        rows.next_row(out)
+    }
+    fn from_f64(v: f64) -> f64 {
+        v
     }
 }
 
@@ -125,14 +170,9 @@ fn checked_tail<'a>(tail: Option<&'a [f64]>, w: usize, h: usize, opts: &Options)
 }
 
 /// The heights of the image's `rows` in contract units, one row after the
-/// other, for a layout that writes them (an alpha of heights); nothing
-/// otherwise.
-fn heights_for(layout: Layout, rows: Range<usize>, row: &Rows<'_>, unit: f64) -> Vec<f32> {
-    if layout.needs_heights() {
-        rows.flat_map(|y| row(y).iter().map(move |&v| (v * unit) as f32)).collect()
-    } else {
-        Vec::new()
-    }
+/// other, for a layout that writes them (an alpha of heights).
+fn heights_of<H: RowValue>(rows: Range<usize>, row: &Rows<'_, H>, unit: f64) -> Vec<f32> {
+    rows.flat_map(|y| row(y).iter().map(move |&v| (v.to_f64() * unit) as f32)).collect()
 }
 
 /// A band of rows between stages: its first row and its values (heights,
@@ -140,12 +180,13 @@ fn heights_for(layout: Layout, rows: Range<usize>, row: &Rows<'_>, unit: f64) ->
 type Band<T> = Result<(usize, Vec<T>)>;
 
 /// Source row y of the image, while the band that reads it is fitted.
-type Rows<'a> = dyn Fn(usize) -> &'a [f64] + 'a;
+type Rows<'a, H> = dyn Fn(usize) -> &'a [H] + 'a;
 
 /// What is done with each fitted band.
 struct Stages<Prepare, Consume> {
-    /// On the fit thread: turns the band's rows (range, texels) into what
-    /// the encoder takes; it may read the band's heights.
+    /// On the fit thread: turns the band's rows (range, texels, and its
+    /// heights in contract units when the layout writes them, else none)
+    /// into what the encoder takes.
     prepare: Prepare,
     /// On the caller's thread: encodes and writes a prepared band, given
     /// with its first row.
@@ -154,33 +195,62 @@ struct Stages<Prepare, Consume> {
 
 /// Runs the three stages over every band of `fit`, top to bottom, or with
 /// `deferred` the top band last (when the image's last rows are in).
-/// `visit` sees every decoded row, in order.
+/// `visit` sees every decoded row, in order, as heights. With
+/// `needs_heights`, `prepare` gets each band's heights too.
 fn run<S, T, B, Prepare, Consume>(
-    mut rows: S,
+    rows: S,
     fit: &BandFit,
     tail: Option<&[f64]>,
-    deferred: bool,
-    mut visit: impl FnMut(&[f32]) + Send,
+    (deferred, needs_heights): (bool, bool),
+    visit: impl FnMut(&[f32]) + Send,
     stages: Stages<Prepare, Consume>,
 ) -> Result<()>
 where
     S: RowSource,
     T: FromNormal + Default,
     B: Send,
-    Prepare: for<'r> FnMut(Range<usize>, Vec<T>, &Rows<'r>) -> Vec<B> + Send,
+    Prepare: FnMut(Range<usize>, Vec<T>, Vec<f32>) -> Vec<B> + Send,
+    Consume: FnMut(usize, Vec<B>) -> Result<()>,
+{
+    // Rows in f32 where that is exact: half the memory and bandwidth.
+    if rows.exact_in_f32() {
+        run_as::<f32, _, _, _, _, _>(rows, fit, tail, (deferred, needs_heights), visit, stages)
+    } else {
+        run_as::<f64, _, _, _, _, _>(rows, fit, tail, (deferred, needs_heights), visit, stages)
+    }
+}
+
+/// [`run`], the rows held as `H`.
+fn run_as<H, S, T, B, Prepare, Consume>(
+    mut rows: S,
+    fit: &BandFit,
+    tail: Option<&[f64]>,
+    (deferred, needs_heights): (bool, bool),
+    mut visit: impl FnMut(&[f32]) + Send,
+    stages: Stages<Prepare, Consume>,
+) -> Result<()>
+where
+    H: RowValue,
+    S: RowSource,
+    T: FromNormal + Default,
+    B: Send,
+    Prepare: FnMut(Range<usize>, Vec<T>, Vec<f32>) -> Vec<B> + Send,
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     let Stages { prepare, mut consume } = stages;
-    check_stream_memory::<T, B>(fit, tail.map_or(0, <[f64]>::len))?;
+    check_stream_memory::<H, T, B>(fit, tail.map_or(0, <[f64]>::len))?;
+    let tail: Option<Vec<H>> = tail.map(|t| t.iter().map(|&v| H::from_f64(v)).collect());
+    let tail = tail.as_deref();
     // Two bands in flight between stages keep every stage busy without
     // holding more than a few bands.
-    let (heights_tx, heights_rx) = sync_channel::<Band<f64>>(2);
+    let (heights_tx, heights_rx) = sync_channel::<Band<H>>(2);
     let (out_tx, out_rx) = sync_channel::<Band<B>>(2);
     let band = fit.band_rows();
     let unit = rows.unit();
     std::thread::scope(|scope| -> Result<()> {
         scope.spawn(move || decode_stage(&mut rows, band, &heights_tx));
-        scope.spawn(move || fit_stage(fit, unit, tail, deferred, &mut visit, prepare, heights_rx, &out_tx));
+        let fitting = Fitting { fit, unit, tail, deferred, needs_heights };
+        scope.spawn(move || fit_stage(&fitting, &mut visit, prepare, heights_rx, &out_tx));
         // Returning early drops the receiver, which stops the other stages.
         for message in out_rx {
             let (y0, values) = message?;
@@ -196,27 +266,31 @@ where
 /// otherwise abort the process. Bands are at most 2^24 texels or one row
 /// ([`BandFit`]), so only images some 10^7 texels wide get here.
 ///
-/// What is held at once, per texel of a band: the heights (f64) of the
+/// What is held at once, per texel of a band: the heights (`H`) of the
 /// band being decoded, two queued and two that the fit reads (the band and
 /// the rows above it); the normals (`T`) and what the encoder takes (`B`,
 /// counted as one more `T` and 4 bytes) of the band being fitted, two
 /// queued and the one being written. Besides, a copy of the first 2r rows,
 /// the tail and a row of heights for `visit`.
-fn check_stream_memory<T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
+fn check_stream_memory<H, T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
     let (w, h, r, band) = (fit.width() as u64, fit.height() as u64, fit.radius() as u64, fit.band_rows() as u64);
     // No more rows than the image has.
     let height_rows = (5 * band).min(h);
     let output_rows = (4 * band).min(h);
     let output_bytes = (2 * size_of::<T>() as u64 + 4).max(size_of::<B>() as u64);
     let head_rows = (2 * r).min(h);
-    let bytes = (height_rows + head_rows) * w * 8 + tail_len as u64 * 8 + output_rows * w * output_bytes + 4 * w;
+    let height_bytes = size_of::<H>() as u64;
+    let bytes = (height_rows + head_rows) * w * height_bytes
+        + tail_len as u64 * (8 + height_bytes)
+        + output_rows * w * output_bytes
+        + 4 * w;
     crate::io::check_memory("converting by rows", bytes)
 }
 
 /// Decodes bands of `band` rows and sends them on; stops at the first
 /// error (sent on) or when the receiver is gone. Decoding is the one stage
 /// that cannot be split, so it does nothing else.
-fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f64>>) {
+fn decode_stage<H: RowValue>(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<H>>) {
     let (w, h) = (rows.width(), rows.height());
     for y0 in (0..h).step_by(band) {
         let n = band.min(h - y0);
@@ -227,7 +301,7 @@ fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f64
                 return;
             }
         };
-        let result = heights.chunks_exact_mut(w).try_for_each(|row| rows.next_row(row));
+        let result = heights.chunks_exact_mut(w).try_for_each(|row| H::read(rows, row));
         let failed = result.is_err();
         if tx.send(result.map(|()| (y0, heights))).is_err() || failed {
             return;
@@ -238,7 +312,7 @@ fn decode_stage(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<f64
 /// The first NaN or infinite height in row order among the bands `rx`
 /// delivers, knowing that texel `known` of a later row is one: the error
 /// that names it (or the decoder's error, if one comes first).
-fn first_bad_texel(rx: Receiver<Band<f64>>, w: usize, known: (usize, usize)) -> Error {
+fn first_bad_texel<H: RowValue>(rx: Receiver<Band<H>>, w: usize, known: (usize, usize)) -> Error {
     for band in rx {
         match band {
             Ok((first, rows)) => {
@@ -255,19 +329,27 @@ fn first_bad_texel(rx: Receiver<Band<f64>>, w: usize, known: (usize, usize)) -> 
     Error::NonFiniteHeight { x: known.0, y: known.1 }
 }
 
+/// What the fit stage works with besides its channels.
+struct Fitting<'a, H> {
+    fit: &'a BandFit,
+    /// The height of a row value of 1.
+    unit: f64,
+    /// The image's last N/2 rows, for a wrap in y fitted in order.
+    tail: Option<&'a [H]>,
+    /// The top band is fitted last, when the image's last rows are in.
+    deferred: bool,
+    /// `prepare` takes the band's heights (an alpha of heights).
+    needs_heights: bool,
+}
+
 /// Fits each band once the rows it reads are in, prepares it for the
 /// encoder and sends it on; gives every row that comes in to `visit`, as
-/// heights (values times `unit`). `deferred`: the top band is fitted last,
-/// when the image's last rows are in.
-#[allow(clippy::too_many_arguments)] // the stage's inputs, outputs and the two ends of its channels
-fn fit_stage<T: FromNormal + Default, B>(
-    fit: &BandFit,
-    unit: f64,
-    tail: Option<&[f64]>,
-    deferred: bool,
+/// heights (values times the unit).
+fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
+    &Fitting { fit, unit, tail, deferred, needs_heights }: &Fitting<'_, H>,
     visit: &mut dyn FnMut(&[f32]),
-    mut prepare: impl for<'r> FnMut(Range<usize>, Vec<T>, &Rows<'r>) -> Vec<B>,
-    rx: Receiver<Band<f64>>,
+    mut prepare: impl FnMut(Range<usize>, Vec<T>, Vec<f32>) -> Vec<B>,
+    rx: Receiver<Band<H>>,
     tx: &SyncSender<Band<B>>,
 ) {
     let (w, h, r) = (fit.width(), fit.height(), fit.radius());
@@ -284,10 +366,10 @@ fn fit_stage<T: FromNormal + Default, B>(
     // The decoded bands that later bands still read, as they came (first
     // row, heights), and a copy of the image's first 2r rows, which the top
     // band and a wrap at the bottom read after they have left.
-    let mut window: std::collections::VecDeque<(usize, Vec<f64>)> = std::collections::VecDeque::new();
+    let mut window: std::collections::VecDeque<(usize, Vec<H>)> = std::collections::VecDeque::new();
     let mut decoded = 0;
     let head_rows = (2 * r).min(h);
-    let mut head: Vec<f64> = Vec::new();
+    let mut head: Vec<H> = Vec::new();
     let mut heights = vec![0.0f32; w];
     let mut incoming = rx.into_iter();
     let mut bands: Vec<_> = fit.bands().collect();
@@ -320,7 +402,7 @@ fn fit_stage<T: FromNormal + Default, B>(
             }
         }
         let in_window = &window;
-        let row = |y: usize| -> &[f64] {
+        let row = |y: usize| -> &[H] {
             if let Some((first, rows)) =
                 in_window.iter().find(|(first, rows)| (*first..first + rows.len() / w).contains(&y))
             {
@@ -334,7 +416,10 @@ fn fit_stage<T: FromNormal + Default, B>(
             }
         };
         let mut normals = vec![T::default(); (y1 - y0) * w];
-        let result = fit.fit_band(rows.clone(), &row, &mut normals).map(|()| prepare(rows, normals, &row));
+        let result = fit.fit_band(rows.clone(), &row, &mut normals).map(|()| {
+            let heights = if needs_heights { heights_of(rows.clone(), &row, unit) } else { Vec::new() };
+            prepare(rows, normals, heights)
+        });
         let failed = result.is_err();
         if tx.send(result.map(|values| (y0, values))).is_err() || failed {
             return;

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use super::{RowSource, Rows, Stages, checked_tail, heights_for, run};
+use super::{RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::io::png_zlib::{IdatCount, IdatWatch, decode_options, finish_checked, png_error};
@@ -148,6 +148,48 @@ impl RowSource for PngRows {
 
     fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
         let layout = self.layout;
+        // The stored value, and for luma each channel's height, by the
+        // formulas the whole-image reader uses ([`crate::samples`]).
+        let value = move |px: &[u8], c: usize| -> f64 {
+            if layout.bytes == 1 { f64::from(px[c]) } else { f64::from(u16::from_be_bytes([px[2 * c], px[2 * c + 1]])) }
+        };
+        let unit = if layout.bytes == 1 { u8::UNIT } else { u16::UNIT };
+        match layout.pick {
+            Pick::Channel(c) => self.decode_row(out, |px| value(px, c)),
+            Pick::Luma => {
+                self.decode_row(out, |px| luma(value(px, 0) * unit, value(px, 1) * unit, value(px, 2) * unit))
+            }
+        }
+    }
+
+    /// A picked channel's integers, which `f32` holds exactly.
+    fn exact_in_f32(&self) -> bool {
+        matches!(self.layout.pick, Pick::Channel(_))
+    }
+
+    fn next_row_f32(&mut self, out: &mut [f32]) -> Result<()> {
+        let layout = self.layout;
+        let value = move |px: &[u8], c: usize| -> f32 {
+            if layout.bytes == 1 { f32::from(px[c]) } else { f32::from(u16::from_be_bytes([px[2 * c], px[2 * c + 1]])) }
+        };
+        match layout.pick {
+            Pick::Channel(c) => self.decode_row(out, |px| value(px, c)),
+            // Not exact: luma is made in f64 (see `exact_in_f32`).
+            Pick::Luma => {
+                let mut row = vec![0.0f64; out.len()];
+                self.next_row(&mut row)?;
+                out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f32);
+                Ok(())
+            }
+        }
+    }
+}
+
+impl PngRows {
+    /// Decodes the next row into `out`, one value a texel from its
+    /// samples by `texel`; after the last row, reads the rest of the file.
+    fn decode_row<V>(&mut self, out: &mut [V], texel: impl Fn(&[u8]) -> V) -> Result<()> {
+        let layout = self.layout;
         let row = self.reader.next_row().map_err(png_error)?;
         let row =
             row.ok_or_else(|| Error::Decode(format!("image data ends after {} of {} rows", self.next, self.height)))?;
@@ -156,19 +198,7 @@ impl RowSource for PngRows {
         if data.len() != stride * out.len() {
             return Err(Error::Decode(format!("row of {} bytes for {} texels", data.len(), out.len())));
         }
-        // The stored value, and for luma each channel's height, by the
-        // formulas the whole-image reader uses ([`crate::samples`]).
-        let value = |px: &[u8], c: usize| -> f64 {
-            if layout.bytes == 1 { f64::from(px[c]) } else { f64::from(u16::from_be_bytes([px[2 * c], px[2 * c + 1]])) }
-        };
-        let unit = if layout.bytes == 1 { u8::UNIT } else { u16::UNIT };
-        let texels = data.chunks_exact(stride);
-        match layout.pick {
-            Pick::Channel(c) => out.iter_mut().zip(texels).for_each(|(o, px)| *o = value(px, c)),
-            Pick::Luma => out.iter_mut().zip(texels).for_each(|(o, px)| {
-                *o = luma(value(px, 0) * unit, value(px, 1) * unit, value(px, 2) * unit);
-            }),
-        }
+        out.iter_mut().zip(data.chunks_exact(stride)).for_each(|(o, px)| *o = texel(px));
         self.next += 1;
         if self.next == self.height {
             // The rest of the file is read too, as a whole-image decoder
@@ -332,11 +362,10 @@ where
     // The last row of the band before, which the next band's first row is
     // filtered against.
     let mut prior: Option<Vec<u8>> = None;
-    let prepare = |rows: Range<usize>, normals: Vec<[S; 3]>, row: &Rows<'_>| -> Vec<u8> {
+    let prepare = |rows: Range<usize>, normals: Vec<[S; 3]>, heights: Vec<f32>| -> Vec<u8> {
         let laid_out = if layout == Layout::Rgb {
             Cow::Borrowed(normals.as_flattened())
         } else {
-            let heights = heights_for(layout, rows.clone(), row, unit);
             let mut laid_out = Vec::with_capacity(normals.len() * samples);
             lay_out(&normals, &heights, layout, Container::Png, &mut laid_out);
             Cow::Owned(laid_out)
@@ -360,7 +389,7 @@ where
         }
         Ok(())
     };
-    run(rows, &fit, tail, deferred, visit, Stages { prepare, consume })?;
+    run(rows, &fit, tail, (deferred, layout.needs_heights()), visit, Stages { prepare, consume })?;
     compressor.finish()?;
     let mut trailer = idat.take_trailer()?;
     let mut first_idat = Vec::new();
