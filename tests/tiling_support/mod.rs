@@ -291,3 +291,5 @@ pub fn spec_cases() -> Vec<Case> {
         gray_case("constant 0.4 32²".into(), vec![0.4; 32 * 32], 32, (true, true)),
     ]
 }
+
+pub mod structured;
