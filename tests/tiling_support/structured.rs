@@ -344,3 +344,23 @@ impl Rendered {
         self.planes.iter().map(Vec::as_slice).collect()
     }
 }
+
+impl Rendered {
+    /// Rounded to `bits`-bit integers, as a file would hold it.
+    pub fn quantized(mut self, bits: u32) -> Rendered {
+        for p in &mut self.planes {
+            *p = super::quantize(p, bits);
+        }
+        self
+    }
+
+    /// The luma of an RGB image (0.2126 R + 0.7152 G + 0.0722 B), or the
+    /// gray plane.
+    pub fn luma(&self) -> Vec<f32> {
+        match &self.planes[..] {
+            [r, g, b, ..] => r.iter().zip(g).zip(b).map(|((r, g), b)| 0.2126 * r + 0.7152 * g + 0.0722 * b).collect(),
+            [gray, ..] => gray.clone(),
+            [] => Vec::new(),
+        }
+    }
+}
