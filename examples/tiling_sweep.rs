@@ -26,7 +26,7 @@ mod support;
 
 use normalfit::tiling::{TilingOptions, check, shift_half};
 use support::Rng;
-use support::structured::{Camera, Pattern, Rendered, Wrap, photo, texture};
+use support::structured::{Camera, Look, Pattern, Rendered, Wrap, photo, texture};
 
 /// One generated image and whether it must tile.
 struct Item {
@@ -81,7 +81,7 @@ fn items(w: usize, h: usize, per: usize, rng: &mut Rng) -> Vec<Item> {
                 _ => Wrap::Shear { k: -1 },
             };
             let (noise, rough) = (0.003 + 0.02 * rng.next(), 0.25 * rng.next());
-            let t = texture(pattern, w, h, wrap, rng.next().to_bits(), rgb, noise, rough);
+            let t = texture(pattern, w, h, wrap, rng.next().to_bits(), Look { rgb, noise, rough });
             let t = t.quantized(if rgb { 8 } else { 16 });
             let name = format!("{} texture {w}×{h} {wrap:?} #{i}", pattern.name());
             out.push(Item { group: "structured texture", name, image: t, tiles: true });

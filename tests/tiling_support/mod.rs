@@ -300,7 +300,7 @@ pub mod structured;
 /// RGB, as cameras give), 16-bit gray or 8-bit RGB textures.
 pub fn structured_cases(n: usize) -> Vec<Case> {
     use normalfit::tiling::ImageKind::Height;
-    use structured::{Camera, Pattern, Wrap, photo, texture};
+    use structured::{Camera, Look, Pattern, Wrap, photo, texture};
     let mut cases = Vec::new();
     let case = |name: String, r: structured::Rendered, tiles: bool| Case {
         name,
@@ -332,7 +332,8 @@ pub fn structured_cases(n: usize) -> Vec<Case> {
         (Pattern::Cables, Wrap::Shear { k: -2 }, false),
     ];
     for (i, &(pattern, wrap, rgb)) in textures.iter().enumerate() {
-        let t = texture(pattern, n, n, wrap, 60 + i as u64, rgb, 0.01, 0.15).quantized(if rgb { 8 } else { 16 });
+        let t = texture(pattern, n, n, wrap, 60 + i as u64, Look { rgb, noise: 0.01, rough: 0.15 });
+        let t = t.quantized(if rgb { 8 } else { 16 });
         let how = match wrap {
             Wrap::Rotate { p: 1, q: 0 } => "square".to_string(),
             Wrap::Rotate { p, q } => format!("rotated atan({q}/{p})"),
@@ -342,7 +343,8 @@ pub fn structured_cases(n: usize) -> Vec<Case> {
     }
     // Lines at atan(k·H/W) in a non-square image: periodic on both axes.
     let (w, h) = (n, n / 2);
-    let t = texture(Pattern::Planks, w, h, Wrap::Shear { k: 1 }, 70, false, 0.01, 0.15).quantized(16);
+    let look = Look { rgb: false, noise: 0.01, rough: 0.15 };
+    let t = texture(Pattern::Planks, w, h, Wrap::Shear { k: 1 }, 70, look).quantized(16);
     cases.push(Case {
         name: format!("periodic planks, lines at atan(H/W), {w}×{h}"),
         image: Planes { planes: t.planes, width: w, height: h },

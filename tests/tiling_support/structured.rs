@@ -310,19 +310,22 @@ pub enum Wrap {
     Shear { k: i64 },
 }
 
+/// How a periodic texture is rendered.
+#[derive(Clone, Copy, Debug)]
+pub struct Look {
+    /// RGB, or luma only.
+    pub rgb: bool,
+    /// Standard deviation of the per-texel noise.
+    pub noise: f64,
+    /// The surface's fine texture, [`Scene::rough`].
+    pub rough: f64,
+}
+
 /// An exactly periodic `w` × `h` texture of `pattern` (see the module docs),
 /// shifted by a seed-chosen offset so the wrap falls anywhere, with sensor
 /// noise. It tiles on both axes.
-pub fn texture(
-    pattern: Pattern,
-    w: usize,
-    h: usize,
-    wrap: Wrap,
-    seed: u64,
-    rgb: bool,
-    noise: f64,
-    rough: f64,
-) -> Rendered {
+pub fn texture(pattern: Pattern, w: usize, h: usize, wrap: Wrap, seed: u64, look: Look) -> Rendered {
+    let Look { rgb, noise, rough } = look;
     let scene = Scene { pattern, seed, periodic: true, rough };
     let mut rng = Rng(seed);
     let (ou, ov) = (TORUS * rng.next(), TORUS * rng.next());
