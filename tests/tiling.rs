@@ -4,7 +4,7 @@
 mod tiling_support;
 
 use normalfit::tiling::{HeightSeams, ImageKind, KindChoice, TilingOptions, TilingReport, check};
-use tiling_support::{Case, Rng, generated_cases, real_cases, spec_cases, structured_cases};
+use tiling_support::{Case, Rng, generated_cases, hard_photo_cases, real_cases, spec_cases, structured_cases};
 
 /// Checks every case's verdicts and detected kind; prints the scores.
 fn assert_cases(cases: &[Case]) {
@@ -55,6 +55,13 @@ fn structured_photos_fail_and_periodic_structures_tile() {
     // match), and the same scenes exactly periodic, rotated and sheared.
     assert_cases(&structured_cases(256));
     assert_cases(&structured_cases(160));
+}
+
+#[test]
+fn rough_planks_photos_fail_on_both_axes() {
+    // Their broken plank gaps are no larger, texel by texel, than the
+    // wood's grain: level 0 alone passed them.
+    assert_cases(&hard_photo_cases());
 }
 
 /// Stripes at 30° from the y axis under heavy texel noise, `w` × `h`:

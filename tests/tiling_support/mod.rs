@@ -353,3 +353,26 @@ pub fn structured_cases(n: usize) -> Vec<Case> {
     });
     cases
 }
+
+/// Photos that the seam measure at level 0 alone (texel by texel, as it
+/// was before the runs along the seam) passed on both axes or on one:
+/// 512² planks at ±38° and 25°, zoomed in 1.5×, on rough wood with little
+/// sensor noise and an even light. The broken plank gaps are the only
+/// seam; each must fail on both axes.
+pub fn hard_photo_cases() -> Vec<Case> {
+    use structured::{Camera, Pattern, photo};
+    let n = 512;
+    [(-38.0, 300), (38.0, 301), (25.0, 300)]
+        .iter()
+        .map(|&(angle, seed)| {
+            let camera = Camera { light: 0.0, noise: 0.01, rough: 0.25, zoom: 1.5, ..Camera::at(angle) };
+            let p = photo(Pattern::Planks, n, n, camera, seed, false).quantized(8);
+            Case {
+                name: format!("rough planks photo at {angle}°, zoom 1.5, n{n}"),
+                image: Planes { planes: p.planes, width: n, height: n },
+                expect: (false, false),
+                kind: normalfit::tiling::ImageKind::Height,
+            }
+        })
+        .collect()
+}
