@@ -924,8 +924,9 @@ impl RowStack {
 /// relative), then added into f64; y sums run in 8 f32 lanes so they
 /// vectorise, each lane then added in f64.
 struct Block {
-    /// Rows y0 − 1 … y0 + n + 1 (mod H) of one signal at every level: the
-    /// n rows of the task and the halo its crease stencils need.
+    /// The last 4 of rows y0 − 1 … y0 + n + 1 (mod H) of one signal at
+    /// every level (block row i in slot i mod 4): the n rows of the task
+    /// and the halo its crease stencils need, as they come.
     rows: Runs,
     /// The runs of rows of the task's rows (CHUNK is a multiple of the
     /// longest run, so a task's runs are whole but at the image's end).
@@ -943,7 +944,7 @@ struct Block {
 impl Block {
     fn new(w: usize) -> Self {
         Block {
-            rows: Runs::new(w, CHUNK + 3),
+            rows: Runs::new(w, 4),
             stack: RowStack::new(w),
             padded: vec![0.0; w + 3],
             vx: vec![0.0; LEVELS * w],
@@ -956,30 +957,31 @@ impl Block {
     /// The sums of rows y0 … y0 + n − 1 (x pairs) and of row pairs
     /// y0 … y0 + n − 1 → next (y pairs), for an image of `h` rows.
     fn measure(&mut self, signal: &Signal, y0: usize, n: usize, h: usize, crease: bool) {
-        // Block row i is image row (y0 − 1 + i) mod H.
-        for i in 0..n + 3 {
-            signal.fill((y0 + h - 1 + i) % h, self.rows.slot_mut(i));
-            self.rows.coarsen(i);
-        }
-        let rows = &self.rows;
-
         self.vx.fill(0.0);
         self.cx.fill(0.0);
-        for i in 1..=n {
-            self.stack.push(rows.row(0, i), &mut self.padded, &mut self.vx, &mut self.cx, crease);
-        }
-        self.stack.finish(&mut self.padded, &mut self.vx, &mut self.cx, crease);
-
         self.vy.clear();
         self.cy.clear();
-        for i in 0..n {
-            for level in 0..LEVELS {
-                // Rows y − 1, y, y + 1, y + 2 for the pair y → y + 1.
-                let r = |j: usize| rows.row(level, j);
-                self.vy.push(y_value(r(i + 1), r(i + 2)));
-                self.cy.push(if crease { y_crease(r(i), r(i + 1), r(i + 2), r(i + 3)) } else { 0.0 });
+        // Block row i is image row (y0 − 1 + i) mod H. Each row is measured
+        // as soon as it is made, while it and the three before it are in
+        // cache: its x pairs (rows 1 … n), and the y pair whose stencil it
+        // ends (pair i − 2, over rows i − 3 … i).
+        for i in 0..n + 3 {
+            signal.fill((y0 + h - 1 + i) % h, self.rows.slot_mut(i % 4));
+            self.rows.coarsen(i % 4);
+            let rows = &self.rows;
+            if (1..=n).contains(&i) {
+                self.stack.push(rows.row(0, i % 4), &mut self.padded, &mut self.vx, &mut self.cx, crease);
+            }
+            if i >= 3 {
+                for level in 0..LEVELS {
+                    // Rows y − 1, y, y + 1, y + 2 for the pair y → y + 1.
+                    let r = |j: usize| rows.row(level, j % 4);
+                    self.vy.push(y_value(r(i - 2), r(i - 1)));
+                    self.cy.push(if crease { y_crease(r(i - 3), r(i - 2), r(i - 1), r(i)) } else { 0.0 });
+                }
             }
         }
+        self.stack.finish(&mut self.padded, &mut self.vx, &mut self.cx, crease);
     }
 }
 
