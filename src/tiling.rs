@@ -242,7 +242,9 @@ const FLOOR_FRACTION: f64 = 1e-3;
 /// they lose what lies below 10⁻³⁵, far below the ε floor (10⁻³⁰) that
 /// decides such scores anyway. With it, |Δ| ≤ 2⁹⁷ and a crease ≤ 2⁹⁸: the
 /// x sums of 32 rows, and a y lane of up to 2²⁹ texels (rows of 2³² texels,
-/// 16 GiB of f32), stay below f32's largest value, 2¹²⁸.
+/// 16 GiB of f32), stay below f32's largest value, 2¹²⁸. The runs of the
+/// levels hold it too: a run of 2^l texels or rows is up to 2^l times
+/// larger, and a sum holds 2^l times fewer of them.
 const JUDGE_SCALE: f32 = 1.0 / 4_294_967_296.0;
 
 /// 1 / [`JUDGE_SCALE`], to bring the sums back to height units.
@@ -458,10 +460,13 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 /// [`ImageKind::Height`] whatever `opts.kind` says. For a colour image, push
 /// rows of its luma (0.2126 R + 0.7152 G + 0.0722 B, as `check` takes it).
 ///
-/// Memory is O(W + H), never the image: the x profiles (4 W values), the
-/// y profiles (2 H), the first 2 rows and the last 4 (the pairs that cross
-/// the y wrap, value H−1 → 0 and crease H−2, H−1, 0, 1, need rows H−2,
-/// H−1, 0 and 1). Each
+/// Memory is O(W + H), never the image: at each of the 6 levels of the
+/// [module docs](self#levels-the-seam-smoothed-along-itself), the x
+/// profiles (4 W values) and the y profiles (2 H); the first 2 rows and
+/// the last 4 with their runs along x (about 2 W each; the pairs that
+/// cross the y wrap, value H−1 → 0 and crease H−2, H−1, 0, 1, need rows
+/// H−2, H−1, 0 and 1); and one run of rows in progress per level (W
+/// each). Each
 /// [`push_row`](Self::push_row) is O(W) work on the caller's thread, in
 /// branch-free loops over slices that vectorise; [`finish`](Self::finish)
 /// adds the pairs across the wrap and selects the references, O(W + H).
@@ -469,7 +474,8 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 /// # Same as check
 ///
 /// The per-line sums are computed by the same kernels as in `check`, in the
-/// same order: the y sums and the x sums of each block of 32 rows (kept in
+/// same order, at every level (the runs of rows and of texels are added in
+/// the same order too): the y sums and the x sums of each block of 32 rows (kept in
 /// f32 by `check`, and so here) are bit for bit the same; only the f64
 /// total over the blocks is added in another order (`check` adds them per
 /// thread). Those f64 sums of f32 values are exact unless the block sums
