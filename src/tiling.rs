@@ -1102,6 +1102,24 @@ mod tests {
     }
 
     #[test]
+    fn a_level_counts_only_when_the_seam_holds_8_of_its_runs() {
+        // 8 pairs per level, all 1 but level 1's seam, 5 times larger.
+        let n = 8;
+        let mut value = vec![1.0; LEVELS * n];
+        value[n + n - 1] = 5.0;
+        let crease = vec![0.0; LEVELS * n];
+        // Level 1 sums runs of 2: a seam of 15 texels holds 7, of 16 holds 8.
+        assert_eq!(axis_score(&value, &crease, n, 15, true, 0.0), 1.0);
+        assert_eq!(axis_score(&value, &crease, n, 16, true, 0.0), 5.0);
+        // The crease counts at every level too (interior creases 1 … n − 3).
+        let mut crease = vec![1.0; LEVELS * n];
+        crease[5 * n + n - 1] = 3.0;
+        assert_eq!(axis_score(&vec![1.0; LEVELS * n], &crease, n, 256, true, 0.0), 3.0);
+        assert_eq!(axis_score(&vec![1.0; LEVELS * n], &crease, n, 255, true, 0.0), 1.0);
+        assert_eq!(axis_score(&vec![1.0; LEVELS * n], &crease, n, 256, false, 0.0), 1.0);
+    }
+
+    #[test]
     fn profiles_match_the_formulas() {
         // 4×3 image, hand-checked sums.
         let h = [0.0, 1.0, 3.0, 6.0, 0.0, 1.0, 3.0, 6.0, 1.0, 1.0, 1.0, 1.0];
