@@ -20,6 +20,10 @@ fn main() {
     for n in [64, 256] {
         cases.extend(support::generated_cases(n));
     }
+    for n in [256, 512] {
+        cases.extend(support::structured_cases(n));
+    }
+    cases.extend(support::hard_photo_cases());
     println!("threshold {}", opts.threshold);
     println!("| case | kind | x score | y score | expected x/y | verdict x/y |");
     println!("|---|---|---|---|---|---|");

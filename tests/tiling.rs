@@ -4,7 +4,7 @@
 mod tiling_support;
 
 use normalfit::tiling::{HeightSeams, ImageKind, KindChoice, TilingOptions, TilingReport, check};
-use tiling_support::{Case, Rng, generated_cases, real_cases, spec_cases};
+use tiling_support::{Case, Rng, generated_cases, hard_photo_cases, real_cases, spec_cases, structured_cases};
 
 /// Checks every case's verdicts and detected kind; prints the scores.
 fn assert_cases(cases: &[Case]) {
@@ -47,6 +47,61 @@ fn generated_noise_crops_creases_and_normal_maps() {
 fn generated_cases_keep_their_verdicts_at_odd_sizes() {
     assert_cases(&generated_cases(96));
     assert_cases(&generated_cases(160));
+}
+
+#[test]
+fn structured_photos_fail_and_periodic_structures_tile() {
+    // Photos at angles (lines hitting the borders at positions that do not
+    // match), and the same scenes exactly periodic, rotated and sheared.
+    assert_cases(&structured_cases(256));
+    assert_cases(&structured_cases(160));
+}
+
+#[test]
+fn rough_planks_photos_fail_on_both_axes() {
+    // Their broken plank gaps are no larger, texel by texel, than the
+    // wood's grain: level 0 alone passed them.
+    assert_cases(&hard_photo_cases());
+}
+
+/// Stripes at 30° from the y axis under heavy texel noise, `w` × `h`:
+/// `period` texels apart along x, so they continue across the x wrap
+/// exactly when `period` divides W. The noise, drawn per texel, tiles on
+/// its own.
+fn noisy_stripes(w: usize, h: usize, period: f64, seed: u64) -> Vec<f32> {
+    let mut rng = Rng(seed);
+    let slope = 30f64.to_radians().tan();
+    let v: Vec<f64> = (0..w * h)
+        .map(|k| {
+            let (x, y) = ((k % w) as f64, (k / w) as f64);
+            let phase = (x + y * slope) / period;
+            let stripe = if phase - phase.floor() < 0.25 { 0.3 } else { 0.0 };
+            stripe + 0.6 * rng.next()
+        })
+        .collect();
+    tiling_support::quantize(&tiling_support::normalize(&v), 16)
+}
+
+#[test]
+fn stripes_that_do_not_continue_are_found_under_noise() {
+    // The stripes' jump at a broken wrap is small beside the noise's jumps
+    // between any two columns, so texel by texel the seam looks ordinary;
+    // summed in runs along the seam the noise averages out and the broken
+    // stripes remain. The same stripes continuing across the wrap tile.
+    let (w, h) = (256, 256);
+    let opts = TilingOptions::default();
+    // 256 / 32: continues; 256 / 40 leaves a 16-texel part-stripe at the
+    // wrap, the stripes 10 wide.
+    let continuing = noisy_stripes(w, h, 32.0, 1);
+    let r = check(&[&continuing], w, h, &opts);
+    assert!(r.x.seamless, "{r:?}");
+    let broken = noisy_stripes(w, h, 40.0, 1);
+    let r = check(&[&broken], w, h, &opts);
+    println!("broken stripes: {r:?}");
+    assert!(!r.x.seamless && r.x.score > 1.8, "{r:?}");
+    // Streaming finds the same.
+    let streamed = stream(&broken, w, h, &opts);
+    assert_eq!(streamed.x.score.to_bits(), r.x.score.to_bits(), "{streamed:?} vs {r:?}");
 }
 
 #[test]
@@ -172,6 +227,14 @@ fn assert_stream_matches(v: &[f32], w: usize, h: usize, threshold: f64, label: &
     diff
 }
 
+/// The luma `check` judges a colour height map by, or the one plane.
+fn luma(planes: &[&[f32]]) -> Vec<f32> {
+    match planes {
+        [r, g, b, ..] => r.iter().zip(*g).zip(*b).map(|((r, g), b)| 0.2126 * r + 0.7152 * g + 0.0722 * b).collect(),
+        _ => planes[0].to_vec(),
+    }
+}
+
 /// Sizes around every special case: axes of 1 to 6 (no interior crease, the
 /// wrap stencils overlapping), and heights around the 32-row blocks.
 const SIZES_W: [usize; 11] = [1, 2, 3, 4, 5, 7, 8, 9, 17, 33, 64];
@@ -224,6 +287,21 @@ fn streaming_equals_check_on_noise_crops_creases_and_ramps() {
     }
     for c in spec_cases() {
         same(&c.image.planes[0], c.image.width, c.image.height, &c.name);
+    }
+    // The structured photos and textures (luma rows for the RGB ones, as
+    // `check` takes them); 160 and 96 are not multiples of the 32-row
+    // blocks, nor of the longest runs along the seams.
+    for n in [96, 160] {
+        for c in structured_cases(n) {
+            let (w, h) = (c.image.width, c.image.height);
+            let v = luma(&c.image.refs());
+            same(&v, w, h, &c.name);
+            let as_planes = check(&c.image.refs(), w, h, &TilingOptions::new().with_kind(KindChoice::Height));
+            let streamed = stream(&v, w, h, &TilingOptions::new());
+            let rel = |a: f64, b: f64| (a - b).abs() / a.max(b);
+            assert!(rel(as_planes.x.score, streamed.x.score) < 1e-5, "{}: {as_planes:?} {streamed:?}", c.name);
+            assert!(rel(as_planes.y.score, streamed.y.score) < 1e-5, "{}: {as_planes:?} {streamed:?}", c.name);
+        }
     }
     // Non-square and not a multiple of the 32-row blocks.
     for (w, h) in [(80, 45), (45, 80), (7, 100), (100, 7), (257, 1000)] {

@@ -291,3 +291,88 @@ pub fn spec_cases() -> Vec<Case> {
         gray_case("constant 0.4 32²".into(), vec![0.4; 32 * 32], 32, (true, true)),
     ]
 }
+
+pub mod structured;
+
+/// Structured images (see [`structured`]): photos of brick walls, planks,
+/// tiles and cables at angles, which must fail on both axes, and exactly
+/// periodic textures of the same, which must tile. 8-bit photos (gray and
+/// RGB, as cameras give), 16-bit gray or 8-bit RGB textures.
+pub fn structured_cases(n: usize) -> Vec<Case> {
+    use normalfit::tiling::ImageKind::Height;
+    use structured::{Camera, Look, Pattern, Wrap, photo, texture};
+    let mut cases = Vec::new();
+    let case = |name: String, r: structured::Rendered, tiles: bool| Case {
+        name,
+        image: Planes { planes: r.planes, width: r.width, height: r.height },
+        expect: (tiles, tiles),
+        kind: Height,
+    };
+    // Photos: an even light (no falloff to give the seam away), a rough
+    // surface, little sensor noise: the seam is only the structure that
+    // does not continue.
+    let photos = [
+        (Pattern::Bricks, 12.0, false, 0.15),
+        (Pattern::Bricks, -27.0, true, 0.2),
+        (Pattern::Planks, 20.0, false, 0.1),
+        (Pattern::Tiles, 33.0, false, 0.1),
+        (Pattern::Cables, -24.0, true, 0.1),
+    ];
+    for (i, &(pattern, angle, rgb, rough)) in photos.iter().enumerate() {
+        let camera = Camera { light: 0.0, noise: 0.01, rough, ..Camera::at(angle) };
+        let p = photo(pattern, n, n, camera, 40 + i as u64, rgb).quantized(8);
+        let colour = if rgb { "RGB" } else { "gray" };
+        cases.push(case(format!("{} photo at {angle}°, {colour} n{n}", pattern.name()), p, false));
+    }
+    let textures = [
+        (Pattern::Bricks, Wrap::Rotate { p: 1, q: 0 }, false),
+        (Pattern::Bricks, Wrap::Rotate { p: 2, q: 1 }, true),
+        (Pattern::Planks, Wrap::Shear { k: 1 }, false),
+        (Pattern::Tiles, Wrap::Rotate { p: 3, q: -1 }, false),
+        (Pattern::Cables, Wrap::Shear { k: -2 }, false),
+    ];
+    for (i, &(pattern, wrap, rgb)) in textures.iter().enumerate() {
+        let t = texture(pattern, n, n, wrap, 60 + i as u64, Look { rgb, noise: 0.01, rough: 0.15 });
+        let t = t.quantized(if rgb { 8 } else { 16 });
+        let how = match wrap {
+            Wrap::Rotate { p: 1, q: 0 } => "square".to_string(),
+            Wrap::Rotate { p, q } => format!("rotated atan({q}/{p})"),
+            Wrap::Shear { k } => format!("lines at atan({k})"),
+        };
+        cases.push(case(format!("periodic {} {how} n{n}", pattern.name()), t, true));
+    }
+    // Lines at atan(k·H/W) in a non-square image: periodic on both axes.
+    let (w, h) = (n, n / 2);
+    let look = Look { rgb: false, noise: 0.01, rough: 0.15 };
+    let t = texture(Pattern::Planks, w, h, Wrap::Shear { k: 1 }, 70, look).quantized(16);
+    cases.push(Case {
+        name: format!("periodic planks, lines at atan(H/W), {w}×{h}"),
+        image: Planes { planes: t.planes, width: w, height: h },
+        expect: (true, true),
+        kind: Height,
+    });
+    cases
+}
+
+/// Photos that the seam measure at level 0 alone (texel by texel, as it
+/// was before the runs along the seam) passed on both axes or on one:
+/// 512² planks at ±38° and 25°, zoomed in 1.5×, on rough wood with little
+/// sensor noise and an even light. The broken plank gaps are the only
+/// seam; each must fail on both axes.
+pub fn hard_photo_cases() -> Vec<Case> {
+    use structured::{Camera, Pattern, photo};
+    let n = 512;
+    [(-38.0, 300), (38.0, 301), (25.0, 300)]
+        .iter()
+        .map(|&(angle, seed)| {
+            let camera = Camera { light: 0.0, noise: 0.01, rough: 0.25, zoom: 1.5, ..Camera::at(angle) };
+            let p = photo(Pattern::Planks, n, n, camera, seed, false).quantized(8);
+            Case {
+                name: format!("rough planks photo at {angle}°, zoom 1.5, n{n}"),
+                image: Planes { planes: p.planes, width: n, height: n },
+                expect: (false, false),
+                kind: normalfit::tiling::ImageKind::Height,
+            }
+        })
+        .collect()
+}
