@@ -294,13 +294,9 @@ fn decode_stage<H: RowValue>(rows: &mut impl RowSource, band: usize, tx: &SyncSe
     let (w, h) = (rows.width(), rows.height());
     for y0 in (0..h).step_by(band) {
         let n = band.min(h - y0);
-        let mut heights = match zeroed(n * w) {
-            Ok(heights) => heights,
-            Err(e) => {
-                let _ = tx.send(Err(e));
-                return;
-            }
-        };
+        // Zeroed by the allocator (fresh pages need no clearing); the
+        // room for the bands was checked before the stages started.
+        let mut heights = vec![H::default(); n * w];
         let result = heights.chunks_exact_mut(w).try_for_each(|row| H::read(rows, row));
         let failed = result.is_err();
         if tx.send(result.map(|()| (y0, heights))).is_err() || failed {
