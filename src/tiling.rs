@@ -558,6 +558,35 @@ impl HeightSeams {
         }
     }
 
+    /// The bytes a check of a `width` × `height` image holds (its profiles
+    /// and row buffers, at every level): about 220 a column and 96 a row.
+    #[must_use]
+    pub fn bytes_needed(width: usize, height: usize) -> u64 {
+        let (w, h, levels) = (width as u64, height as u64, LEVELS as u64);
+        // One row at every level: ⌈W / 2^l⌉ values each.
+        let row_levels: u64 = (0..LEVELS).map(|l| w.div_ceil(1 << l)).sum();
+        let runs = (2.min(h) + 4.min(h)) * row_levels * 4;
+        let x_sums = levels * w * 4 + (w + 3) * 4 + 2 * levels * w * 4 + 2 * levels * w * 8;
+        runs + x_sums + 2 * levels * h * 8
+    }
+
+    /// Like [`HeightSeams::new`], but refused when the check's memory
+    /// ([`bytes_needed`](Self::bytes_needed)) is more than the process may
+    /// still take (under `ulimit -v` and the like), instead of aborting on
+    /// a failed allocation: an image 2^24 texels wide or tall needs 1.6 to
+    /// 3.7 GB for it.
+    ///
+    /// Errors: [`Error::Limits`](crate::Error::Limits) saying how much is
+    /// needed, [`Error::InvalidOption`](crate::Error::InvalidOption) when
+    /// `width * height` overflows.
+    pub fn try_new(width: usize, height: usize) -> crate::Result<Self> {
+        if width.checked_mul(height).is_none() {
+            return Err(crate::Error::InvalidOption(format!("image of {width}×{height} texels is too large")));
+        }
+        crate::io::check_memory("the tiling check", Self::bytes_needed(width, height))?;
+        Ok(Self::new(width, height))
+    }
+
     /// The rows pushed so far.
     #[must_use]
     pub fn rows(&self) -> usize {

@@ -210,7 +210,10 @@ impl Plan {
         }
         let (width, height) = (raster.width, raster.height);
         let heights = raster.into_heights(self.channel.clone()).map_err(|e| Failure::file(input.name(), e))?;
-        let report = self.needs_check().then(|| seams_of(&heights, width, height));
+        let report = match self.needs_check() {
+            true => self.seam_check(width, height, input)?.map(|seams| seams_of(seams, &heights, width, height)),
+            false => None,
+        };
         if let Some(report) = &report {
             self.warn_seams(report, input);
         }
@@ -305,9 +308,15 @@ impl Plan {
             None if auto || needs_tail => {
                 let first = S::reopen(path, &self.read, self.channel.clone()).map_err(in_failure)?;
                 let first = first.ok_or_else(|| Failure::file(path, "changed while being read"))?;
-                let mut seams = HeightSeams::new(width, height);
-                let tail = first.read_tail(r, |row| seams.push_row(row)).map_err(in_failure)?;
-                (Some(seams.finish(&check_opts)), Some(tail))
+                let mut seams = self.seam_check(width, height, input)?;
+                let tail = first
+                    .read_tail(r, |row| {
+                        if let Some(s) = seams.as_mut() {
+                            s.push_row(row);
+                        }
+                    })
+                    .map_err(in_failure)?;
+                (seams.map(|s| s.finish(&check_opts)), Some(tail))
             }
             None => (None, None),
         };
@@ -318,7 +327,10 @@ impl Plan {
         }
         let fit = self.fit.clone().with_borders(self.borders_for(report.as_ref()));
         let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
-        let mut seams = (report.is_none() && self.needs_check()).then(|| HeightSeams::new(width, height));
+        let mut seams = match report.is_none() && self.needs_check() {
+            true => self.seam_check(width, height, input)?,
+            false => None,
+        };
         let progress = &shared.progress;
         progress.size(k, width, height);
         let visit = |row: &[f32]| {
@@ -416,6 +428,26 @@ impl Plan {
     /// The streamed PNG's settings, for a PNG target.
     fn png_output(&self, target: &Target) -> Option<PngOutput> {
         target.png_depth().map(|depth| PngOutput { depth, compression: self.compression, layout: self.layout })
+    }
+
+    /// The streamed tiling check of a `width` × `height` image, or `None`
+    /// with a warning when its memory is not there (a conversion of an
+    /// image 2^24 texels wide can fit where its check does not): the check
+    /// only warns about a wrap that draws a seam. `--border auto` needs its
+    /// verdict, so there the lack of memory is an error.
+    fn seam_check(&self, width: usize, height: usize, input: &Input) -> Result<Option<HeightSeams>, Failure> {
+        match HeightSeams::try_new(width, height) {
+            Ok(seams) => Ok(Some(seams)),
+            Err(e) if self.border.x == AxisBorder::Auto || self.border.y == AxisBorder::Auto => {
+                Err(Failure::file(input.name(), e))
+            }
+            Err(e) => {
+                if !self.quiet {
+                    warn(input.name().display(), format!("seam check skipped: {e}"));
+                }
+                Ok(None)
+            }
+        }
     }
 
     /// Whether the borders asked for need the tiling check.
@@ -810,8 +842,7 @@ impl Reopen for ExrRows {
 
 /// The tiling check of heights held whole, a row at a time: the report
 /// `check` gives, without an `f32` copy of the image.
-fn seams_of(heights: &Samples, width: usize, height: usize) -> TilingReport {
-    let mut seams = HeightSeams::new(width, height);
+fn seams_of(mut seams: HeightSeams, heights: &Samples, width: usize, height: usize) -> TilingReport {
     let mut row = vec![0.0f32; width];
     for y in 0..height {
         heights.heights_f32_into(y * width, &mut row);

@@ -50,7 +50,14 @@ pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> 
         }
         Input::Stdin => {
             let mut bytes = Vec::new();
-            std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| fail(e.into()))?;
+            std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| match e.kind() {
+                // Read whole, the file must fit in memory: say so, and how far it got.
+                std::io::ErrorKind::OutOfMemory => fail(normalfit::Error::Limits(format!(
+                    "standard input is read whole, and {} MiB of it already fill the memory the process may take",
+                    bytes.len() >> 20
+                ))),
+                _ => fail(e.into()),
+            })?;
             io::decode(&bytes, opts).map_err(fail)
         }
     }
