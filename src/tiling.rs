@@ -205,7 +205,7 @@
 //! work of level 0 alone. [`HeightSeams`] runs the same kernels one row
 //! at a time on the caller's thread, keeping 6 rows and the profiles at
 //! every level. `cargo bench --bench fit -- seams` (4096², 2 cores): see
-//! the README's tiling section for the figures.
+//! docs/tiling.md for the figures.
 
 use rayon::prelude::*;
 

@@ -3,7 +3,7 @@
 //! to the bit, errors included: root RGBA and a depth channel beside
 //! layers, root Y beside layers, a depth pass of one channel, channels all
 //! in layers, several parts, and luminance/chroma files (subsampled
-//! chroma, full-resolution Y). The channel rule is the README's: root
+//! chroma, full-resolution Y). The channel rule is docs/convert.md's: root
 //! channels (names without a dot) decide the default; a layer is read by
 //! `--layer` or a channel by its full name.
 //!

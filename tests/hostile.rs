@@ -4,7 +4,7 @@
 //! standard input and in a batch between good files; `tiling` alone and in
 //! a batch.
 //!
-//! What every case must give (SPEC §4, README "Bad input"): exit code 2,
+//! What every case must give (SPEC §4, docs/bad-input.md): exit code 2,
 //! not a signal (no abort, no kill); exactly one line on standard error,
 //! `normalfit: <file>: <reason>`, whose reason says what is wrong; no
 //! output and no temporary file; and the good files of the batch

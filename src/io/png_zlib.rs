@@ -19,8 +19,8 @@
 //! wall time for a 4096² 16-bit map, whose conversion takes 0.46 s and
 //! 0.9 s). That is the rare case: the checksum in a chunk of its own, or
 //! across the edge of the streamed reader's 64 KiB buffer. Otherwise the
-//! check is the decoder's, at no cost that could be measured (README,
-//! "Bad input").
+//! check is the decoder's, at no cost that could be measured (docs/bad-input.md,
+//! "Checksums").
 //!
 //! What stays unchecked: a stream holding more data than the image (which
 //! `png` and libpng accept), when its end is among the bytes read for the

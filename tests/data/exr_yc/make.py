@@ -50,5 +50,5 @@ write(
     dataWindow=window,
     displayWindow=window,
 )
-# PIZ: refused (see the README).
+# PIZ: refused (see docs/convert.md).
 write("yc_piz.exr", OpenEXR.PIZ_COMPRESSION)
