@@ -120,3 +120,28 @@ fn convert_warns_about_wrap_on_a_seam_and_auto_mirrors_there() {
     let r = run(&["convert", s(&good), "-o", s(&dir.path().join("g.png"))]);
     assert!(r.status.success() && r.stderr.is_empty(), "{}", String::from_utf8_lossy(&r.stderr));
 }
+
+/// A reader that closes the pipe before the reports come (`| head`) stops
+/// the run quietly: no panic, no signal, no error line.
+#[test]
+fn a_closed_standard_output_stops_the_reports_without_a_panic() {
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let inputs: Vec<_> = (0..3).map(|k| dir.path().join(format!("h{k}.png"))).collect();
+    for input in &inputs {
+        write_height(input, 64, true);
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_normalfit"))
+        .arg("tiling")
+        .args(&inputs)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Closed before the first report is written.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.code().is_some(), "ended by a signal: {:?}", out.status);
+    assert!(!stderr.contains("panicked") && !stderr.contains("Broken pipe"), "{stderr}");
+}

@@ -1,5 +1,6 @@
 //! `normalfit tiling`: a verdict per image and axis, as text or JSON Lines.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use normalfit::io::{self, Channel, PngCompression, Raster, ReadOptions};
@@ -43,7 +44,18 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
                 }
                 let size = (raster.width, raster.height);
                 let line = if args.json { json_line(&input, size, &report) } else { text_line(&input, &report) };
-                println!("{line}");
+                // A reader that stops early (`| head -3`) closes the pipe:
+                // the reports it does not want are not computed, and that
+                // is no error (`println!` would panic on it).
+                let mut stdout = std::io::stdout().lock();
+                if let Err(e) = writeln!(stdout, "{line}").and_then(|()| stdout.flush()) {
+                    if e.kind() == std::io::ErrorKind::BrokenPipe {
+                        break;
+                    }
+                    super::report::print_line(&format!("normalfit: <standard output>: {e}"));
+                    errors += 1;
+                    break;
+                }
             }
             Err(f) => {
                 f.report();
