@@ -602,20 +602,15 @@ impl Plan {
             let c = reference[x0];
             // The segment's texels with their borders: padded[q] is column start + q − r.
             padded.clear();
-            let to_z = |h: H| gain * h.to_f64() - c;
+            // `move`: gain and c by value, kept in registers (by reference,
+            // the loop reloaded them from memory at every texel).
+            let to_z = move |h: H| gain * h.to_f64() - c;
             if start >= r && end + r <= src.len() {
                 // Away from the borders the columns are the source's own, in
                 // order: read as a slice, the loop vectorises.
                 padded.extend(src[start - r..end + r].iter().map(|&h| to_z(h)));
             } else {
-                // Columns start − r … end + r − 1: those outside the image
-                // through the x border, the rest as a slice.
-                let (lo, hi, w) = (start as isize - r as isize, (end + r) as isize, self.width as isize);
-                let (inside_lo, inside_hi) = (lo.max(0), hi.min(w));
-                let outside = |x: isize| to_z(src[self.borders.x.map(x, self.width)]);
-                padded.extend((lo..inside_lo).map(outside));
-                padded.extend(src[inside_lo as usize..inside_hi as usize].iter().map(|&h| to_z(h)));
-                padded.extend((inside_hi..hi).map(outside));
+                self.bordered_segment(src, start..end, (gain, c), padded);
             }
             let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
             for (q, &z) in padded[..n].iter().enumerate() {
@@ -637,6 +632,28 @@ impl Plan {
                 out.szz[x] = szz;
             }
         }
+    }
+
+    /// The z values of columns `segment.start − r … segment.end + r − 1`
+    /// of `src` into `padded`: those outside the image through the x
+    /// border, the rest as a slice. Out of line: only the first and last
+    /// segments of a row come here, and the hot loop stays small.
+    #[inline(never)]
+    fn bordered_segment<H: Sample>(
+        &self,
+        src: &[H],
+        segment: Range<usize>,
+        (gain, c): (f64, f64),
+        padded: &mut Vec<f64>,
+    ) {
+        let to_z = |h: H| gain * h.to_f64() - c;
+        let r = self.r as isize;
+        let (lo, hi, w) = (segment.start as isize - r, segment.end as isize + r, self.width as isize);
+        let (inside_lo, inside_hi) = (lo.max(0), hi.min(w));
+        let outside = |x: isize| to_z(src[self.borders.x.map(x, self.width)]);
+        padded.extend((lo..inside_lo).map(outside));
+        padded.extend(src[inside_lo as usize..inside_hi as usize].iter().map(|&h| to_z(h)));
+        padded.extend((inside_hi..hi).map(outside));
     }
 
     /// Turns the window sums of one row into normals, through `normal`
