@@ -30,53 +30,34 @@ pub trait Sample: Copy + Send + Sync + 'static {
     fn is_finite(self) -> bool;
 }
 
-impl Sample for u8 {
-    const UNIT: f64 = 1.0 / 255.0;
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        f64::from(self)
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        true
-    }
+/// `Sample` for an integer type (its unit one over its largest value) or
+/// a float type (unit 1).
+macro_rules! sample {
+    ($t:ty, integer) => {
+        sample!($t, 1.0 / <$t>::MAX as f64, |_v: $t| true);
+    };
+    ($t:ty, float) => {
+        sample!($t, 1.0, <$t>::is_finite);
+    };
+    ($t:ty, $unit:expr, $finite:expr) => {
+        impl Sample for $t {
+            const UNIT: f64 = $unit;
+            #[inline(always)]
+            fn to_f64(self) -> f64 {
+                f64::from(self)
+            }
+            #[inline(always)]
+            fn is_finite(self) -> bool {
+                $finite(self)
+            }
+        }
+    };
 }
 
-impl Sample for u16 {
-    const UNIT: f64 = 1.0 / 65535.0;
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        f64::from(self)
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        true
-    }
-}
-
-impl Sample for f32 {
-    const UNIT: f64 = 1.0;
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        f64::from(self)
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        f32::is_finite(self)
-    }
-}
-
-impl Sample for f64 {
-    const UNIT: f64 = 1.0;
-    #[inline(always)]
-    fn to_f64(self) -> f64 {
-        self
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        f64::is_finite(self)
-    }
-}
+sample!(u8, integer);
+sample!(u16, integer);
+sample!(f32, float);
+sample!(f64, float);
 
 /// One channel's samples, row-major, in the type they were stored in.
 ///

@@ -587,6 +587,22 @@ impl HeightSeams {
         Ok(Self::new(width, height))
     }
 
+    /// Pushes every row of `heights`, an image of this check's width held
+    /// whole in the samples' own type, converting one row at a time (no
+    /// `f32` copy of the image).
+    ///
+    /// # Panics
+    ///
+    /// As [`push_row`](Self::push_row), if `heights` holds more rows than
+    /// are still to come or a part of a row.
+    pub fn push_samples(&mut self, heights: &crate::Samples) {
+        let mut row = vec![0.0f32; self.width];
+        for start in (0..heights.len()).step_by(self.width.max(1)) {
+            heights.heights_f32_into(start, &mut row);
+            self.push_row(&row);
+        }
+    }
+
     /// The rows pushed so far.
     #[must_use]
     pub fn rows(&self) -> usize {

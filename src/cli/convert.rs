@@ -8,7 +8,7 @@ use std::sync::Mutex;
 
 use normalfit::io::stream::{self, ExrFormat, ExrRows, PngDepth, PngOutput, PngRows, RowSource};
 use normalfit::io::{self, Channel, ExrDepth, InputFormat, Layout, PngCompression, ReadOptions, SampleType};
-use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions, TilingReport};
+use normalfit::tiling::{self, HeightSeams, KindChoice, TilingOptions};
 use normalfit::{Border, Borders, FromNormal, Options, Samples};
 
 use super::args::{AlphaArg, AxisBorder, BorderArg, ChannelsArg, CompressionArg, ConvertArgs, FormatArg, OverwriteArg};
@@ -211,7 +211,10 @@ impl Plan {
         let (width, height) = (raster.width, raster.height);
         let heights = raster.into_heights(self.channel.clone()).map_err(|e| Failure::file(input.name(), e))?;
         let report = match self.needs_check() {
-            true => self.seam_check(width, height, input)?.map(|seams| seams_of(seams, &heights, width, height)),
+            true => self.seam_check(width, height, input)?.map(|mut seams| {
+                seams.push_samples(&heights);
+                seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))
+            }),
             false => None,
         };
         if let Some(report) = &report {
@@ -838,15 +841,4 @@ impl Reopen for ExrRows {
     ) -> Option<normalfit::Result<Vec<f64>>> {
         Some(ExrRows::last_rows(path, opts, channel, rows))
     }
-}
-
-/// The tiling check of heights held whole, a row at a time: the report
-/// `check` gives, without an `f32` copy of the image.
-fn seams_of(mut seams: HeightSeams, heights: &Samples, width: usize, height: usize) -> TilingReport {
-    let mut row = vec![0.0f32; width];
-    for y in 0..height {
-        heights.heights_f32_into(y * width, &mut row);
-        seams.push_row(&row);
-    }
-    seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))
 }

@@ -321,12 +321,8 @@ impl RowSource for ExrRows {
         }
     }
 
-    fn next_row_f32(&mut self, out: &mut [f32]) -> Result<()> {
-        let mut row = vec![0.0f64; out.len()];
-        self.next_row(&mut row)?;
-        out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f32);
-        Ok(())
-    }
+    // `next_row_f32`: the trait's, from the f64 rows (exact when
+    // `exact_in_f32`).
 }
 
 fn not_streamable() -> Error {
