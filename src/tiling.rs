@@ -516,8 +516,6 @@ pub struct HeightSeams {
     ring: Runs,
     /// The runs of rows that the x pairs of the coarser levels compare.
     stack: RowStack,
-    /// Scratch for [`add_row_x`].
-    padded: Vec<f32>,
     /// The x sums of the current block of [`CHUNK`] rows, in f32 as in
     /// [`Block`], level after level.
     vx_block: Vec<f32>,
@@ -548,7 +546,6 @@ impl HeightSeams {
             first: Runs::new(width, 2.min(height)),
             ring: Runs::new(width, 4.min(height)),
             stack: RowStack::new(width),
-            padded: vec![0.0; width + 3],
             vx_block: vec![0.0; LEVELS * width],
             cx_block: vec![0.0; LEVELS * width],
             vx: vec![0.0; LEVELS * width],
@@ -566,7 +563,7 @@ impl HeightSeams {
         // One row at every level: ⌈W / 2^l⌉ values each.
         let row_levels: u64 = (0..LEVELS).map(|l| w.div_ceil(1 << l)).sum();
         let runs = (2.min(h) + 4.min(h)) * row_levels * 4;
-        let x_sums = levels * w * 4 + (w + 3) * 4 + 2 * levels * w * 4 + 2 * levels * w * 8;
+        let x_sums = levels * w * 4 + 2 * levels * w * 4 + 2 * levels * w * 8;
         runs + x_sums + 2 * levels * h * 8
     }
 
@@ -631,7 +628,7 @@ impl HeightSeams {
             self.first.copy_slot(y, &self.ring, y % 4);
         }
         let ring = &self.ring;
-        self.stack.push(ring.row(0, y % 4), &mut self.padded, &mut self.vx_block, &mut self.cx_block, true);
+        self.stack.push(ring.row(0, y % 4), &mut self.vx_block, &mut self.cx_block, true);
         if (y + 1) % CHUNK == 0 {
             flush(&mut self.vx, &mut self.vx_block);
             flush(&mut self.cx, &mut self.cx_block);
@@ -663,7 +660,7 @@ impl HeightSeams {
             return Profiles::empty_report(ImageKind::Height, opts);
         }
         // The runs of rows cut short by the last row, as `check` ends them.
-        self.stack.finish(&mut self.padded, &mut self.vx_block, &mut self.cx_block, true);
+        self.stack.finish(&mut self.vx_block, &mut self.cx_block, true);
         flush(&mut self.vx, &mut self.vx_block);
         flush(&mut self.cx, &mut self.cx_block);
         let (first, ring) = (&self.first, &self.ring);
@@ -931,44 +928,49 @@ impl RowStack {
 
     /// Adds the x pairs of row `r` (level 0) to `vx`, `cx` (level-major, as
     /// in [`Profiles`]), and those of every run it completes.
-    fn push(&mut self, r: &[f32], padded: &mut [f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
+    fn push(&mut self, r: &[f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
         let w = r.len();
-        add_row_x(r, padded, &mut vx[..w], &mut cx[..w], crease);
+        add_row_x(r, &mut vx[..w], &mut cx[..w], crease);
         self.add_into(1, r);
         let mut level = 1;
         while level < LEVELS && self.count[level] == 2 {
-            self.close(level, padded, vx, cx, crease);
+            self.close(level, vx, cx, crease);
             level += 1;
         }
     }
 
     /// Closes the runs cut short by the end of the rows, finest first (each
     /// then counts as one run of the next level).
-    fn finish(&mut self, padded: &mut [f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
+    fn finish(&mut self, vx: &mut [f32], cx: &mut [f32], crease: bool) {
         for level in 1..LEVELS {
             if self.count[level] > 0 {
-                self.close(level, padded, vx, cx, crease);
+                self.close(level, vx, cx, crease);
             }
         }
     }
 
     fn add_into(&mut self, level: usize, r: &[f32]) {
-        for (s, &v) in self.sums[level].iter_mut().zip(r) {
-            *s += v;
+        // The first run of a level is copied, not added to zeros: no pass
+        // to clear the sums when a run closes.
+        if self.count[level] == 0 {
+            self.sums[level].copy_from_slice(r);
+        } else {
+            for (s, &v) in self.sums[level].iter_mut().zip(r) {
+                *s += v;
+            }
         }
         self.count[level] += 1;
     }
 
     /// Measures level `level`'s run, hands it to the next level, clears it.
-    fn close(&mut self, level: usize, padded: &mut [f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
+    fn close(&mut self, level: usize, vx: &mut [f32], cx: &mut [f32], crease: bool) {
         let w = self.sums[level].len();
         let run = std::mem::take(&mut self.sums[level]);
-        add_row_x(&run, padded, &mut vx[level * w..][..w], &mut cx[level * w..][..w], crease);
+        add_row_x(&run, &mut vx[level * w..][..w], &mut cx[level * w..][..w], crease);
         if level + 1 < LEVELS {
             self.add_into(level + 1, &run);
         }
         self.sums[level] = run;
-        self.sums[level].fill(0.0);
         self.count[level] = 0;
     }
 }
@@ -987,8 +989,6 @@ struct Block {
     /// The runs of rows of the task's rows (CHUNK is a multiple of the
     /// longest run, so a task's runs are whole but at the image's end).
     stack: RowStack,
-    /// One row with its wrap halo: h(W−1), h(0 … W−1), h(0), h(1).
-    padded: Vec<f32>,
     /// Level-major, as in [`Profiles`].
     vx: Vec<f32>,
     cx: Vec<f32>,
@@ -1002,7 +1002,6 @@ impl Block {
         Block {
             rows: Runs::new(w, 4),
             stack: RowStack::new(w),
-            padded: vec![0.0; w + 3],
             vx: vec![0.0; LEVELS * w],
             cx: vec![0.0; LEVELS * w],
             vy: Vec::with_capacity(CHUNK * LEVELS),
@@ -1026,7 +1025,7 @@ impl Block {
             self.rows.coarsen(i % 4);
             let rows = &self.rows;
             if (1..=n).contains(&i) {
-                self.stack.push(rows.row(0, i % 4), &mut self.padded, &mut self.vx, &mut self.cx, crease);
+                self.stack.push(rows.row(0, i % 4), &mut self.vx, &mut self.cx, crease);
             }
             if i >= 3 {
                 for level in 0..LEVELS {
@@ -1037,7 +1036,7 @@ impl Block {
                 }
             }
         }
-        self.stack.finish(&mut self.padded, &mut self.vx, &mut self.cx, crease);
+        self.stack.finish(&mut self.vx, &mut self.cx, crease);
     }
 }
 
@@ -1066,23 +1065,34 @@ fn unscaled(s: f32) -> f64 {
 }
 
 /// Adds the x pairs of one row `r` (W ≥ 1 values) to the f32 sums `vx` and,
-/// with `crease`, its x creases to `cx`. `padded` is scratch of W + 3
-/// values. The one x kernel of [`check`] and [`HeightSeams`].
+/// with `crease`, its x creases to `cx`. The one x kernel of [`check`] and [`HeightSeams`].
 #[inline]
-fn add_row_x(r: &[f32], padded: &mut [f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
+fn add_row_x(r: &[f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
     let w = r.len();
-    padded[0] = r[w - 1];
-    padded[1..=w].copy_from_slice(r);
-    padded[w + 1] = r[0];
-    padded[w + 2] = r[1 % w];
-    // a, b, c, d = h(k−1), h(k), h(k+1), h(k+2) for k = 0 … W−1.
-    let (a, b, c, d) = (&padded[..w], &padded[1..=w], &padded[2..w + 2], &padded[3..w + 3]);
-    for (k, v) in vx[..w].iter_mut().enumerate() {
-        *v += (c[k] - b[k]).abs();
+    // h(k) for any k, through the wrap: only for the few columns whose
+    // stencil crosses it, so the loops over the rest read `r` in place.
+    let h = |k: usize| r[k % w];
+    let crease_at = |k: usize| ((h(k + 2) - h(k + 1)) - (h(k) - h(k + w - 1))).abs();
+    // Values: pair k → k + 1, the last one the wrap.
+    for ((v, &b), &c) in vx[..w - 1].iter_mut().zip(r).zip(&r[1..]) {
+        *v += (c - b).abs();
     }
+    vx[w - 1] += (h(0) - r[w - 1]).abs();
     if crease {
-        for (k, s) in cx[..w].iter_mut().enumerate() {
-            *s += ((d[k] - c[k]) - (b[k] - a[k])).abs();
+        // Creases: a, b, c, d = h(k−1), h(k), h(k+1), h(k+2); in place for
+        // k = 1 … W−3, through the wrap for k = 0, W−2 and W−1.
+        if w >= 4 {
+            let (a, b, c, d) = (&r[..w - 3], &r[1..w - 2], &r[2..w - 1], &r[3..]);
+            for (k, s) in cx[1..w - 2].iter_mut().enumerate() {
+                *s += ((d[k] - c[k]) - (b[k] - a[k])).abs();
+            }
+            for k in [0, w - 2, w - 1] {
+                cx[k] += crease_at(k);
+            }
+        } else {
+            for (k, s) in cx[..w].iter_mut().enumerate() {
+                *s += crease_at(k);
+            }
         }
     }
 }
@@ -1122,6 +1132,29 @@ fn lane_sum<const K: usize>(rows: [&[f32]; K], f: impl Fn([f32; K]) -> f32) -> f
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_x_kernel_is_the_wrapped_stencil_at_every_width() {
+        // Each column's pair and crease, written with plain modular
+        // indices, against the kernel's in-place loops and edge columns;
+        // added onto earlier sums, as rows are.
+        for w in 1..=11usize {
+            let r: Vec<f32> = (0..w).map(|k| ((k * 7919 + 13) % 101) as f32 * 0.37 - 9.0).collect();
+            let h = |k: usize| r[k % w];
+            let earlier: Vec<f32> = (0..w).map(|k| k as f32 * 0.5).collect();
+            let (mut vx, mut cx) = (earlier.clone(), earlier.clone());
+            add_row_x(&r, &mut vx, &mut cx, true);
+            for k in 0..w {
+                let value = (h(k + 1) - h(k)).abs();
+                let crease = ((h(k + 2) - h(k + 1)) - (h(k) - h(k + w - 1))).abs();
+                assert_eq!(vx[k], earlier[k] + value, "value of column {k}, W = {w}");
+                assert_eq!(cx[k], earlier[k] + crease, "crease of column {k}, W = {w}");
+            }
+            let mut untouched = earlier.clone();
+            add_row_x(&r, &mut vx, &mut untouched, false);
+            assert_eq!(untouched, earlier, "no creases asked for, W = {w}");
+        }
+    }
 
     #[test]
     fn shift_half_moves_the_seams_to_the_middle() {
