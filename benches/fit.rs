@@ -172,12 +172,12 @@ fn bench_seams(c: &mut Criterion) {
     g.throughput(Throughput::Elements((n * n) as u64));
     g.bench_function("streamed", |b| {
         b.iter(|| {
-            let mut seams = HeightSeams::new(n, n);
-            heights.chunks_exact(n).for_each(|row| seams.push_row(black_box(row)));
+            let mut seams = HeightSeams::new(n, n).unwrap();
+            heights.chunks_exact(n).for_each(|row| seams.push_row(black_box(row)).unwrap());
             black_box(seams.finish(&opts))
         })
     });
-    g.bench_function("whole", |b| b.iter(|| black_box(check(&[black_box(heights)], n, n, &opts))));
+    g.bench_function("whole", |b| b.iter(|| black_box(check(&[black_box(heights)], n, n, &opts).unwrap())));
     g.finish();
 }
 

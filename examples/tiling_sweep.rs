@@ -108,7 +108,7 @@ fn main() {
     for (w, h) in sizes {
         let mut rows = vec![(0usize, 0usize, f64::NEG_INFINITY, f64::INFINITY); groups.len()];
         for item in items(w, h, per, &mut rng) {
-            let r = check(&item.image.refs(), w, h, &opts);
+            let r = check(&item.image.refs(), w, h, &opts).unwrap();
             let g = groups.iter().position(|&g| g == item.group).expect("known group");
             let row = &mut rows[g];
             row.0 += 1;
@@ -126,7 +126,7 @@ fn main() {
                 wrong_names.push(format!("{}: x {:.2}, y {:.2}", item.name, r.x.score, r.y.score));
                 if let Some(dir) = &dump {
                     let luma = item.image.luma();
-                    let bytes: Vec<u8> = shift_half(&luma, w, h).iter().map(|v| (v * 255.0).round() as u8).collect();
+                    let bytes: Vec<u8> = shift_half(&luma, w, h).unwrap().iter().map(|v| (v * 255.0).round() as u8).collect();
                     let file = format!("{dir}/{}.png", item.name.replace([' ', '/', '{', '}', ':', ','], "_"));
                     image::save_buffer(&file, &bytes, w as u32, h as u32, image::ExtendedColorType::L8)
                         .unwrap_or_else(|e| panic!("{file}: {e}"));

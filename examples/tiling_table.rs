@@ -29,7 +29,7 @@ fn main() {
     println!("|---|---|---|---|---|---|");
     let mut wrong = 0;
     for c in &cases {
-        let r = check(&c.image.refs(), c.image.width, c.image.height, &opts);
+        let r = check(&c.image.refs(), c.image.width, c.image.height, &opts).unwrap();
         let ok = (r.x.seamless, r.y.seamless) == c.expect && r.kind == c.kind;
         wrong += usize::from(!ok);
         let yn = |b: bool| if b { "tiles" } else { "seam" };

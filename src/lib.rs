@@ -111,12 +111,13 @@
 //!     })
 //!     .collect();
 //!
-//! let report = tiling::check(&[&heights], width, height, &TilingOptions::new());
+//! let report = tiling::check(&[&heights], width, height, &TilingOptions::new())?;
 //! assert!(report.x.seamless && report.x.score < 1.5);
 //! assert!(!report.y.seamless, "the ramp's last row is far from its first");
 //! // Borders that add no seam of their own: wrap in x, mirror in y.
 //! let borders = report.suggested_borders();
 //! assert_eq!((borders.x, borders.y), (normalfit::Border::Wrap, normalfit::Border::Mirror));
+//! # Ok::<(), normalfit::Error>(())
 //! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

@@ -210,6 +210,8 @@
 use rayon::prelude::*;
 
 use crate::options::{Border, Borders};
+use crate::samples::try_vec;
+use crate::{Error, Result};
 
 /// The default [`TilingOptions::threshold`]; see the [module docs](self)
 /// for the figures it was chosen from.
@@ -358,16 +360,38 @@ impl TilingReport {
 /// The image moved circularly by half its width and height, so both wrap
 /// seams cross its middle: the picture an artist looks at to judge tiling.
 /// Texel (x, y) of the result is texel ((x + W/2) mod W, (y + H/2) mod H).
-#[must_use]
-pub fn shift_half<T: Copy>(texels: &[T], width: usize, height: usize) -> Vec<T> {
+///
+/// Errors: [`Error::BufferSize`] when `texels` does not hold
+/// `width * height` values, [`Error::Limits`] when the copy cannot be
+/// allocated.
+pub fn shift_half<T: Copy>(texels: &[T], width: usize, height: usize) -> Result<Vec<T>> {
+    let len = image_len(width, height)?;
+    if texels.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: texels.len() });
+    }
     let (dx, dy) = (width / 2, height / 2);
-    let mut out = Vec::with_capacity(texels.len());
+    let mut out = try_vec(len)?;
     for y in 0..height {
         let row = &texels[((y + dy) % height) * width..][..width];
         out.extend_from_slice(&row[dx..]);
         out.extend_from_slice(&row[..dx]);
     }
-    out
+    Ok(out)
+}
+
+/// `width * height`, or the error naming a size that overflows.
+fn image_len(width: usize, height: usize) -> Result<usize> {
+    width
+        .checked_mul(height)
+        .ok_or_else(|| Error::InvalidOption(format!("an image of {width}×{height} texels is too large")))
+}
+
+/// Fails unless every plane holds at least `len` values.
+fn check_planes(planes: &[&[f32]], len: usize) -> Result<()> {
+    match planes.iter().find(|p| p.len() < len) {
+        Some(short) => Err(Error::BufferSize { expected: len, actual: short.len() }),
+        None => Ok(()),
+    }
 }
 
 impl ImageKind {
@@ -377,14 +401,13 @@ impl ImageKind {
     /// Looks at a grid sample of at most about 65 000 texels, so the cost is
     /// the same for any image size.
     ///
-    /// # Panics
-    ///
-    /// If a plane is shorter than `width * height`.
-    #[must_use]
-    pub fn detect(planes: &[&[f32]], width: usize, height: usize) -> ImageKind {
-        let len = width.saturating_mul(height);
+    /// Errors: [`Error::BufferSize`] when a plane is shorter than
+    /// `width * height`.
+    pub fn detect(planes: &[&[f32]], width: usize, height: usize) -> Result<ImageKind> {
+        let len = image_len(width, height)?;
+        check_planes(planes, len)?;
         if planes.len() < 3 || len == 0 {
-            return ImageKind::Height;
+            return Ok(ImageKind::Height);
         }
         let (r, g, b) = (&planes[0][..len], &planes[1][..len], &planes[2][..len]);
         // A grid stride per axis so that the sample covers the whole image.
@@ -412,7 +435,7 @@ impl ImageKind {
             let [mx, my, mz] = mean.map(|m| m / n);
             unit as f64 >= 0.9 * n && mz >= 0.5 && mx.hypot(my) <= 0.3
         });
-        if normal { ImageKind::Normal } else { ImageKind::Height }
+        Ok(if normal { ImageKind::Normal } else { ImageKind::Height })
     }
 }
 
@@ -428,31 +451,33 @@ impl ImageKind {
 /// // A ramp along x: a jump at the x wrap; every row the same, so y tiles.
 /// let (w, h) = (64, 32);
 /// let ramp: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 / (w - 1) as f32).collect();
-/// let report = check(&[&ramp], w, h, &TilingOptions::default());
+/// let report = check(&[&ramp], w, h, &TilingOptions::default())?;
 /// assert!(!report.x.seamless && report.x.score > 10.0);
 /// assert!(report.y.seamless && report.y.score == 1.0);
 /// assert!(!report.seamless());
+/// # Ok::<(), normalfit::Error>(())
 /// ```
 ///
-/// # Panics
-///
-/// If `planes` is empty or a plane is shorter than `width * height`.
-#[must_use]
-pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOptions) -> TilingReport {
-    assert!(!planes.is_empty(), "tiling::check needs at least one plane");
-    let len = width.checked_mul(height).expect("image size overflows usize");
-    for (i, p) in planes.iter().enumerate() {
-        assert!(p.len() >= len, "plane {i} holds {} values, {width}×{height} needs {len}", p.len());
+/// Errors: [`Error::InvalidOption`] when `planes` is empty,
+/// [`Error::BufferSize`] when a plane is shorter than `width * height`,
+/// [`Error::Limits`] when the profiles need more memory than the process
+/// may take.
+pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOptions) -> Result<TilingReport> {
+    if planes.is_empty() {
+        return Err(Error::InvalidOption("the tiling check needs at least one plane".into()));
     }
+    let len = image_len(width, height)?;
+    check_planes(planes, len)?;
     let kind = match opts.kind {
-        KindChoice::Auto => ImageKind::detect(planes, width, height),
+        KindChoice::Auto => ImageKind::detect(planes, width, height)?,
         KindChoice::Height => ImageKind::Height,
         KindChoice::Normal => ImageKind::Normal,
     };
     if len == 0 {
-        return Profiles::empty_report(kind, opts);
+        return Ok(Profiles::empty_report(kind, opts));
     }
-    Profiles::measure(planes, width, height, kind).report(kind, opts)
+    crate::io::check_memory("the tiling check", Profiles::bytes_needed(width, height))?;
+    Ok(Profiles::measure(planes, width, height, kind).report(kind, opts))
 }
 
 /// The tiling check of a height map fed one row at a time, top to bottom:
@@ -493,15 +518,16 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 /// // A ramp along x, fed row by row.
 /// let (w, h) = (64, 32);
 /// let ramp: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 / (w - 1) as f32).collect();
-/// let mut seams = HeightSeams::new(w, h);
+/// let mut seams = HeightSeams::new(w, h)?;
 /// for row in ramp.chunks_exact(w) {
-///     seams.push_row(row);
+///     seams.push_row(row)?;
 /// }
 /// let opts = TilingOptions::new();
 /// let report = seams.finish(&opts);
 /// assert!(!report.x.seamless && report.y.seamless);
-/// let whole = check(&[&ramp], w, h, &opts.with_kind(KindChoice::Height));
+/// let whole = check(&[&ramp], w, h, &opts.with_kind(KindChoice::Height))?;
 /// assert!((report.x.score / whole.x.score - 1.0).abs() < 1e-12);
+/// # Ok::<(), normalfit::Error>(())
 /// ```
 #[derive(Clone, Debug)]
 pub struct HeightSeams {
@@ -533,13 +559,17 @@ pub struct HeightSeams {
 impl HeightSeams {
     /// A check of a `width` × `height` height map, no rows in yet.
     ///
-    /// # Panics
+    /// Refused when the check's memory ([`bytes_needed`](Self::bytes_needed))
+    /// is more than the process may still take (under `ulimit -v` and the
+    /// like), instead of aborting on a failed allocation: an image 2^24
+    /// texels wide or tall needs 1.6 to 3.7 GB for it.
     ///
-    /// If `width * height` overflows `usize`.
-    #[must_use]
-    pub fn new(width: usize, height: usize) -> Self {
-        width.checked_mul(height).expect("image size overflows usize");
-        HeightSeams {
+    /// Errors: [`Error::Limits`] saying how much is needed,
+    /// [`Error::InvalidOption`] when `width * height` overflows.
+    pub fn new(width: usize, height: usize) -> Result<Self> {
+        image_len(width, height)?;
+        crate::io::check_memory("the tiling check", Self::bytes_needed(width, height))?;
+        Ok(HeightSeams {
             width,
             height,
             rows: 0,
@@ -552,7 +582,7 @@ impl HeightSeams {
             cx: vec![0.0; LEVELS * width],
             vy: vec![0.0; LEVELS * height],
             cy: vec![0.0; LEVELS * height],
-        }
+        })
     }
 
     /// The bytes a check of a `width` × `height` image holds (its profiles
@@ -567,37 +597,26 @@ impl HeightSeams {
         runs + x_sums + 2 * levels * h * 8
     }
 
-    /// Like [`HeightSeams::new`], but refused when the check's memory
-    /// ([`bytes_needed`](Self::bytes_needed)) is more than the process may
-    /// still take (under `ulimit -v` and the like), instead of aborting on
-    /// a failed allocation: an image 2^24 texels wide or tall needs 1.6 to
-    /// 3.7 GB for it.
-    ///
-    /// Errors: [`Error::Limits`](crate::Error::Limits) saying how much is
-    /// needed, [`Error::InvalidOption`](crate::Error::InvalidOption) when
-    /// `width * height` overflows.
-    pub fn try_new(width: usize, height: usize) -> crate::Result<Self> {
-        if width.checked_mul(height).is_none() {
-            return Err(crate::Error::InvalidOption(format!("image of {width}×{height} texels is too large")));
-        }
-        crate::io::check_memory("the tiling check", Self::bytes_needed(width, height))?;
-        Ok(Self::new(width, height))
-    }
-
     /// Pushes every row of `heights`, an image of this check's width held
     /// whole in the samples' own type, converting one row at a time (no
     /// `f32` copy of the image).
     ///
-    /// # Panics
-    ///
-    /// As [`push_row`](Self::push_row), if `heights` holds more rows than
-    /// are still to come or a part of a row.
-    pub fn push_samples(&mut self, heights: &crate::Samples) {
-        let mut row = vec![0.0f32; self.width];
-        for start in (0..heights.len()).step_by(self.width.max(1)) {
-            heights.heights_f32_into(start, &mut row);
-            self.push_row(&row);
+    /// Errors: [`Error::BufferSize`] when `heights` is not whole rows of
+    /// this width, or holds more rows than are still to come (nothing is
+    /// pushed then).
+    pub fn push_samples(&mut self, heights: &crate::Samples) -> Result<()> {
+        let w = self.width;
+        let rows_left = self.height - self.rows;
+        let fits = if w == 0 { heights.is_empty() } else { heights.len() % w == 0 && heights.len() / w <= rows_left };
+        if !fits {
+            return Err(Error::BufferSize { expected: rows_left * w, actual: heights.len() });
         }
+        let mut row = vec![0.0f32; w];
+        for start in (0..heights.len()).step_by(w.max(1)) {
+            heights.heights_f32_into(start, &mut row);
+            self.push_row(&row)?;
+        }
+        Ok(())
     }
 
     /// The rows pushed so far.
@@ -609,16 +628,20 @@ impl HeightSeams {
     /// Adds the next row, `width` heights. Non-finite values count as 0, as
     /// in [`check`].
     ///
-    /// # Panics
-    ///
-    /// If `row.len() != width`, or if all `height` rows are in already.
-    pub fn push_row(&mut self, row: &[f32]) {
+    /// Errors: [`Error::BufferSize`] when `row.len() != width`,
+    /// [`Error::InvalidOption`] when all `height` rows are in already; the
+    /// check is unchanged then.
+    pub fn push_row(&mut self, row: &[f32]) -> Result<()> {
         let (w, y) = (self.width, self.rows);
-        assert_eq!(row.len(), w, "HeightSeams::push_row: a row of {} values in an image {w} wide", row.len());
-        assert!(y < self.height, "HeightSeams::push_row: all {} rows are in already", self.height);
+        if row.len() != w {
+            return Err(Error::BufferSize { expected: w, actual: row.len() });
+        }
+        if y >= self.height {
+            return Err(Error::InvalidOption(format!("all {} rows of the tiling check are in already", self.height)));
+        }
         self.rows += 1;
         if w == 0 {
-            return;
+            return Ok(());
         }
         for (o, &v) in self.ring.slot_mut(y % 4).iter_mut().zip(row) {
             *o = judged(v);
@@ -643,6 +666,7 @@ impl HeightSeams {
                 self.cy[(y - 2) * LEVELS + level] = y_crease(r(y - 3), r(y - 2), r(y - 1), r(y));
             }
         }
+        Ok(())
     }
 
     /// The report, judged as [`ImageKind::Height`] under `opts.threshold`.
@@ -796,6 +820,16 @@ impl Profiles {
             x: axis_report(axis_score(&self.vx, &self.cx, width, height, crease, eps_x), opts),
             y: axis_report(axis_score(&vy, &cy, height, width, crease, eps_y), opts),
         }
+    }
+
+    /// The bytes [`measure`](Self::measure) holds at most: the y profiles,
+    /// and per thread (and once more while they are summed) two x
+    /// profiles and a [`Block`].
+    fn bytes_needed(width: usize, height: usize) -> u64 {
+        let (w, h, levels) = (width as u64, height as u64, LEVELS as u64);
+        let block = 4 * 2 * w * 4 + levels * w * 4 + 2 * levels * w * 4;
+        let per_thread = 2 * levels * w * 8 + block;
+        2 * levels * h * 8 + (rayon::current_num_threads() as u64 + 1) * per_thread
     }
 
     fn measure(planes: &[&[f32]], w: usize, h: usize, kind: ImageKind) -> Profiles {
@@ -1160,8 +1194,8 @@ mod tests {
     fn shift_half_moves_the_seams_to_the_middle() {
         // 4×3: rows shift by 1, columns by 2.
         let t: Vec<u8> = (0..12).collect();
-        assert_eq!(shift_half(&t, 4, 3), [6, 7, 4, 5, 10, 11, 8, 9, 2, 3, 0, 1]);
-        assert_eq!(shift_half(&[7u8], 1, 1), [7]);
+        assert_eq!(shift_half(&t, 4, 3).unwrap(), [6, 7, 4, 5, 10, 11, 8, 9, 2, 3, 0, 1]);
+        assert_eq!(shift_half(&[7u8], 1, 1).unwrap(), [7]);
     }
 
     #[test]

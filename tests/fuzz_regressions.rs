@@ -45,12 +45,12 @@ fn tiling_reports(raster: &Raster) -> [TilingReport; 3] {
     let (w, h) = (raster.width, raster.height);
     let planes: Vec<Vec<f32>> = raster.planes.iter().map(|p| p.data.to_f32().unwrap()).collect();
     let planes: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
-    let all = check(&planes, w, h, &TilingOptions::new());
+    let all = check(&planes, w, h, &TilingOptions::new()).unwrap();
     let heights = raster.heights(None).expect("finite heights");
     let opts = TilingOptions::new().with_kind(KindChoice::Height);
-    let whole = check(&[&heights], w, h, &opts);
-    let mut seams = HeightSeams::new(w, h);
-    heights.chunks_exact(w).for_each(|row| seams.push_row(row));
+    let whole = check(&[&heights], w, h, &opts).unwrap();
+    let mut seams = HeightSeams::new(w, h).unwrap();
+    heights.chunks_exact(w).for_each(|row| seams.push_row(row).unwrap());
     [all, whole, seams.finish(&opts)]
 }
 
@@ -118,17 +118,17 @@ fn heights_near_f32_range_score_as_the_same_map_near_one() {
     let huge: Vec<f32> = unit.iter().map(|v| v * 2f32.powi(127)).collect();
     assert!(huge.iter().all(|v| v.is_finite()));
     let opts = TilingOptions::new().with_kind(KindChoice::Height);
-    let small = check(&[&unit], w, h, &opts);
-    let large = check(&[&huge], w, h, &opts);
+    let small = check(&[&unit], w, h, &opts).unwrap();
+    let large = check(&[&huge], w, h, &opts).unwrap();
     assert_finite(&large);
     assert_eq!((small.x.score, small.y.score), (large.x.score, large.y.score));
-    let mut seams = HeightSeams::new(w, h);
-    huge.chunks_exact(w).for_each(|row| seams.push_row(row));
+    let mut seams = HeightSeams::new(w, h).unwrap();
+    huge.chunks_exact(w).for_each(|row| seams.push_row(row).unwrap());
     let streamed = seams.finish(&opts);
     assert_eq!((streamed.x.score, streamed.y.score), (large.x.score, large.y.score));
     // Colour: luma of three such planes, the largest weight's plane at −f32::MAX.
     let low = vec![-f32::MAX; w * h];
-    let report = check(&[&huge, &low, &huge], w, h, &opts);
+    let report = check(&[&huge, &low, &huge], w, h, &opts).unwrap();
     assert_finite(&report);
 }
 

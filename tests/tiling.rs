@@ -3,7 +3,8 @@
 
 mod tiling_support;
 
-use normalfit::tiling::{HeightSeams, ImageKind, KindChoice, TilingOptions, TilingReport, check};
+use normalfit::tiling::{HeightSeams, ImageKind, KindChoice, TilingOptions, TilingReport, check, shift_half};
+use normalfit::{Error, Samples};
 use tiling_support::{Case, Rng, generated_cases, hard_photo_cases, real_cases, spec_cases, structured_cases};
 
 /// Checks every case's verdicts and detected kind; prints the scores.
@@ -11,7 +12,7 @@ fn assert_cases(cases: &[Case]) {
     let opts = TilingOptions::default();
     let mut wrong = Vec::new();
     for c in cases {
-        let r = check(&c.image.refs(), c.image.width, c.image.height, &opts);
+        let r = check(&c.image.refs(), c.image.width, c.image.height, &opts).unwrap();
         println!("{:45} {:?} x {:7.2} y {:7.2}", c.name, r.kind, r.x.score, r.y.score);
         if (r.x.seamless, r.y.seamless) != c.expect || r.kind != c.kind {
             wrong.push(format!("{}: {r:?}, expected {:?} {:?}", c.name, c.expect, c.kind));
@@ -93,10 +94,10 @@ fn stripes_that_do_not_continue_are_found_under_noise() {
     // 256 / 32: continues; 256 / 40 leaves a 16-texel part-stripe at the
     // wrap, the stripes 10 wide.
     let continuing = noisy_stripes(w, h, 32.0, 1);
-    let r = check(&[&continuing], w, h, &opts);
+    let r = check(&[&continuing], w, h, &opts).unwrap();
     assert!(r.x.seamless, "{r:?}");
     let broken = noisy_stripes(w, h, 40.0, 1);
-    let r = check(&[&broken], w, h, &opts);
+    let r = check(&[&broken], w, h, &opts).unwrap();
     println!("broken stripes: {r:?}");
     assert!(!r.x.seamless && r.x.score > 1.8, "{r:?}");
     // Streaming finds the same.
@@ -110,7 +111,7 @@ fn constant_images_tile_with_score_one() {
         for planes in [1, 3, 4] {
             let data = vec![vec![0.25f32; w * h]; planes];
             let refs: Vec<&[f32]> = data.iter().map(Vec::as_slice).collect();
-            let r = check(&refs, w, h, &TilingOptions::default());
+            let r = check(&refs, w, h, &TilingOptions::default()).unwrap();
             assert_eq!((r.x.score, r.y.score), (1.0, 1.0), "{w}×{h}, {planes} planes");
             assert!(r.seamless());
         }
@@ -121,19 +122,19 @@ fn constant_images_tile_with_score_one() {
 fn tiny_axes_have_defined_answers() {
     // Width 1: the only pair is a column with itself.
     let col = [0.0f32, 0.5, 1.0, 0.2];
-    let r = check(&[&col], 1, 4, &TilingOptions::default());
+    let r = check(&[&col], 1, 4, &TilingOptions::default()).unwrap();
     assert_eq!(r.x.score, 1.0);
     assert!(r.x.seamless && r.y.score.is_finite());
     // Width 2: the wrap pair equals the interior pair.
     let two = [0.0f32, 1.0, 0.0, 1.0];
-    let r = check(&[&two], 2, 2, &TilingOptions::default());
+    let r = check(&[&two], 2, 2, &TilingOptions::default()).unwrap();
     assert_eq!(r.x.score, 1.0);
     // Width 3, a ramp 0, 0.5, 1: the wrap jumps twice as far as its neighbours.
     let three = [0.0f32, 0.5, 1.0, 0.0, 0.5, 1.0, 0.0, 0.5, 1.0];
-    let r = check(&[&three], 3, 3, &TilingOptions::default());
+    let r = check(&[&three], 3, 3, &TilingOptions::default()).unwrap();
     assert!(r.x.score > 1.9 && !r.x.seamless && r.y.seamless, "{r:?}");
     // Empty images tile.
-    let r = check(&[&[]], 0, 5, &TilingOptions::default());
+    let r = check(&[&[]], 0, 5, &TilingOptions::default()).unwrap();
     assert!(r.seamless());
 }
 
@@ -142,7 +143,7 @@ fn non_finite_texels_give_finite_scores() {
     let mut v = tiling_support::periodic_noise(32, 32, 2, 2, 3);
     v[40] = f32::NAN;
     v[41] = f32::INFINITY;
-    let r = check(&[&v], 32, 32, &TilingOptions::default());
+    let r = check(&[&v], 32, 32, &TilingOptions::default()).unwrap();
     assert!(r.x.score.is_finite() && r.y.score.is_finite());
 }
 
@@ -151,14 +152,14 @@ fn threshold_and_forced_kind_are_obeyed() {
     let n = 64;
     let ramp: Vec<f32> = (0..n * n).map(|k| (k % n) as f32 / (n - 1) as f32).collect();
     let lax = TilingOptions::default().with_threshold(1e9);
-    assert!(check(&[&ramp], n, n, &lax).seamless());
+    assert!(check(&[&ramp], n, n, &lax).unwrap().seamless());
     let strict = TilingOptions::default().with_threshold(0.5);
     let sine = &spec_cases()[0].image;
-    assert!(!check(&sine.refs(), sine.width, sine.height, &strict).seamless());
+    assert!(!check(&sine.refs(), sine.width, sine.height, &strict).unwrap().seamless());
     // The same three planes, judged either way.
     let planes = [ramp.as_slice(), ramp.as_slice(), ramp.as_slice()];
-    let h = check(&planes, n, n, &TilingOptions::default().with_kind(KindChoice::Height));
-    let m = check(&planes, n, n, &TilingOptions::default().with_kind(KindChoice::Normal));
+    let h = check(&planes, n, n, &TilingOptions::default().with_kind(KindChoice::Height)).unwrap();
+    let m = check(&planes, n, n, &TilingOptions::default().with_kind(KindChoice::Normal)).unwrap();
     assert_eq!((h.kind, m.kind), (ImageKind::Height, ImageKind::Normal));
     assert!(!h.x.seamless && !m.x.seamless);
 }
@@ -167,22 +168,22 @@ fn threshold_and_forced_kind_are_obeyed() {
 fn kind_detection() {
     let n = 32;
     let gray = vec![0.5f32; n * n];
-    assert_eq!(ImageKind::detect(&[&gray], n, n), ImageKind::Height);
+    assert_eq!(ImageKind::detect(&[&gray], n, n).unwrap(), ImageKind::Height);
     // Gray stored as RGB is a height map even where (2c − 1)(1, 1, 1) is unit.
     let g = vec![0.7887f32; n * n];
-    assert_eq!(ImageKind::detect(&[&g, &g, &g], n, n), ImageKind::Height);
+    assert_eq!(ImageKind::detect(&[&g, &g, &g], n, n).unwrap(), ImageKind::Height);
     // A flat encoded normal map, 8-bit: (128, 128, 255) / 255.
     let (half, one) = (vec![128.0f32 / 255.0; n * n], vec![1.0f32; n * n]);
-    assert_eq!(ImageKind::detect(&[&half, &half, &one], n, n), ImageKind::Normal);
+    assert_eq!(ImageKind::detect(&[&half, &half, &one], n, n).unwrap(), ImageKind::Normal);
     // With alpha too.
-    assert_eq!(ImageKind::detect(&[&half, &half, &one, &one], n, n), ImageKind::Normal);
+    assert_eq!(ImageKind::detect(&[&half, &half, &one, &one], n, n).unwrap(), ImageKind::Normal);
     // A float normal map stored raw, n in [−1, 1].
     let (zero, up) = (vec![0.0f32; n * n], vec![1.0f32; n * n]);
-    assert_eq!(ImageKind::detect(&[&zero, &zero, &up], n, n), ImageKind::Normal);
+    assert_eq!(ImageKind::detect(&[&zero, &zero, &up], n, n).unwrap(), ImageKind::Normal);
     // Random colours are a photo, a height map.
     let mut rng = tiling_support::Rng(9);
     let rgb: Vec<Vec<f32>> = (0..3).map(|_| (0..n * n).map(|_| rng.next() as f32).collect()).collect();
-    assert_eq!(ImageKind::detect(&[&rgb[0], &rgb[1], &rgb[2]], n, n), ImageKind::Height);
+    assert_eq!(ImageKind::detect(&[&rgb[0], &rgb[1], &rgb[2]], n, n).unwrap(), ImageKind::Height);
 }
 
 #[test]
@@ -192,7 +193,7 @@ fn a_4096_square_check_is_cheap() {
     let n = 4096;
     let v: Vec<f32> = (0..n * n).map(|k| ((k % n) as f32 * 0.37 + (k / n) as f32 * 0.11).sin()).collect();
     let t = std::time::Instant::now();
-    let r = check(&[&v], n, n, &TilingOptions::default());
+    let r = check(&[&v], n, n, &TilingOptions::default()).unwrap();
     let took = t.elapsed();
     println!("4096² check: {took:?}, {r:?}");
     assert!(took.as_secs_f64() < 5.0, "4096² check took {took:?}");
@@ -200,9 +201,9 @@ fn a_4096_square_check_is_cheap() {
 
 /// The streaming check of `v` (`w` × `h`), fed row by row.
 fn stream(v: &[f32], w: usize, h: usize, opts: &TilingOptions) -> TilingReport {
-    let mut seams = HeightSeams::new(w, h);
+    let mut seams = HeightSeams::new(w, h).unwrap();
     for y in 0..h {
-        seams.push_row(&v[y * w..][..w]);
+        seams.push_row(&v[y * w..][..w]).unwrap();
     }
     assert_eq!(seams.rows(), h);
     seams.finish(opts)
@@ -213,7 +214,7 @@ fn stream(v: &[f32], w: usize, h: usize, opts: &TilingOptions) -> TilingReport {
 /// Returns the larger relative score difference of the two axes.
 fn assert_stream_matches(v: &[f32], w: usize, h: usize, threshold: f64, label: &str) -> f64 {
     let opts = TilingOptions::new().with_kind(KindChoice::Height).with_threshold(threshold);
-    let whole = check(&[v], w, h, &opts);
+    let whole = check(&[v], w, h, &opts).unwrap();
     let streamed = stream(v, w, h, &opts);
     let rel = |a: f64, b: f64| if a == b { 0.0 } else { (a - b).abs() / a.abs().max(b.abs()) };
     let diff = rel(whole.x.score, streamed.x.score).max(rel(whole.y.score, streamed.y.score));
@@ -296,7 +297,7 @@ fn streaming_equals_check_on_noise_crops_creases_and_ramps() {
             let (w, h) = (c.image.width, c.image.height);
             let v = luma(&c.image.refs());
             same(&v, w, h, &c.name);
-            let as_planes = check(&c.image.refs(), w, h, &TilingOptions::new().with_kind(KindChoice::Height));
+            let as_planes = check(&c.image.refs(), w, h, &TilingOptions::new().with_kind(KindChoice::Height)).unwrap();
             let streamed = stream(&v, w, h, &TilingOptions::new());
             let rel = |a: f64, b: f64| (a - b).abs() / a.max(b);
             assert!(rel(as_planes.x.score, streamed.x.score) < 1e-5, "{}: {as_planes:?} {streamed:?}", c.name);
@@ -342,12 +343,12 @@ fn streaming_judges_the_crease_not_only_the_value_at_the_y_wrap() {
         })
         .collect();
     let r = stream(&v, w, h, &TilingOptions::new());
-    let whole = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Height));
+    let whole = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Height)).unwrap();
     assert!(!r.y.seamless && r.y.score > 3.0, "{r:?}");
     assert_eq!(r.y.score.to_bits(), whole.y.score.to_bits(), "{r:?} vs {whole:?}");
     // The same image judged as a normal map, by value only, tiles along y:
     // the crease is what fails it.
-    let as_normal = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Normal));
+    let as_normal = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Normal)).unwrap();
     assert!(as_normal.y.seamless, "{as_normal:?}");
 }
 
@@ -383,13 +384,13 @@ fn streaming_with_rows_missing_judges_the_rows_pushed() {
     let (w, h) = (24, 70);
     let v = tiling_support::periodic_noise(w, h, 3, 2, 11);
     for pushed in [1, 2, 3, 4, 5, 32, 33, 69] {
-        let mut seams = HeightSeams::new(w, h);
+        let mut seams = HeightSeams::new(w, h).unwrap();
         for row in v.chunks_exact(w).take(pushed) {
-            seams.push_row(row);
+            seams.push_row(row).unwrap();
         }
         assert_eq!(seams.rows(), pushed);
         let opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let (r, whole) = (seams.finish(&opts), check(&[&v[..w * pushed]], w, pushed, &opts));
+        let (r, whole) = (seams.finish(&opts), check(&[&v[..w * pushed]], w, pushed, &opts).unwrap());
         let rel = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs());
         assert!(rel(r.x.score, whole.x.score) <= 1e-9 && rel(r.y.score, whole.y.score) <= 1e-9, "{pushed}");
         assert_eq!((r.x.seamless, r.y.seamless), (whole.x.seamless, whole.y.seamless));
@@ -398,14 +399,14 @@ fn streaming_with_rows_missing_judges_the_rows_pushed() {
 
 #[test]
 fn streaming_empty_images_and_kind() {
-    let r = HeightSeams::new(0, 5).finish(&TilingOptions::new());
+    let r = HeightSeams::new(0, 5).unwrap().finish(&TilingOptions::new());
     assert!(r.seamless() && (r.x.score, r.y.score) == (1.0, 1.0));
-    let mut seams = HeightSeams::new(0, 3);
+    let mut seams = HeightSeams::new(0, 3).unwrap();
     for _ in 0..3 {
-        seams.push_row(&[]);
+        seams.push_row(&[]).unwrap();
     }
     assert!(seams.finish(&TilingOptions::new()).seamless());
-    assert!(HeightSeams::new(5, 0).finish(&TilingOptions::new()).seamless());
+    assert!(HeightSeams::new(5, 0).unwrap().finish(&TilingOptions::new()).seamless());
     // A forced Normal kind does not apply: the rows are heights.
     let v = vec![0.5f32; 16];
     let r = stream(&v, 4, 4, &TilingOptions::new().with_kind(KindChoice::Normal));
@@ -413,17 +414,55 @@ fn streaming_empty_images_and_kind() {
 }
 
 #[test]
-#[should_panic(expected = "rows are in already")]
-fn streaming_rejects_a_row_too_many() {
-    let mut seams = HeightSeams::new(2, 1);
-    seams.push_row(&[0.0, 1.0]);
-    seams.push_row(&[0.0, 1.0]);
+fn streaming_refuses_a_row_too_many_and_keeps_its_report() {
+    let mut seams = HeightSeams::new(2, 1).unwrap();
+    seams.push_row(&[0.0, 1.0]).unwrap();
+    let err = seams.push_row(&[5.0, 9.0]).unwrap_err();
+    assert!(matches!(err, Error::InvalidOption(_)), "{err}");
+    assert!(err.to_string().contains("rows of the tiling check are in already"), "{err}");
+    assert_eq!(seams.rows(), 1);
+    let whole = check(&[&[0.0, 1.0]], 2, 1, &TilingOptions::new().with_kind(KindChoice::Height)).unwrap();
+    assert_eq!(seams.finish(&TilingOptions::new()), whole, "the refused row left no trace");
 }
 
 #[test]
-#[should_panic(expected = "a row of 3 values")]
-fn streaming_rejects_a_row_of_the_wrong_width() {
-    HeightSeams::new(2, 2).push_row(&[0.0, 1.0, 2.0]);
+fn streaming_refuses_a_row_of_the_wrong_width() {
+    let err = HeightSeams::new(2, 2).unwrap().push_row(&[0.0, 1.0, 2.0]).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected: 2, actual: 3 }), "{err}");
+}
+
+#[test]
+fn streaming_refuses_samples_that_are_not_whole_rows_or_too_many() {
+    let mut seams = HeightSeams::new(3, 2).unwrap();
+    let err = seams.push_samples(&Samples::U8(vec![1; 4])).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected: 6, actual: 4 }), "{err}");
+    let err = seams.push_samples(&Samples::U8(vec![1; 9])).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected: 6, actual: 9 }), "{err}");
+    assert_eq!(seams.rows(), 0, "nothing pushed");
+    seams.push_samples(&Samples::U8(vec![1; 6])).unwrap();
+    assert_eq!(seams.rows(), 2);
+}
+
+#[test]
+fn bad_arguments_are_errors_not_panics() {
+    let opts = TilingOptions::new();
+    let err = check(&[], 2, 2, &opts).unwrap_err();
+    assert!(matches!(err, Error::InvalidOption(_)), "{err}");
+    let short = [0.5f32; 3];
+    let err = check(&[&short], 2, 2, &opts).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected: 4, actual: 3 }), "{err}");
+    let four = [0.5f32; 4];
+    let err = check(&[&four, &four, &short], 2, 2, &opts).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected: 4, actual: 3 }), "a short third plane: {err}");
+    let err = check(&[&four], usize::MAX, 2, &opts).unwrap_err();
+    assert!(matches!(err, Error::InvalidOption(_)), "{err}");
+    let err = ImageKind::detect(&[&four, &four, &short], 2, 2).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { .. }), "{err}");
+    let err = shift_half(&[1u8, 2, 3], 2, 2).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected: 4, actual: 3 }), "{err}");
+    let err = shift_half(&[1u8, 2, 3, 4, 5], 2, 2).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected: 4, actual: 5 }), "{err}");
+    assert!(HeightSeams::new(usize::MAX, 2).is_err());
 }
 
 #[test]
@@ -433,9 +472,9 @@ fn streaming_a_4096_square_is_cheap() {
     let row = |y: usize| -> Vec<f32> { (0..n).map(|x| (x as f32 * 0.37 + y as f32 * 0.11).sin()).collect() };
     let rows: Vec<Vec<f32>> = (0..n).map(row).collect();
     let t = std::time::Instant::now();
-    let mut seams = HeightSeams::new(n, n);
+    let mut seams = HeightSeams::new(n, n).unwrap();
     for r in &rows {
-        seams.push_row(r);
+        seams.push_row(r).unwrap();
     }
     let r = seams.finish(&TilingOptions::new());
     let took = t.elapsed();

@@ -211,10 +211,13 @@ impl Plan {
         let (width, height) = (raster.width, raster.height);
         let heights = raster.into_heights(self.channel.clone()).map_err(|e| Failure::file(input.name(), e))?;
         let report = match self.needs_check() {
-            true => self.seam_check(width, height, input)?.map(|mut seams| {
-                seams.push_samples(&heights);
-                seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))
-            }),
+            true => match self.seam_check(width, height, input)? {
+                Some(mut seams) => {
+                    seams.push_samples(&heights).map_err(|e| Failure::file(input.name(), e))?;
+                    Some(seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)))
+                }
+                None => None,
+            },
             false => None,
         };
         if let Some(report) = &report {
@@ -314,8 +317,10 @@ impl Plan {
                 let mut seams = self.seam_check(width, height, input)?;
                 let tail = first
                     .read_tail(r, |row| {
+                        // Whole rows from the decoder, at most `height` of
+                        // them: the check takes every one.
                         if let Some(s) = seams.as_mut() {
-                            s.push_row(row);
+                            let _ = s.push_row(row);
                         }
                     })
                     .map_err(in_failure)?;
@@ -338,8 +343,10 @@ impl Plan {
         progress.size(k, width, height);
         let visit = |row: &[f32]| {
             progress.row(k);
+            // Whole rows from the decoder, at most `height` of them: the
+            // check takes every one.
             if let Some(s) = seams.as_mut() {
-                s.push_row(row);
+                let _ = s.push_row(row);
             }
         };
         // Decoding and fitting fail on the input; writing, on the output.
@@ -439,7 +446,7 @@ impl Plan {
     /// only warns about a wrap that draws a seam. `--border auto` needs its
     /// verdict, so there the lack of memory is an error.
     fn seam_check(&self, width: usize, height: usize, input: &Input) -> Result<Option<HeightSeams>, Failure> {
-        match HeightSeams::try_new(width, height) {
+        match HeightSeams::new(width, height) {
             Ok(seams) => Ok(Some(seams)),
             Err(e) if self.border.x == AxisBorder::Auto || self.border.y == AxisBorder::Auto => {
                 Err(Failure::file(input.name(), e))

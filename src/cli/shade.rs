@@ -122,7 +122,8 @@ impl Plan {
         let report = self
             .border
             .needs_check()
-            .then(|| tiling::check(&[&heights], w, h, &TilingOptions::new().with_kind(KindChoice::Height)));
+            .then(|| tiling::check(&[&heights], w, h, &TilingOptions::new().with_kind(KindChoice::Height)))
+            .transpose()?;
         if let Some(report) = &report {
             self.border.warn_seams(report, input);
         }

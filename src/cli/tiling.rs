@@ -134,7 +134,7 @@ impl Previews {
                     .collect(),
                 _ => stretched_gray(&raster.heights(channel.cloned()).map_err(fail)?),
             };
-            self.save(&target.path_for(input, "preview"), &tiling::shift_half(&rgb, w, h), w, h)?;
+            self.save(&target.path_for(input, "preview"), &tiling::shift_half(&rgb, w, h).map_err(fail)?, w, h)?;
         }
         if let Some(target) = &self.lit {
             let normals: Vec<[f32; 3]> = match (report.kind, rgb_planes(raster).map_err(fail)?) {
@@ -149,7 +149,7 @@ impl Previews {
             };
             let gray = shade::shade(&normals, w, h, Light::default(), Convention::OpenGl).map_err(fail)?;
             let rgb: Vec<[u8; 3]> = gray.iter().map(|&g| [g; 3]).collect();
-            self.save(&target.path_for(input, "preview_lit"), &tiling::shift_half(&rgb, w, h), w, h)?;
+            self.save(&target.path_for(input, "preview_lit"), &tiling::shift_half(&rgb, w, h).map_err(fail)?, w, h)?;
         }
         Ok(())
     }
@@ -198,13 +198,13 @@ pub fn report_of(
     let rgb = rgb_planes(raster)?;
     let kind = kind_of(raster, kind, channel)?;
     let fixed = TilingOptions { kind: kind_choice(kind), ..*opts };
-    Ok(match (kind, rgb) {
+    match (kind, rgb) {
         (ImageKind::Normal, Some(planes)) => tiling::check(&planes.each_ref().map(Vec::as_slice), w, h, &fixed),
         _ => {
             let heights = raster.heights(channel.cloned())?;
             tiling::check(&[&heights], w, h, &fixed)
         }
-    })
+    }
 }
 
 /// What a decoded image holds: as asked, or detected from its R, G, B
@@ -217,7 +217,7 @@ pub fn kind_of(raster: &Raster, kind: KindArg, channel: Option<&Channel>) -> nor
             return Err(normalfit::Error::Unsupported("a normal map needs R, G and B channels".into()));
         }
         (KindArg::Auto, Some(planes)) if channel.is_none() => {
-            ImageKind::detect(&planes.each_ref().map(Vec::as_slice), raster.width, raster.height)
+            ImageKind::detect(&planes.each_ref().map(Vec::as_slice), raster.width, raster.height)?
         }
         (KindArg::Auto, _) => ImageKind::Height,
     })
