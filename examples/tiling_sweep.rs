@@ -126,7 +126,8 @@ fn main() {
                 wrong_names.push(format!("{}: x {:.2}, y {:.2}", item.name, r.x.score, r.y.score));
                 if let Some(dir) = &dump {
                     let luma = item.image.luma();
-                    let bytes: Vec<u8> = shift_half(&luma, w, h).unwrap().iter().map(|v| (v * 255.0).round() as u8).collect();
+                    let bytes: Vec<u8> =
+                        shift_half(&luma, w, h).unwrap().iter().map(|v| (v * 255.0).round() as u8).collect();
                     let file = format!("{dir}/{}.png", item.name.replace([' ', '/', '{', '}', ':', ','], "_"));
                     image::save_buffer(&file, &bytes, w as u32, h as u32, image::ExtendedColorType::L8)
                         .unwrap_or_else(|e| panic!("{file}: {e}"));

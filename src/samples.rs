@@ -114,30 +114,29 @@ impl Samples {
         self.len() == 0
     }
 
-    /// Sample `i` as a height in contract units.
-    ///
-    /// # Panics
-    ///
-    /// If `i` is out of range, as slice indexing does.
+    /// Sample `i` as a height in contract units, `None` past the end.
     #[must_use]
-    pub fn height(&self, i: usize) -> f64 {
-        with_slice!(self, s => contract(s[i]))
+    pub fn height(&self, i: usize) -> Option<f64> {
+        with_slice!(self, s => s.get(i).map(|&v| contract(v)))
     }
 
     /// The heights of `out.len()` samples from `start` into `out`, in
     /// contract units rounded to `f32`, for the consumers that take `f32`
     /// (the tiling check, lit views, an alpha of heights) a row at a time.
     ///
-    /// # Panics
-    ///
-    /// If the samples end before `start + out.len()`.
-    pub fn heights_f32_into(&self, start: usize, out: &mut [f32]) {
+    /// Errors: [`Error::BufferSize`] when the samples end before
+    /// `start + out.len()` (`out` is then unchanged).
+    pub fn heights_f32_into(&self, start: usize, out: &mut [f32]) -> Result<()> {
+        let (len, available) = (out.len(), self.len().saturating_sub(start));
+        if len > available {
+            return Err(Error::BufferSize { expected: len, actual: available });
+        }
         with_slice!(self, s => {
-            let len = out.len();
             for (o, &v) in out.iter_mut().zip(&s[start..start + len]) {
                 *o = contract(v) as f32;
             }
         });
+        Ok(())
     }
 
     /// All heights in contract units, rounded to `f32` (a copy; the fit
@@ -152,7 +151,7 @@ impl Samples {
         }
         let mut out = try_vec(self.len())?;
         out.resize(self.len(), 0.0);
-        self.heights_f32_into(0, &mut out);
+        self.heights_f32_into(0, &mut out)?;
         Ok(out)
     }
 
@@ -259,7 +258,11 @@ mod tests {
     fn samples_convert_to_contract_f32() {
         let s = Samples::U16(vec![0, 65535, 32768]);
         assert_eq!(s.to_f32().unwrap(), vec![0.0, 1.0, (32768.0f64 / 65535.0) as f32]);
-        assert!((Samples::U8(vec![51]).height(0) - 0.2).abs() < 1e-16);
+        assert!((Samples::U8(vec![51]).height(0).unwrap() - 0.2).abs() < 1e-16);
+        assert_eq!(Samples::U8(vec![51]).height(1), None);
+        let mut two = [7.0f32; 2];
+        assert!(Samples::U16(vec![1, 2]).heights_f32_into(1, &mut two).is_err());
+        assert_eq!(two, [7.0; 2], "a refused read leaves the buffer");
         assert_eq!(Samples::F64(vec![f64::NAN, 1.0, 2.0, f64::INFINITY]).first_non_finite(2), Some((0, 0)));
         assert_eq!(Samples::F32(vec![1.0, 2.0, 3.0, f32::INFINITY]).first_non_finite(2), Some((1, 1)));
         assert_eq!(Samples::U8(vec![0; 4]).first_non_finite(2), None);

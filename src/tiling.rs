@@ -613,7 +613,7 @@ impl HeightSeams {
         }
         let mut row = vec![0.0f32; w];
         for start in (0..heights.len()).step_by(w.max(1)) {
-            heights.heights_f32_into(start, &mut row);
+            heights.heights_f32_into(start, &mut row)?;
             self.push_row(&row)?;
         }
         Ok(())

@@ -481,7 +481,8 @@ fn check(case: &Case, good: &Good, root: &Path) -> (String, Vec<String>) {
         } else {
             for file in &written {
                 let raster = normalfit::io::read_path(&out.join(file), &normalfit::io::ReadOptions::default()).unwrap();
-                let flat = ["R", "G", "B"].map(|c| raster.plane(c).map_or(f32::NAN, |p| p.data.height(0) as f32));
+                let flat = ["R", "G", "B"]
+                    .map(|c| raster.plane(c).map_or(f32::NAN, |p| p.data.height(0).unwrap_or(f64::NAN) as f32));
                 let want: &[f32] =
                     if file.ends_with(".png") { &[128.0 / 255.0, 128.0 / 255.0, 1.0] } else { &[0.5, 0.5, 1.0] };
                 if raster.width != 8 || raster.height != 8 || flat != want {

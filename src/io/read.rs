@@ -349,7 +349,9 @@ impl Raster {
         let (r, g, b) = (&self.planes[r].data, &self.planes[g].data, &self.planes[b].data);
         let len = r.len().min(g.len()).min(b.len());
         let mut out = try_vec(len)?;
-        out.par_extend((0..len).into_par_iter().map(|i| luma(r.height(i), g.height(i), b.height(i))));
+        // Every i < len is in all three planes: `height` gives Some.
+        let at = |p: &Samples, i: usize| p.height(i).unwrap_or(0.0);
+        out.par_extend((0..len).into_par_iter().map(|i| luma(at(r, i), at(g, i), at(b, i))));
         Ok(Samples::F64(out))
     }
 
