@@ -440,3 +440,19 @@ fn streaming_a_4096_square_is_cheap() {
     println!("4096² streamed: {took:?}, {r:?}");
     assert!(took.as_secs_f64() < 5.0, "4096² streaming took {took:?}");
 }
+
+/// With the `serde` feature the reports serialise with their fields' names
+/// and the kind in lower case, as `normalfit tiling --json` prints them.
+#[cfg(feature = "serde")]
+#[test]
+fn reports_serialise_with_their_field_names() {
+    use normalfit::tiling::AxisReport;
+    let report = TilingReport {
+        kind: ImageKind::Normal,
+        x: AxisReport { score: 0.25, seamless: true },
+        y: AxisReport { score: 3.5, seamless: false },
+    };
+    let json = serde_json::to_string(&report).unwrap();
+    assert_eq!(json, r#"{"kind":"normal","x":{"score":0.25,"seamless":true},"y":{"score":3.5,"seamless":false}}"#);
+    assert_eq!(serde_json::to_string(&ImageKind::Height).unwrap(), r#""height""#);
+}
