@@ -134,3 +134,9 @@ pub use error::{Error, Result};
 pub use fit::{FromNormal, normals, normals_and_residual_into, normals_into};
 pub use options::{Border, Borders, Convention, Fit, Options, Strength};
 pub use samples::{Sample, Samples};
+
+/// The README's Rust code, compiled and run by `cargo test` as doc tests,
+/// so the front page's snippet keeps up with the API.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -259,6 +259,7 @@ const UNSCALE: f64 = 4_294_967_296.0;
 
 /// What the planes of an image hold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "lowercase"))]
 pub enum ImageKind {
     /// Heights: judged on the height (gray, or luma of R, G, B), for seams
     /// of value and of slope.
@@ -319,6 +320,7 @@ impl TilingOptions {
 
 /// The verdict on one axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct AxisReport {
     /// How the wrap pair compares with the interior pairs: about 1 or less
     /// when it looks like them, larger for a more visible seam. Finite and
@@ -330,6 +332,7 @@ pub struct AxisReport {
 
 /// The verdict on an image: the kind judged, and each axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct TilingReport {
     /// What the image was judged as (given, or detected).
     pub kind: ImageKind,

@@ -64,6 +64,48 @@ fn verdicts_exit_codes_and_json_lines() {
     assert_eq!(run(&["tiling", "--threshold", "-1", s(&half)]).status.code(), Some(2));
 }
 
+/// Every `--json` line is one JSON object (parsed here by a JSON parser,
+/// not by matching text) holding the library's verdict: the fields the
+/// contract lists, the path as given even with quotes, backslashes and
+/// control characters in it, and the scores to four decimals.
+#[test]
+fn json_lines_parse_and_hold_the_librarys_report() {
+    use normalfit::tiling::{TilingOptions, check};
+    let dir = tempfile::tempdir().unwrap();
+    let (good, odd) = (dir.path().join("good.png"), dir.path().join("we\"ird\\na\tme.png"));
+    write_height(&good, 80, true);
+    write_height(&odd, 64, false);
+    let r = run(&["tiling", "--json", s(&good), s(&odd)]);
+    assert_eq!(r.status.code(), Some(1), "{}", String::from_utf8_lossy(&r.stderr));
+    let lines = json(&r);
+    assert_eq!(lines.len(), 2);
+    for (line, path, n) in [(&lines[0], &good, 80), (&lines[1], &odd, 64)] {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}: {line}"));
+        let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+        let mut want = ["path", "width", "height", "kind", "x", "y", "seamless"];
+        want.sort_unstable();
+        assert_eq!(keys, want, "{line}");
+        assert_eq!(v["path"], s(path), "{line}");
+        assert_eq!((v["width"].as_u64(), v["height"].as_u64()), (Some(n), Some(n)), "{line}");
+        assert_eq!(v["kind"], "height", "{line}");
+
+        let img = image::open(path).unwrap().into_luma16();
+        let heights: Vec<f32> = img.as_raw().iter().map(|&v| f32::from(v) / 65535.0).collect();
+        let report = check(&[&heights], n as usize, n as usize, &TilingOptions::default());
+        for (axis, want) in [("x", report.x), ("y", report.y)] {
+            let score = v[axis]["score"].as_f64().unwrap();
+            assert!((score - want.score).abs() <= 0.5e-4, "{axis}: {score} vs {}: {line}", want.score);
+            assert_eq!(v[axis]["seamless"], want.seamless, "{axis}: {line}");
+        }
+        assert_eq!(v["seamless"], report.seamless(), "{line}");
+    }
+    assert!(
+        lines[1].contains(r#""path": "#) && lines[1].contains(r#""score": "#),
+        "a space after each colon: {}",
+        lines[1]
+    );
+}
+
 #[test]
 fn previews_put_both_seams_in_the_middle() {
     let dir = tempfile::tempdir().unwrap();

@@ -196,7 +196,7 @@ proptest! {
     fn fast_residual_matches_the_reference((w, h, heights) in image_strategy(), opts in options_strategy()) {
         let (with_residual, fast) = residual(&heights, w, h, &opts);
         prop_assert!(with_residual == normals(&heights, w, h, &opts).unwrap());
-        let tolerance = 1e-5 * (1.0 + opts.scale_for_width(w).abs());
+        let tolerance = 1e-5 * (1.0 + reference::gain(&opts, w).abs());
         for y in 0..h {
             for x in 0..w {
                 let slow = reference::residual_at(&heights, w, h, &opts, x, y);
@@ -470,4 +470,103 @@ fn extreme_heights_stay_finite() {
         let out = normals(&heights, w, h, &opts).unwrap();
         assert!(out.iter().all(|n| n.iter().all(|c| c.is_finite()) && n[2] >= 0.0));
     }
+}
+
+/// Rows and columns where the fit's work is cut, for an image `w` wide and
+/// patch `n`, from the rules in `src/fit.rs`'s module docs: the top r rows
+/// are a tile of their own, then blocks of max(8N, 64) rows (more, up to
+/// 2^14 texels a block, for a narrow image); columns in segments of
+/// max(8N, 64). Returned with their neighbours, clipped to the image.
+fn cut_lines(w: usize, h: usize, n: usize) -> (Vec<usize>, Vec<usize>) {
+    let r = n / 2;
+    let tile = (8 * n).max(64);
+    let block_rows = tile.max((1usize << 14).div_ceil(w));
+    let near = |edges: Vec<usize>, len: usize| -> Vec<usize> {
+        let mut lines: Vec<usize> =
+            edges.iter().flat_map(|&e| [e.wrapping_sub(1), e, e + 1]).filter(|&k| k < len).collect();
+        lines.extend([0, len - 1]);
+        lines.sort_unstable();
+        lines.dedup();
+        lines
+    };
+    let rows = std::iter::once(r).chain((r..h).step_by(block_rows)).chain([h - r]).collect();
+    let cols = (0..w).step_by(tile).chain([w - r]).collect();
+    (near(rows, h), near(cols, w))
+}
+
+/// Images of a few hundred rows and columns, so that the fit's row blocks
+/// and column segments are crossed several times: every odd N from 3 to
+/// 33 (`every_n`) or a few, every border pair, both fits, normals and
+/// residuals against the slow reference at every texel of the rows next to
+/// a block edge (a sample of their columns, the segment edges among them)
+/// and at random texels.
+fn large_image_matches_the_reference(w: usize, h: usize, every_n: bool, seed: u64) {
+    // Noise on a slope, offset from zero: the reference value c each tile
+    // subtracts then matters, and the normals lean every way.
+    let heights: Vec<f32> = random_heights(w, h, seed)
+        .iter()
+        .enumerate()
+        .map(|(k, v)| 40.0 + 0.002 * (k % w) as f32 - 0.003 * (k / w) as f32 + 0.3 * v)
+        .collect();
+    let patches: Vec<usize> = if every_n { (3..=33).step_by(2).collect() } else { vec![3, 11, 33] };
+    let mut rng = seed;
+    let mut next = |below: usize| {
+        rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((rng >> 33) as usize) % below
+    };
+    let mut checked = 0;
+    for n in patches {
+        let (rows, cols) = cut_lines(w, h, n);
+        for fit in [Fit::Orthogonal, Fit::Vertical] {
+            for (bx, by) in (0..3).flat_map(|bx| (0..3).map(move |by| (bx, by))) {
+                let opts = Options::new()
+                    .with_patch(n)
+                    .with_fit(fit)
+                    .with_borders(Borders { x: BORDERS[bx], y: BORDERS[by] })
+                    .with_strength(Strength::Scale(6.0));
+                let (fast, fast_residual) = residual(&heights, w, h, &opts);
+                let mut texels: Vec<(usize, usize)> = Vec::new();
+                for &y in &rows {
+                    texels.extend(cols.iter().map(|&x| (x, y)));
+                    texels.extend((0..4).map(|_| (next(w), y)));
+                }
+                for &x in &cols {
+                    texels.extend((0..4).map(|_| (x, next(h))));
+                }
+                texels.extend((0..64).map(|_| (next(w), next(h))));
+                let tolerance = 1e-5 * (1.0 + reference::gain(&opts, w).abs());
+                for (x, y) in texels {
+                    let what = format!("{w}x{h} N {n} {fit:?} {:?} ({x}, {y})", opts.borders);
+                    let slow = reference::normal_at(&heights, w, h, &opts, x, y);
+                    let got = fast[y * w + x];
+                    let err = (0..3).map(|c| (f64::from(got[c]) - slow[c]).abs()).fold(0.0, f64::max);
+                    assert!(err < 1e-5, "{what}: fast {got:?} slow {slow:?}");
+                    let slow = reference::residual_at(&heights, w, h, &opts, x, y);
+                    let got = f64::from(fast_residual[y * w + x]);
+                    assert!((got - slow).abs() <= tolerance, "{what} residual: fast {got} slow {slow}");
+                    checked += 1;
+                }
+            }
+        }
+    }
+    // Enough texels that each block edge was seen many times.
+    assert!(checked > 1000, "{checked} texels checked");
+}
+
+#[test]
+fn large_images_crossing_row_blocks_match_the_reference_for_every_n() {
+    // N = 3: blocks of 64 rows (eight edges); N = 33: 264 rows (two).
+    large_image_matches_the_reference(301, 517, true, 5);
+}
+
+#[test]
+fn narrow_tall_images_with_taller_blocks_match_the_reference() {
+    // 37 columns: blocks of 443 rows (2^14 texels), so edges at r, r + 443, r + 886.
+    large_image_matches_the_reference(37, 1003, false, 6);
+}
+
+#[test]
+fn wide_images_crossing_strips_and_blocks_match_the_reference() {
+    // More than one parallel strip (about 512 columns) and several blocks.
+    large_image_matches_the_reference(613, 211, false, 7);
 }

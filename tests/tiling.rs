@@ -24,11 +24,9 @@ fn assert_cases(cases: &[Case]) {
 }
 
 #[test]
+#[ignore = "needs ../shared/data (the shared real textures); CI runs it with --include-ignored"]
 fn real_tileable_textures_pass_and_photos_fail() {
-    let Some(cases) = real_cases() else {
-        println!("skipped: ../shared/data is absent");
-        return;
-    };
+    let cases = real_cases().expect("../shared/data is absent: the real-texture tests need it beside the clone");
     assert_cases(&cases);
 }
 
@@ -480,4 +478,20 @@ fn streaming_a_4096_square_is_cheap() {
     let took = t.elapsed();
     println!("4096² streamed: {took:?}, {r:?}");
     assert!(took.as_secs_f64() < 5.0, "4096² streaming took {took:?}");
+}
+
+/// With the `serde` feature the reports serialise with their fields' names
+/// and the kind in lower case, as `normalfit tiling --json` prints them.
+#[cfg(feature = "serde")]
+#[test]
+fn reports_serialise_with_their_field_names() {
+    use normalfit::tiling::AxisReport;
+    let report = TilingReport {
+        kind: ImageKind::Normal,
+        x: AxisReport { score: 0.25, seamless: true },
+        y: AxisReport { score: 3.5, seamless: false },
+    };
+    let json = serde_json::to_string(&report).unwrap();
+    assert_eq!(json, r#"{"kind":"normal","x":{"score":0.25,"seamless":true},"y":{"score":3.5,"seamless":false}}"#);
+    assert_eq!(serde_json::to_string(&ImageKind::Height).unwrap(), r#""height""#);
 }

@@ -43,7 +43,15 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
                     seams += 1;
                 }
                 let size = (raster.width, raster.height);
-                let line = if args.json { json_line(&input, size, &report) } else { text_line(&input, &report) };
+                let line = if args.json { json_line(&input, size, &report) } else { Ok(text_line(&input, &report)) };
+                let line = match line {
+                    Ok(line) => line,
+                    Err(f) => {
+                        f.report();
+                        errors += 1;
+                        continue;
+                    }
+                };
                 // A reader that stops early (`| head -3`) closes the pipe:
                 // the reports it does not want are not computed, and that
                 // is no error (`println!` would panic on it).
@@ -249,34 +257,43 @@ fn text_line(input: &Input, r: &TilingReport) -> String {
     )
 }
 
-fn json_line(input: &Input, (w, h): (usize, usize), r: &TilingReport) -> String {
-    let axis =
-        |a: &tiling::AxisReport| format!("{{\"score\": {}, \"seamless\": {}}}", json_number(a.score), a.seamless);
-    format!(
-        "{{\"path\": {}, \"width\": {w}, \"height\": {h}, \"kind\": \"{}\", \"x\": {}, \"y\": {}, \"seamless\": {}}}",
-        json_string(&input.name().display().to_string()),
-        kind_name(r.kind),
-        axis(&r.x),
-        axis(&r.y),
-        r.seamless()
-    )
+/// One `--json` line: the library's report (`kind`, `x`, `y`) with the file
+/// it is about, its size and the verdict on both axes.
+#[derive(serde::Serialize)]
+struct JsonLine<'a> {
+    path: String,
+    width: usize,
+    height: usize,
+    #[serde(flatten)]
+    report: &'a TilingReport,
+    seamless: bool,
 }
 
-/// JSON has no infinities or NaN: they print as null.
-fn json_number(v: f64) -> String {
-    if v.is_finite() { format!("{v:.4}") } else { "null".into() }
-}
+/// serde_json's compact form with a space after every `:` and `,`, and
+/// numbers with four decimals: the lines `--json` has always printed (a
+/// score's further digits are noise). serde_json writes infinities and NaN
+/// as null, which JSON has in their place.
+struct JsonStyle;
 
-fn json_string(s: &str) -> String {
-    let mut out = String::from("\"");
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if (c as u32) < 0x20 => out.push_str(&format!("\\u{:04x}", c as u32)),
-            c => out.push(c),
-        }
+impl serde_json::ser::Formatter for JsonStyle {
+    fn begin_object_key<W: ?Sized + Write>(&mut self, writer: &mut W, first: bool) -> std::io::Result<()> {
+        if first { Ok(()) } else { writer.write_all(b", ") }
     }
-    out.push('"');
-    out
+
+    fn begin_object_value<W: ?Sized + Write>(&mut self, writer: &mut W) -> std::io::Result<()> {
+        writer.write_all(b": ")
+    }
+
+    fn write_f64<W: ?Sized + Write>(&mut self, writer: &mut W, value: f64) -> std::io::Result<()> {
+        write!(writer, "{value:.4}")
+    }
+}
+
+fn json_line(input: &Input, (width, height): (usize, usize), report: &TilingReport) -> Result<String, Failure> {
+    let name = input.name().display().to_string();
+    let line = JsonLine { path: name, width, height, report, seamless: report.seamless() };
+    let mut out = Vec::new();
+    serde::Serialize::serialize(&line, &mut serde_json::Serializer::with_formatter(&mut out, JsonStyle))
+        .map_err(|e| Failure::file(input.name(), format!("cannot write its JSON line: {e}")))?;
+    String::from_utf8(out).map_err(|e| Failure::file(input.name(), format!("cannot write its JSON line: {e}")))
 }

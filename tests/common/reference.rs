@@ -8,7 +8,7 @@
 // Matrix code reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
-use normalfit::{Border, Convention, Fit, Options};
+use normalfit::{Border, Convention, Fit, Options, Strength};
 
 /// The index rule of SPEC.md section 2, written out case by case.
 pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
@@ -34,6 +34,18 @@ pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
     }
 }
 
+/// S of SPEC.md section 1, for an image `w` columns wide: `--scale S` as
+/// given, `--relief F` as F · W, negated by `--invert`. Worked out here
+/// from the options' fields, not asked of the library, so a wrong gain in
+/// the library shows as a difference.
+pub fn gain(opts: &Options, w: usize) -> f64 {
+    let s = match opts.strength {
+        Strength::Scale(s) => s,
+        Strength::Relief(f) => f * w as f64,
+    };
+    if opts.invert { -s } else { s }
+}
+
 /// The N² points (u, v, z) of texel (x, y)'s patch.
 fn patch_points<H: Copy + Into<f64>>(
     heights: &[H],
@@ -45,7 +57,7 @@ fn patch_points<H: Copy + Into<f64>>(
 ) -> Vec<[f64; 3]> {
     let n = opts.patch as i64;
     let r = n / 2;
-    let s = opts.scale_for_width(w);
+    let s = gain(opts, w);
     let sigma = match opts.convention {
         Convention::OpenGl => -1.0,
         Convention::DirectX => 1.0,
