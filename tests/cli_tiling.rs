@@ -91,7 +91,7 @@ fn json_lines_parse_and_hold_the_librarys_report() {
 
         let img = image::open(path).unwrap().into_luma16();
         let heights: Vec<f32> = img.as_raw().iter().map(|&v| f32::from(v) / 65535.0).collect();
-        let report = check(&[&heights], n as usize, n as usize, &TilingOptions::default());
+        let report = check(&[&heights], n as usize, n as usize, &TilingOptions::default()).unwrap();
         for (axis, want) in [("x", report.x), ("y", report.y)] {
             let score = v[axis]["score"].as_f64().unwrap();
             assert!((score - want.score).abs() <= 0.5e-4, "{axis}: {score} vs {}: {line}", want.score);
