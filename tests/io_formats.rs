@@ -10,6 +10,7 @@ use exr::prelude::{
 };
 use image::ImageEncoder;
 use normalfit::Error;
+use normalfit::io::read::formats::{self, FORMATS};
 use normalfit::io::{
     Channel, ExrDepth, InputFormat, Layout, PngCompression, Raster, ReadOptions, SampleType, decode, encode_exr,
     encode_exr_gray, encode_exr_normals, encode_png_gray8, encode_png_gray16, encode_png_normals, encode_png_rgb8,
@@ -362,6 +363,104 @@ fn tga_bmp_webp_lossless_values() {
         let g: Vec<f32> = buf.iter().skip(1).step_by(3).map(|&v| f32::from(v) / 255.0).collect();
         assert_eq!(r.heights(Some(Channel::G)).unwrap(), g, "{format}");
     }
+}
+
+// ---------------------------------------------------------------------------
+// The registry of formats: content sniffing, extensions and names all come
+// from one list.
+
+/// A small RGB image (4 × 3) written as `format`: PNG by hand, OpenEXR by
+/// `exr`, the rest by `image`'s encoders.
+fn written_as(format: &InputFormat) -> Vec<u8> {
+    let rgb: Vec<u8> = (0..4 * 3 * 3).map(|i| (i * 7) as u8).collect();
+    let image_format = match format {
+        InputFormat::Png => return PngSpec::new(4, 3, 2, 8).encode(|x, y| rgb[(y * 4 + x) * 3..][..3].to_vec()),
+        InputFormat::Exr => return exr_bytes((4, 3), (0, 0), vec![f32_channel("Y", &[0.5; 12])]),
+        InputFormat::Jpeg => image::ImageFormat::Jpeg,
+        InputFormat::Tiff => image::ImageFormat::Tiff,
+        InputFormat::Tga => image::ImageFormat::Tga,
+        InputFormat::Bmp => image::ImageFormat::Bmp,
+        InputFormat::WebP => image::ImageFormat::WebP,
+        InputFormat::Gif => image::ImageFormat::Gif,
+        InputFormat::Hdr => image::ImageFormat::Hdr,
+        InputFormat::Pnm => image::ImageFormat::Pnm,
+        InputFormat::Qoi => image::ImageFormat::Qoi,
+        other => panic!("no writer for {other} here: add one"),
+    };
+    let picture = image::RgbImage::from_raw(4, 3, rgb).unwrap();
+    let picture = match image_format {
+        // Radiance HDR holds floats only.
+        image::ImageFormat::Hdr => image::DynamicImage::ImageRgb32F(image::DynamicImage::from(picture).to_rgb32f()),
+        _ => image::DynamicImage::ImageRgb8(picture),
+    };
+    let mut out = Cursor::new(Vec::new());
+    picture.write_to(&mut out, image_format).unwrap();
+    out.into_inner()
+}
+
+#[test]
+fn every_registered_format_is_recognised_by_its_content_and_read_as_itself() {
+    assert_eq!(FORMATS.len(), 11);
+    for info in FORMATS {
+        let bytes = written_as(&info.format);
+        // TGA has no signature: it is found by its header parsing, last.
+        let sniffed = info.has_signature().then(|| info.format.clone());
+        assert_eq!(InputFormat::sniff(&bytes), sniffed, "{}", info.name);
+        assert_eq!(InputFormat::sniff(&bytes[..16]), sniffed, "{}: 16 bytes are enough", info.name);
+        let r = read(&bytes);
+        assert_eq!(r.format, info.format, "{}", info.name);
+        assert_eq!((r.width, r.height), (4, 3), "{}", info.name);
+        assert_eq!(r.format.to_string(), info.name);
+        assert_eq!(r.format.info().format, info.format);
+    }
+}
+
+#[test]
+fn every_extension_names_one_format_in_any_case() {
+    let mut seen = std::collections::HashSet::new();
+    for info in FORMATS {
+        assert!(!info.extensions.is_empty(), "{}", info.name);
+        for ext in info.extensions {
+            assert!(seen.insert(*ext), ".{ext} names two formats");
+            assert_eq!(InputFormat::from_extension(ext), Some(info.format.clone()), ".{ext}");
+            assert_eq!(InputFormat::from_extension(&ext.to_uppercase()), Some(info.format.clone()), ".{ext}");
+        }
+    }
+    // The extensions the folder search missed before the registry (issue 13).
+    for (ext, format) in [("pgm", InputFormat::Pnm), ("hdr", InputFormat::Hdr), ("gif", InputFormat::Gif)] {
+        assert_eq!(InputFormat::from_extension(ext), Some(format), ".{ext}");
+    }
+    assert_eq!(InputFormat::from_extension("qoi"), Some(InputFormat::Qoi));
+    assert_eq!(InputFormat::from_extension("Tif"), Some(InputFormat::Tiff));
+    for ext in ["", "txt", "pn", "pngx", "exr.bak", "ico", "dds"] {
+        assert_eq!(InputFormat::from_extension(ext), None, ".{ext}");
+    }
+}
+
+#[test]
+fn help_and_errors_name_the_registered_formats() {
+    assert_eq!(formats::names(), "PNG, OpenEXR, TIFF, JPEG, TGA, BMP, WebP, GIF, Radiance HDR, PNM, QOI");
+    let e = decode(b"just some text, not an image\n", &ReadOptions::default()).unwrap_err();
+    assert!(matches!(&e, Error::Decode(m) if m.ends_with(&format!("normalfit reads {}", formats::names()))), "{e}");
+    // A format `image` knows by its signature but normalfit does not read.
+    let ico = [0u8, 0, 1, 0, 1, 0, 16, 16, 0, 0, 1, 0, 32, 0, 0, 0];
+    let e = decode(&ico, &ReadOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, Error::Unsupported(m) if m.starts_with("ico images are not read; normalfit reads PNG")),
+        "{e}"
+    );
+    let e = decode(&written_as(&InputFormat::Gif), &ReadOptions::default().with_layer("x")).unwrap_err();
+    assert!(matches!(&e, Error::Unsupported(m) if m.contains("gif files have no layers")), "{e}");
+}
+
+/// docs/convert.md says which extensions a folder's search takes: the
+/// registry's, every one.
+#[test]
+fn the_docs_list_every_extension_a_folder_search_takes() {
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/convert.md")).unwrap();
+    let doc = doc.split_whitespace().collect::<Vec<_>>().join(" ");
+    let listed: Vec<String> = FORMATS.iter().flat_map(|f| f.extensions.iter()).map(|ext| format!("`{ext}`")).collect();
+    assert!(doc.contains(&format!("one the reader takes: {};", listed.join(", "))), "docs/convert.md: {listed:?}");
 }
 
 // ---------------------------------------------------------------------------

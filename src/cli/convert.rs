@@ -481,10 +481,7 @@ impl Plan {
     /// the residual map's.
     fn target(&self, job: &Job, format: InputFormat, sample: SampleType) -> Result<Target, Failure> {
         let input = &job.input;
-        let float_input = match sample {
-            io::SampleType::Float => true,
-            io::SampleType::Int { .. } | io::SampleType::SignedInt { .. } => false,
-        };
+        let float_input = sample == io::SampleType::Float;
         let from_input = match format {
             InputFormat::Exr => FormatArg::Exr,
             InputFormat::Png => FormatArg::Png,

@@ -8,15 +8,16 @@
 //! files, streaming rows from decoder to encoder.
 
 mod atomic;
-pub(crate) mod exr_subsampled;
 mod memory;
-mod png_zlib;
 pub mod read;
 pub mod stream;
 pub mod write;
 
 pub use memory::check_memory;
-pub use read::{Channel, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
+pub use read::{Channel, FormatInfo, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
+// The paths the streaming readers take these by.
+pub(crate) use read::exr::subsampled as exr_subsampled;
+pub(crate) use read::png::zlib as png_zlib;
 pub use write::{
     ExrDepth, Layout, PngCompression, PngSample, Sample, encode_exr, encode_exr_gray, encode_exr_normals,
     encode_png_gray8, encode_png_gray16, encode_png_normals, encode_png_rgb8, encode_png_rgb16, write_atomically,
