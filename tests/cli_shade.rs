@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use common::cli::{run, s};
-use normalfit::io::{ExrDepth, encode_exr};
+use normalfit::io::{ExrDepth, ExrOptions, encode_normals};
 use normalfit::shade::AMBIENT;
 
 fn ok(out: &Output) {
@@ -141,7 +141,8 @@ fn normal_maps_light_their_stored_normals() {
     let exr = |name: &str, texels: Vec<[f32; 3]>| {
         let path = dir.path().join(name);
         let mut bytes = std::io::Cursor::new(Vec::new());
-        encode_exr(&texels, w, h, ExrDepth::Float, &mut bytes).unwrap();
+        let as_given = ExrOptions::new(ExrDepth::Float).with_signed(true).into();
+        encode_normals(&texels, None, w, h, &as_given, &mut bytes).unwrap();
         fs::write(&path, bytes.into_inner()).unwrap();
         path
     };

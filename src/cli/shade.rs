@@ -5,7 +5,7 @@ use std::collections::HashSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use normalfit::io::{self, Channel, PngCompression, Raster, ReadOptions, SampleType};
+use normalfit::io::{self, Channel, PngCompression, PngDepth, PngOptions, Raster, ReadOptions, SampleType};
 use normalfit::shade::{Light, shade, tile_2x2};
 use normalfit::tiling::{self, ImageKind, KindChoice, TilingOptions};
 use normalfit::{Options, normals};
@@ -84,13 +84,15 @@ impl Plan {
         let lit = shade(&normals, w, h, self.light, self.fit.convention).map_err(in_failure)?;
         let (lit, w, h) =
             if self.tile { (tile_2x2(&lit, w, h).map_err(in_failure)?, 2 * w, 2 * h) } else { (lit, w, h) };
-        let encode = |out: &mut dyn Write| io::encode_png_gray8(&lit, w, h, PngCompression::Default, out);
+        let encoding = PngOptions::new(PngDepth::Eight).with_compression(PngCompression::Default).into();
         match &target {
-            Some(path) => io::write_atomically(path, encode).map_err(|e| Failure::file(path, e)),
+            Some(path) => io::write_file_atomically(path, |out| io::encode_gray(&lit, w, h, &encoding, out))
+                .map_err(|e| Failure::file(path, e)),
             None => {
                 let stdout_name = Path::new("<standard output>");
-                let mut bytes = Vec::new();
-                encode(&mut bytes).map_err(|e| Failure::file(stdout_name, e))?;
+                let mut bytes = std::io::Cursor::new(Vec::new());
+                io::encode_gray(&lit, w, h, &encoding, &mut bytes).map_err(|e| Failure::file(stdout_name, e))?;
+                let bytes = bytes.into_inner();
                 let mut stdout = std::io::stdout().lock();
                 stdout.write_all(&bytes).and_then(|()| stdout.flush()).map_err(|e| Failure::file(stdout_name, e))
             }
@@ -119,14 +121,14 @@ impl Plan {
         }
         let (w, h) = (raster.width, raster.height);
         let heights = raster.heights(self.channel.clone())?;
-        let report = self
-            .border
+        let borders = self.border.choices();
+        let report = borders
             .needs_check()
             .then(|| tiling::check(&[&heights], w, h, &TilingOptions::new().with_kind(KindChoice::Height)));
-        if let Some(report) = &report {
-            self.border.warn_seams(report, input);
+        if let Some(warning) = report.as_ref().and_then(|r| borders.seams(r)) {
+            fitting::warn(&warning, input);
         }
-        let fit = self.fit.clone().with_borders(self.border.resolve(report.as_ref()));
+        let fit = self.fit.clone().with_borders(borders.resolve(report.as_ref()));
         normals(&heights, w, h, &fit)
     }
 }

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use normalfit::io::{self, Channel, PngCompression, Raster, ReadOptions};
+use normalfit::io::{self, Channel, Encoding, Raster, ReadOptions};
 use normalfit::shade::{self, Light};
 use normalfit::tiling::{self, ImageKind, KindChoice, TilingOptions, TilingReport};
 use normalfit::{Convention, Options, Strength};
@@ -156,7 +156,7 @@ impl Previews {
 
     fn save(&self, path: &Path, rgb: &[[u8; 3]], w: usize, h: usize) -> Result<(), Failure> {
         self.ids.refuse_overwrite(path)?;
-        io::write_atomically(path, |out| io::encode_png_rgb8(rgb, w, h, PngCompression::default(), out))
+        io::write_file_atomically(path, |out| io::encode_normals(rgb, None, w, h, &Encoding::png8(), out))
             .map_err(|e| Failure::file(path, e))
     }
 }
