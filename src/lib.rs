@@ -167,7 +167,9 @@
 pub mod convert;
 pub mod error;
 pub mod fit;
+pub mod inspect;
 pub mod io;
+pub mod normal_map;
 pub mod options;
 pub mod pipeline;
 pub mod samples;
