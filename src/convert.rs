@@ -417,7 +417,7 @@ impl Conversion {
     ///
     /// Errors (all [`Place::Input`]): those of reading and decoding
     /// ([`io::read_path`], [`io::decode`]).
-    pub fn open(&self, input: Input<'_>) -> Result<Opened<'_>, ConvertError> {
+    pub fn open(&self, input: Input<'_>) -> Result<Opened, ConvertError> {
         let fail = ConvertError::at(Place::Input);
         if let (Input::Path(path), false) = (input, self.residual) {
             if let Some(rows) = PngRows::open(path, &self.read, self.channel.clone()).map_err(&fail)? {
@@ -446,8 +446,8 @@ impl Conversion {
         Ok(self.opened(path, Source::Whole(raster), format, sample))
     }
 
-    fn opened(&self, path: Option<&Path>, source: Source, format: InputFormat, sample: SampleType) -> Opened<'_> {
-        Opened { conversion: self, path: path.map(Path::to_path_buf), source, format, sample }
+    fn opened(&self, path: Option<&Path>, source: Source, format: InputFormat, sample: SampleType) -> Opened {
+        Opened { conversion: self.clone(), path: path.map(Path::to_path_buf), source, format, sample }
     }
 
     /// Converts the file `input` to the file `output` (its format by its
@@ -514,15 +514,16 @@ enum Source {
 
 /// An input opened for conversion: its format and samples are known, its
 /// rows not yet read (streaming) or decoded whole.
-pub struct Opened<'a> {
-    conversion: &'a Conversion,
+pub struct Opened {
+    /// The choices, a copy of the conversion's (a few small values).
+    conversion: Conversion,
     path: Option<PathBuf>,
     source: Source,
     format: InputFormat,
     sample: SampleType,
 }
 
-impl Opened<'_> {
+impl Opened {
     /// The format read.
     #[must_use]
     pub fn input_format(&self) -> &InputFormat {
@@ -547,7 +548,7 @@ impl Opened<'_> {
     /// Errors ([`Place::Output`]): those of [`OutputFormat::choose`] and
     /// [`Encoding::choose`].
     pub fn encoding(&self, path: Option<&Path>) -> Result<Encoding, ConvertError> {
-        let c = self.conversion;
+        let c = &self.conversion;
         OutputFormat::choose(path, c.format, (&self.format, self.sample))
             .and_then(|format| Encoding::choose(format, c.bits, c.signed, c.layout, c.compression, self.sample))
             .map_err(ConvertError::at(Place::Output))
@@ -576,7 +577,7 @@ impl Opened<'_> {
         }
         let Opened { conversion, path, source, format, sample } = self;
         let mut job = Job {
-            conversion,
+            conversion: &conversion,
             input: path.as_deref(),
             encoding: *encoding,
             observer,

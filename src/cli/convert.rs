@@ -237,7 +237,7 @@ impl Plan {
 
     /// The output's path (None: standard output) and encoding, and the
     /// residual map's path and format.
-    fn target(&self, job: &Job, opened: &Opened<'_>) -> Result<Target, Failure> {
+    fn target(&self, job: &Job, opened: &Opened) -> Result<Target, Failure> {
         let input = &job.input;
         let explicit_file = match &self.destination {
             Destination::File(p) => Some(p.as_path()),

@@ -538,7 +538,12 @@ impl<W: Write + ?Sized> Write for &mut Idat<'_, W> {
         self.buf.extend_from_slice(&data[dropped..]);
         if self.buf.len() >= IDAT_BYTES + 4 {
             let cut = self.buf.len() - 4;
-            write_chunk(self.out, b"IDAT", &self.buf[..cut]).map_err(std::io::Error::other)?;
+            // The writer's own error as it is, so that its kind (a closed
+            // pipe, a full disk) reaches the caller.
+            write_chunk(self.out, b"IDAT", &self.buf[..cut]).map_err(|e| match e {
+                Error::Io(e) => e,
+                other => std::io::Error::other(other),
+            })?;
             self.buf.drain(..cut);
         }
         Ok(data.len())
