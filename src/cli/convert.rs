@@ -187,18 +187,15 @@ impl Plan {
     /// chooses, claims them, and has the library write them.
     fn convert_one(&self, job: &Job, k: usize, shared: &Shared) -> Result<Outcome, Failure> {
         let input = &job.input;
-        let stdin_bytes;
-        let source = match input {
+        let open = |source| self.conversion.open(source).map_err(|e| Failure::file(input.name(), e));
+        let opened = match input {
             Input::File(path) => {
                 check_extension(path)?;
-                convert::Input::Path(path)
+                open(convert::Input::Path(path))?
             }
-            Input::Stdin => {
-                stdin_bytes = read_stdin()?;
-                convert::Input::Bytes(&stdin_bytes)
-            }
+            // Decoded whole: the encoded bytes go once decoded.
+            Input::Stdin => open(convert::Input::Bytes(&read_stdin()?))?,
         };
-        let opened = self.conversion.open(source).map_err(|e| Failure::file(input.name(), e))?;
         let target = self.target(job, &opened)?;
         self.claim(job, &target, k, shared)?;
         let write_normals = self.wanted(target.path.as_deref(), input);
