@@ -12,7 +12,7 @@ use std::io::Cursor;
 
 use libfuzzer_sys::fuzz_target;
 use normalfit::io::decode;
-use normalfit::io::stream::{PngDepth, PngRows, RowSource, convert_png_seekable};
+use normalfit::pipeline::{PngDepth, PngRows, RowSource, convert_png_seekable};
 use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options, streamed_heights_match};
 
 fuzz_target!(|data: &[u8]| {

@@ -48,19 +48,25 @@ pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> 
             check_extension(p)?;
             io::read_path(p, opts).map_err(fail)
         }
-        Input::Stdin => {
-            let mut bytes = Vec::new();
-            std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| match e.kind() {
-                // Read whole, the file must fit in memory: say so, and how far it got.
-                std::io::ErrorKind::OutOfMemory => fail(normalfit::Error::Limits(format!(
-                    "standard input is read whole, and {} MiB of it already fill the memory the process may take",
-                    bytes.len() >> 20
-                ))),
-                _ => fail(e.into()),
-            })?;
-            io::decode(&bytes, opts).map_err(fail)
-        }
+        Input::Stdin => io::decode(&read_stdin()?, opts).map_err(fail),
     }
+}
+
+/// Reads standard input to its end; errors name it.
+pub fn read_stdin() -> Result<Vec<u8>, Failure> {
+    let mut bytes = Vec::new();
+    std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| {
+        let problem = match e.kind() {
+            // Read whole, the file must fit in memory: say so, and how far it got.
+            std::io::ErrorKind::OutOfMemory => normalfit::Error::Limits(format!(
+                "standard input is read whole, and {} MiB of it already fill the memory the process may take",
+                bytes.len() >> 20
+            )),
+            _ => e.into(),
+        };
+        Failure::file(Input::Stdin.name(), problem)
+    })?;
+    Ok(bytes)
 }
 
 /// Standard input can be read only once.
