@@ -38,7 +38,12 @@ fuzz_target!(|data: &[u8]| {
     let out = decode(png.get_ref(), &read_options()).expect("the streamed PNG decodes");
     assert_eq!((out.width, out.height, out.planes.len()), (w, h, 3));
     let top = if case.sixteen { 65535.0 } else { 255.0 };
-    let texel = |k: usize| out.planes.iter().map(|p| (p.data.height(k).expect("k < width × height") * top).round() as u16).collect::<Vec<_>>();
+    let texel = |k: usize| {
+        out.planes
+            .iter()
+            .map(|p| (p.data.height(k).expect("k < width × height") * top).round() as u16)
+            .collect::<Vec<_>>()
+    };
     if case.sixteen {
         let mut rgb = vec![[0u16; 3]; w * h];
         heights.normals_into(w, h, &case.fit, &mut rgb).expect("finite heights and valid options must fit");
