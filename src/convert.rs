@@ -658,19 +658,19 @@ impl Job<'_> {
     fn prepare(&self, output: &Output<'_>, place: Place) -> Result<(), ConvertError> {
         let Output::File { path, create_folder } = *output else { return Ok(()) };
         let fail = ConvertError::at(place);
-        if let Some(input) = self.input {
-            if same_file(input, path) {
-                return Err(fail(Error::InvalidOption(
-                    "the output is the input (or a link to it): normalfit never writes over an input".into(),
-                )));
-            }
+        if let Some(input) = self.input
+            && same_file(input, path)
+        {
+            return Err(fail(Error::InvalidOption(
+                "the output is the input (or a link to it): normalfit never writes over an input".into(),
+            )));
         }
-        if let (true, Some(parent)) = (create_folder, path.parent()) {
-            if !parent.as_os_str().is_empty() {
-                std::fs::create_dir_all(parent).map_err(|e| {
-                    fail(Error::Io(std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}"))))
-                })?;
-            }
+        if let (true, Some(parent)) = (create_folder, path.parent())
+            && !parent.as_os_str().is_empty()
+        {
+            std::fs::create_dir_all(parent).map_err(|e| {
+                fail(Error::Io(std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}"))))
+            })?;
         }
         Ok(())
     }

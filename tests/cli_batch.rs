@@ -424,7 +424,7 @@ fn channels_rg_gives_two_channel_outputs() {
 fn the_residual_map_is_in_height_units() {
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (24u32, 20u32);
-    let checker = |x: u32, y: u32| if (x + y) % 2 == 0 { 2000i32 } else { -2000 };
+    let checker = |x: u32, y: u32| if (x + y).is_multiple_of(2) { 2000i32 } else { -2000 };
     let rough = dir.path().join("rough.png");
     write_gray16(&rough, w, h, |x, y| (20000 + 300 * x as i32 + 100 * y as i32 + checker(x, y)) as u16);
     let flat_rough = dir.path().join("flat_rough.png");

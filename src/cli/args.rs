@@ -369,7 +369,7 @@ pub enum KindArg {
 
 fn parse_patch(s: &str) -> Result<usize, String> {
     let n: usize = s.parse().map_err(|_| format!("patch size must be a whole number, got '{s}'"))?;
-    if n < 3 || n % 2 == 0 || n > MAX_PATCH {
+    if n < 3 || n.is_multiple_of(2) || n > MAX_PATCH {
         return Err(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"));
     }
     Ok(n)

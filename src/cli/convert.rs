@@ -264,10 +264,10 @@ impl Plan {
     /// writes too.
     fn claim(&self, job: &Job, target: &Target, k: usize, shared: &Shared) -> Result<(), Failure> {
         let outputs: Vec<&PathBuf> = target.path.iter().chain(target.residual.as_ref().map(|r| &r.path)).collect();
-        if let [normals, residual] = outputs[..] {
-            if normals == residual {
-                return Err(Failure::file(normals, "is named for both the normal map and the residual"));
-            }
+        if let [normals, residual] = outputs[..]
+            && normals == residual
+        {
+            return Err(Failure::file(normals, "is named for both the normal map and the residual"));
         }
         shared.order.wait_turn(k);
         let mut claimed = shared.claimed.lock().unwrap_or_else(|e| e.into_inner());

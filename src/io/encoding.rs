@@ -58,11 +58,11 @@ impl OutputFormat {
         input: (&InputFormat, SampleType),
     ) -> Result<OutputFormat> {
         let named = path.map(OutputFormat::from_path).transpose()?.flatten();
-        if let (Some(asked), Some(named)) = (asked, named) {
-            if asked != named {
-                let (named, asked) = (named.extension(), asked.extension());
-                return Err(Error::InvalidOption(format!("extension says {named} but the format asked is {asked}")));
-            }
+        if let (Some(asked), Some(named)) = (asked, named)
+            && asked != named
+        {
+            let (named, asked) = (named.extension(), asked.extension());
+            return Err(Error::InvalidOption(format!("extension says {named} but the format asked is {asked}")));
         }
         Ok(asked.or(named).unwrap_or_else(|| OutputFormat::for_input(input.0, input.1)))
     }

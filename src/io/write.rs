@@ -542,7 +542,8 @@ impl<W: Write + Seek> ExrBlocks<'_, W> {
     /// Takes more rows; writes every block they complete.
     fn push(&mut self, rows: &[f32]) -> Result<()> {
         let row_len = self.width * self.order.len();
-        if rows.len() % row_len != 0 || self.done + (self.pending.len() + rows.len()) / row_len > self.height {
+        if !rows.len().is_multiple_of(row_len) || self.done + (self.pending.len() + rows.len()) / row_len > self.height
+        {
             return Err(Error::Encode(format!("{} samples are not whole rows of the image", rows.len())));
         }
         self.pending.extend_from_slice(rows);

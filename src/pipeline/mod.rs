@@ -356,15 +356,15 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     tx: &SyncSender<Band<B>>,
 ) {
     let (w, h, r) = (fit.width(), fit.height(), fit.radius());
-    if let Some(tail) = tail {
-        if let Some((x, y)) = first_non_finite(tail, w) {
-            // The top band reads these last rows first, through the wrap:
-            // fitting it would name this texel before the rows above are
-            // read. SPEC §1 names the first bad texel in row order, so the
-            // rows are read on and checked in order instead.
-            let _ = tx.send(Err(first_bad_texel(rx, w, (x, y + h - tail.len() / w))));
-            return;
-        }
+    if let Some(tail) = tail
+        && let Some((x, y)) = first_non_finite(tail, w)
+    {
+        // The top band reads these last rows first, through the wrap:
+        // fitting it would name this texel before the rows above are
+        // read. SPEC §1 names the first bad texel in row order, so the
+        // rows are read on and checked in order instead.
+        let _ = tx.send(Err(first_bad_texel(rx, w, (x, y + h - tail.len() / w))));
+        return;
     }
     // The decoded bands that later bands still read, as they came (first
     // row, heights), and a copy of the image's first 2r rows, which the top

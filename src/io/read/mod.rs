@@ -174,10 +174,10 @@ pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         return Err(Error::Decode("file is empty".into()));
     }
     let format = InputFormat::recognise(bytes)?;
-    if let Some(layer) = &opts.layer {
-        if format != InputFormat::Exr {
-            return Err(no_layers(&format, layer));
-        }
+    if let Some(layer) = &opts.layer
+        && format != InputFormat::Exr
+    {
+        return Err(no_layers(&format, layer));
     }
     format.info().decode(bytes, opts)
 }

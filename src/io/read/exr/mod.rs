@@ -149,10 +149,10 @@ pub(crate) fn choose_exr_layer(parts: &[ExrPart], name: Option<&str>) -> Result<
     for part in parts {
         layers.extend(part.name.clone());
         for channel in &part.channels {
-            if let Some((group, _)) = channel.rsplit_once('.') {
-                if !layers.iter().any(|l| l == group) {
-                    layers.push(group.to_string());
-                }
+            if let Some((group, _)) = channel.rsplit_once('.')
+                && !layers.iter().any(|l| l == group)
+            {
+                layers.push(group.to_string());
             }
         }
     }

@@ -373,10 +373,10 @@ impl ScanLines {
             let mut b = [0u8; 4];
             read.read_exact(&mut b).map(|()| i32::from_le_bytes(b)).map_err(|_| missing(y0))
         };
-        if let Some(part) = self.part {
-            if int()? != part {
-                return Err(corrupt(&format!("the chunk for row {y0} belongs to another part")));
-            }
+        if let Some(part) = self.part
+            && int()? != part
+        {
+            return Err(corrupt(&format!("the chunk for row {y0} belongs to another part")));
         }
         let y = int()?;
         if i64::from(y) != self.y_min + y0 as i64 {
