@@ -98,13 +98,6 @@ fn hash(x: u64, y: u64) -> f64 {
     (z >> 11) as f64 / (1u64 << 53) as f64
 }
 
-fn fit_name(fit: Fit) -> &'static str {
-    match fit {
-        Fit::Orthogonal => "orthogonal",
-        Fit::Vertical => "vertical",
-    }
-}
-
 fn options(n: usize, fit: Fit) -> Options {
     Options::default().with_patch(n).with_fit(fit).with_strength(Strength::Scale(STRENGTH))
 }
@@ -117,7 +110,7 @@ fn bench_output<T: FromNormal>(c: &mut Criterion, group: &str, heights: &[f32], 
     for fit in [Fit::Orthogonal, Fit::Vertical] {
         for patch in PATCHES {
             let opts = options(patch, fit);
-            g.bench_with_input(BenchmarkId::new(fit_name(fit), patch), &opts, |b, opts| {
+            g.bench_with_input(BenchmarkId::new(Fit::name(fit), patch), &opts, |b, opts| {
                 b.iter(|| {
                     normals_into(black_box(heights), n, n, opts, &mut *out).expect("normals_into");
                     black_box(&mut *out);

@@ -123,6 +123,33 @@ impl BorderChoices {
     }
 }
 
+impl std::str::FromStr for BorderChoice {
+    type Err = Error;
+
+    /// A [`Border`]'s name, or `auto`.
+    fn from_str(s: &str) -> Result<Self> {
+        if s.trim().eq_ignore_ascii_case("auto") {
+            return Ok(BorderChoice::Auto);
+        }
+        s.parse::<Border>().map(BorderChoice::Fixed).map_err(|_| {
+            let names: Vec<&str> = Border::ALL.iter().map(|b| b.name()).chain(["auto"]).collect();
+            Error::InvalidOption(format!("unknown border mode '{}': use {}", s.trim(), crate::options::one_of(&names)))
+        })
+    }
+}
+
+impl std::str::FromStr for BorderChoices {
+    type Err = Error;
+
+    /// One choice for both axes (`mirror`), or x then y (`wrap,auto`).
+    fn from_str(s: &str) -> Result<Self> {
+        match s.split_once(',') {
+            None => Ok(BorderChoices::both(s.parse()?)),
+            Some((x, y)) => Ok(BorderChoices { x: x.parse()?, y: y.parse()? }),
+        }
+    }
+}
+
 impl From<Borders> for BorderChoices {
     fn from(b: Borders) -> Self {
         BorderChoices { x: BorderChoice::Fixed(b.x), y: BorderChoice::Fixed(b.y) }
@@ -224,6 +251,7 @@ impl Observer for () {}
 
 /// A height map to convert.
 #[derive(Clone, Copy, Debug)]
+#[non_exhaustive]
 pub enum Input<'a> {
     /// A file, read by content. PNG and scan-line EXR files stream.
     Path(&'a Path),

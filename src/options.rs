@@ -5,6 +5,7 @@ use crate::error::Error;
 
 /// Which plane the fit finds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum Fit {
     /// The plane minimising the summed squared *perpendicular* distances to
     /// the patch's points (total least squares). Steep slopes keep their
@@ -18,6 +19,7 @@ pub enum Fit {
 
 /// What a texel index outside the image maps to, per axis.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum Border {
     /// `k mod n`: the texture tiles. The default.
     #[default]
@@ -89,8 +91,76 @@ impl Convention {
     }
 }
 
+/// The names of an option's values, one spelling each (plus aliases that
+/// parse), shared by every front end: the command line, the Python
+/// package, configuration files. `Display` prints the name, `FromStr`
+/// parses it (ASCII case ignored) with an error that lists the names.
+macro_rules! named_values {
+    ($ty:ident, $what:literal, { $($variant:ident => $name:literal $(| $alias:literal)*),+ $(,)? }) => {
+        impl $ty {
+            /// Every value, in the order the docs list them.
+            pub const ALL: &'static [$ty] = &[$($ty::$variant),+];
+
+            /// The value's name, as the command line spells it.
+            #[must_use]
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($ty::$variant => $name),+
+                }
+            }
+
+            /// Other spellings that parse as this value.
+            #[must_use]
+            pub fn aliases(self) -> &'static [&'static str] {
+                match self {
+                    $($ty::$variant => &[$($alias),*]),+
+                }
+            }
+        }
+
+        impl std::fmt::Display for $ty {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+
+        impl std::str::FromStr for $ty {
+            type Err = Error;
+
+            fn from_str(s: &str) -> Result<Self, Error> {
+                let s = s.trim();
+                $(
+                    if s.eq_ignore_ascii_case($name) $(|| s.eq_ignore_ascii_case($alias))* {
+                        return Ok($ty::$variant);
+                    }
+                )+
+                let names: Vec<&str> = $ty::ALL.iter().map(|v| v.name()).collect();
+                Err(Error::InvalidOption(format!(
+                    "unknown {} '{s}': use {}",
+                    $what,
+                    crate::options::one_of(&names)
+                )))
+            }
+        }
+    };
+}
+
+named_values!(Fit, "fit", { Orthogonal => "orthogonal", Vertical => "vertical" });
+named_values!(Border, "border mode", { Wrap => "wrap", Clamp => "clamp", Mirror => "mirror" });
+named_values!(Convention, "convention", { OpenGl => "opengl" | "gl", DirectX => "directx" | "dx" });
+
+/// "a, b or c".
+pub(crate) fn one_of(names: &[&str]) -> String {
+    match names {
+        [] => String::new(),
+        [one] => (*one).to_string(),
+        [rest @ .., last] => format!("{} or {last}", rest.join(", ")),
+    }
+}
+
 /// How heights become surface z in texel units.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum Strength {
     /// z = S · h: the full [0, 1] height range spans S texel widths.
     Scale(f64),
@@ -234,6 +304,40 @@ pub const MAX_GAIN: f64 = 1e30;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_value_parses_by_its_name_and_aliases_in_any_case() {
+        fn round_trip<T: Copy + PartialEq + std::fmt::Debug + std::fmt::Display + std::str::FromStr>(
+            all: &[T],
+            aliases: impl Fn(T) -> &'static [&'static str],
+        ) where
+            T::Err: std::fmt::Debug,
+        {
+            for &v in all {
+                let name = v.to_string();
+                assert_eq!(name.parse::<T>().unwrap(), v);
+                assert_eq!(format!(" {} ", name.to_uppercase()).parse::<T>().unwrap(), v);
+                for alias in aliases(v) {
+                    assert_eq!(alias.parse::<T>().unwrap(), v, "{alias}");
+                }
+            }
+        }
+        round_trip(Fit::ALL, Fit::aliases);
+        round_trip(Border::ALL, Border::aliases);
+        round_trip(Convention::ALL, Convention::aliases);
+        assert_eq!(Border::ALL.len(), 3);
+        assert_eq!("dx".parse::<Convention>().unwrap(), Convention::DirectX);
+        assert_eq!(Convention::OpenGl.to_string(), "opengl");
+    }
+
+    #[test]
+    fn an_unknown_name_is_refused_with_the_names() {
+        let e = "tile".parse::<Border>().unwrap_err();
+        assert_eq!(e.to_string(), "invalid option: unknown border mode 'tile': use wrap, clamp or mirror");
+        let e = "ols".parse::<Fit>().unwrap_err();
+        assert_eq!(e.to_string(), "invalid option: unknown fit 'ols': use orthogonal or vertical");
+        assert!("".parse::<Convention>().is_err());
+    }
 
     #[test]
     fn default_is_the_contracts() {

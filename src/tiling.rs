@@ -282,6 +282,7 @@ pub enum KindChoice {
 
 /// What [`check`] is asked to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct TilingOptions {
     /// An axis is seamless when its score is at most this. Default:
     /// [`DEFAULT_THRESHOLD`] (1.5). A NaN threshold passes nothing.
@@ -321,6 +322,7 @@ impl TilingOptions {
 /// The verdict on one axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[non_exhaustive]
 pub struct AxisReport {
     /// How the wrap pair compares with the interior pairs: about 1 or less
     /// when it looks like them, larger for a more visible seam. Finite and
@@ -333,6 +335,7 @@ pub struct AxisReport {
 /// The verdict on an image: the kind judged, and each axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[non_exhaustive]
 pub struct TilingReport {
     /// What the image was judged as (given, or detected).
     pub kind: ImageKind,

@@ -85,21 +85,6 @@ fn options(patch: usize, fit: Fit, borders: Borders) -> Options {
     Options::new().with_patch(patch).with_fit(fit).with_borders(borders)
 }
 
-fn border_name(b: Border) -> &'static str {
-    match b {
-        Border::Wrap => "wrap",
-        Border::Clamp => "clamp",
-        Border::Mirror => "mirror",
-    }
-}
-
-fn fit_name(f: Fit) -> &'static str {
-    match f {
-        Fit::Orthogonal => "orthogonal",
-        Fit::Vertical => "vertical",
-    }
-}
-
 const BORDERS: [Borders; 4] = [
     Borders { x: Border::Wrap, y: Border::Wrap },
     Borders { x: Border::Clamp, y: Border::Clamp },
@@ -110,7 +95,7 @@ const BORDERS: [Borders; 4] = [
 /// Converts `input` to float normals (`--signed` EXR) with these options
 /// and compares every texel with the slow reference of SPEC §2.
 fn check_against_reference(input: &Path, heights: &[f32], w: usize, h: usize, opts: &Options, out: &Path) {
-    let borders = format!("{},{}", border_name(opts.borders.x), border_name(opts.borders.y));
+    let borders = format!("{},{}", Border::name(opts.borders.x), Border::name(opts.borders.y));
     let patch = opts.patch.to_string();
     let args = [
         os("convert"),
@@ -121,7 +106,7 @@ fn check_against_reference(input: &Path, heights: &[f32], w: usize, h: usize, op
         os("-n"),
         os(&patch),
         os("--fit"),
-        os(fit_name(opts.fit)),
+        os(Fit::name(opts.fit)),
         os("--border"),
         os(&borders),
     ];
@@ -151,7 +136,7 @@ fn one_by_one_is_the_flat_normal_every_way() {
     let out_png = dir.path().join("out.png");
     let out_exr = dir.path().join("out.exr");
     for borders in BORDERS {
-        let borders = format!("{},{}", border_name(borders.x), border_name(borders.y));
+        let borders = format!("{},{}", Border::name(borders.x), Border::name(borders.y));
         for fit in ["orthogonal", "vertical"] {
             for patch in ["3", "9"] {
                 let common = [os("-n"), os(patch), os("--fit"), os(fit), os("--border"), os(&borders)];
@@ -334,7 +319,7 @@ fn a_16_bit_ramp_of_one_step_per_texel_gives_the_slopes_normal() {
                     os("--border"),
                     os("clamp,wrap"),
                     os("--fit"),
-                    os(fit_name(fit)),
+                    os(Fit::name(fit)),
                     os("-n"),
                     os(&p),
                     os("-s"),

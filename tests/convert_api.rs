@@ -457,3 +457,18 @@ fn encodings_say_what_they_write() {
     assert_eq!((o.stored(-1.0), o.stored(0.0), o.stored(1.0)), (0.0, 0.5, 1.0));
     assert_eq!(o.with_signed(true).stored(-0.25), -0.25);
 }
+
+#[test]
+fn border_choices_parse_as_the_command_line_spells_them() {
+    use normalfit::convert::{BorderChoice, BorderChoices};
+    let fixed = BorderChoice::Fixed;
+    assert_eq!("mirror".parse::<BorderChoices>().unwrap(), BorderChoices::both(fixed(Border::Mirror)));
+    assert_eq!(
+        "wrap, auto".parse::<BorderChoices>().unwrap(),
+        BorderChoices { x: fixed(Border::Wrap), y: BorderChoice::Auto }
+    );
+    assert_eq!("AUTO".parse::<BorderChoices>().unwrap(), BorderChoices::both(BorderChoice::Auto));
+    let e = "wrap,tile".parse::<BorderChoices>().unwrap_err();
+    assert_eq!(e.to_string(), "invalid option: unknown border mode 'tile': use wrap, clamp, mirror or auto");
+    assert!("wrap,clamp,mirror".parse::<BorderChoices>().is_err(), "two axes at most");
+}

@@ -3,7 +3,6 @@
 //! rest with `image` and `exr`.
 
 use std::io::Cursor;
-use std::time::{Duration, Instant};
 
 use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Vec2, WritableImage, f16,
@@ -750,10 +749,10 @@ fn tiff_float_header_claiming_huge_size_fails_fast_on_limits() {
     // The header claims 10^10 float texels; the data is 64 bytes.
     for big_endian in [false, true] {
         let file = TiffSpec::new(100_000, 100_000, 32, 3, big_endian).encode(&[0; 64]);
-        let start = Instant::now();
+        // Limits, not a decode error: refused from the header, before any
+        // pixel buffer exists.
         let e = decode(&file, &ReadOptions::default()).unwrap_err();
         assert!(matches!(e, Error::Limits(_)), "{e}");
-        assert!(start.elapsed() < Duration::from_secs(1));
     }
     // Zero size is a decode error.
     for (w, h) in [(0, 4), (4, 0)] {
@@ -929,10 +928,10 @@ fn png_header_claiming_huge_size_fails_fast_on_limits() {
     let mut png = PngSpec::new(100_000, 100_000, 0, 8).header();
     chunk(&mut png, b"IDAT", &zlib_stored(&[0; 64]));
     chunk(&mut png, b"IEND", &[]);
-    let start = Instant::now();
+    // Limits, not a decode error: refused from the header, before any
+    // pixel buffer exists.
     let e = decode(&png, &ReadOptions::default()).unwrap_err();
     assert!(matches!(e, Error::Limits(_)), "{e}");
-    assert!(start.elapsed() < Duration::from_secs(1));
 }
 
 #[test]
@@ -1180,6 +1179,7 @@ fn exr_round_trip_float_and_half() {
                 .map(|t| match depth {
                     ExrDepth::Float => t[c],
                     ExrDepth::Half => f16::from_f32(t[c]).to_f32(),
+                    other => panic!("no reference for {other:?}"),
                 })
                 .collect();
             assert_eq!(data(&r, name), expected, "{depth:?} {name}");

@@ -4,12 +4,14 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
-use normalfit::Border;
+use normalfit::convert::BorderChoices;
 use normalfit::io::{Channel, ReadOptions};
 use normalfit::options::MAX_PATCH;
 use normalfit::shade::Light;
+use normalfit::{Convention, Fit};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -67,18 +69,18 @@ pub struct FitArgs {
 
     /// Which least-squares plane: perpendicular distances (orthogonal) or
     /// vertical ones.
-    #[arg(long, value_enum, default_value_t = FitArg::Orthogonal)]
-    pub fit: FitArg,
+    #[arg(long, default_value_t = Fit::Orthogonal, value_parser = named::<Fit>(Fit::ALL))]
+    pub fit: Fit,
 
     /// Border mode, one for both axes or `X,Y`: wrap (tiles), clamp, mirror,
     /// or auto (wrap where the image tiles, mirror where it does not).
     #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_borders)]
-    pub border: BorderArg,
+    pub border: BorderChoices,
 
     /// Which way the normal maps' green points: up (opengl: glTF, Blender,
     /// Unity) or down (directx: Unreal).
-    #[arg(long, value_enum, default_value_t = ConventionArg::Opengl)]
-    pub convention: ConventionArg,
+    #[arg(long, default_value_t = Convention::OpenGl, value_parser = named::<Convention>(Convention::ALL))]
+    pub convention: Convention,
 }
 
 #[derive(Args, Debug)]
@@ -340,20 +342,6 @@ impl ReadArgs {
     }
 }
 
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum FitArg {
-    Orthogonal,
-    Vertical,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum ConventionArg {
-    #[value(alias = "gl")]
-    Opengl,
-    #[value(alias = "dx")]
-    Directx,
-}
-
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FormatArg {
     Png,
@@ -414,38 +402,50 @@ fn parse_finite(s: &str) -> Result<f64, String> {
     }
 }
 
-/// A border mode as asked for on one axis: a fixed mode, or auto.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AxisBorder {
-    Fixed(Border),
-    /// Wrap if the image tiles along the axis, else mirror.
-    Auto,
+/// `--border`: the library's rule (one mode, or x then y; `auto`).
+fn parse_borders(s: &str) -> Result<BorderChoices, String> {
+    s.parse().map_err(|e: normalfit::Error| library_message(&e))
 }
 
-/// `--border`: x then y.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct BorderArg {
-    pub x: AxisBorder,
-    pub y: AxisBorder,
+/// A library value by its name: clap lists the names (help, completions)
+/// and the library parses them.
+fn named<T>(all: &'static [T]) -> impl TypedValueParser<Value = T>
+where
+    T: Copy + Send + Sync + 'static + std::str::FromStr<Err = normalfit::Error> + NamedValue,
+{
+    let values = all.iter().map(|v| PossibleValue::new(v.name()).aliases(v.aliases().iter().copied()));
+    PossibleValuesParser::new(values.collect::<Vec<_>>()).try_map(|s| s.parse::<T>())
 }
 
-fn parse_border(s: &str) -> Result<AxisBorder, String> {
-    match s.trim() {
-        "wrap" => Ok(AxisBorder::Fixed(Border::Wrap)),
-        "clamp" => Ok(AxisBorder::Fixed(Border::Clamp)),
-        "mirror" => Ok(AxisBorder::Fixed(Border::Mirror)),
-        "auto" => Ok(AxisBorder::Auto),
-        other => Err(format!("unknown border mode '{other}': use wrap, clamp, mirror or auto")),
+/// What [`named`] needs of a library enum.
+trait NamedValue {
+    fn name(self) -> &'static str;
+    fn aliases(self) -> &'static [&'static str];
+}
+
+impl NamedValue for Fit {
+    fn name(self) -> &'static str {
+        Fit::name(self)
+    }
+    fn aliases(self) -> &'static [&'static str] {
+        Fit::aliases(self)
     }
 }
 
-fn parse_borders(s: &str) -> Result<BorderArg, String> {
-    match s.split_once(',') {
-        None => {
-            let mode = parse_border(s)?;
-            Ok(BorderArg { x: mode, y: mode })
-        }
-        Some((x, y)) => Ok(BorderArg { x: parse_border(x)?, y: parse_border(y)? }),
+impl NamedValue for Convention {
+    fn name(self) -> &'static str {
+        Convention::name(self)
+    }
+    fn aliases(self) -> &'static [&'static str] {
+        Convention::aliases(self)
+    }
+}
+
+/// A library error's message without its kind ("invalid option: ").
+fn library_message(e: &normalfit::Error) -> String {
+    match e {
+        normalfit::Error::InvalidOption(m) => m.clone(),
+        other => other.to_string(),
     }
 }
 

@@ -157,7 +157,7 @@ impl Plan {
         };
         let mut conversion = Conversion::new()
             .with_fit(fit)
-            .with_borders(args.fit.border.choices())
+            .with_borders(args.fit.border)
             .with_read(args.read.options())
             .with_channel(args.channel.clone())
             .with_format(args.format.map(|f| match f {

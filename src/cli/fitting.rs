@@ -1,15 +1,15 @@
 //! The fit options `convert` and `shade` share: the library's [`Options`]
 //! and border choices from `FitArgs`, and the warnings of a conversion.
 
-use normalfit::convert::{BorderChoice, BorderChoices, Warning};
-use normalfit::{Convention, Fit, Options, Strength};
+use normalfit::convert::Warning;
+use normalfit::{Options, Strength};
 
-use super::args::{AxisBorder, BorderArg, ConventionArg, FitArg, FitArgs};
+use super::args::FitArgs;
 use super::input::Input;
 use super::report::{self, Failure};
 
 /// The fit's options; the borders stay the default until an image settles
-/// them ([`BorderArg::resolve`]).
+/// them (the library's `BorderChoices::resolve`).
 pub fn options(args: &FitArgs) -> Result<Options, Failure> {
     let strength = match args.relief {
         Some(f) => Strength::Relief(f),
@@ -17,33 +17,12 @@ pub fn options(args: &FitArgs) -> Result<Options, Failure> {
     };
     let fit = Options::new()
         .with_patch(args.patch)
-        .with_fit(match args.fit {
-            FitArg::Orthogonal => Fit::Orthogonal,
-            FitArg::Vertical => Fit::Vertical,
-        })
-        .with_convention(convention(args.convention))
+        .with_fit(args.fit)
+        .with_convention(args.convention)
         .with_strength(strength)
         .with_invert(args.invert);
     fit.validate().map_err(|e| Failure::usage(e.to_string()))?;
     Ok(fit)
-}
-
-pub fn convention(c: ConventionArg) -> Convention {
-    match c {
-        ConventionArg::Opengl => Convention::OpenGl,
-        ConventionArg::Directx => Convention::DirectX,
-    }
-}
-
-impl BorderArg {
-    /// The library's border choices.
-    pub fn choices(&self) -> BorderChoices {
-        let choice = |a: AxisBorder| match a {
-            AxisBorder::Fixed(b) => BorderChoice::Fixed(b),
-            AxisBorder::Auto => BorderChoice::Auto,
-        };
-        BorderChoices { x: choice(self.x), y: choice(self.y) }
-    }
 }
 
 /// Prints a conversion's warning about `input`; a seam drawn by a wrap

@@ -37,7 +37,7 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
     }
     let lit = LitOptions::new()
         .with_fit(fit)
-        .with_borders(args.fit.border.choices())
+        .with_borders(args.fit.border)
         .with_light(args.light.0)
         .with_tile(args.tile)
         .with_kind(kind_choice(args.kind))

@@ -34,6 +34,7 @@ use crate::error::{Error, Result, one_line};
 /// while deflate runs on one thread and would otherwise take longer than
 /// the whole parallel fit. It is also `image`'s own default.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum PngCompression {
     /// Fast deflate; somewhat larger files.
     #[default]
@@ -57,6 +58,7 @@ impl PngCompression {
 
 /// Sample type of an EXR output (SPEC §3: `--bits 16` or `--bits 32`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum ExrDepth {
     /// 16-bit half floats.
     Half,

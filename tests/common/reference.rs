@@ -31,6 +31,7 @@ pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
                 }
             }
         }
+        other => panic!("the reference knows no border {other:?}"),
     }
 }
 
@@ -42,6 +43,7 @@ pub fn gain(opts: &Options, w: usize) -> f64 {
     let s = match opts.strength {
         Strength::Scale(s) => s,
         Strength::Relief(f) => f * w as f64,
+        other => panic!("the reference knows no strength {other:?}"),
     };
     if opts.invert { -s } else { s }
 }
@@ -93,6 +95,7 @@ pub fn residual_at<H: Copy + Into<f64>>(heights: &[H], w: usize, h: usize, opts:
             let c = least_squares_plane(&pts);
             pts.iter().map(|p| (p[2] - (c[0] + c[1] * p[0] + c[2] * p[1])).powi(2)).sum()
         }
+        other => panic!("the reference knows no fit {other:?}"),
     };
     (squared / count).sqrt()
 }
@@ -150,6 +153,7 @@ pub fn normal_at<H: Copy + Into<f64>>(
             let c = least_squares_plane(&pts);
             [-c[1], -c[2], 1.0]
         }
+        other => panic!("the reference knows no fit {other:?}"),
     };
     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     let sign = if n[2] < 0.0 { -1.0 } else { 1.0 };

@@ -97,6 +97,7 @@ impl SampleType {
 /// One channel of an image: row-major, `width * height` samples as stored
 /// (see [`Samples`] for their heights in contract units).
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct Plane {
     /// The channel's name: "Y" (gray), "R", "G", "B", "A" for the formats
     /// `image` and `tiff` read; the file's own channel names for EXR
@@ -108,6 +109,7 @@ pub struct Plane {
 
 /// A decoded image, one plane per channel.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct Raster {
     /// Columns.
     pub width: usize,
