@@ -19,7 +19,7 @@
 #![deny(unsafe_code)]
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Mutex;
 
 use normalfit::tiling::{self, ImageKind, KindChoice, TilingOptions};
 use normalfit::{Border, Borders, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
@@ -153,28 +153,48 @@ fn fit_options(
     Ok(opts)
 }
 
-/// The rayon pools of `threads=`, one per size, made on first use and kept:
-/// starting threads costs more than a small image's fit.
-fn pool(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Arc<ThreadPool>>> {
+/// The rayon pools of `threads=`, kept by size: starting threads costs
+/// more than a small image's fit. A call takes a pool out and puts it back
+/// when done, so two concurrent calls never share one (a shared pool of
+/// one thread would run them one after the other); a pool is made when
+/// none of the size is free.
+static POOLS: Mutex<Option<HashMap<usize, Vec<ThreadPool>>>> = Mutex::new(None);
+
+/// A pool taken from [`POOLS`], put back on drop.
+struct Borrowed {
+    threads: usize,
+    pool: Option<ThreadPool>,
+}
+
+impl Drop for Borrowed {
+    fn drop(&mut self) {
+        if let Some(pool) = self.pool.take() {
+            let mut pools = POOLS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            pools.get_or_insert_with(HashMap::new).entry(self.threads).or_default().push(pool);
+        }
+    }
+}
+
+/// A pool of `threads=` threads, or none (rayon's global pool).
+fn pool(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Borrowed>> {
     let Some(n) = threads else { return Ok(None) };
     let n = whole(n, "threads")?;
     let Some(n) = usize::try_from(n).ok().filter(|n| (1..=MAX_THREADS).contains(n)) else {
         return Err(PyValueError::new_err(format!("invalid option: threads must be from 1 to {MAX_THREADS}, got {n}")));
     };
-    static POOLS: Mutex<Option<HashMap<usize, Arc<ThreadPool>>>> = Mutex::new(None);
-    let mut pools = POOLS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let pools = pools.get_or_insert_with(HashMap::new);
-    if let Some(p) = pools.get(&n) {
-        return Ok(Some(Arc::clone(p)));
-    }
-    let made = rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .thread_name(|i| format!("normalfit-{i}"))
-        .build()
-        .map_err(|e| PyOSError::new_err(format!("cannot start {n} threads: {e}")))?;
-    let made = Arc::new(made);
-    pools.insert(n, Arc::clone(&made));
-    Ok(Some(made))
+    let kept = {
+        let mut pools = POOLS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        pools.get_or_insert_with(HashMap::new).get_mut(&n).and_then(Vec::pop)
+    };
+    let pool = match kept {
+        Some(pool) => pool,
+        None => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .thread_name(|i| format!("normalfit-{i}"))
+            .build()
+            .map_err(|e| PyOSError::new_err(format!("cannot start {n} threads: {e}")))?,
+    };
+    Ok(Some(Borrowed { threads: n, pool: Some(pool) }))
 }
 
 /// Runs `work` on the pool of `threads=`, or on rayon's global pool.
@@ -283,7 +303,7 @@ struct Call<'a, 'py> {
     opts: &'a Options,
     out: Option<&'a Bound<'py, PyAny>>,
     residual: bool,
-    pool: Option<Arc<ThreadPool>>,
+    pool: Option<Borrowed>,
 }
 
 /// `normals` for heights of sample type `H` into texels of `[E; 3]`.
@@ -314,7 +334,7 @@ where
         Some(r) => Some(r.as_slice_mut().map_err(|e| PyValueError::new_err(format!("residual: {e}")))?),
         None => None,
     };
-    let (opts, pool) = (call.opts, call.pool.as_deref());
+    let (opts, pool) = (call.opts, call.pool.as_ref().and_then(|b| b.pool.as_ref()));
     py.detach(|| -> Result<(), Error> {
         let copy;
         let heights: &[H] = match in_place {

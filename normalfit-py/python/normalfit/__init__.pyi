@@ -1,6 +1,6 @@
 """Type stubs of normalfit (the functions are in __init__.py, the classes native)."""
 
-from typing import Any, Literal
+from typing import Any, Literal, final
 
 import numpy as np
 import numpy.typing as npt
@@ -8,11 +8,12 @@ import numpy.typing as npt
 from . import _normalfit as _normalfit
 
 __version__: str
-__all__: list[str]
+__all__ = ["AxisReport", "TilingReport", "check_tiling", "normals"]
 
 _Border = Literal["wrap", "clamp", "mirror"]
 _Heights = npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32] | npt.NDArray[np.float64]
 
+@final
 class AxisReport:
     """One axis of a tiling report."""
 
@@ -21,6 +22,7 @@ class AxisReport:
     @property
     def seamless(self) -> bool: ...
 
+@final
 class TilingReport:
     """The tiling check's verdict on an array."""
 

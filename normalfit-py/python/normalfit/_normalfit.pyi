@@ -4,6 +4,8 @@ from typing import Any
 
 from normalfit import AxisReport as AxisReport, TilingReport as TilingReport
 
+__all__ = ["normals", "check_tiling", "AxisReport", "TilingReport", "__version__"]
+
 __version__: str
 
 def normals(

@@ -1,0 +1,18 @@
+"""Code as a user writes it, for mypy --strict against the stubs (checked
+by test_stubs.py; not a test module itself)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+import normalfit
+
+heights: npt.NDArray[np.uint16] = np.zeros((8, 8), np.uint16)
+unit = normalfit.normals(heights, patch=5, fit="vertical", border=("wrap", "mirror"), convention="dx", scale=2.0)
+rgb = normalfit.normals(heights, dtype=np.uint16, threads=2, border="clamp,wrap")
+report: normalfit.TilingReport = normalfit.check_tiling(heights, threshold=2.0, kind="height")
+score: float = report.x.score
+borders: tuple[str, str] = report.suggested_borders
+seamless: bool = report.seamless and report.y.seamless
+version: str = normalfit.__version__
