@@ -327,7 +327,7 @@ impl BandFit {
         let is_band = if rows.start < top {
             rows == (0..top)
         } else {
-            (rows.start - top) % self.band_rows == 0
+            (rows.start - top).is_multiple_of(self.band_rows)
                 && rows.start < h
                 && rows.end == (rows.start + self.band_rows).min(h)
         };

@@ -14,8 +14,14 @@
 //!   same bit for bit whatever the number of threads.
 //! * [`io`]: decoding (PNG, OpenEXR, TIFF, JPEG, … chosen by content, with
 //!   size limits checked before any pixel buffer exists) and encoding (PNG,
-//!   OpenEXR), and [`io::write_atomically`] for outputs that appear whole or
-//!   not at all.
+//!   OpenEXR) as an [`io::Encoding`] says ([`io::encode_normals`]), and
+//!   [`io::write_atomically`] for outputs that appear whole or not at all.
+//! * [`pipeline`]: the same conversion streamed, rows from the decoder
+//!   through the fit to the encoder, for PNG and scan-line EXR files.
+//! * [`convert`]: a height map file (or bytes) to a normal map file (or any
+//!   writer) in one call, with every rule the `normalfit` program follows:
+//!   output format and depth, streaming or whole, memory checks, `auto`
+//!   borders, atomic writes ([`convert::Conversion`]).
 //! * [`tiling`]: a seam score and a verdict per axis ([`tiling::check`]).
 //! * [`shade`]: normals lit by a directional light as a gray picture
 //!   ([`shade::shade`]), repeated 2×2 so seams show ([`shade::tile_2x2`]).
@@ -25,7 +31,9 @@
 //! # From heights in memory to a PNG
 //!
 //! ```
-//! use normalfit::io::{PngCompression, encode_png_rgb8};
+//! use std::io::Cursor;
+//!
+//! use normalfit::io::{Encoding, encode_normals};
 //! use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
 //!
 //! // Heights from anywhere: here a round bump on a 64 × 48 grid, in [0, 1].
@@ -53,23 +61,57 @@
 //! assert!(rgb[20 * width + 32][1] > 128, "above the bump leans up (OpenGL): green above mid-grey");
 //! assert_eq!(rgb[0], [128, 128, 255], "far from the bump the map is flat");
 //!
-//! // Any `impl Write`: a file, a socket, a buffer.
+//! // Any `impl Write + Seek`: a file, or a buffer in a `Cursor`. The
+//! // texels' type goes with the encoding: [u8; 3] for an 8-bit PNG.
 //! let mut png = Vec::new();
-//! encode_png_rgb8(&rgb, width, height, PngCompression::Fast, &mut png)?;
+//! encode_normals(&rgb, None, width, height, &Encoding::png8(), Cursor::new(&mut png))?;
 //! assert!(png.starts_with(b"\x89PNG"));
 //! # Ok::<(), normalfit::Error>(())
 //! ```
 //!
-//! To a file, use [`io::write_atomically`], which writes a new file beside
-//! the target (without a name, on Linux) and gives it the target's name
-//! only once it is complete. To read an
+//! To a file, use [`io::write_file_atomically`], which writes a new file
+//! beside the target (without a name, on Linux) and gives it the target's
+//! name only once it is complete. To read an
 //! image, [`io::read_path`] or [`io::decode`] give an [`io::Raster`], and
 //! [`io::Raster::heights`] the heights in the contract's units.
+//!
+//! # From a file to a file
+//!
+//! [`convert::Conversion`] does all of the above for image files, as the
+//! `normalfit convert` command does: the format from the output's name, 16
+//! bits for a 16-bit input, streaming where the input allows.
+//!
+//! ```
+//! use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Input, Output};
+//! use normalfit::io::{Encoding, OutputFormat};
+//!
+//! # let dir = std::env::temp_dir().join(format!("normalfit-doc-{}", std::process::id()));
+//! # std::fs::create_dir_all(&dir)?;
+//! # let heights: Vec<[u8; 3]> = (0..64 * 64).map(|k| [(k % 64 * 4) as u8; 3]).collect();
+//! # let mut file = std::fs::File::create(dir.join("height.png"))?;
+//! # normalfit::io::encode_normals(&heights, None, 64, 64, &Encoding::png8(), &mut file)?;
+//! // Wrap where the texture tiles, mirror where it does not.
+//! let conversion = Conversion::new().with_borders(BorderChoices::both(BorderChoice::Auto));
+//! let summary = conversion.convert_file(&dir.join("height.png"), &dir.join("normal.exr"))?;
+//! assert_eq!((summary.width, summary.height, summary.encoding.format()), (64, 64, OutputFormat::Exr));
+//! assert!(summary.streamed, "a PNG streams");
+//!
+//! // Or into any writer: the bytes of a PNG, say.
+//! let mut png = Vec::new();
+//! let input = std::fs::read(dir.join("height.png"))?;
+//! let summary = conversion.convert(Input::Bytes(&input), Output::Writer(&mut png))?;
+//! assert_eq!(summary.encoding, Encoding::png8());
+//! assert!(png.starts_with(b"\x89PNG"));
+//! # std::fs::remove_dir_all(&dir)?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 //!
 //! # A picture to look at
 //!
 //! ```
-//! use normalfit::io::{PngCompression, encode_png_gray8};
+//! use std::io::Cursor;
+//!
+//! use normalfit::io::{PngCompression, PngDepth, PngOptions, encode_gray};
 //! use normalfit::shade::{Light, shade, tile_2x2};
 //! use normalfit::{Options, Strength, normals};
 //!
@@ -91,8 +133,9 @@
 //!
 //! // Repeated 2×2, then an 8-bit gray PNG.
 //! let tiled = tile_2x2(&lit, width, height)?;
+//! let gray8 = PngOptions::new(PngDepth::Eight).with_compression(PngCompression::Best).into();
 //! let mut png = Vec::new();
-//! encode_png_gray8(&tiled, 2 * width, 2 * height, PngCompression::Best, &mut png)?;
+//! encode_gray(&tiled, 2 * width, 2 * height, &gray8, Cursor::new(&mut png))?;
 //! assert!(png.starts_with(b"\x89PNG"));
 //! # Ok::<(), normalfit::Error>(())
 //! ```
@@ -122,10 +165,14 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod convert;
 pub mod error;
 pub mod fit;
+pub mod inspect;
 pub mod io;
+pub mod normal_map;
 pub mod options;
+pub mod pipeline;
 pub mod samples;
 pub mod shade;
 pub mod tiling;

@@ -204,7 +204,7 @@ impl Options {
 
     /// Checks the options on their own (the image is checked elsewhere).
     pub fn validate(&self) -> Result<(), Error> {
-        if self.patch < 3 || self.patch % 2 == 0 {
+        if self.patch < 3 || self.patch.is_multiple_of(2) {
             return Err(Error::InvalidOption(format!("patch size must be odd and at least 3, got {}", self.patch)));
         }
         if self.patch > MAX_PATCH {

@@ -13,10 +13,21 @@
 //!
 //! n and L are in the OpenGL tangent frame: +x to the right (larger column
 //! index), +y up the image (smaller row index), +z out of the surface.
+//!
+//! [`lit_view`] makes the picture of a decoded image as `normalfit shade`
+//! does: a normal map's colours decoded ([`crate::normal_map`]), a height
+//! map fitted first, the light applied, tiled if asked; [`LitView::encode`]
+//! writes it as a gray PNG.
 
+use std::io::{Seek, Write};
+use std::path::Path;
+
+use crate::convert::{BorderChoices, Warning};
 use crate::error::{Error, Result};
 use crate::fit::checked_len;
-use crate::options::Convention;
+use crate::io::{self, Channel, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
+use crate::options::{Convention, Options};
+use crate::tiling::{self, ImageKind, KindChoice, TilingOptions};
 
 /// The share of full brightness a texel gets even when it faces away from
 /// the light, so shadowed slopes keep some visible detail.
@@ -220,4 +231,171 @@ mod tests {
         ];
         assert_eq!(out, want);
     }
+}
+
+/// What [`lit_view`] does with an image.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct LitOptions {
+    /// The fit for height maps; its convention is also the one a normal
+    /// map's green follows. Its borders are replaced by
+    /// [`LitOptions::borders`]'.
+    pub fit: Options,
+    /// The border modes for height maps, fixed or `auto`.
+    pub borders: BorderChoices,
+    /// The light.
+    pub light: Light,
+    /// Repeat the picture 2×2, so seams show.
+    pub tile: bool,
+    /// Whether the image is a normal or a height map (detected by default).
+    pub kind: KindChoice,
+    /// The channel of a height map that holds the height.
+    pub channel: Option<Channel>,
+    /// A float normal map holds n itself, not (n + 1)/2.
+    pub signed: bool,
+}
+
+impl Default for LitOptions {
+    fn default() -> Self {
+        let fit = Options::new();
+        LitOptions {
+            borders: fit.borders.into(),
+            fit,
+            light: Light::default(),
+            tile: false,
+            kind: KindChoice::Auto,
+            channel: None,
+            signed: false,
+        }
+    }
+}
+
+impl LitOptions {
+    /// The defaults: the fit's defaults, the default light, not tiled,
+    /// the kind detected.
+    #[must_use]
+    pub fn new() -> LitOptions {
+        LitOptions::default()
+    }
+
+    /// With this fit, its borders fixed as they are.
+    #[must_use]
+    pub fn with_fit(mut self, fit: Options) -> LitOptions {
+        self.borders = fit.borders.into();
+        self.fit = fit;
+        self
+    }
+
+    /// With these border choices.
+    #[must_use]
+    pub fn with_borders(mut self, borders: BorderChoices) -> LitOptions {
+        self.borders = borders;
+        self
+    }
+
+    /// With this light.
+    #[must_use]
+    pub fn with_light(mut self, light: Light) -> LitOptions {
+        self.light = light;
+        self
+    }
+
+    /// Tiled 2×2 (`true`) or not.
+    #[must_use]
+    pub fn with_tile(mut self, tile: bool) -> LitOptions {
+        self.tile = tile;
+        self
+    }
+
+    /// The image is this kind.
+    #[must_use]
+    pub fn with_kind(mut self, kind: KindChoice) -> LitOptions {
+        self.kind = kind;
+        self
+    }
+
+    /// Reading a height map's height from this channel.
+    #[must_use]
+    pub fn with_channel(mut self, channel: Option<Channel>) -> LitOptions {
+        self.channel = channel;
+        self
+    }
+
+    /// A float normal map holding n itself (`true`).
+    #[must_use]
+    pub fn with_signed(mut self, signed: bool) -> LitOptions {
+        self.signed = signed;
+        self
+    }
+}
+
+/// A lit picture: 8-bit gray, row-major.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct LitView {
+    /// The gray values.
+    pub pixels: Vec<u8>,
+    /// Columns (twice the image's when tiled).
+    pub width: usize,
+    /// Rows (twice the image's when tiled).
+    pub height: usize,
+    /// What the image was taken for.
+    pub kind: ImageKind,
+    /// For a height map, the warning about a wrap that draws a seam.
+    pub warnings: Vec<Warning>,
+}
+
+impl LitView {
+    /// Writes the picture as an 8-bit gray PNG (balanced compression).
+    ///
+    /// Errors: those of [`io::encode_gray`].
+    pub fn encode(&self, out: impl Write + Seek) -> Result<()> {
+        let encoding = PngOptions::new(PngDepth::Eight).with_compression(PngCompression::Default).into();
+        io::encode_gray(&self.pixels, self.width, self.height, &encoding, out)
+    }
+}
+
+/// The lit picture of a decoded image: a normal map's colours read back
+/// ([`crate::normal_map::decode`]), or a height map's normals fitted with
+/// `opts.fit` (`auto` borders and the warning about a wrap that draws a
+/// seam from the tiling check, as a conversion does); then lit in the frame
+/// of `opts.fit.convention`, which [`shade`] undoes, so both conventions
+/// light the same on screen.
+///
+/// Errors: those of [`crate::normal_map::kind_of`] and
+/// [`crate::normal_map::decode`], of the fit, and [`Error::InvalidOption`]
+/// for `signed` with a height map.
+pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
+    let (w, h) = (raster.width, raster.height);
+    let kind = crate::normal_map::kind_of(raster, opts.kind, opts.channel.as_ref())?;
+    let mut warnings = Vec::new();
+    let normals = match kind {
+        ImageKind::Normal => crate::normal_map::decode(raster, opts.signed)?,
+        ImageKind::Height => {
+            if opts.signed {
+                return Err(Error::InvalidOption(
+                    "signed is for normal maps, and this is a height map (name its kind normal if it is not)".into(),
+                ));
+            }
+            let heights = raster.heights(opts.channel.clone())?;
+            let report = opts
+                .borders
+                .needs_check()
+                .then(|| tiling::check(&[&heights], w, h, &TilingOptions::new().with_kind(KindChoice::Height)))
+                .transpose()?;
+            warnings.extend(report.as_ref().and_then(|r| opts.borders.seams(r)));
+            let fit = opts.fit.clone().with_borders(opts.borders.resolve(report.as_ref()));
+            crate::normals(&heights, w, h, &fit)?
+        }
+    };
+    let lit = shade(&normals, w, h, opts.light, opts.fit.convention)?;
+    let (pixels, width, height) = if opts.tile { (tile_2x2(&lit, w, h)?, 2 * w, 2 * h) } else { (lit, w, h) };
+    Ok(LitView { pixels, width, height, kind, warnings })
+}
+
+/// [`lit_view`] of the image at `path`.
+///
+/// Errors: those of [`io::read_path`] and [`lit_view`].
+pub fn lit_view_of_file(path: &Path, read: &ReadOptions, opts: &LitOptions) -> Result<LitView> {
+    lit_view(&io::read_path(path, read)?, opts)
 }

@@ -610,7 +610,8 @@ impl HeightSeams {
     pub fn push_samples(&mut self, heights: &crate::Samples) -> Result<()> {
         let w = self.width;
         let rows_left = self.height - self.rows;
-        let fits = if w == 0 { heights.is_empty() } else { heights.len() % w == 0 && heights.len() / w <= rows_left };
+        let fits =
+            if w == 0 { heights.is_empty() } else { heights.len().is_multiple_of(w) && heights.len() / w <= rows_left };
         if !fits {
             return Err(Error::BufferSize { expected: rows_left * w, actual: heights.len() });
         }

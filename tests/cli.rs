@@ -380,3 +380,50 @@ fn a_png_streams_to_standard_output_as_to_a_file() {
     let b = image::open(&file).unwrap().to_rgb16();
     assert_eq!(a, b);
 }
+
+/// A reader of standard output that stops early (`| head -c4`) closes the
+/// pipe: the output it did not want is no error, as for ripgrep and fd.
+/// Exit 0 and not a word, whether the image was read whole (standard input)
+/// or streamed, and whatever the output format.
+#[test]
+fn a_closed_standard_output_ends_the_conversion_quietly() {
+    use std::io::{Read, Write};
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("noise.png");
+    // Noise does not compress, so every output is far larger than a pipe
+    // holds; and it tiles, so no warning is due.
+    let noise = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(512, 512, |x, y| {
+        let k = (y * 512 + x).wrapping_mul(2_654_435_761);
+        image::Luma([(k >> 16) as u16])
+    });
+    noise.save(&input).unwrap();
+    let bytes = fs::read(&input).unwrap();
+    let cases: [(&str, &[&str]); 5] = [
+        ("standard input to EXR", &["convert", "-", "--format", "exr"]),
+        ("standard input to PNG", &["convert", "-", "--format", "png"]),
+        ("streamed to EXR", &["convert", s(&input), "-o", "-", "--format", "exr"]),
+        ("streamed to PNG", &["convert", s(&input), "-o", "-", "--format", "png", "--border", "wrap"]),
+        ("shade", &["shade", s(&input), "-o", "-"]),
+    ];
+    for (what, args) in cases {
+        let mut child =
+            bin().args(args).stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        let feed = std::thread::spawn({
+            let bytes = bytes.clone();
+            move || {
+                // The streamed runs do not read it: a closed pipe is fine.
+                let _ = stdin.write_all(&bytes);
+            }
+        });
+        let mut head = [0u8; 4];
+        child.stdout.as_mut().unwrap().read_exact(&mut head).unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        feed.join().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(head == *b"\x89PNG" || head == [0x76, 0x2f, 0x31, 0x01], "{what}: {head:?}");
+        assert_eq!(out.status.code(), Some(0), "{what}: {stderr}");
+        assert!(stderr.is_empty(), "{what}: {stderr}");
+    }
+}

@@ -109,6 +109,70 @@ fn a_folder_converts_recursively_keeping_its_layout_and_skipping_outputs_hidden_
     assert_eq!(summary(&stderr), (0, 0, 0));
 }
 
+/// Issue 13's case: a folder holding only `h.pgm` was "holds no image
+/// files to convert" (exit 0, nothing written), while `convert dir/h.pgm`
+/// converted. The folder's search now takes the reader's extensions.
+#[test]
+fn a_folder_holding_only_a_pgm_converts_it_as_naming_the_file_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let tex = dir.path().join("tex");
+    fs::create_dir(&tex).unwrap();
+    // A binary PGM, written by hand: header, then 8-bit gray texels.
+    let mut pgm = b"P5\n9 7\n255\n".to_vec();
+    pgm.extend((0..9 * 7).map(|i| (i * 37 % 256) as u8));
+    fs::write(tex.join("h.pgm"), pgm).unwrap();
+    let out = dir.path().join("out");
+    let stderr = ok(&["convert", s(&tex), "-o", s(&out)]);
+    assert!(!stderr.contains("holds no image files"), "{stderr}");
+    assert_eq!(summary(&stderr), (1, 0, 0));
+    assert_eq!(tree(&out), ["h_normal.png"]);
+    let direct = dir.path().join("direct.png");
+    ok(&["convert", s(&tex.join("h.pgm")), "-o", s(&direct)]);
+    assert_eq!(fs::read(out.join("h_normal.png")).unwrap(), fs::read(&direct).unwrap());
+}
+
+/// A folder gives a file of every extension of every format the library
+/// reads (its registry), in any case.
+#[test]
+fn a_folder_gives_every_extension_the_reader_takes() {
+    let dir = tempfile::tempdir().unwrap();
+    let tex = dir.path().join("tex");
+    fs::create_dir(&tex).unwrap();
+    let mut expected = Vec::new();
+    for info in normalfit::io::read::formats::FORMATS {
+        for (k, ext) in info.extensions.iter().enumerate() {
+            let stem = format!("{}_{k}", info.name);
+            // Every other file's extension in upper case.
+            let ext = if k % 2 == 1 { ext.to_uppercase() } else { ext.to_string() };
+            let path = tex.join(format!("{stem}.{ext}"));
+            match info.name {
+                "exr" => {
+                    exr::prelude::write_rgb_file(&path, 6, 5, |x, y| (x as f32 * 0.1, y as f32 * 0.1, 0.5)).unwrap();
+                }
+                "hdr" => {
+                    let img =
+                        image::Rgb32FImage::from_fn(6, 5, |x, y| image::Rgb([x as f32 * 0.1, y as f32 * 0.1, 0.5]));
+                    img.save_with_format(&path, image::ImageFormat::Hdr).unwrap();
+                }
+                _ => {
+                    let format = image::ImageFormat::from_extension(&ext).unwrap();
+                    let img = image::RgbImage::from_fn(6, 5, |x, y| image::Rgb([(x * 40) as u8, (y * 50) as u8, 9]));
+                    img.save_with_format(&path, format).unwrap();
+                }
+            }
+            // Float inputs give OpenEXR outputs, the others PNG.
+            let out_ext = if matches!(info.name, "exr" | "hdr") { "exr" } else { "png" };
+            expected.push(format!("{stem}_normal.{out_ext}"));
+        }
+    }
+    fs::write(tex.join("notes.txt"), "not an image").unwrap();
+    let out = dir.path().join("out");
+    let stderr = ok(&["convert", s(&tex), "-o", s(&out)]);
+    assert_eq!(summary(&stderr), (expected.len(), 0, 0), "{stderr}");
+    expected.sort();
+    assert_eq!(tree(&out), expected);
+}
+
 #[test]
 fn a_bad_file_in_a_folder_is_one_line_and_the_others_are_written() {
     let dir = tempfile::tempdir().unwrap();
@@ -360,7 +424,7 @@ fn channels_rg_gives_two_channel_outputs() {
 fn the_residual_map_is_in_height_units() {
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (24u32, 20u32);
-    let checker = |x: u32, y: u32| if (x + y) % 2 == 0 { 2000i32 } else { -2000 };
+    let checker = |x: u32, y: u32| if (x + y).is_multiple_of(2) { 2000i32 } else { -2000 };
     let rough = dir.path().join("rough.png");
     write_gray16(&rough, w, h, |x, y| (20000 + 300 * x as i32 + 100 * y as i32 + checker(x, y)) as u16);
     let flat_rough = dir.path().join("flat_rough.png");

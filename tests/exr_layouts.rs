@@ -20,8 +20,8 @@ use exr::prelude::{
     AnyChannel, AnyChannels, Blocks, Compression, Encoding, FlatSamples, Image, Layer, LayerAttributes, LineOrder,
     SmallVec, Vec2, WritableImage, f16,
 };
-use normalfit::io::stream::{ExrRows, RowSource};
 use normalfit::io::{Channel, ReadOptions, read_path};
+use normalfit::pipeline::{ExrRows, RowSource};
 use normalfit::{Options, normals};
 
 // ---------------------------------------------------------------------------

@@ -2,8 +2,8 @@
 //! asserting the clean result. The files in `tests/data/fuzz/` are the
 //! minimised cases (`cargo fuzz tmin`), as the fuzzers wrote them.
 
-use normalfit::io::stream::PngRows;
 use normalfit::io::{Raster, ReadOptions, decode};
+use normalfit::pipeline::PngRows;
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
 use normalfit::{Border, Borders, Error, Fit, Options, Strength};
 

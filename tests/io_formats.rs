@@ -10,10 +10,10 @@ use exr::prelude::{
 };
 use image::ImageEncoder;
 use normalfit::Error;
+use normalfit::io::read::formats::{self, FORMATS};
 use normalfit::io::{
-    Channel, ExrDepth, InputFormat, Layout, PngCompression, Raster, ReadOptions, SampleType, decode, encode_exr,
-    encode_exr_gray, encode_exr_normals, encode_png_gray8, encode_png_gray16, encode_png_normals, encode_png_rgb8,
-    encode_png_rgb16, read_path, write_atomically,
+    Channel, ExrDepth, ExrOptions, InputFormat, Layout, PngCompression, PngDepth, PngOptions, Raster, ReadOptions,
+    SampleType, decode, encode_gray, encode_normals, read_path, write_atomically,
 };
 
 // ---------------------------------------------------------------------------
@@ -362,6 +362,104 @@ fn tga_bmp_webp_lossless_values() {
         let g: Vec<f32> = buf.iter().skip(1).step_by(3).map(|&v| f32::from(v) / 255.0).collect();
         assert_eq!(r.heights(Some(Channel::G)).unwrap(), g, "{format}");
     }
+}
+
+// ---------------------------------------------------------------------------
+// The registry of formats: content sniffing, extensions and names all come
+// from one list.
+
+/// A small RGB image (4 × 3) written as `format`: PNG by hand, OpenEXR by
+/// `exr`, the rest by `image`'s encoders.
+fn written_as(format: &InputFormat) -> Vec<u8> {
+    let rgb: Vec<u8> = (0..4 * 3 * 3).map(|i| (i * 7) as u8).collect();
+    let image_format = match format {
+        InputFormat::Png => return PngSpec::new(4, 3, 2, 8).encode(|x, y| rgb[(y * 4 + x) * 3..][..3].to_vec()),
+        InputFormat::Exr => return exr_bytes((4, 3), (0, 0), vec![f32_channel("Y", &[0.5; 12])]),
+        InputFormat::Jpeg => image::ImageFormat::Jpeg,
+        InputFormat::Tiff => image::ImageFormat::Tiff,
+        InputFormat::Tga => image::ImageFormat::Tga,
+        InputFormat::Bmp => image::ImageFormat::Bmp,
+        InputFormat::WebP => image::ImageFormat::WebP,
+        InputFormat::Gif => image::ImageFormat::Gif,
+        InputFormat::Hdr => image::ImageFormat::Hdr,
+        InputFormat::Pnm => image::ImageFormat::Pnm,
+        InputFormat::Qoi => image::ImageFormat::Qoi,
+        other => panic!("no writer for {other} here: add one"),
+    };
+    let picture = image::RgbImage::from_raw(4, 3, rgb).unwrap();
+    let picture = match image_format {
+        // Radiance HDR holds floats only.
+        image::ImageFormat::Hdr => image::DynamicImage::ImageRgb32F(image::DynamicImage::from(picture).to_rgb32f()),
+        _ => image::DynamicImage::ImageRgb8(picture),
+    };
+    let mut out = Cursor::new(Vec::new());
+    picture.write_to(&mut out, image_format).unwrap();
+    out.into_inner()
+}
+
+#[test]
+fn every_registered_format_is_recognised_by_its_content_and_read_as_itself() {
+    assert_eq!(FORMATS.len(), 11);
+    for info in FORMATS {
+        let bytes = written_as(&info.format);
+        // TGA has no signature: it is found by its header parsing, last.
+        let sniffed = info.has_signature().then(|| info.format.clone());
+        assert_eq!(InputFormat::sniff(&bytes), sniffed, "{}", info.name);
+        assert_eq!(InputFormat::sniff(&bytes[..16]), sniffed, "{}: 16 bytes are enough", info.name);
+        let r = read(&bytes);
+        assert_eq!(r.format, info.format, "{}", info.name);
+        assert_eq!((r.width, r.height), (4, 3), "{}", info.name);
+        assert_eq!(r.format.to_string(), info.name);
+        assert_eq!(r.format.info().format, info.format);
+    }
+}
+
+#[test]
+fn every_extension_names_one_format_in_any_case() {
+    let mut seen = std::collections::HashSet::new();
+    for info in FORMATS {
+        assert!(!info.extensions.is_empty(), "{}", info.name);
+        for ext in info.extensions {
+            assert!(seen.insert(*ext), ".{ext} names two formats");
+            assert_eq!(InputFormat::from_extension(ext), Some(info.format.clone()), ".{ext}");
+            assert_eq!(InputFormat::from_extension(&ext.to_uppercase()), Some(info.format.clone()), ".{ext}");
+        }
+    }
+    // The extensions the folder search missed before the registry (issue 13).
+    for (ext, format) in [("pgm", InputFormat::Pnm), ("hdr", InputFormat::Hdr), ("gif", InputFormat::Gif)] {
+        assert_eq!(InputFormat::from_extension(ext), Some(format), ".{ext}");
+    }
+    assert_eq!(InputFormat::from_extension("qoi"), Some(InputFormat::Qoi));
+    assert_eq!(InputFormat::from_extension("Tif"), Some(InputFormat::Tiff));
+    for ext in ["", "txt", "pn", "pngx", "exr.bak", "ico", "dds"] {
+        assert_eq!(InputFormat::from_extension(ext), None, ".{ext}");
+    }
+}
+
+#[test]
+fn help_and_errors_name_the_registered_formats() {
+    assert_eq!(formats::names(), "PNG, OpenEXR, TIFF, JPEG, TGA, BMP, WebP, GIF, Radiance HDR, PNM, QOI");
+    let e = decode(b"just some text, not an image\n", &ReadOptions::default()).unwrap_err();
+    assert!(matches!(&e, Error::Decode(m) if m.ends_with(&format!("normalfit reads {}", formats::names()))), "{e}");
+    // A format `image` knows by its signature but normalfit does not read.
+    let ico = [0u8, 0, 1, 0, 1, 0, 16, 16, 0, 0, 1, 0, 32, 0, 0, 0];
+    let e = decode(&ico, &ReadOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, Error::Unsupported(m) if m.starts_with("ico images are not read; normalfit reads PNG")),
+        "{e}"
+    );
+    let e = decode(&written_as(&InputFormat::Gif), &ReadOptions::default().with_layer("x")).unwrap_err();
+    assert!(matches!(&e, Error::Unsupported(m) if m.contains("gif files have no layers")), "{e}");
+}
+
+/// docs/convert.md says which extensions a folder's search takes: the
+/// registry's, every one.
+#[test]
+fn the_docs_list_every_extension_a_folder_search_takes() {
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/convert.md")).unwrap();
+    let doc = doc.split_whitespace().collect::<Vec<_>>().join(" ");
+    let listed: Vec<String> = FORMATS.iter().flat_map(|f| f.extensions.iter()).map(|ext| format!("`{ext}`")).collect();
+    assert!(doc.contains(&format!("one the reader takes: {};", listed.join(", "))), "docs/convert.md: {listed:?}");
 }
 
 // ---------------------------------------------------------------------------
@@ -871,13 +969,23 @@ fn zero_size_png_is_an_error() {
 // ---------------------------------------------------------------------------
 // Encoders, checked through the (independently tested) decoder
 
+/// A PNG encoding of `depth` bits with these settings.
+fn png(depth: PngDepth, compression: PngCompression, layout: Layout) -> normalfit::io::Encoding {
+    PngOptions::new(depth).with_compression(compression).with_layout(layout).into()
+}
+
+/// An EXR encoding that stores the values given as they are (signed).
+fn exr_as_given(depth: ExrDepth, layout: Layout) -> normalfit::io::Encoding {
+    ExrOptions::new(depth).with_signed(true).with_layout(layout).into()
+}
+
 #[test]
 fn png_rgb8_round_trip() {
     let texels: Vec<[u8; 3]> = (0..15).map(|i| [i * 17, 255 - i, 128]).collect();
     for compression in [PngCompression::Fast, PngCompression::Default, PngCompression::Best] {
-        let mut out = Vec::new();
-        encode_png_rgb8(&texels, 5, 3, compression, &mut out).unwrap();
-        let r = read(&out);
+        let mut out = Cursor::new(Vec::new());
+        encode_normals(&texels, None, 5, 3, &png(PngDepth::Eight, compression, Layout::Rgb), &mut out).unwrap();
+        let r = read(out.get_ref());
         assert_eq!((r.format.clone(), r.width, r.height), (InputFormat::Png, 5, 3));
         assert_eq!(r.sample, SampleType::Int { bits: 8 });
         for (c, name) in ["R", "G", "B"].iter().enumerate() {
@@ -890,14 +998,59 @@ fn png_rgb8_round_trip() {
 #[test]
 fn png_rgb16_round_trip_keeps_byte_order() {
     let texels: Vec<[u16; 3]> = vec![[0x0102, 32768, 65535], [0, 1, 0xff00], [0x00ff, 12345, 54321]];
-    let mut out = Vec::new();
-    encode_png_rgb16(&texels, 3, 1, PngCompression::default(), &mut out).unwrap();
-    let r = read(&out);
+    let mut out = Cursor::new(Vec::new());
+    encode_normals(&texels, None, 3, 1, &normalfit::io::Encoding::png16(), &mut out).unwrap();
+    let r = read(out.get_ref());
     assert_eq!(r.sample, SampleType::Int { bits: 16 });
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
         let back: Vec<u16> = data(&r, name).iter().map(|&h| (h * 65535.0).round() as u16).collect();
         let expected: Vec<u16> = texels.iter().map(|t| t[c]).collect();
         assert_eq!(back, expected, "{name}");
+    }
+}
+
+/// Normals given as f32 and written to a PNG are quantised by the fit's
+/// own rule, c = round(max (n + 1)/2), written here plainly; to an EXR,
+/// (n + 1)/2 or n itself with `signed`.
+#[test]
+fn float_normals_are_stored_as_each_encoding_says() {
+    let normals: Vec<[f32; 3]> =
+        vec![[0.0, 0.0, 1.0], [-1.0, 1.0, 0.0], [0.6, -0.8, 0.0], [0.1234, -0.5, 0.857], [0.999, -0.999, 0.04]];
+    for (depth, max) in [(PngDepth::Eight, 255.0), (PngDepth::Sixteen, 65535.0)] {
+        let mut out = Cursor::new(Vec::new());
+        encode_normals(&normals, None, 5, 1, &png(depth, PngCompression::Fast, Layout::Rgb), &mut out).unwrap();
+        let r = read(out.get_ref());
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            let back: Vec<f64> = data(&r, name).iter().map(|&v| (f64::from(v) * max).round()).collect();
+            let want: Vec<f64> = normals.iter().map(|n| ((f64::from(n[c]) + 1.0) / 2.0 * max).round()).collect();
+            assert_eq!(back, want, "{depth:?} {name}");
+        }
+    }
+    for signed in [false, true] {
+        let mut out = Cursor::new(Vec::new());
+        let encoding = ExrOptions::new(ExrDepth::Float).with_signed(signed).into();
+        encode_normals(&normals, None, 5, 1, &encoding, &mut out).unwrap();
+        let r = read(out.get_ref());
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            let want: Vec<f32> = normals.iter().map(|n| if signed { n[c] } else { (n[c] + 1.0) * 0.5 }).collect();
+            assert_eq!(data(&r, name), want, "signed {signed} {name}");
+        }
+    }
+}
+
+#[test]
+fn texels_the_encoding_does_not_store_are_refused() {
+    let t8 = [[0u8; 3]; 4];
+    let t16 = [[0u16; 3]; 4];
+    let out = || Cursor::new(Vec::new());
+    for e in [
+        encode_normals(&t8, None, 2, 2, &normalfit::io::Encoding::png16(), out()).unwrap_err(),
+        encode_normals(&t8, None, 2, 2, &normalfit::io::Encoding::exr(), out()).unwrap_err(),
+        encode_normals(&t16, None, 2, 2, &normalfit::io::Encoding::png8(), out()).unwrap_err(),
+        encode_gray(&[0u8; 4], 2, 2, &normalfit::io::Encoding::png16(), out()).unwrap_err(),
+        encode_gray(&[0.0f32; 4], 2, 2, &normalfit::io::Encoding::png8(), out()).unwrap_err(),
+    ] {
+        assert!(matches!(e, Error::InvalidOption(_)), "{e}");
     }
 }
 
@@ -911,13 +1064,15 @@ fn png_layouts_put_heights_one_or_zero_where_they_say() {
     let max = |bits| if bits == 8 { 255.0 } else { 65535.0 };
     for bits in [8, 16] {
         for layout in [Layout::RgbHeight, Layout::RgbOpaque, Layout::Rg] {
-            let mut out = Vec::new();
+            let mut out = Cursor::new(Vec::new());
             if bits == 8 {
-                encode_png_normals(&t8, Some(&heights), 3, 2, layout, PngCompression::Fast, &mut out).unwrap();
+                let encoding = png(PngDepth::Eight, PngCompression::Fast, layout);
+                encode_normals(&t8, Some(&heights), 3, 2, &encoding, &mut out).unwrap();
             } else {
-                encode_png_normals(&t16, Some(&heights), 3, 2, layout, PngCompression::Fast, &mut out).unwrap();
+                let encoding = png(PngDepth::Sixteen, PngCompression::Fast, layout);
+                encode_normals(&t16, Some(&heights), 3, 2, &encoding, &mut out).unwrap();
             }
-            let r = read(&out);
+            let r = read(out.get_ref());
             assert_eq!(r.sample, SampleType::Int { bits });
             let stored =
                 |name: &str| -> Vec<f64> { data(&r, name).iter().map(|&v| f64::from(v) * max(bits)).collect() };
@@ -938,10 +1093,10 @@ fn png_layouts_put_heights_one_or_zero_where_they_say() {
             }
         }
     }
-    let e = encode_png_normals(&t8, None, 3, 2, Layout::RgbHeight, PngCompression::Fast, Vec::new()).unwrap_err();
+    let with_heights = png(PngDepth::Eight, PngCompression::Fast, Layout::RgbHeight);
+    let e = encode_normals(&t8, None, 3, 2, &with_heights, Cursor::new(Vec::new())).unwrap_err();
     assert!(matches!(e, Error::InvalidOption(_)), "{e}");
-    let e = encode_png_normals(&t8, Some(&heights[..5]), 3, 2, Layout::RgbHeight, PngCompression::Fast, Vec::new())
-        .unwrap_err();
+    let e = encode_normals(&t8, Some(&heights[..5]), 3, 2, &with_heights, Cursor::new(Vec::new())).unwrap_err();
     assert!(matches!(e, Error::BufferSize { expected: 6, actual: 5 }), "{e}");
 }
 
@@ -955,7 +1110,7 @@ fn exr_layouts_name_their_channels_and_keep_heights_as_they_are() {
         (Layout::Rg, &["G", "R"][..]),
     ] {
         let mut out = Cursor::new(Vec::new());
-        encode_exr_normals(&texels, Some(&heights), 2, 2, layout, ExrDepth::Float, &mut out).unwrap();
+        encode_normals(&texels, Some(&heights), 2, 2, &exr_as_given(ExrDepth::Float, layout), &mut out).unwrap();
         let r = read(&out.into_inner());
         assert_eq!(names(&r), want, "{layout:?}");
         assert_eq!(data(&r, "G"), texels.iter().map(|t| t[1]).collect::<Vec<_>>());
@@ -970,15 +1125,15 @@ fn exr_layouts_name_their_channels_and_keep_heights_as_they_are() {
 #[test]
 fn gray_maps_round_trip() {
     let values: Vec<u16> = vec![0, 1, 300, 65535, 40000, 7];
-    let mut out = Vec::new();
-    encode_png_gray16(&values, 2, 3, PngCompression::Fast, &mut out).unwrap();
-    let r = read(&out);
+    let mut out = Cursor::new(Vec::new());
+    encode_gray(&values, 2, 3, &normalfit::io::Encoding::png16(), &mut out).unwrap();
+    let r = read(out.get_ref());
     assert_eq!((names(&r), r.sample), (vec!["Y"], SampleType::Int { bits: 16 }));
     let back: Vec<u16> = data(&r, "Y").iter().map(|&v| (v * 65535.0).round() as u16).collect();
     assert_eq!(back, values);
     let floats = [0.0f32, 1e-7, 0.5, 3.25];
     let mut out = Cursor::new(Vec::new());
-    encode_exr_gray(&floats, 4, 1, ExrDepth::Float, &mut out).unwrap();
+    encode_gray(&floats, 4, 1, &normalfit::io::Encoding::exr(), &mut out).unwrap();
     let r = read(&out.into_inner());
     assert_eq!(names(&r), ["Y"]);
     assert_eq!(data(&r, "Y"), floats.to_vec());
@@ -987,26 +1142,27 @@ fn gray_maps_round_trip() {
 #[test]
 fn png_gray8_round_trip() {
     let texels: Vec<u8> = (0..12).map(|i| i * 21).collect();
-    let mut out = Vec::new();
-    encode_png_gray8(&texels, 4, 3, PngCompression::Best, &mut out).unwrap();
-    let r = read(&out);
+    let mut out = Cursor::new(Vec::new());
+    encode_gray(&texels, 4, 3, &png(PngDepth::Eight, PngCompression::Best, Layout::Rgb), &mut out).unwrap();
+    let r = read(out.get_ref());
     assert_eq!((r.width, r.height, r.sample), (4, 3, SampleType::Int { bits: 8 }));
     assert_eq!(r.planes.len(), 1, "one gray plane");
     let expected: Vec<f32> = texels.iter().map(|&t| f32::from(t) / 255.0).collect();
     assert_eq!(r.planes[0].data.to_f32().unwrap(), expected);
-    let e = encode_png_gray8(&texels, 5, 3, PngCompression::Fast, Vec::new()).unwrap_err();
+    let e = encode_gray(&texels, 5, 3, &normalfit::io::Encoding::png8(), Cursor::new(Vec::new())).unwrap_err();
     assert!(matches!(e, Error::BufferSize { expected: 15, actual: 12 }), "{e}");
 }
 
 #[test]
 fn encoders_reject_wrong_buffer_sizes() {
-    let e = encode_png_rgb8(&[[0; 3]; 5], 2, 3, PngCompression::Fast, Vec::new()).unwrap_err();
+    let out = || Cursor::new(Vec::new());
+    let e = encode_normals(&[[0u8; 3]; 5], None, 2, 3, &normalfit::io::Encoding::png8(), out()).unwrap_err();
     assert!(matches!(e, Error::BufferSize { expected: 6, actual: 5 }), "{e}");
-    let e = encode_png_rgb16(&[[0; 3]; 7], 2, 3, PngCompression::Fast, Vec::new()).unwrap_err();
+    let e = encode_normals(&[[0u16; 3]; 7], None, 2, 3, &normalfit::io::Encoding::png16(), out()).unwrap_err();
     assert!(matches!(e, Error::BufferSize { expected: 6, actual: 7 }), "{e}");
-    let e = encode_exr(&[[0.0; 3]; 1], 2, 3, ExrDepth::Float, Cursor::new(Vec::new())).unwrap_err();
+    let e = encode_normals(&[[0.0f32; 3]; 1], None, 2, 3, &normalfit::io::Encoding::exr(), out()).unwrap_err();
     assert!(matches!(e, Error::BufferSize { expected: 6, actual: 1 }), "{e}");
-    assert!(encode_png_rgb8(&[], 0, 0, PngCompression::Fast, Vec::new()).is_err());
+    assert!(encode_normals::<[u8; 3]>(&[], None, 0, 0, &normalfit::io::Encoding::png8(), out()).is_err());
 }
 
 #[test]
@@ -1014,7 +1170,7 @@ fn exr_round_trip_float_and_half() {
     let texels: Vec<[f32; 3]> = (0..6).map(|i| [i as f32 * 0.1 - 0.3, -0.999, 1.0 / (i as f32 + 3.0)]).collect();
     for depth in [ExrDepth::Float, ExrDepth::Half] {
         let mut out = Cursor::new(Vec::new());
-        encode_exr(&texels, 3, 2, depth, &mut out).unwrap();
+        encode_normals(&texels, None, 3, 2, &exr_as_given(depth, Layout::Rgb), &mut out).unwrap();
         let r = read(&out.into_inner());
         assert_eq!((r.width, r.height), (3, 2));
         assert_eq!(names(&r), ["B", "G", "R"]);

@@ -13,8 +13,8 @@ mod corpus;
 
 use corpus::*;
 use normalfit::Error;
-use normalfit::io::stream::{PngRows, RowSource};
 use normalfit::io::{ReadOptions, decode};
+use normalfit::pipeline::{PngRows, RowSource};
 
 const MISMATCH: &str = "image data is corrupt: zlib checksum (Adler-32) does not match";
 const SIDE: usize = 24;

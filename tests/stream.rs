@@ -1,4 +1,4 @@
-//! Streaming PNG conversion (`normalfit::io::stream`) gives exactly what
+//! Streaming PNG conversion (`normalfit::pipeline`) gives exactly what
 //! the whole-image path gives: decode everything, `normals_into`, encode.
 //! Sizes cross band edges, patches reach beyond short images, and every
 //! y border is used, so a row taken from the wrong place would show.
@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use image::{ExtendedColorType, ImageEncoder};
-use normalfit::io::stream::{PngDepth, PngOutput, PngRows, RowSource, convert_png, convert_png_seekable};
-use normalfit::io::{Channel, Layout, PngCompression, ReadOptions, encode_png_normals, read_path};
+use normalfit::io::{Channel, Layout, PngCompression, ReadOptions, encode_normals, read_path};
+use normalfit::pipeline::{PngDepth, PngOptions, PngRows, RowSource, convert_png, convert_png_seekable};
 use normalfit::{Border, Borders, Options, Strength};
 
 /// Heights with detail in both directions and no symmetry, as 16-bit.
@@ -58,7 +58,7 @@ fn streamed_as(path: &Path, channel: Option<Channel>, opts: &Options, depth: Png
     let open = || PngRows::open(path, &ReadOptions::default(), channel.clone()).unwrap().expect("streamable");
     let tail = (opts.borders.y == Border::Wrap).then(|| open().read_tail(opts.patch / 2, |_| {}).unwrap());
     let mut ordered = Vec::new();
-    let output = PngOutput { depth, compression: PngCompression::Fast, layout };
+    let output = PngOptions::new(depth).with_layout(layout);
     convert_png(open(), tail.as_deref(), opts, output, |_| {}, &mut ordered).unwrap();
     let mut seekable = std::io::Cursor::new(Vec::new());
     convert_png_seekable(open(), opts, output, |_| {}, &mut seekable).unwrap();
@@ -137,21 +137,22 @@ fn every_channel_layout_streams_the_whole_image_path_s_samples() {
             let opts = Options::new().with_patch(5).with_borders(Borders { x: Border::Wrap, y });
             for layout in [Layout::RgbHeight, Layout::RgbOpaque, Layout::Rg] {
                 for depth in [PngDepth::Eight, PngDepth::Sixteen] {
-                    let mut whole = Vec::new();
+                    let mut whole = std::io::Cursor::new(Vec::new());
+                    let encoding = PngOptions::new(depth).with_layout(layout).into();
                     match depth {
                         PngDepth::Eight => {
                             let mut t = vec![[0u8; 3]; w * h];
                             samples.normals_into(w, h, &opts, &mut t).unwrap();
-                            encode_png_normals(&t, Some(&heights), w, h, layout, PngCompression::Fast, &mut whole)
+                            encode_normals(&t, Some(&heights), w, h, &encoding, &mut whole)
                         }
                         PngDepth::Sixteen => {
                             let mut t = vec![[0u16; 3]; w * h];
                             samples.normals_into(w, h, &opts, &mut t).unwrap();
-                            encode_png_normals(&t, Some(&heights), w, h, layout, PngCompression::Fast, &mut whole)
+                            encode_normals(&t, Some(&heights), w, h, &encoding, &mut whole)
                         }
                     }
                     .unwrap();
-                    let whole = strict_decode(&whole);
+                    let whole = strict_decode(whole.get_ref());
                     let channels = if layout == Layout::Rg { 3 } else { 4 };
                     assert_eq!(whole.len(), w * h * channels, "{layout:?}");
                     let streamed = streamed_as(&path, None, &opts, depth, layout);
@@ -244,7 +245,7 @@ fn chosen_filters_give_the_same_pixels_in_a_smaller_file() {
             let opts = Options::new().with_borders(Borders { x: Border::Wrap, y }).with_strength(Strength::Scale(40.0));
             let encode = |compression| {
                 let mut out = std::io::Cursor::new(Vec::new());
-                let output = PngOutput { depth, compression, layout: Layout::Rgb };
+                let output = PngOptions::new(depth).with_compression(compression);
                 convert_png_seekable(open(), &opts, output, |_| {}, &mut out).unwrap();
                 out.into_inner()
             };

@@ -1,7 +1,7 @@
 //! Streaming OpenEXR (`ExrRows`, `convert_exr`) gives exactly what the
 //! whole-image path gives: the same heights row by row, for every
 //! compression, sample type and line order; and the same output file, byte
-//! for byte, as fitting the whole image and calling `encode_exr`.
+//! for byte, as fitting the whole image and calling `encode_normals`.
 
 use std::path::Path;
 
@@ -9,8 +9,8 @@ use exr::prelude::{
     AnyChannel, AnyChannels, Blocks, Compression, Encoding, FlatSamples, Image, Layer, LayerAttributes, LineOrder,
     SmallVec, WritableImage, f16,
 };
-use normalfit::io::stream::{ExrFormat, ExrRows, PngDepth, RowSource, convert_exr, convert_png_seekable};
-use normalfit::io::{Channel, ExrDepth, Layout, ReadOptions, encode_exr, encode_exr_normals, read_path};
+use normalfit::io::{Channel, ExrDepth, Layout, ReadOptions, encode_normals, read_path};
+use normalfit::pipeline::{ExrOptions, ExrRows, PngDepth, RowSource, convert_exr, convert_png_seekable};
 use normalfit::{Border, Borders, Options, Strength, normals_into};
 
 /// Heights with detail in both directions and no symmetry.
@@ -121,8 +121,8 @@ fn last_rows_are_the_image_s_last_rows() {
     }
 }
 
-/// What the whole-image path writes: fit, map to (n + 1)/2 unless signed,
-/// `encode_exr`.
+/// What the whole-image path writes: fit, map to (n + 1)/2 unless signed
+/// (here, plainly), and write the values as they are.
 fn whole_exr(path: &Path, opts: &Options, depth: ExrDepth, signed: bool) -> Vec<u8> {
     let raster = read_path(path, &ReadOptions::default()).unwrap();
     let (w, h) = (raster.width, raster.height);
@@ -133,8 +133,13 @@ fn whole_exr(path: &Path, opts: &Options, depth: ExrDepth, signed: bool) -> Vec<
         texels.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
     }
     let mut out = std::io::Cursor::new(Vec::new());
-    encode_exr(&texels, w, h, depth, &mut out).unwrap();
+    encode_normals(&texels, None, w, h, &as_given(depth, Layout::Rgb), &mut out).unwrap();
     out.into_inner()
+}
+
+/// An EXR encoding that writes the values given as they are.
+fn as_given(depth: ExrDepth, layout: Layout) -> normalfit::io::Encoding {
+    ExrOptions::new(depth).with_signed(true).with_layout(layout).into()
 }
 
 #[test]
@@ -162,7 +167,7 @@ fn exr_output_is_byte_identical_to_the_whole_image_path() {
                     let tail = (y == Border::Wrap)
                         .then(|| ExrRows::last_rows(&path, &ReadOptions::default(), None, n / 2).unwrap());
                     let mut out = std::io::Cursor::new(Vec::new());
-                    let format = ExrFormat { depth, signed, layout: Layout::Rgb };
+                    let format = ExrOptions::new(depth).with_signed(signed);
                     convert_exr(rows, tail.as_deref(), &opts, format, |_| {}, &mut out).unwrap();
                     assert!(out.get_ref() == &whole_exr(&path, &opts, depth, signed), "{what}");
                 }
@@ -195,7 +200,7 @@ fn every_channel_layout_streams_to_the_whole_image_writer_s_bytes() {
         (Layout::Rg, &["G", "R"][..]),
     ] {
         for signed in [false, true] {
-            let format = ExrFormat { depth: ExrDepth::Float, signed, layout };
+            let format = ExrOptions::new(ExrDepth::Float).with_signed(signed).with_layout(layout);
             let rows = ExrRows::open(&path, &ReadOptions::default(), None).unwrap().unwrap();
             let tail = ExrRows::last_rows(&path, &ReadOptions::default(), None, 3).unwrap();
             let mut streamed = std::io::Cursor::new(Vec::new());
@@ -207,7 +212,7 @@ fn every_channel_layout_streams_to_the_whole_image_writer_s_bytes() {
                 texels.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
             }
             let mut whole = std::io::Cursor::new(Vec::new());
-            encode_exr_normals(&texels, Some(&stored), w, h, layout, ExrDepth::Float, &mut whole).unwrap();
+            encode_normals(&texels, Some(&stored), w, h, &as_given(ExrDepth::Float, layout), &mut whole).unwrap();
             assert!(streamed.get_ref() == whole.get_ref(), "{layout:?} signed {signed}");
 
             let raster = normalfit::io::decode(streamed.get_ref(), &ReadOptions::default()).unwrap();
@@ -305,7 +310,7 @@ fn a_truncated_file_is_a_decode_error() {
     let opts = Options::new().with_borders(Borders::both(Border::Clamp));
     let result = ExrRows::open(&path, &ReadOptions::default(), None).and_then(|rows| {
         let rows = rows.expect("the header is intact");
-        convert_exr(rows, None, &opts, ExrFormat::default(), |_| {}, std::io::Cursor::new(Vec::new()))
+        convert_exr(rows, None, &opts, ExrOptions::default(), |_| {}, std::io::Cursor::new(Vec::new()))
     });
     assert!(matches!(result, Err(normalfit::Error::Decode(_))), "{result:?}");
 }
@@ -323,7 +328,7 @@ fn exr_output_decodes_to_its_values_and_smooth_maps_compress() {
         .collect();
     for (depth, bytes_per_sample) in [(ExrDepth::Float, 4), (ExrDepth::Half, 2)] {
         let mut out = std::io::Cursor::new(Vec::new());
-        encode_exr(&texels, w, h, depth, &mut out).unwrap();
+        encode_normals(&texels, None, w, h, &as_given(depth, Layout::Rgb), &mut out).unwrap();
         let bytes = out.into_inner();
         assert!(bytes.len() < w * h * 3 * bytes_per_sample / 2, "{depth:?}: {} bytes", bytes.len());
         let raster = normalfit::io::decode(&bytes, &ReadOptions::default()).unwrap();

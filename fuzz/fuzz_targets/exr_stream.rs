@@ -12,7 +12,7 @@ use std::io::Cursor;
 
 use libfuzzer_sys::fuzz_target;
 use normalfit::io::decode;
-use normalfit::io::stream::{ExrFormat, ExrRows, RowSource, convert_exr};
+use normalfit::pipeline::{ExrOptions, ExrRows, RowSource, convert_exr};
 use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options, streamed_heights_match};
 
 fuzz_target!(|data: &[u8]| {
@@ -37,7 +37,7 @@ fuzz_target!(|data: &[u8]| {
     };
     let mut streamed_heights = Vec::new();
     let mut exr = Cursor::new(Vec::new());
-    let format = ExrFormat::default();
+    let format = ExrOptions::default();
     let streamed =
         convert_exr(rows, tail.as_deref(), &case.fit, format, |row| streamed_heights.extend_from_slice(row), &mut exr);
     let Some(heights) = streamed_heights_match(data, case.channel.clone(), &streamed, &streamed_heights, (w, h)) else {

@@ -12,7 +12,7 @@ use std::io::Cursor;
 
 use libfuzzer_sys::fuzz_target;
 use normalfit::io::decode;
-use normalfit::io::stream::{PngDepth, PngRows, RowSource, convert_png_seekable};
+use normalfit::pipeline::{PngDepth, PngRows, RowSource, convert_png_seekable};
 use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options, streamed_heights_match};
 
 fuzz_target!(|data: &[u8]| {
@@ -38,7 +38,12 @@ fuzz_target!(|data: &[u8]| {
     let out = decode(png.get_ref(), &read_options()).expect("the streamed PNG decodes");
     assert_eq!((out.width, out.height, out.planes.len()), (w, h, 3));
     let top = if case.sixteen { 65535.0 } else { 255.0 };
-    let texel = |k: usize| out.planes.iter().map(|p| (p.data.height(k) * top).round() as u16).collect::<Vec<_>>();
+    let texel = |k: usize| {
+        out.planes
+            .iter()
+            .map(|p| (p.data.height(k).expect("k < width × height") * top).round() as u16)
+            .collect::<Vec<_>>()
+    };
     if case.sixteen {
         let mut rgb = vec![[0u16; 3]; w * h];
         heights.normals_into(w, h, &case.fit, &mut rgb).expect("finite heights and valid options must fit");

@@ -190,7 +190,7 @@ impl Heights for Samples {
         self.len()
     }
     fn at(&self, k: usize) -> f64 {
-        self.height(k)
+        self.height(k).expect("k < count()")
     }
 }
 

@@ -84,9 +84,9 @@ pub struct FitArgs {
 #[derive(Args, Debug)]
 #[command(allow_negative_numbers = true)]
 pub struct ConvertArgs {
-    /// Height maps to convert (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-` reads
-    /// standard input).
-    #[arg(required = true, value_name = "INPUT")]
+    /// Height maps to convert (the formats read, from the library's
+    /// registry; `-` reads standard input).
+    #[arg(required = true, value_name = "INPUT", help = inputs_help("Height maps to convert"))]
     pub inputs: Vec<PathBuf>,
 
     /// Output file, or folder for many inputs; `-` writes standard output.
@@ -217,9 +217,9 @@ pub enum OverwriteArg {
 #[derive(Args, Debug)]
 #[command(allow_negative_numbers = true)]
 pub struct ShadeArgs {
-    /// Normal maps or height maps (PNG, EXR, TIFF, JPEG, TGA, BMP, WebP; `-`
-    /// reads standard input).
-    #[arg(required = true, value_name = "INPUT")]
+    /// Normal maps or height maps (the formats read, from the library's
+    /// registry; `-` reads standard input).
+    #[arg(required = true, value_name = "INPUT", help = inputs_help("Normal maps or height maps"))]
     pub inputs: Vec<PathBuf>,
 
     /// Output PNG, or folder for many inputs; `-` writes standard output.
@@ -280,8 +280,9 @@ pub enum CompressionArg {
 
 #[derive(Args, Debug)]
 pub struct TilingArgs {
-    /// Images to check (height or normal maps; `-` reads standard input).
-    #[arg(required = true, value_name = "IMAGE")]
+    /// Images to check (height or normal maps, in the formats read, from
+    /// the library's registry; `-` reads standard input).
+    #[arg(required = true, value_name = "IMAGE", help = inputs_help("Images to check (height or normal maps)"))]
     pub inputs: Vec<PathBuf>,
 
     /// One JSON object per image, one per line.
@@ -368,7 +369,7 @@ pub enum KindArg {
 
 fn parse_patch(s: &str) -> Result<usize, String> {
     let n: usize = s.parse().map_err(|_| format!("patch size must be a whole number, got '{s}'"))?;
-    if n < 3 || n % 2 == 0 || n > MAX_PATCH {
+    if n < 3 || n.is_multiple_of(2) || n > MAX_PATCH {
         return Err(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"));
     }
     Ok(n)
@@ -468,4 +469,10 @@ fn parse_light(s: &str) -> Result<LightArg, String> {
         return Err(format!("the light's elevation must be from 0 to 90 degrees, got {elevation_deg}"));
     }
     Ok(LightArg(Light { azimuth_deg, elevation_deg }))
+}
+
+/// The help of a command's inputs: what they are, then the formats the
+/// library reads (its registry, so help and reader never disagree).
+fn inputs_help(what: &str) -> String {
+    format!("{what}: {}; `-` reads standard input", normalfit::io::read::formats::names())
 }

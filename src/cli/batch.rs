@@ -7,13 +7,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex};
 
+use normalfit::io::InputFormat;
+
 use super::input::Input;
 use super::report::Failure;
-
-/// Extensions of the formats the reader takes (PNG, OpenEXR, TIFF, JPEG,
-/// TGA, BMP, WebP), lower case. Only a folder's search goes by name; a
-/// file named on the command line is read whatever its name, by content.
-const IMAGE_EXTENSIONS: &[&str] = &["png", "exr", "tif", "tiff", "jpg", "jpeg", "tga", "bmp", "webp"];
 
 /// The stem ending of residual maps (`--residual` with many inputs).
 pub const RESIDUAL_SUFFIX: &str = "_residual";
@@ -96,11 +93,13 @@ fn walk(root: &Path, dir: &Path, recursive: bool, suffix: &str, listing: &mut Li
     }
 }
 
-/// Whether a file found in a folder is an input: an image extension, and
-/// not one of our outputs.
+/// Whether a file found in a folder is an input: an extension of a format
+/// the reader takes (the library's registry of formats), and not one of
+/// our outputs. Only a folder's search goes by name; a file named on the
+/// command line is read whatever its name, by content.
 fn is_input_name(path: &Path, suffix: &str) -> bool {
-    let ext = path.extension().and_then(OsStr::to_str).map(str::to_ascii_lowercase);
-    if !ext.is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.as_str())) {
+    let ext = path.extension().and_then(OsStr::to_str);
+    if ext.and_then(InputFormat::from_extension).is_none() {
         return false;
     }
     let stem = path.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default();
@@ -184,6 +183,13 @@ mod tests {
             ("ROCK.PNG", true),
             ("dem.TIF", true),
             ("a.jpeg", true),
+            ("h.pgm", true),
+            ("h.PPM", true),
+            ("sky.hdr", true),
+            ("anim.gif", true),
+            ("q.qoi", true),
+            ("old.tga", true),
+            ("photo.webp", true),
             ("notes.txt", false),
             ("rock", false),
             ("rock_normal.png", false),

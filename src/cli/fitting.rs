@@ -1,13 +1,12 @@
 //! The fit options `convert` and `shade` share: the library's [`Options`]
-//! from `FitArgs`, and the border modes of one image when `--border auto`
-//! or a wrap needs the tiling check.
+//! and border choices from `FitArgs`, and the warnings of a conversion.
 
-use normalfit::tiling::TilingReport;
-use normalfit::{Border, Borders, Convention, Fit, Options, Strength};
+use normalfit::convert::{BorderChoice, BorderChoices, Warning};
+use normalfit::{Convention, Fit, Options, Strength};
 
 use super::args::{AxisBorder, BorderArg, ConventionArg, FitArg, FitArgs};
 use super::input::Input;
-use super::report::{Failure, warn};
+use super::report::{self, Failure};
 
 /// The fit's options; the borders stay the default until an image settles
 /// them ([`BorderArg::resolve`]).
@@ -37,42 +36,22 @@ pub fn convention(c: ConventionArg) -> Convention {
 }
 
 impl BorderArg {
-    /// Whether these borders need the tiling check: a wrap (to warn when it
-    /// draws a seam) or `auto`.
-    pub fn needs_check(&self) -> bool {
-        let check = |a: AxisBorder| matches!(a, AxisBorder::Auto | AxisBorder::Fixed(Border::Wrap));
-        check(self.x) || check(self.y)
-    }
-
-    /// The border modes for one image: `auto` becomes wrap where the image
-    /// tiles and mirror where it does not (`report`: the tiling check, made
-    /// when [`Self::needs_check`]; without it, `auto` is mirror).
-    pub fn resolve(&self, report: Option<&TilingReport>) -> Borders {
-        let suggested = report.map_or(Borders::both(Border::Mirror), |r| r.suggested_borders());
-        let resolve = |asked: AxisBorder, auto: Border| match asked {
-            AxisBorder::Fixed(b) => b,
-            AxisBorder::Auto => auto,
+    /// The library's border choices.
+    pub fn choices(&self) -> BorderChoices {
+        let choice = |a: AxisBorder| match a {
+            AxisBorder::Fixed(b) => BorderChoice::Fixed(b),
+            AxisBorder::Auto => BorderChoice::Auto,
         };
-        Borders { x: resolve(self.x, suggested.x), y: resolve(self.y, suggested.y) }
+        BorderChoices { x: choice(self.x), y: choice(self.y) }
     }
+}
 
-    /// A wrap asked for on an axis that does not tile draws a seam: one
-    /// warning line names the axes.
-    pub fn warn_seams(&self, report: &TilingReport, input: &Input) {
-        let wrap = AxisBorder::Fixed(Border::Wrap);
-        let seams: Vec<String> = [("x", self.x, report.x), ("y", self.y, report.y)]
-            .iter()
-            .filter(|(_, asked, axis)| *asked == wrap && !axis.seamless)
-            .map(|(name, _, axis)| format!("{name} (seam score {:.2})", axis.score))
-            .collect();
-        if !seams.is_empty() {
-            warn(
-                input.name().display(),
-                format!(
-                    "does not tile along {}: wrap borders will show a seam there; use --border clamp or mirror, or --border auto",
-                    seams.join(" and ")
-                ),
-            );
-        }
-    }
+/// Prints a conversion's warning about `input`; a seam drawn by a wrap
+/// says which `--border` avoids it.
+pub fn warn(warning: &Warning, input: &Input) {
+    let hint = match warning {
+        Warning::Seams { .. } => "; use --border clamp or mirror, or --border auto",
+        _ => "",
+    };
+    report::warn(input.name().display(), format!("{warning}{hint}"));
 }

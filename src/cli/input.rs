@@ -5,7 +5,7 @@ use std::io::Read;
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 
-use normalfit::io::{self, Raster, ReadOptions};
+use normalfit::io::{self, InputFormat, Raster, ReadOptions};
 
 use super::report::Failure;
 
@@ -48,19 +48,25 @@ pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> 
             check_extension(p)?;
             io::read_path(p, opts).map_err(fail)
         }
-        Input::Stdin => {
-            let mut bytes = Vec::new();
-            std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| match e.kind() {
-                // Read whole, the file must fit in memory: say so, and how far it got.
-                std::io::ErrorKind::OutOfMemory => fail(normalfit::Error::Limits(format!(
-                    "standard input is read whole, and {} MiB of it already fill the memory the process may take",
-                    bytes.len() >> 20
-                ))),
-                _ => fail(e.into()),
-            })?;
-            io::decode(&bytes, opts).map_err(fail)
-        }
+        Input::Stdin => io::decode(&read_stdin()?, opts).map_err(fail),
     }
+}
+
+/// Reads standard input to its end; errors name it.
+pub fn read_stdin() -> Result<Vec<u8>, Failure> {
+    let mut bytes = Vec::new();
+    std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| {
+        let problem = match e.kind() {
+            // Read whole, the file must fit in memory: say so, and how far it got.
+            std::io::ErrorKind::OutOfMemory => normalfit::Error::Limits(format!(
+                "standard input is read whole, and {} MiB of it already fill the memory the process may take",
+                bytes.len() >> 20
+            )),
+            _ => e.into(),
+        };
+        Failure::file(Input::Stdin.name(), problem)
+    })?;
+    Ok(bytes)
 }
 
 /// Standard input can be read only once.
@@ -102,13 +108,14 @@ impl InputIds {
 /// content.
 pub fn check_extension(path: &Path) -> Result<(), Failure> {
     let Some(ext) = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()) else { return Ok(()) };
-    let Some(named) = format_named_by(&ext) else { return Ok(()) };
+    // TGA has no signature to compare with: an extension of .tga says nothing.
+    let Some(named) = InputFormat::from_extension(&ext).filter(|f| f.info().has_signature()) else { return Ok(()) };
     let mut head = Vec::with_capacity(16);
     let Ok(file) = std::fs::File::open(path) else { return Ok(()) };
     if file.take(16).read_to_end(&mut head).is_err() {
         return Ok(());
     }
-    match content_format(&head) {
+    match InputFormat::sniff(&head) {
         Some(found) if found != named => Err(Failure::file(
             path,
             format!(
@@ -117,50 +124,4 @@ pub fn check_extension(path: &Path) -> Result<(), Failure> {
         )),
         _ => Ok(()),
     }
-}
-
-/// The image format an extension (lower case) names.
-fn format_named_by(ext: &str) -> Option<&'static str> {
-    Some(match ext {
-        "png" => "png",
-        "exr" => "exr",
-        "tif" | "tiff" => "tiff",
-        "jpg" | "jpeg" => "jpeg",
-        "bmp" => "bmp",
-        "gif" => "gif",
-        "webp" => "webp",
-        "qoi" => "qoi",
-        "hdr" => "hdr",
-        "pbm" | "pgm" | "ppm" | "pnm" | "pam" => "pnm",
-        // TGA has no signature to compare with: an extension of .tga says nothing.
-        _ => return None,
-    })
-}
-
-/// The image format of a file's first bytes, from its signature.
-fn content_format(head: &[u8]) -> Option<&'static str> {
-    let starts = |magic: &[u8]| head.starts_with(magic);
-    Some(if starts(b"\x89PNG\r\n\x1a\n") {
-        "png"
-    } else if starts(&[0x76, 0x2f, 0x31, 0x01]) {
-        "exr"
-    } else if starts(b"II*\0") || starts(b"MM\0*") || starts(b"II+\0") || starts(b"MM\0+") {
-        "tiff"
-    } else if starts(&[0xff, 0xd8, 0xff]) {
-        "jpeg"
-    } else if starts(b"BM") {
-        "bmp"
-    } else if starts(b"GIF87a") || starts(b"GIF89a") {
-        "gif"
-    } else if starts(b"RIFF") && head.get(8..12) == Some(b"WEBP") {
-        "webp"
-    } else if starts(b"qoif") {
-        "qoi"
-    } else if starts(b"#?RADIANCE") || starts(b"#?RGBE") {
-        "hdr"
-    } else if head.len() >= 2 && head[0] == b'P' && (b'1'..=b'7').contains(&head[1]) {
-        "pnm"
-    } else {
-        return None;
-    })
 }

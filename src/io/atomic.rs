@@ -164,10 +164,10 @@ fn folder_of(path: &Path) -> &Path {
 /// A new, empty file in `folder`: unnamed where the system can, else named
 /// (and then returned with the guard that removes it).
 fn create(folder: &Path, name: &OsStr, place: Where) -> Result<(File, Option<TempName>)> {
-    if place == Where::Unnamed {
-        if let Some(file) = unnamed::create(folder).map_err(|e| creating_in(folder, e))? {
-            return Ok((file, None));
-        }
+    if place == Where::Unnamed
+        && let Some(file) = unnamed::create(folder).map_err(|e| creating_in(folder, e))?
+    {
+        return Ok((file, None));
     }
     let mut last = None;
     for _ in 0..100 {

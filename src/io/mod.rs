@@ -4,21 +4,27 @@
 //! in the contract's height units (SPEC §1) and picks the height channel;
 //! [`write`](mod@write) encodes normal maps (SPEC §3) and puts files in place
 //! atomically (SPEC §4). Neither knows about the fit, and the fit knows
-//! nothing of files. [`stream`] joins them for PNG and scan-line EXR
-//! files, streaming rows from decoder to encoder.
+//! nothing of files. [`encoding`] is the one vocabulary of outputs: an
+//! [`Encoding`] (PNG or EXR and their options), chosen from a file name and
+//! the input by its rules. The streaming conversion, which joins reading
+//! and writing through the fit, is [`crate::pipeline`] (also reachable here
+//! as `io::stream`).
 
 mod atomic;
-pub(crate) mod exr_subsampled;
+pub mod encoding;
 mod memory;
-mod png_zlib;
 pub mod read;
-pub mod stream;
 pub mod write;
 
+pub use crate::pipeline as stream;
+
+pub use encoding::{Encoding, ExrOptions, OutputFormat, PngDepth, PngOptions};
 pub use memory::check_memory;
-pub use read::{Channel, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
+pub use read::{Channel, FormatInfo, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
+// The paths the streaming readers take these by.
+pub(crate) use read::exr::subsampled as exr_subsampled;
+pub(crate) use read::png::zlib as png_zlib;
 pub use write::{
-    ExrDepth, Layout, PngCompression, PngSample, Sample, encode_exr, encode_exr_gray, encode_exr_normals,
-    encode_png_gray8, encode_png_gray16, encode_png_normals, encode_png_rgb8, encode_png_rgb16, write_atomically,
-    write_file_atomically,
+    ExrDepth, GrayValue, Layout, NormalTexel, PngCompression, PngSample, Sample, encode_gray, encode_normals,
+    write_atomically, write_file_atomically,
 };

@@ -5,7 +5,7 @@
 //! The encoders take texels as the fit produces them (`[u8; 3]`,
 //! `[u16; 3]`, `[f32; 3]`, see [`crate::FromNormal`]), so no float copy of
 //! the image is made between the fit and the file. A [`Layout`] says which
-//! channels the file holds; the streaming writers ([`crate::io::stream`])
+//! channels the file holds; the streaming pipeline ([`crate::pipeline`])
 //! lay texels out with the same code, so both give the same samples.
 
 use std::borrow::Cow;
@@ -24,6 +24,7 @@ use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder, ImageError};
 use rayon::prelude::*;
 
+use super::encoding::{Encoding, ExrOptions, PngDepth, PngOptions};
 use crate::error::{Error, Result, one_line};
 
 /// How hard the PNG encoder compresses.
@@ -225,73 +226,211 @@ fn color_type(bits: u8, channels: usize) -> ExtendedColorType {
     }
 }
 
-/// Writes an 8-bit RGB PNG of `width` × `height` texels, row-major.
-///
-/// Errors: [`Error::BufferSize`] if `texels` does not hold
-/// `width * height`, [`Error::Encode`] for sizes PNG cannot hold,
-/// [`Error::Io`] if `out` fails.
-pub fn encode_png_rgb8(
-    texels: &[[u8; 3]],
-    width: usize,
-    height: usize,
-    compression: PngCompression,
-    out: impl Write,
-) -> Result<()> {
-    encode_png_normals(texels, None, width, height, Layout::Rgb, compression, out)
+/// A texel of a normal map as the fit gives it ([`crate::FromNormal`]),
+/// which [`encode_normals`] writes: `[u8; 3]` and `[u16; 3]` are PNG's
+/// stored samples already, c = round(max · (n + 1)/2) (an 8- or 16-bit
+/// PNG); `[f32; 3]` is the normal n itself, stored as the encoding says
+/// (EXR: (n + 1)/2 or n; PNG: quantised as the integer texels are).
+pub trait NormalTexel: crate::FromNormal + sealed::Sealed {
+    /// Encodes `texels` (and `heights`, checked) as `encoding` says.
+    #[doc(hidden)]
+    fn encode<W: Write + Seek>(
+        texels: &[Self],
+        heights: &[f32],
+        size: (usize, usize),
+        encoding: &Encoding,
+        out: W,
+    ) -> Result<()>;
 }
 
-/// Writes an 8-bit gray PNG of `width` × `height` texels, row-major: a
-/// picture such as [`shade`](crate::shade::shade) makes, a third the size
-/// of the same picture as RGB.
-///
-/// Errors: as [`encode_png_rgb8`].
-pub fn encode_png_gray8(
-    texels: &[u8],
-    width: usize,
-    height: usize,
-    compression: PngCompression,
-    out: impl Write,
-) -> Result<()> {
-    let (w, h) = png_size(texels.len(), width, height)?;
-    png_encoder(out, compression).write_image(texels, w, h, ExtendedColorType::L8).map_err(from_image_error)
+/// A value of a one-channel map ([`encode_gray`]): `u8` and `u16` are
+/// stored as they are in a PNG of their depth, `f32` in an EXR's channel Y.
+pub trait GrayValue: Copy + sealed::Sealed {
+    /// Encodes `values` as `encoding` says.
+    #[doc(hidden)]
+    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()>;
 }
 
-/// Writes a 16-bit RGB PNG of `width` × `height` texels, row-major.
-///
-/// Errors: as [`encode_png_rgb8`].
-pub fn encode_png_rgb16(
-    texels: &[[u16; 3]],
-    width: usize,
-    height: usize,
-    compression: PngCompression,
-    out: impl Write,
-) -> Result<()> {
-    encode_png_normals(texels, None, width, height, Layout::Rgb, compression, out)
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for [u8; 3] {}
+    impl Sealed for [u16; 3] {}
+    impl Sealed for [f32; 3] {}
+    impl Sealed for u8 {}
+    impl Sealed for u16 {}
+    impl Sealed for f32 {}
 }
 
-/// Writes a PNG normal map of `width` × `height` texels, row-major, 8 or
-/// 16 bits by the sample type, with the channels of `layout`: RGB, or RGBA
-/// with an alpha of `heights` (one per texel, needed for
-/// [`Layout::RgbHeight`] alone) or of 1.
+/// The error of texels that the encoding does not store.
+fn mismatch(texels: &str, encoding: &Encoding) -> Error {
+    let wanted = match encoding {
+        Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => "an 8-bit PNG takes u8 samples",
+        Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => "a 16-bit PNG takes u16 samples",
+        Encoding::Exr(_) => "an EXR takes f32 samples",
+    };
+    Error::InvalidOption(format!("{texels} samples for this encoding: {wanted}"))
+}
+
+impl NormalTexel for [u8; 3] {
+    fn encode<W: Write + Seek>(
+        texels: &[Self],
+        heights: &[f32],
+        size: (usize, usize),
+        encoding: &Encoding,
+        out: W,
+    ) -> Result<()> {
+        match encoding {
+            Encoding::Png(o) if o.depth == PngDepth::Eight => png_normals(texels, heights, size, o, out),
+            other => Err(mismatch("u8", other)),
+        }
+    }
+}
+
+impl NormalTexel for [u16; 3] {
+    fn encode<W: Write + Seek>(
+        texels: &[Self],
+        heights: &[f32],
+        size: (usize, usize),
+        encoding: &Encoding,
+        out: W,
+    ) -> Result<()> {
+        match encoding {
+            Encoding::Png(o) if o.depth == PngDepth::Sixteen => png_normals(texels, heights, size, o, out),
+            other => Err(mismatch("u16", other)),
+        }
+    }
+}
+
+impl NormalTexel for [f32; 3] {
+    fn encode<W: Write + Seek>(
+        texels: &[Self],
+        heights: &[f32],
+        size: (usize, usize),
+        encoding: &Encoding,
+        out: W,
+    ) -> Result<()> {
+        fn quantised<T: crate::FromNormal>(texels: &[[f32; 3]]) -> Result<Vec<T>> {
+            let mut out = crate::samples::try_vec(texels.len())?;
+            out.extend(texels.iter().map(|t| T::from_normal(t.map(f64::from))));
+            Ok(out)
+        }
+        match encoding {
+            Encoding::Exr(o) => exr_normals(texels, heights, size, *o, out),
+            Encoding::Png(o) => match o.depth {
+                PngDepth::Eight => png_normals(&quantised::<[u8; 3]>(texels)?, heights, size, o, out),
+                PngDepth::Sixteen => png_normals(&quantised::<[u16; 3]>(texels)?, heights, size, o, out),
+            },
+        }
+    }
+}
+
+impl GrayValue for u8 {
+    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()> {
+        match encoding {
+            Encoding::Png(o) if o.depth == PngDepth::Eight => png_gray(values, size, o.compression, out),
+            other => Err(mismatch("u8", other)),
+        }
+    }
+}
+
+impl GrayValue for u16 {
+    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()> {
+        match encoding {
+            Encoding::Png(o) if o.depth == PngDepth::Sixteen => png_gray(values, size, o.compression, out),
+            other => Err(mismatch("u16", other)),
+        }
+    }
+}
+
+impl GrayValue for f32 {
+    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()> {
+        match encoding {
+            Encoding::Exr(o) => {
+                let (width, height) = size;
+                check_buffer(values.len(), width, height)?;
+                write_exr_rows(out, width, height, o.depth, &["Y"], |push| {
+                    values.chunks(width.saturating_mul(256).max(1)).try_for_each(push)
+                })
+            }
+            other => Err(mismatch("f32", other)),
+        }
+    }
+}
+
+/// Writes a normal map of `width` × `height` texels, row-major, as
+/// `encoding` says: the format, depth and channels, an alpha of `heights`
+/// (one per texel in contract units, needed for [`Layout::RgbHeight`]
+/// alone) or of 1. The texel type goes with the encoding
+/// ([`NormalTexel`]); the streaming pipeline ([`crate::pipeline`]) writes
+/// the same samples.
 ///
-/// `image`'s `PngEncoder::write_image` takes 16-bit samples as
-/// native-endian bytes and swaps them to PNG's big-endian order itself.
+/// PNG: the adaptive filter, deflate as `compression` says. EXR: ZIP in
+/// blocks of 16 rows, what most tools write by default; its offset table
+/// comes before the pixels and is filled in at the end, so `out` must
+/// seek (a file, or a `Cursor` over a buffer).
 ///
 /// Errors: [`Error::BufferSize`] if `texels` (or `heights`) does not hold
-/// `width * height`, [`Error::InvalidOption`] for an alpha of heights
-/// without them, [`Error::Encode`] for sizes PNG cannot hold, [`Error::Io`]
-/// if `out` fails.
-pub fn encode_png_normals<S: PngSample>(
-    texels: &[[S; 3]],
+/// `width * height`, [`Error::InvalidOption`] for texels the encoding does
+/// not store (u16 for an 8-bit PNG, …) or an alpha of heights without
+/// them, [`Error::Encode`] for sizes the format cannot hold,
+/// [`Error::Io`] if `out` fails.
+pub fn encode_normals<T: NormalTexel>(
+    texels: &[T],
     heights: Option<&[f32]>,
     width: usize,
     height: usize,
-    layout: Layout,
+    encoding: &Encoding,
+    out: impl Write + Seek,
+) -> Result<()> {
+    check_buffer(texels.len(), width, height)?;
+    let heights = checked_heights(heights, encoding.layout(), texels.len())?;
+    T::encode(texels, heights, (width, height), encoding, out)
+}
+
+/// Writes a one-channel map of `width` × `height` values, row-major: a
+/// picture such as [`shade`](crate::shade::shade) makes (8-bit gray PNG),
+/// or a quantity per texel such as the fit's residual (16-bit gray PNG, or
+/// an EXR with channel Y). The value type goes with the encoding
+/// ([`GrayValue`]); the encoding's layout is not used.
+///
+/// Errors: as [`encode_normals`].
+pub fn encode_gray<V: GrayValue>(
+    values: &[V],
+    width: usize,
+    height: usize,
+    encoding: &Encoding,
+    out: impl Write + Seek,
+) -> Result<()> {
+    check_buffer(values.len(), width, height)?;
+    V::encode(values, (width, height), encoding, out)
+}
+
+/// A one-channel PNG of `u8` or `u16` values.
+fn png_gray<S: PngSample>(
+    values: &[S],
+    (width, height): (usize, usize),
     compression: PngCompression,
     out: impl Write,
 ) -> Result<()> {
+    let (w, h) = png_size(values.len(), width, height)?;
+    png_encoder(out, compression)
+        .write_image(&S::ne_bytes(values), w, h, color_type(S::BITS, 1))
+        .map_err(from_image_error)
+}
+
+/// A PNG normal map, 8 or 16 bits by the sample type.
+///
+/// `image`'s `PngEncoder::write_image` takes 16-bit samples as
+/// native-endian bytes and swaps them to PNG's big-endian order itself.
+fn png_normals<S: PngSample>(
+    texels: &[[S; 3]],
+    heights: &[f32],
+    (width, height): (usize, usize),
+    options: &PngOptions,
+    out: impl Write,
+) -> Result<()> {
+    let PngOptions { layout, compression, .. } = *options;
     let (w, h) = png_size(texels.len(), width, height)?;
-    let heights = checked_heights(heights, layout, texels.len())?;
     let channels = layout.png_samples();
     let color = color_type(S::BITS, channels);
     if layout == Layout::Rgb {
@@ -307,89 +446,35 @@ pub fn encode_png_normals<S: PngSample>(
     png_encoder(out, compression).write_image(&S::ne_bytes(&samples), w, h, color).map_err(from_image_error)
 }
 
-/// Writes a one-channel 16-bit PNG (gray) of `width` × `height` values,
-/// row-major: a map of a quantity per texel, such as the fit's residual.
-///
-/// Errors: as [`encode_png_rgb8`].
-pub fn encode_png_gray16(
-    values: &[u16],
-    width: usize,
-    height: usize,
-    compression: PngCompression,
-    out: impl Write,
-) -> Result<()> {
-    let (w, h) = png_size(values.len(), width, height)?;
-    png_encoder(out, compression)
-        .write_image(&u16::ne_bytes(values), w, h, ExtendedColorType::L16)
-        .map_err(from_image_error)
-}
-
-/// Writes an OpenEXR file with channels R, G, B of `width` × `height`
-/// texels, values as given (`Half` rounds them to half floats).
-///
-/// ZIP compression in blocks of 16 rows, what most tools write by default:
-/// lossless, small, and read by every EXR reader. The EXR layout puts an
-/// offset table before the pixel data, filled in at the end, so `out` must
-/// seek; to write to a pipe, encode into a `Cursor<Vec<u8>>` first.
-///
-/// Errors: [`Error::BufferSize`] if `texels` does not hold
-/// `width * height`, [`Error::Encode`] for a zero size or an encoder
-/// failure, [`Error::Io`] if `out` fails.
-pub fn encode_exr(
+/// An OpenEXR normal map of the normals n: each band of rows stored as
+/// `options` says ([`ExrOptions::stored`]) and laid out as it is written.
+fn exr_normals(
     texels: &[[f32; 3]],
-    width: usize,
-    height: usize,
-    depth: ExrDepth,
+    heights: &[f32],
+    (width, height): (usize, usize),
+    options: ExrOptions,
     out: impl Write + Seek,
 ) -> Result<()> {
-    encode_exr_normals(texels, None, width, height, Layout::Rgb, depth, out)
-}
-
-/// Like [`encode_exr`], with the channels of `layout`: R, G, B; R, G, B, A
-/// with an alpha of `heights` (one per texel, needed for
-/// [`Layout::RgbHeight`] alone, written as they are) or of 1; or R and G.
-///
-/// Errors: as [`encode_exr`], and those of [`encode_png_normals`] for
-/// `heights`.
-pub fn encode_exr_normals(
-    texels: &[[f32; 3]],
-    heights: Option<&[f32]>,
-    width: usize,
-    height: usize,
-    layout: Layout,
-    depth: ExrDepth,
-    out: impl Write + Seek,
-) -> Result<()> {
-    check_buffer(texels.len(), width, height)?;
-    let heights = checked_heights(heights, layout, texels.len())?;
+    let layout = options.layout;
     // A few hundred rows at a time: the blocks being compressed stay few.
     let rows = width.saturating_mul(256).max(1);
-    write_exr_rows(out, width, height, depth, layout.exr_channels(), |push| {
+    write_exr_rows(out, width, height, options.depth, layout.exr_channels(), |push| {
         let mut samples = Vec::new();
+        // The normals' samples (R, G, B or R, G: the first of a texel's)
+        // are stored once laid out, in place: no copy of the normals.
+        let channels = layout.exr_channels().len();
+        let normal_samples = channels.min(3);
         texels.chunks(rows).enumerate().try_for_each(|(k, chunk)| {
             let band_heights = if heights.is_empty() { heights } else { &heights[k * rows..][..chunk.len()] };
             samples.clear();
             lay_out(chunk, band_heights, layout, Container::Exr, &mut samples);
+            if !options.signed {
+                for texel in samples.chunks_exact_mut(channels) {
+                    texel[..normal_samples].iter_mut().for_each(|c| *c = options.stored(*c));
+                }
+            }
             push(&samples)
         })
-    })
-}
-
-/// Writes a one-channel OpenEXR file (channel `Y`) of `width` × `height`
-/// values, row-major: a map of a quantity per texel, such as the fit's
-/// residual.
-///
-/// Errors: as [`encode_exr`].
-pub fn encode_exr_gray(
-    values: &[f32],
-    width: usize,
-    height: usize,
-    depth: ExrDepth,
-    out: impl Write + Seek,
-) -> Result<()> {
-    check_buffer(values.len(), width, height)?;
-    write_exr_rows(out, width, height, depth, &["Y"], |push| {
-        values.chunks(width.saturating_mul(256).max(1)).try_for_each(push)
     })
 }
 
@@ -457,7 +542,8 @@ impl<W: Write + Seek> ExrBlocks<'_, W> {
     /// Takes more rows; writes every block they complete.
     fn push(&mut self, rows: &[f32]) -> Result<()> {
         let row_len = self.width * self.order.len();
-        if rows.len() % row_len != 0 || self.done + (self.pending.len() + rows.len()) / row_len > self.height {
+        if !rows.len().is_multiple_of(row_len) || self.done + (self.pending.len() + rows.len()) / row_len > self.height
+        {
             return Err(Error::Encode(format!("{} samples are not whole rows of the image", rows.len())));
         }
         self.pending.extend_from_slice(rows);
@@ -533,22 +619,30 @@ fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth:
 /// each channel's samples in the file's order (`order`: the index of each
 /// in a texel's samples), little-endian.
 fn exr_block_bytes(samples: &[f32], row_len: usize, order: &[usize], depth: ExrDepth) -> Vec<u8> {
-    let size = match depth {
-        ExrDepth::Half => 2,
-        ExrDepth::Float => 4,
-    };
-    let stride = order.len();
-    let mut data = Vec::with_capacity(samples.len() * size);
+    match depth {
+        ExrDepth::Half => channel_major(samples, row_len, order, |v| f16::from_f32(v).to_le_bytes()),
+        ExrDepth::Float => channel_major(samples, row_len, order, f32::to_le_bytes),
+    }
+}
+
+/// The samples of each row channel by channel (`order`), each as `bytes`
+/// gives it. Plain loops of fixed-size values: an iterator chain here
+/// (`step_by`, `flat_map`) was once left out of line by the compiler and
+/// took 7 % of an EXR conversion.
+fn channel_major<const N: usize>(
+    samples: &[f32],
+    row_len: usize,
+    order: &[usize],
+    bytes: impl Fn(f32) -> [u8; N],
+) -> Vec<u8> {
+    let stride = order.len().max(1);
+    let mut data: Vec<[u8; N]> = Vec::with_capacity(samples.len());
     for row in samples.chunks_exact(row_len) {
         for &c in order {
-            let channel = row.iter().skip(c).step_by(stride);
-            match depth {
-                ExrDepth::Half => data.extend(channel.flat_map(|&v| f16::from_f32(v).to_le_bytes())),
-                ExrDepth::Float => data.extend(channel.flat_map(|&v| v.to_le_bytes())),
-            }
+            data.extend(row.chunks_exact(stride).map(|texel| bytes(texel[c])));
         }
     }
-    data
+    data.into_flattened()
 }
 
 /// A PNG encoder with the adaptive filter, which suits smooth gradients.

@@ -16,12 +16,13 @@ use exr::prelude::{Vec2, f16};
 use super::{RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
+use crate::io::encoding::ExrOptions;
 use crate::io::exr_subsampled::{self, Headers, ScanLines};
 use crate::io::read::{
     Channel, EXR_MAGIC, InputFormat, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer,
     exr_parts, from_exr_error, select_channel,
 };
-use crate::io::write::{Container, ExrDepth, Layout, lay_out, write_exr_rows};
+use crate::io::write::{Container, lay_out, write_exr_rows};
 use crate::options::Options;
 use crate::samples::luma;
 
@@ -329,22 +330,11 @@ fn not_streamable() -> Error {
     Error::Unsupported("only scan-line EXR parts can be read by rows".into())
 }
 
-/// How a streamed OpenEXR normal map is written.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ExrFormat {
-    /// Half or float samples. Default: float.
-    pub depth: ExrDepth,
-    /// Write n itself, in [−1, 1], instead of (n + 1)/2. Default: off.
-    pub signed: bool,
-    /// Which channels. Default: R, G, B.
-    pub layout: Layout,
-}
-
 /// Converts the rows of `rows` to an OpenEXR normal map (ZIP compression
 /// in blocks of 16 rows) written to `out`, band by band: the values are
 /// (n + 1)/2, or n itself with `signed`, as half or float, in the channels
 /// of the layout; the same file as
-/// [`encode_exr_normals`](crate::io::encode_exr_normals) writes.
+/// [`encode_normals`](crate::io::encode_normals) writes.
 ///
 /// EXR's offset table comes before the pixels and is filled in at the end,
 /// so `out` must seek. The rows are written in order, so `tail` (the
@@ -358,7 +348,7 @@ pub fn convert_exr<W: Write + Seek>(
     rows: impl RowSource,
     tail: Option<&[f64]>,
     opts: &Options,
-    format: ExrFormat,
+    options: impl Into<ExrOptions>,
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<()> {
@@ -366,12 +356,11 @@ pub fn convert_exr<W: Write + Seek>(
     let tail = checked_tail(tail, w, h, opts)?;
     let unit = rows.unit();
     let fit = BandFit::new(w, h, opts)?.with_unit(unit);
-    let ExrFormat { depth, signed, layout } = format;
+    let options: ExrOptions = options.into();
+    let ExrOptions { depth, layout, .. } = options;
     write_exr_rows(out, w, h, depth, layout.exr_channels(), |push| {
         let prepare = |_: Range<usize>, mut normals: Vec<[f32; 3]>, heights: Vec<f32>| {
-            if !signed {
-                normals.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
-            }
+            options.store_all(&mut normals);
             let mut samples = Vec::with_capacity(normals.len() * layout.exr_channels().len());
             lay_out(&normals, &heights, layout, Container::Exr, &mut samples);
             samples

@@ -30,8 +30,9 @@ use std::io::{BufRead, Read, Seek, SeekFrom};
 
 use exr::prelude::f16;
 
-use super::read::{ExrPart, ReadOptions, check_size, choose_exr_layer};
+use super::{EXR_MAGIC, ExrPart, choose_exr_layer};
 use crate::error::{Error, Result};
+use crate::io::read::{ReadOptions, check_size};
 
 /// One channel of a header.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -100,7 +101,7 @@ const VALUE_MAX: u64 = 1 << 16;
 pub(crate) fn read_headers(read: &mut impl BufRead) -> Option<Headers> {
     let mut start = [0u8; 8];
     read.read_exact(&mut start).ok()?;
-    if start[..4] != super::read::EXR_MAGIC || start[4] != 2 {
+    if start[..4] != EXR_MAGIC || start[4] != 2 {
         return None;
     }
     // Version flags: 0x200 single-part tiled, 0x800 deep ("non-image"),
@@ -372,10 +373,10 @@ impl ScanLines {
             let mut b = [0u8; 4];
             read.read_exact(&mut b).map(|()| i32::from_le_bytes(b)).map_err(|_| missing(y0))
         };
-        if let Some(part) = self.part {
-            if int()? != part {
-                return Err(corrupt(&format!("the chunk for row {y0} belongs to another part")));
-            }
+        if let Some(part) = self.part
+            && int()? != part
+        {
+            return Err(corrupt(&format!("the chunk for row {y0} belongs to another part")));
         }
         let y = int()?;
         if i64::from(y) != self.y_min + y0 as i64 {

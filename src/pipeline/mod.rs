@@ -2,6 +2,12 @@
 //! encoder, so memory grows with the width and the patch size, not with
 //! the image's height.
 //!
+//! A pipeline, not I/O: it runs the fit between a decoder and an encoder,
+//! so it sits beside [`crate::io`] (which knows nothing of the fit), and
+//! [`crate::convert`] chooses it for the files that can stream. The
+//! encoders' options are the whole-image writers' own
+//! ([`PngOptions`], [`ExrOptions`]), and give the same samples.
+//!
 //! Inputs that stream: PNG that is not interlaced ([`PngRows`]) and
 //! scan-line OpenEXR parts ([`ExrRows`]). Outputs: PNG ([`convert_png`],
 //! [`convert_png_seekable`]) and OpenEXR ([`convert_exr`]). Other inputs
@@ -30,8 +36,9 @@ mod png;
 use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
-pub use self::exr::{ExrFormat, ExrRows, convert_exr};
-pub use self::png::{PngDepth, PngOutput, PngRows, convert_png, convert_png_seekable};
+pub use self::exr::{ExrRows, convert_exr};
+pub use self::png::{PngRows, convert_png, convert_png_seekable};
+pub use crate::io::encoding::{ExrOptions, PngDepth, PngOptions};
 
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal, first_non_finite};
@@ -349,15 +356,15 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     tx: &SyncSender<Band<B>>,
 ) {
     let (w, h, r) = (fit.width(), fit.height(), fit.radius());
-    if let Some(tail) = tail {
-        if let Some((x, y)) = first_non_finite(tail, w) {
-            // The top band reads these last rows first, through the wrap:
-            // fitting it would name this texel before the rows above are
-            // read. SPEC §1 names the first bad texel in row order, so the
-            // rows are read on and checked in order instead.
-            let _ = tx.send(Err(first_bad_texel(rx, w, (x, y + h - tail.len() / w))));
-            return;
-        }
+    if let Some(tail) = tail
+        && let Some((x, y)) = first_non_finite(tail, w)
+    {
+        // The top band reads these last rows first, through the wrap:
+        // fitting it would name this texel before the rows above are
+        // read. SPEC §1 names the first bad texel in row order, so the
+        // rows are read on and checked in order instead.
+        let _ = tx.send(Err(first_bad_texel(rx, w, (x, y + h - tail.len() / w))));
+        return;
     }
     // The decoded bands that later bands still read, as they came (first
     // row, heights), and a copy of the image's first 2r rows, which the top

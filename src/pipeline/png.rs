@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use super::{RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
+use crate::io::encoding::{PngDepth, PngOptions};
 use crate::io::png_zlib::{IdatCount, IdatWatch, decode_options, finish_checked, png_error};
 use crate::io::read::{
     Channel, InputFormat, PNG_SIGNATURE, ReadOptions, Source, check_png_header, check_png_palette, check_size,
@@ -214,37 +215,6 @@ impl PngRows {
     }
 }
 
-/// How deep the streamed normal map's samples are.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PngDepth {
-    /// 8 bits a sample.
-    Eight,
-    /// 16 bits a sample.
-    Sixteen,
-}
-
-/// The streamed PNG's depth, compression and channels. A [`PngDepth`]
-/// alone means [`PngCompression::Fast`] and RGB: every row Avg-filtered
-/// (22.6 MiB for a 4096² map). `Default` and `Best` choose each row's
-/// filter (19.9 MiB, the filtering taking twice as long).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PngOutput {
-    /// Bits per sample.
-    pub depth: PngDepth,
-    /// How hard the rows are deflated.
-    pub compression: PngCompression,
-    /// Which channels: RGB, RGBA with an alpha of heights or of 1, or
-    /// red-green (B = 0); the samples
-    /// [`encode_png_normals`](crate::io::encode_png_normals) writes.
-    pub layout: Layout,
-}
-
-impl From<PngDepth> for PngOutput {
-    fn from(depth: PngDepth) -> Self {
-        PngOutput { depth, compression: PngCompression::Fast, layout: Layout::Rgb }
-    }
-}
-
 /// How `convert_as` writes: its compression, whether the top rows come
 /// last (into room kept after the header), and its channels.
 #[derive(Clone, Copy)]
@@ -269,12 +239,12 @@ pub fn convert_png(
     rows: impl RowSource,
     tail: Option<&[f64]>,
     opts: &Options,
-    output: impl Into<PngOutput>,
+    output: impl Into<PngOptions>,
     visit: impl FnMut(&[f32]) + Send,
     out: &mut dyn Write,
 ) -> Result<()> {
     let tail = checked_tail(tail, rows.width(), rows.height(), opts)?;
-    let PngOutput { depth, compression, layout } = output.into();
+    let PngOptions { depth, compression, layout } = output.into();
     let how = Writing { compression, deferred: false, layout };
     match depth {
         PngDepth::Eight => convert_as::<u8, _, _>(rows, tail, opts, visit, out, how),
@@ -294,12 +264,12 @@ pub fn convert_png(
 pub fn convert_png_seekable<W: Write + Seek>(
     rows: impl RowSource,
     opts: &Options,
-    output: impl Into<PngOutput>,
+    output: impl Into<PngOptions>,
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
 ) -> Result<()> {
     let start = out.stream_position()?;
-    let PngOutput { depth, compression, layout } = output.into();
+    let PngOptions { depth, compression, layout } = output.into();
     let how = Writing { compression, deferred: true, layout };
     let first_idat = match depth {
         PngDepth::Eight => convert_as::<u8, _, _>(rows, None, opts, visit, out, how),
@@ -568,7 +538,12 @@ impl<W: Write + ?Sized> Write for &mut Idat<'_, W> {
         self.buf.extend_from_slice(&data[dropped..]);
         if self.buf.len() >= IDAT_BYTES + 4 {
             let cut = self.buf.len() - 4;
-            write_chunk(self.out, b"IDAT", &self.buf[..cut]).map_err(std::io::Error::other)?;
+            // The writer's own error as it is, so that its kind (a closed
+            // pipe, a full disk) reaches the caller.
+            write_chunk(self.out, b"IDAT", &self.buf[..cut]).map_err(|e| match e {
+                Error::Io(e) => e,
+                other => std::io::Error::other(other),
+            })?;
             self.buf.drain(..cut);
         }
         Ok(data.len())

@@ -1,0 +1,290 @@
+//! How a normal map is stored: one vocabulary for the whole-image writers
+//! ([`encode_normals`](super::encode_normals)) and the streaming pipeline
+//! ([`crate::pipeline`]), and the rules that choose it from a file name,
+//! a bit depth and the input (SPEC §3).
+
+use std::path::Path;
+
+use super::read::{InputFormat, SampleType};
+use super::write::{ExrDepth, Layout, PngCompression};
+use crate::error::{Error, Result};
+
+/// The two file formats normal maps are written in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum OutputFormat {
+    /// PNG: 8 or 16 bits a sample, c = round(max · (n + 1)/2).
+    Png,
+    /// OpenEXR: half or float samples, (n + 1)/2 or n itself.
+    Exr,
+}
+
+impl OutputFormat {
+    /// The format a file name's extension names (`.png`, `.exr`, in any
+    /// case); `Ok(None)` for a name without an extension, which leaves the
+    /// choice to the input ([`OutputFormat::for_input`]).
+    ///
+    /// Errors: [`Error::Unsupported`] for any other extension.
+    pub fn from_path(path: &Path) -> Result<Option<OutputFormat>> {
+        let Some(ext) = path.extension() else { return Ok(None) };
+        match ext.to_string_lossy().to_ascii_lowercase().as_str() {
+            "png" => Ok(Some(OutputFormat::Png)),
+            "exr" => Ok(Some(OutputFormat::Exr)),
+            other => Err(Error::Unsupported(format!("cannot write .{other} files: name the output .png or .exr"))),
+        }
+    }
+
+    /// The format of an output whose name and options do not say: the
+    /// input's own if it is PNG or EXR, else EXR for float samples and PNG
+    /// for integers.
+    #[must_use]
+    pub fn for_input(format: &InputFormat, sample: SampleType) -> OutputFormat {
+        match (format, sample) {
+            (InputFormat::Exr, _) => OutputFormat::Exr,
+            (InputFormat::Png, _) => OutputFormat::Png,
+            (_, SampleType::Float) => OutputFormat::Exr,
+            _ => OutputFormat::Png,
+        }
+    }
+
+    /// The format of an output named `path` (if it is a file), `asked`
+    /// (if the caller says), else the input's: the first that speaks.
+    ///
+    /// Errors: those of [`OutputFormat::from_path`], and
+    /// [`Error::InvalidOption`] when the name and `asked` disagree.
+    pub fn choose(
+        path: Option<&Path>,
+        asked: Option<OutputFormat>,
+        input: (&InputFormat, SampleType),
+    ) -> Result<OutputFormat> {
+        let named = path.map(OutputFormat::from_path).transpose()?.flatten();
+        if let (Some(asked), Some(named)) = (asked, named)
+            && asked != named
+        {
+            let (named, asked) = (named.extension(), asked.extension());
+            return Err(Error::InvalidOption(format!("extension says {named} but the format asked is {asked}")));
+        }
+        Ok(asked.or(named).unwrap_or_else(|| OutputFormat::for_input(input.0, input.1)))
+    }
+
+    /// The file name extension, lower case, without the dot.
+    #[must_use]
+    pub fn extension(self) -> &'static str {
+        match self {
+            OutputFormat::Png => "png",
+            OutputFormat::Exr => "exr",
+        }
+    }
+}
+
+/// Bits per sample of a PNG normal map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PngDepth {
+    /// 8 bits a sample.
+    Eight,
+    /// 16 bits a sample.
+    Sixteen,
+}
+
+/// A PNG normal map's depth, compression and channels.
+///
+/// Streamed ([`crate::pipeline`]), [`PngCompression::Fast`] filters every
+/// row with Avg (22.6 MiB for a 4096² map); `Default` and `Best` choose each
+/// row's filter (19.9 MiB, the filtering taking twice as long).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub struct PngOptions {
+    /// Bits per sample.
+    pub depth: PngDepth,
+    /// How hard the rows are deflated. Default: fast.
+    pub compression: PngCompression,
+    /// Which channels: RGB, RGBA with an alpha of heights or of 1, or
+    /// red-green (B = 0). Default: RGB.
+    pub layout: Layout,
+}
+
+impl PngOptions {
+    /// `depth`, fast compression, RGB.
+    #[must_use]
+    pub fn new(depth: PngDepth) -> PngOptions {
+        PngOptions { depth, compression: PngCompression::Fast, layout: Layout::Rgb }
+    }
+
+    /// With this compression.
+    #[must_use]
+    pub fn with_compression(self, compression: PngCompression) -> PngOptions {
+        PngOptions { compression, ..self }
+    }
+
+    /// With these channels.
+    #[must_use]
+    pub fn with_layout(self, layout: Layout) -> PngOptions {
+        PngOptions { layout, ..self }
+    }
+}
+
+impl From<PngDepth> for PngOptions {
+    fn from(depth: PngDepth) -> Self {
+        PngOptions::new(depth)
+    }
+}
+
+/// An OpenEXR normal map's sample type, encoding and channels (ZIP
+/// compression in blocks of 16 rows, always).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub struct ExrOptions {
+    /// Half or float samples. Default: float.
+    pub depth: ExrDepth,
+    /// Store n itself, in [−1, 1], instead of (n + 1)/2. Default: off.
+    pub signed: bool,
+    /// Which channels. Default: R, G, B.
+    pub layout: Layout,
+}
+
+impl ExrOptions {
+    /// `depth`, (n + 1)/2, R, G, B.
+    #[must_use]
+    pub fn new(depth: ExrDepth) -> ExrOptions {
+        ExrOptions { depth, signed: false, layout: Layout::Rgb }
+    }
+
+    /// Storing n itself (`true`) or (n + 1)/2.
+    #[must_use]
+    pub fn with_signed(self, signed: bool) -> ExrOptions {
+        ExrOptions { signed, ..self }
+    }
+
+    /// With these channels.
+    #[must_use]
+    pub fn with_layout(self, layout: Layout) -> ExrOptions {
+        ExrOptions { layout, ..self }
+    }
+
+    /// The value stored for a normal's component `c` (in [−1, 1]): the one
+    /// rule of whole-image and streamed EXR outputs.
+    #[inline]
+    #[must_use]
+    pub fn stored(self, c: f32) -> f32 {
+        if self.signed { c } else { (c + 1.0) * 0.5 }
+    }
+
+    /// [`ExrOptions::stored`] of every component of `normals`, in place.
+    pub(crate) fn store_all(self, normals: &mut [[f32; 3]]) {
+        if !self.signed {
+            normals.iter_mut().for_each(|t| *t = t.map(|c| self.stored(c)));
+        }
+    }
+}
+
+impl From<ExrDepth> for ExrOptions {
+    fn from(depth: ExrDepth) -> Self {
+        ExrOptions::new(depth)
+    }
+}
+
+/// How a normal map (or a one-channel map) is encoded: the format and its
+/// options.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Encoding {
+    /// PNG.
+    Png(PngOptions),
+    /// OpenEXR.
+    Exr(ExrOptions),
+}
+
+impl Encoding {
+    /// An 8-bit RGB PNG, fast compression.
+    #[must_use]
+    pub fn png8() -> Encoding {
+        Encoding::Png(PngOptions::new(PngDepth::Eight))
+    }
+
+    /// A 16-bit RGB PNG, fast compression.
+    #[must_use]
+    pub fn png16() -> Encoding {
+        Encoding::Png(PngOptions::new(PngDepth::Sixteen))
+    }
+
+    /// A float RGB OpenEXR holding (n + 1)/2.
+    #[must_use]
+    pub fn exr() -> Encoding {
+        Encoding::Exr(ExrOptions::new(ExrDepth::Float))
+    }
+
+    /// The encoding of `format` for these options (SPEC §3): `bits` 8 or
+    /// 16 for PNG (none: 16 if the input has more than 8 bits a sample,
+    /// else 8), 16 (half) or 32 (float, and none) for EXR; `signed` (n
+    /// itself) for EXR alone.
+    ///
+    /// Errors: [`Error::Unsupported`] for a depth or `signed` the format
+    /// cannot hold.
+    pub fn choose(
+        format: OutputFormat,
+        bits: Option<u8>,
+        signed: bool,
+        layout: Layout,
+        compression: PngCompression,
+        input: SampleType,
+    ) -> Result<Encoding> {
+        let png = |depth| Encoding::Png(PngOptions { depth, compression, layout });
+        let exr = |depth| Encoding::Exr(ExrOptions { depth, signed, layout });
+        let encoding = match (format, bits) {
+            (OutputFormat::Png, None) if input.more_than_8_bits() => png(PngDepth::Sixteen),
+            (OutputFormat::Png, None | Some(8)) => png(PngDepth::Eight),
+            (OutputFormat::Png, Some(16)) => png(PngDepth::Sixteen),
+            (OutputFormat::Png, Some(b)) => {
+                return Err(Error::Unsupported(format!("PNG holds 8 or 16 bits: {b} bits need EXR output")));
+            }
+            (OutputFormat::Exr, None | Some(32)) => exr(ExrDepth::Float),
+            (OutputFormat::Exr, Some(16)) => exr(ExrDepth::Half),
+            (OutputFormat::Exr, Some(b)) => {
+                return Err(Error::Unsupported(format!("EXR holds 16- or 32-bit floats: {b} bits need PNG output")));
+            }
+        };
+        if signed && matches!(encoding, Encoding::Png(_)) {
+            return Err(Error::Unsupported("signed normals need a float output (EXR): PNG stores only [0, 1]".into()));
+        }
+        Ok(encoding)
+    }
+
+    /// The file format.
+    #[must_use]
+    pub fn format(&self) -> OutputFormat {
+        match self {
+            Encoding::Png(_) => OutputFormat::Png,
+            Encoding::Exr(_) => OutputFormat::Exr,
+        }
+    }
+
+    /// The channels.
+    #[must_use]
+    pub fn layout(&self) -> Layout {
+        match self {
+            Encoding::Png(o) => o.layout,
+            Encoding::Exr(o) => o.layout,
+        }
+    }
+
+    /// The same encoding with other channels.
+    #[must_use]
+    pub fn with_layout(self, layout: Layout) -> Encoding {
+        match self {
+            Encoding::Png(o) => Encoding::Png(o.with_layout(layout)),
+            Encoding::Exr(o) => Encoding::Exr(o.with_layout(layout)),
+        }
+    }
+}
+
+impl From<PngOptions> for Encoding {
+    fn from(options: PngOptions) -> Self {
+        Encoding::Png(options)
+    }
+}
+
+impl From<ExrOptions> for Encoding {
+    fn from(options: ExrOptions) -> Self {
+        Encoding::Exr(options)
+    }
+}

@@ -1,0 +1,370 @@
+//! The registry of input formats: every format normalfit reads, once, with
+//! how its content is recognised, the file extensions that name it, how
+//! messages and help name it, whether its rows can stream, and which
+//! decoder reads it.
+//!
+//! Everything that needs a list of formats asks here: content sniffing in
+//! [`decode`](super::decode), the folder search's "is this an image file"
+//! ([`InputFormat::from_extension`]), the check that a file's extension
+//! agrees with its content, the command-line help ([`names`]) and the
+//! error for bytes no format recognises. Adding a format is an entry in
+//! [`FORMATS`] and, when the `image` crate does not read it, a decoder
+//! beside the others in `io/read/`.
+
+use std::fmt;
+
+use image::ImageFormat;
+
+use super::{Raster, ReadOptions};
+use crate::error::{Error, Result};
+
+/// The file format the bytes were decoded as, found from their content.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum InputFormat {
+    /// Portable Network Graphics.
+    Png,
+    /// OpenEXR.
+    Exr,
+    /// JPEG.
+    Jpeg,
+    /// TIFF.
+    Tiff,
+    /// Truevision TGA.
+    Tga,
+    /// Windows bitmap.
+    Bmp,
+    /// WebP.
+    WebP,
+    /// Graphics Interchange Format.
+    Gif,
+    /// Radiance HDR (RGBE).
+    Hdr,
+    /// Netpbm (PBM, PGM, PPM, PAM).
+    Pnm,
+    /// Quite OK Image format.
+    Qoi,
+}
+
+/// One input format: how it is recognised, named and read.
+#[derive(Debug)]
+#[non_exhaustive]
+pub struct FormatInfo {
+    /// The format.
+    pub format: InputFormat,
+    /// Its name in messages, lower case ("png", "exr"): what
+    /// [`InputFormat`]'s `Display` writes.
+    pub name: &'static str,
+    /// Its name in help text and prose ("PNG", "OpenEXR").
+    pub title: &'static str,
+    /// The file extensions that name it, lower case, without the dot, the
+    /// usual one first.
+    pub extensions: &'static [&'static str],
+    /// Whether its rows can stream from the file, through the fit, to the
+    /// output without the whole image in memory (`io::stream`; for
+    /// OpenEXR, scan-line files only).
+    pub streams: bool,
+    /// How its content is recognised.
+    signature: Signature,
+    /// What decodes it.
+    decoder: Decoder,
+}
+
+/// How a format's content is recognised.
+#[derive(Debug)]
+enum Signature {
+    /// The file starts with one of these byte patterns, each a list of
+    /// byte strings at offsets, all present (WebP: "RIFF" at 0 and "WEBP"
+    /// at 8, the file size between them).
+    Magic(&'static [&'static [(usize, &'static [u8])]]),
+    /// None: the format is tried after every signature failed, and taken
+    /// when its header parses (TGA, whose header has enough fixed fields,
+    /// image type and pixel depth, that text and most other data fail it).
+    Probe(fn(&[u8]) -> bool),
+}
+
+/// The decoder of a format.
+#[derive(Debug)]
+enum Decoder {
+    /// A decoder of its own, in a file beside this one.
+    Own(fn(&[u8], &ReadOptions) -> Result<Raster>),
+    /// The `image` crate, told the format.
+    Image(ImageFormat),
+}
+
+/// Every format normalfit reads, in the order help text lists them.
+/// Signatures do not overlap, so the order does not change which format
+/// bytes are recognised as.
+pub static FORMATS: &[FormatInfo] = &[
+    FormatInfo {
+        format: InputFormat::Png,
+        name: "png",
+        title: "PNG",
+        extensions: &["png"],
+        streams: true,
+        signature: Signature::Magic(&[&[(0, &super::png::PNG_SIGNATURE)]]),
+        decoder: Decoder::Own(super::png::decode),
+    },
+    FormatInfo {
+        format: InputFormat::Exr,
+        name: "exr",
+        title: "OpenEXR",
+        extensions: &["exr"],
+        streams: true,
+        signature: Signature::Magic(&[&[(0, &super::exr::EXR_MAGIC)]]),
+        decoder: Decoder::Own(super::exr::decode_exr),
+    },
+    FormatInfo {
+        format: InputFormat::Tiff,
+        name: "tiff",
+        title: "TIFF",
+        extensions: &["tif", "tiff"],
+        streams: false,
+        // Classic and BigTIFF, little- and big-endian (`image` knows only
+        // classic TIFF's signature; its decoder reads BigTIFF too).
+        signature: Signature::Magic(&[&[(0, b"II*\0")], &[(0, b"MM\0*")], &[(0, b"II+\0")], &[(0, b"MM\0+")]]),
+        decoder: Decoder::Own(super::tiff::decode),
+    },
+    FormatInfo {
+        format: InputFormat::Jpeg,
+        name: "jpeg",
+        title: "JPEG",
+        extensions: &["jpg", "jpeg"],
+        streams: false,
+        signature: Signature::Magic(&[&[(0, &[0xff, 0xd8, 0xff])]]),
+        decoder: Decoder::Image(ImageFormat::Jpeg),
+    },
+    FormatInfo {
+        format: InputFormat::Tga,
+        name: "tga",
+        title: "TGA",
+        extensions: &["tga"],
+        streams: false,
+        signature: Signature::Probe(super::image_crate::is_tga),
+        decoder: Decoder::Image(ImageFormat::Tga),
+    },
+    FormatInfo {
+        format: InputFormat::Bmp,
+        name: "bmp",
+        title: "BMP",
+        extensions: &["bmp"],
+        streams: false,
+        signature: Signature::Magic(&[&[(0, b"BM")]]),
+        decoder: Decoder::Image(ImageFormat::Bmp),
+    },
+    FormatInfo {
+        format: InputFormat::WebP,
+        name: "webp",
+        title: "WebP",
+        extensions: &["webp"],
+        streams: false,
+        signature: Signature::Magic(&[&[(0, b"RIFF"), (8, b"WEBP")]]),
+        decoder: Decoder::Image(ImageFormat::WebP),
+    },
+    FormatInfo {
+        format: InputFormat::Gif,
+        name: "gif",
+        title: "GIF",
+        extensions: &["gif"],
+        streams: false,
+        signature: Signature::Magic(&[&[(0, b"GIF87a")], &[(0, b"GIF89a")]]),
+        decoder: Decoder::Image(ImageFormat::Gif),
+    },
+    FormatInfo {
+        format: InputFormat::Hdr,
+        name: "hdr",
+        title: "Radiance HDR",
+        extensions: &["hdr"],
+        streams: false,
+        // `image`'s decoder takes this signature only, not "#?RGBE".
+        signature: Signature::Magic(&[&[(0, b"#?RADIANCE")]]),
+        decoder: Decoder::Image(ImageFormat::Hdr),
+    },
+    FormatInfo {
+        format: InputFormat::Pnm,
+        name: "pnm",
+        title: "PNM",
+        extensions: &["pgm", "ppm", "pbm", "pam", "pnm"],
+        streams: false,
+        signature: Signature::Magic(&[
+            &[(0, b"P1")],
+            &[(0, b"P2")],
+            &[(0, b"P3")],
+            &[(0, b"P4")],
+            &[(0, b"P5")],
+            &[(0, b"P6")],
+            &[(0, b"P7")],
+        ]),
+        decoder: Decoder::Image(ImageFormat::Pnm),
+    },
+    FormatInfo {
+        format: InputFormat::Qoi,
+        name: "qoi",
+        title: "QOI",
+        extensions: &["qoi"],
+        streams: false,
+        signature: Signature::Magic(&[&[(0, b"qoif")]]),
+        decoder: Decoder::Image(ImageFormat::Qoi),
+    },
+];
+
+impl FormatInfo {
+    /// Whether `head`, a file's first bytes (16 are enough), carries this
+    /// format's signature. Always false for a format without one (TGA).
+    #[must_use]
+    pub fn signature_matches(&self, head: &[u8]) -> bool {
+        let Signature::Magic(patterns) = self.signature else { return false };
+        patterns
+            .iter()
+            .any(|parts| parts.iter().all(|(at, bytes)| head.get(*at..).is_some_and(|h| h.starts_with(bytes))))
+    }
+
+    /// Whether the format has a signature a file's first bytes can be
+    /// compared with (TGA has none).
+    #[must_use]
+    pub fn has_signature(&self) -> bool {
+        matches!(self.signature, Signature::Magic(_))
+    }
+
+    /// Decodes `bytes`, known to be of this format.
+    pub(crate) fn decode(&self, bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+        match self.decoder {
+            Decoder::Own(decode) => decode(bytes, opts),
+            Decoder::Image(format) => super::image_crate::decode_with_image(bytes, opts, format, self.format.clone()),
+        }
+    }
+}
+
+impl InputFormat {
+    /// The format's entry in the registry.
+    #[must_use]
+    pub fn info(&self) -> &'static FormatInfo {
+        // Every variant has an entry (tests/io_formats.rs checks).
+        FORMATS.iter().find(|f| f.format == *self).unwrap_or(&FORMATS[0])
+    }
+
+    /// The format a file extension (without the dot, any case) names:
+    /// "PGM" → [`InputFormat::Pnm`].
+    #[must_use]
+    pub fn from_extension(extension: &str) -> Option<InputFormat> {
+        let extension = extension.to_ascii_lowercase();
+        FORMATS.iter().find(|f| f.extensions.contains(&extension.as_str())).map(|f| f.format.clone())
+    }
+
+    /// The format whose signature a file's first bytes (16 are enough)
+    /// carry. TGA has none, so it is never found here.
+    #[must_use]
+    pub fn sniff(head: &[u8]) -> Option<InputFormat> {
+        FORMATS.iter().find(|f| f.signature_matches(head)).map(|f| f.format.clone())
+    }
+
+    /// The format of a whole file's bytes: by signature, else (only then)
+    /// a format without one whose header parses (TGA).
+    ///
+    /// Errors: [`Error::Unsupported`] for a format the `image` crate knows
+    /// by its signature but normalfit does not read (ICO, DDS, …);
+    /// [`Error::Decode`] for bytes of no known format.
+    pub(crate) fn recognise(bytes: &[u8]) -> Result<InputFormat> {
+        if let Some(format) = InputFormat::sniff(bytes) {
+            return Ok(format);
+        }
+        if let Some(other) = super::image_crate::unread_format(bytes) {
+            return Err(Error::Unsupported(format!("{other} images are not read; normalfit reads {}", names())));
+        }
+        let probed = FORMATS.iter().find(|f| matches!(f.signature, Signature::Probe(parses) if parses(bytes)));
+        if let Some(format) = probed {
+            return Ok(format.format.clone());
+        }
+        let start: String = bytes.iter().take(8).map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" ");
+        Err(Error::Decode(format!(
+            "not a recognised image format (starts with bytes {start}); normalfit reads {}",
+            names()
+        )))
+    }
+}
+
+impl fmt::Display for InputFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.info().name)
+    }
+}
+
+/// The formats read, for help text and messages: "PNG, OpenEXR, TIFF, …".
+#[must_use]
+pub fn names() -> String {
+    FORMATS.iter().map(|f| f.title).collect::<Vec<_>>().join(", ")
+}
+
+/// Every extension the formats are named by, lower case, in registry
+/// order: "png, exr, tif, tiff, …".
+#[must_use]
+pub fn extensions() -> String {
+    FORMATS.iter().flat_map(|f| f.extensions.iter().copied()).collect::<Vec<_>>().join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every variant, by a match that stops compiling when one is added
+    /// until it is listed here (and, by the test below, in [`FORMATS`]).
+    fn every_variant() -> Vec<InputFormat> {
+        use InputFormat::*;
+        let all = vec![Png, Exr, Jpeg, Tiff, Tga, Bmp, WebP, Gif, Hdr, Pnm, Qoi];
+        for format in &all {
+            match format {
+                Png | Exr | Jpeg | Tiff | Tga | Bmp | WebP | Gif | Hdr | Pnm | Qoi => {}
+            }
+        }
+        all
+    }
+
+    #[test]
+    fn every_variant_has_one_entry() {
+        for format in every_variant() {
+            assert_eq!(FORMATS.iter().filter(|f| f.format == format).count(), 1, "{format:?}");
+            assert_eq!(format.info().format, format);
+        }
+        assert_eq!(FORMATS.len(), every_variant().len());
+    }
+
+    /// A file start carrying one signature pattern, zeros elsewhere.
+    fn start_of(parts: &[(usize, &[u8])]) -> Vec<u8> {
+        let mut head = vec![0u8; 16];
+        for (at, bytes) in parts {
+            head[*at..at + bytes.len()].copy_from_slice(bytes);
+        }
+        head
+    }
+
+    /// The signatures do not overlap (so the table's order does not
+    /// matter), and each picks the format the `image` crate's own guess
+    /// picked before the registry, so every file goes to the decoder it
+    /// went to before.
+    #[test]
+    fn signatures_are_disjoint_and_agree_with_image() {
+        for info in FORMATS {
+            let Signature::Magic(patterns) = info.signature else { continue };
+            for parts in patterns {
+                let head = start_of(parts);
+                let matching: Vec<&str> =
+                    FORMATS.iter().filter(|f| f.signature_matches(&head)).map(|f| f.name).collect();
+                assert_eq!(matching, [info.name], "{head:02x?}");
+                let expected = match info.format {
+                    InputFormat::Png => ImageFormat::Png,
+                    InputFormat::Exr => ImageFormat::OpenExr,
+                    InputFormat::Tiff => ImageFormat::Tiff,
+                    _ => match info.decoder {
+                        Decoder::Image(format) => format,
+                        Decoder::Own(_) => panic!("{}: which `image` format?", info.name),
+                    },
+                };
+                let bigtiff = head[2] == b'+' || head[3] == b'+';
+                if !bigtiff {
+                    // `image` knows only classic TIFF's signature.
+                    assert_eq!(image::guess_format(&head).ok(), Some(expected), "{}", info.name);
+                }
+            }
+        }
+    }
+}

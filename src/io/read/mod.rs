@@ -1,0 +1,253 @@
+//! Reading height maps: bytes in, planes of `f32` in contract units out.
+//!
+//! Rules this module keeps, and why:
+//! * The decoder is chosen from the content, never the file name: a `.png`
+//!   that is really a JPEG still reads, and a renamed file cannot pick a
+//!   decoder that then misreads it. The formats, their signatures, names
+//!   and decoders are listed once, in [`formats`]; OpenEXR goes to the
+//!   `exr` crate (a file with subsampled channels, which it refuses, to
+//!   `exr/subsampled.rs`), gray TIFF with samples `image` refuses (float,
+//!   half, 32/64-bit and signed integers) to the `tiff` crate, PNG to the
+//!   `png` crate (with zlib's checksum verified, `png/zlib.rs`),
+//!   everything else to `image`.
+//! * The size a header claims is checked against [`ReadOptions::max_texels`]
+//!   before any pixel buffer exists. A 100-byte file can claim
+//!   100000 × 100000 texels, and both `image` and `exr` would otherwise try
+//!   to allocate for it (the `exr` crate can abort the process on a failed
+//!   allocation, which no `Result` can catch).
+//! * Headers are checked before the decoders trust them: a PNG's IHDR size
+//!   (so the message names the size, not a decoder's buffer), an EXR's
+//!   data and display windows (the `exr` crate would silently swap the
+//!   corners of an inverted one) and its offset tables (8 bytes a chunk
+//!   must be in the file).
+//! * Large buffers are reserved with `try_reserve_exact`, so running out of
+//!   memory for an image under the limit is an error, not an abort.
+//! * Values are kept as they were stored ([`Samples`]): 8- and 16-bit
+//!   integers as integers, whose height is value / (2^bits − 1) (SPEC §1),
+//!   floats as floats. Dividing first and rounding to `f32` would move
+//!   normals at high gains (see [`crate::samples`]). NaN and infinities are
+//!   kept in the planes; only [`Raster::heights`] rejects them, because only
+//!   the channel that becomes the height matters.
+//!
+//! Where things are: this file holds the types every format shares and
+//! [`decode`]; `channel.rs` the channel rule (SPEC §1); [`formats`] the
+//! registry of formats; one file or folder per decoder (`png/`, `exr/`,
+//! `tiff.rs`, and `image_crate.rs` for the formats the `image` crate
+//! reads). A new format is an entry in the registry and, if `image` does
+//! not read it, a decoder beside the others.
+
+mod channel;
+pub(crate) mod exr;
+pub mod formats;
+mod image_crate;
+pub(crate) mod png;
+mod tiff;
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+pub use self::channel::Channel;
+pub(crate) use self::channel::{Source, select_channel};
+// The paths the streaming readers (`io/stream`) take these by.
+pub(crate) use self::exr::{EXR_MAGIC, check_exr_meta, check_exr_windows, choose_exr_layer, exr_parts, from_exr_error};
+pub use self::formats::{FormatInfo, InputFormat};
+pub(crate) use self::png::{PNG_SIGNATURE, check_png_header, check_png_palette};
+use crate::error::{Error, Result, one_line};
+use crate::samples::{Samples, try_vec};
+
+/// How the samples were stored in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum SampleType {
+    /// Unsigned integers of `bits` bits per channel, as decoded (a 1-, 2- or
+    /// 4-bit gray PNG arrives expanded to 8 bits, scaled so that the top
+    /// value stays 1.0); read as value / (2^bits − 1) ∈ [0, 1].
+    Int {
+        /// Bits per channel.
+        bits: u8,
+    },
+    /// Signed (two's complement) integers of `bits` bits per channel, from
+    /// a gray TIFF. Read as value / (2^bits − 1), the unsigned rule with the
+    /// same step per stored unit, so h ∈ [−0.5, 0.5]: a signed map and the
+    /// same map stored unsigned with an offset give the same normals.
+    SignedInt {
+        /// Bits per channel.
+        bits: u8,
+    },
+    /// Floating point (half, float, double, or EXR's u32, all taken as
+    /// numbers).
+    Float,
+}
+
+impl SampleType {
+    /// Whether a channel holds more than 8 bits; floats count as more.
+    ///
+    /// SPEC §3 picks the default PNG output depth with it: 16 bits when the
+    /// input has more than 8, so precision the input has is not thrown away.
+    #[must_use]
+    pub fn more_than_8_bits(self) -> bool {
+        match self {
+            SampleType::Int { bits } | SampleType::SignedInt { bits } => bits > 8,
+            SampleType::Float => true,
+        }
+    }
+}
+
+/// One channel of an image: row-major, `width * height` samples as stored
+/// (see [`Samples`] for their heights in contract units).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plane {
+    /// The channel's name: "Y" (gray), "R", "G", "B", "A" for the formats
+    /// `image` and `tiff` read; the file's own channel names for EXR
+    /// ("height", "diffuse.R", …).
+    pub name: String,
+    /// The samples, row 0 first.
+    pub data: Samples,
+}
+
+/// A decoded image, one plane per channel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Raster {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// The format the content was decoded as.
+    pub format: InputFormat,
+    /// How the samples were stored.
+    pub sample: SampleType,
+    /// The channels, in the file's order. An OpenEXR file's subsampled
+    /// channels (a luminance/chroma file's RY and BY) are left out: they
+    /// have fewer samples than texels and are never heights.
+    pub planes: Vec<Plane>,
+}
+
+/// Limits for a read of untrusted bytes, and which part of a file to read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct ReadOptions {
+    /// The largest width × height accepted, checked from the header before
+    /// any pixel buffer is allocated. Default: 2^30 (32768²), which is
+    /// 4 GiB for one `f32` plane: larger than any texture a GPU takes,
+    /// small enough that a forged header cannot exhaust memory.
+    pub max_texels: u64,
+    /// OpenEXR: the layer to read, by name. A layer is a part of a
+    /// multi-part file (its `name` attribute), else the channels of one
+    /// part whose names start with `NAME.` ("diffuse.R", "diffuse.G", …);
+    /// a part's name wins over a channel prefix. `None` reads the file's
+    /// first part of flat (not deep) samples, all its channels. Any other
+    /// format has no layers: asking for one there is an error.
+    pub layer: Option<String>,
+}
+
+impl Default for ReadOptions {
+    fn default() -> Self {
+        ReadOptions { max_texels: 1 << 30, layer: None }
+    }
+}
+
+impl ReadOptions {
+    /// The same options with another texel limit.
+    #[must_use]
+    pub fn with_max_texels(mut self, max_texels: u64) -> Self {
+        self.max_texels = max_texels;
+        self
+    }
+
+    /// The same options reading the OpenEXR layer `name`.
+    #[must_use]
+    pub fn with_layer(mut self, name: impl Into<String>) -> Self {
+        self.layer = Some(name.into());
+        self
+    }
+}
+
+/// Decodes an image from its bytes, choosing the decoder from the content.
+///
+/// Errors: [`Error::Decode`] for empty, unknown, corrupt, truncated or
+/// zero-size data; [`Error::Limits`] when the header claims more than
+/// `opts.max_texels` texels; [`Error::Unsupported`] for a layout normalfit
+/// does not read, or a layer asked for in a format that has none.
+pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    if bytes.is_empty() {
+        return Err(Error::Decode("file is empty".into()));
+    }
+    let format = InputFormat::recognise(bytes)?;
+    if let Some(layer) = &opts.layer
+        && format != InputFormat::Exr
+    {
+        return Err(no_layers(&format, layer));
+    }
+    format.info().decode(bytes, opts)
+}
+
+/// Reads the file at `path` and [`decode`]s it. Failing to read the file is
+/// [`Error::Io`].
+pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    let bytes = std::fs::read(path)?;
+    decode(&bytes, opts)
+}
+
+/// The error for a layer asked for in a format without layers.
+pub(crate) fn no_layers(format: &InputFormat, layer: &str) -> Error {
+    Error::Unsupported(format!("layer {layer} asked for, but {format} files have no layers (only OpenEXR has)"))
+}
+
+/// Checks a header's claimed size: not zero, not above the limit.
+pub(crate) fn check_size(width: u64, height: u64, opts: &ReadOptions) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::Decode(format!("image has zero size ({width} × {height})")));
+    }
+    let texels = width.saturating_mul(height);
+    if texels > opts.max_texels {
+        return Err(Error::Limits(format!("{width} × {height} is {texels} texels, the limit is {}", opts.max_texels)));
+    }
+    Ok(())
+}
+
+/// A dependency's message made to read as part of ours: on one line,
+/// "Format error decoding Png: …" as "png: …", chunk types printed by
+/// `png` as `ChunkType { type: IDAT, … }` as IDAT, no final full stop,
+/// and the first letter in lower case unless it starts an acronym (CRC).
+pub(crate) fn message(s: &str) -> String {
+    const CHUNK: &str = "ChunkType { type: ";
+    let mut s = one_line(s);
+    while let Some(start) = s.find(CHUNK) {
+        let rest = &s[start + CHUNK.len()..];
+        let (Some(kind), Some(end)) = (rest.get(..4), rest.find('}')) else { break };
+        s = format!("{}{kind}{}", &s[..start], &rest[end + 1..]);
+    }
+    let s = s.trim_end_matches('.');
+    match s.strip_prefix("Format error decoding ").and_then(|r| r.split_once(": ")) {
+        Some((format, rest)) => format!("{}: {}", format.to_lowercase(), lower_first(rest)),
+        None => lower_first(s),
+    }
+}
+
+/// `s` with its first letter in lower case when its first word is an
+/// ordinary one ("Unknown" → "unknown"; "CRC", "I/O", "IDAT" stay).
+fn lower_first(s: &str) -> String {
+    let word = s.split_whitespace().next().unwrap_or("");
+    let mut chars = word.chars();
+    match chars.next() {
+        Some(first) if chars.all(char::is_lowercase) => {
+            first.to_lowercase().chain(s[first.len_utf8()..].chars()).collect()
+        }
+        _ => s.to_string(),
+    }
+}
+
+/// A size from a header as `usize`, or [`Error::Limits`] on a platform
+/// where it does not fit.
+fn to_usize(n: u64) -> Result<usize> {
+    usize::try_from(n).map_err(|_| Error::Limits(format!("{n} does not fit in memory")))
+}
+
+/// The values of a parallel iterator of `len` items in a vector allocated
+/// fallibly.
+fn par_collect<T: Send>(len: usize, values: impl ParallelIterator<Item = T>) -> Result<Vec<T>> {
+    let mut data = try_vec(len)?;
+    data.par_extend(values);
+    Ok(data)
+}
