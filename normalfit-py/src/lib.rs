@@ -21,11 +21,17 @@
 use std::collections::HashMap;
 use std::sync::Mutex;
 
-use normalfit::tiling::{self, ImageKind, KindChoice, TilingOptions};
+use std::path::{Path, PathBuf};
+
+use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
+use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
+use normalfit::shade::{self, Light, LitOptions};
+use normalfit::tiling::{self, HeightSeams, ImageKind, KindChoice, TilingOptions};
 use normalfit::{Border, Borders, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
+use normalfit::{inspect, normal_map};
 use numpy::ndarray::ArrayView2;
 use numpy::{
-    Element, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
+    Element, PyArray1, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
     PyUntypedArrayMethods, dtype,
 };
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyTypeError, PyValueError};
@@ -54,7 +60,8 @@ fn unknown(what: &str, got: &str, names: &str) -> PyErr {
     PyValueError::new_err(format!("invalid option: unknown {what} '{got}': use {names}"))
 }
 
-/// `fit=`: the CLI's `--fit` values.
+/// `fit=`: the CLI's `--fit` values. (The library has no parser of these
+/// names yet; when it has, this and the two below become its `parse`.)
 fn parse_fit(name: &str) -> PyResult<Fit> {
     match name {
         "orthogonal" => Ok(Fit::Orthogonal),
@@ -72,31 +79,32 @@ fn parse_convention(name: &str) -> PyResult<Convention> {
     }
 }
 
-/// One axis of `border=`.
-fn parse_border(name: &str) -> PyResult<Border> {
-    match name {
-        "wrap" => Ok(Border::Wrap),
-        "clamp" => Ok(Border::Clamp),
-        "mirror" => Ok(Border::Mirror),
-        other => Err(unknown("border mode", other, "wrap, clamp or mirror")),
+/// One axis of `border=`: the CLI's `--border` values.
+fn parse_border(name: &str) -> PyResult<BorderChoice> {
+    match name.trim() {
+        "wrap" => Ok(BorderChoice::Fixed(Border::Wrap)),
+        "clamp" => Ok(BorderChoice::Fixed(Border::Clamp)),
+        "mirror" => Ok(BorderChoice::Fixed(Border::Mirror)),
+        "auto" => Ok(BorderChoice::Auto),
+        other => Err(unknown("border mode", other, "wrap, clamp, mirror or auto")),
     }
 }
 
 /// `border=`: one mode for both axes, `"x,y"` as on the command line, or
-/// an `(x, y)` pair.
-fn parse_borders(border: &Bound<'_, PyAny>) -> PyResult<Borders> {
+/// an `(x, y)` pair; `auto` is wrap where the image tiles, mirror where not.
+fn parse_borders(border: &Bound<'_, PyAny>) -> PyResult<BorderChoices> {
     if let Ok(s) = border.cast::<PyString>() {
         let s = s.to_cow()?;
         return match s.split_once(',') {
-            None => Ok(Borders::both(parse_border(s.trim())?)),
-            Some((x, y)) => Ok(Borders { x: parse_border(x.trim())?, y: parse_border(y.trim())? }),
+            None => Ok(BorderChoices::both(parse_border(&s)?)),
+            Some((x, y)) => Ok(BorderChoices { x: parse_border(x)?, y: parse_border(y)? }),
         };
     }
     if let Ok(pair) = border.cast::<PyTuple>()
         && pair.len() == 2
     {
         let (x, y): (String, String) = pair.extract()?;
-        return Ok(Borders { x: parse_border(&x)?, y: parse_border(&y)? });
+        return Ok(BorderChoices { x: parse_border(&x)?, y: parse_border(&y)? });
     }
     Err(PyTypeError::new_err(format!("border must be a mode name or an (x, y) pair of them, got {}", shown(border))))
 }
@@ -117,7 +125,8 @@ fn shown(obj: &Bound<'_, PyAny>) -> String {
     obj.repr().map_or_else(|_| "?".into(), |r| r.to_string())
 }
 
-/// The fit's options from the keyword arguments, checked by the library.
+/// The fit's options from the keyword arguments, checked by the library,
+/// and the border choices (which may be `auto`).
 #[allow(clippy::too_many_arguments)]
 fn fit_options(
     patch: &Bound<'_, PyAny>,
@@ -127,7 +136,7 @@ fn fit_options(
     scale: Option<f64>,
     relief: Option<f64>,
     invert: bool,
-) -> PyResult<Options> {
+) -> PyResult<(Options, BorderChoices)> {
     let patch = whole(patch, "patch")?;
     let Ok(patch) = usize::try_from(patch) else {
         return Err(PyValueError::new_err(format!(
@@ -142,15 +151,15 @@ fn fit_options(
         (None, Some(f)) => Strength::Relief(f),
         (None, None) => Strength::default(),
     };
+    let borders = parse_borders(border)?;
     let opts = Options::new()
         .with_patch(patch)
         .with_fit(parse_fit(fit)?)
-        .with_borders(parse_borders(border)?)
         .with_convention(parse_convention(convention)?)
         .with_strength(strength)
         .with_invert(invert);
     opts.validate().map_err(to_py_err)?;
-    Ok(opts)
+    Ok((opts, borders))
 }
 
 /// The rayon pools of `threads=`, kept by size: starting threads costs
@@ -301,6 +310,7 @@ fn output<'py, E: Element>(
 /// What one `normals` call asks for besides the heights.
 struct Call<'a, 'py> {
     opts: &'a Options,
+    borders: BorderChoices,
     out: Option<&'a Bound<'py, PyAny>>,
     residual: bool,
     pool: Option<Borrowed>,
@@ -309,7 +319,7 @@ struct Call<'a, 'py> {
 /// `normals` for heights of sample type `H` into texels of `[E; 3]`.
 fn fit_typed<'py, H, E>(heights: &Bound<'py, PyUntypedArray>, call: &Call<'_, 'py>) -> PyResult<Bound<'py, PyAny>>
 where
-    H: Sample + Element,
+    H: Stored,
     E: Element + Copy + Send,
     [E; 3]: FromNormal,
 {
@@ -334,7 +344,7 @@ where
         Some(r) => Some(r.as_slice_mut().map_err(|e| PyValueError::new_err(format!("residual: {e}")))?),
         None => None,
     };
-    let (opts, pool) = (call.opts, call.pool.as_ref().and_then(|b| b.pool.as_ref()));
+    let (choices, pool) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()));
     py.detach(|| -> Result<(), Error> {
         let copy;
         let heights: &[H] = match in_place {
@@ -344,9 +354,10 @@ where
                 &copy
             }
         };
+        let opts = call.opts.clone().with_borders(settle(choices, heights, w, h)?);
         on_pool(pool, || match residual_flat {
-            Some(r) => normalfit::normals_and_residual_into(heights, w, h, opts, texels, r),
-            None => normalfit::normals_into(heights, w, h, opts, texels),
+            Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
+            None => normalfit::normals_into(heights, w, h, &opts, texels),
         })
     })
     .map_err(to_py_err)?;
@@ -357,6 +368,43 @@ where
         Some(r) => Ok(PyTuple::new(py, [out, r.into_any()])?.into_any()),
         None => Ok(out),
     }
+}
+
+/// The sample types an array of heights may hold, and their [`Samples`].
+trait Stored: Sample + Element {
+    /// The samples, owned.
+    fn samples(values: Vec<Self>) -> Samples;
+}
+
+macro_rules! stored {
+    ($($t:ty => $variant:ident),+) => {
+        $(impl Stored for $t {
+            fn samples(values: Vec<Self>) -> Samples {
+                Samples::$variant(values)
+            }
+        })+
+    };
+}
+
+stored!(u8 => U8, u16 => U16, f32 => F32, f64 => F64);
+
+/// The border modes for these heights: `auto` settled as a conversion
+/// settles it (the library's streamed tiling check of a height map, and
+/// [`BorderChoices::resolve`]); fixed modes as they are. `auto` copies the
+/// heights once for the check.
+fn settle<H: Stored>(choices: BorderChoices, heights: &[H], width: usize, height: usize) -> Result<Borders, Error> {
+    if !choices.any_auto() {
+        return Ok(choices.resolve(None));
+    }
+    let mut copy = Vec::new();
+    copy.try_reserve_exact(heights.len())
+        .map_err(|_| Error::Limits(format!("cannot allocate a copy of {} heights", heights.len())))?;
+    copy.extend_from_slice(heights);
+    let samples = H::samples(copy);
+    let mut seams = HeightSeams::new(width, height)?;
+    seams.push_samples(&samples)?;
+    let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height));
+    Ok(choices.resolve(Some(&report)))
 }
 
 /// numpy's borrow checker refused: the arrays overlap (`out` is a view of
@@ -386,9 +434,9 @@ fn normals<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
-    let opts = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let output = output_kind(py, dtype)?;
-    let call = Call { opts: &opts, out, residual, pool: pool(threads)? };
+    let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)? };
     macro_rules! typed {
         ($h:ty) => {
             match output {
@@ -545,17 +593,7 @@ fn check_tiling(py: Python<'_>, image: &Bound<'_, PyAny>, threshold: f64, kind: 
             shape[2]
         )));
     }
-    // The command line's rule for --threshold (src/cli/tiling.rs); the
-    // library takes any value and a NaN passes nothing.
-    if threshold.is_nan() || threshold <= 0.0 {
-        return Err(PyValueError::new_err(format!("invalid option: threshold must be positive, got {threshold}")));
-    }
-    let choice = match kind {
-        "auto" => KindChoice::Auto,
-        "height" => KindChoice::Height,
-        "normal" => KindChoice::Normal,
-        other => return Err(unknown("kind", other, "auto, height or normal")),
-    };
+    let opts = tiling_options(threshold, kind)?;
     let planes = match sample_kind(array, "image")? {
         SampleKind::U8 => planes_typed::<u8>(array, Samples::U8)?,
         SampleKind::U16 => planes_typed::<u16>(array, Samples::U16)?,
@@ -563,13 +601,32 @@ fn check_tiling(py: Python<'_>, image: &Bound<'_, PyAny>, threshold: f64, kind: 
         SampleKind::F64 => planes_typed::<f64>(array, Samples::F64)?,
     };
     let (height, width) = (shape[0], shape[1]);
-    let opts = TilingOptions::new().with_threshold(threshold).with_kind(choice);
     let report = py
         .detach(|| {
             let refs: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
             tiling::check(&refs, width, height, &opts)
         })
         .map_err(to_py_err)?;
+    tiling_report_value(py, &report, width, height)
+}
+
+/// The tiling check's options: the threshold refused as the command line
+/// refuses `--threshold` (src/cli/tiling.rs; the library takes any value,
+/// and a NaN passes nothing), the kind by name.
+fn tiling_options(threshold: f64, kind: &str) -> PyResult<TilingOptions> {
+    if threshold.is_nan() || threshold <= 0.0 {
+        return Err(PyValueError::new_err(format!("invalid option: threshold must be positive, got {threshold}")));
+    }
+    Ok(TilingOptions::new().with_threshold(threshold).with_kind(parse_kind(kind)?))
+}
+
+/// The library's report as the Python object.
+fn tiling_report_value(
+    py: Python<'_>,
+    report: &tiling::TilingReport,
+    width: usize,
+    height: usize,
+) -> PyResult<TilingReport> {
     let axis = |a: tiling::AxisReport| Py::new(py, AxisReport { score: a.score, seamless: a.seamless });
     let suggested = report.suggested_borders();
     Ok(TilingReport {
@@ -586,11 +643,274 @@ fn check_tiling(py: Python<'_>, image: &Bound<'_, PyAny>, threshold: f64, kind: 
     })
 }
 
+/// [`tiling_report_value`] as a Python object.
+fn tiling_report_object(
+    py: Python<'_>,
+    report: &tiling::TilingReport,
+    width: usize,
+    height: usize,
+) -> PyResult<Py<TilingReport>> {
+    Py::new(py, tiling_report_value(py, report, width, height)?)
+}
+
+/// A file API's error. `ValueError` for an option (and for an output the
+/// options cannot make, such as 8-bit EXR), the file named; else `OSError`
+/// naming the file: `OSError(errno, message, filename)` when the system
+/// gave an errno (so a missing file is `FileNotFoundError`), else the
+/// library's line after the file's name.
+fn file_error(path: &Path, e: Error, output: bool) -> PyErr {
+    let shown = path.display().to_string();
+    match &e {
+        Error::InvalidOption(_) => PyValueError::new_err(format!("{shown}: {e}")),
+        Error::Unsupported(_) if output => PyValueError::new_err(format!("{shown}: {e}")),
+        Error::Io(io) if io.raw_os_error().is_some() => PyOSError::new_err((io.raw_os_error(), e.to_string(), shown)),
+        _ => PyOSError::new_err(format!("{shown}: {e}")),
+    }
+}
+
+/// How files are read: the CLI's `--max-texels` and `--layer`.
+fn read_options(max_texels: Option<u64>, layer: Option<String>) -> PyResult<ReadOptions> {
+    let mut read = ReadOptions::default();
+    if let Some(n) = max_texels {
+        if n == 0 {
+            return Err(PyValueError::new_err("invalid option: max_texels must be at least 1, got 0"));
+        }
+        read = read.with_max_texels(n);
+    }
+    Ok(match layer {
+        Some(name) => read.with_layer(name),
+        None => read,
+    })
+}
+
+/// `channel=`: a keyword (luma, r, g, b, a) or an OpenEXR channel's name,
+/// resolved per file by the library's rule, as `--channel` is.
+fn parse_channel(channel: Option<String>) -> PyResult<Option<Channel>> {
+    match channel {
+        Some(name) if name.is_empty() => Err(PyValueError::new_err(
+            "invalid option: channel: expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name",
+        )),
+        other => Ok(other.map(Channel::Named)),
+    }
+}
+
+/// `kind=`: what an image holds.
+fn parse_kind(kind: &str) -> PyResult<KindChoice> {
+    match kind {
+        "auto" => Ok(KindChoice::Auto),
+        "height" => Ok(KindChoice::Height),
+        "normal" => Ok(KindChoice::Normal),
+        other => Err(unknown("kind", other, "auto, height or normal")),
+    }
+}
+
+/// What a conversion did: `normalfit.convert`'s result.
+#[pyclass(frozen, get_all, module = "normalfit")]
+struct ConversionSummary {
+    /// Columns.
+    width: usize,
+    /// Rows.
+    height: usize,
+    /// The format read (``"png"``, ``"exr"``, …).
+    input_format: String,
+    /// The border modes the fit used, ``(x, y)``, ``auto`` settled.
+    borders: (&'static str, &'static str),
+    /// Whether the rows streamed from decoder to encoder (else the image
+    /// was read whole).
+    streamed: bool,
+    /// The tiling check, when the borders needed it and it ran.
+    tiling: Option<Py<TilingReport>>,
+    /// Warnings, one line each (a wrap that draws a seam, …).
+    warnings: Vec<String>,
+}
+
+#[pymethods]
+impl ConversionSummary {
+    fn __repr__(&self) -> String {
+        format!(
+            "ConversionSummary(width={}, height={}, input_format='{}', borders=('{}', '{}'), streamed={}, warnings={:?})",
+            self.width,
+            self.height,
+            self.input_format,
+            self.borders.0,
+            self.borders.1,
+            py_bool(self.streamed),
+            self.warnings
+        )
+    }
+}
+
+/// `convert` with every argument given (see `normalfit.convert`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer))]
+fn convert(
+    py: Python<'_>,
+    src: PathBuf,
+    dst: PathBuf,
+    patch: &Bound<'_, PyAny>,
+    fit: &str,
+    border: &Bound<'_, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    channel: Option<String>,
+    bits: Option<u8>,
+    format: Option<&str>,
+    signed: bool,
+    compression: &str,
+    alpha: &str,
+    channels: &str,
+    residual: bool,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<ConversionSummary> {
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let format = match format {
+        None => None,
+        Some("png") => Some(OutputFormat::Png),
+        Some("exr") => Some(OutputFormat::Exr),
+        Some(other) => return Err(unknown("format", other, "png or exr")),
+    };
+    let compression = match compression {
+        "fast" => PngCompression::Fast,
+        "small" => PngCompression::Default,
+        other => return Err(unknown("compression", other, "fast or small")),
+    };
+    // The command line's --alpha and --channels, as it pairs them.
+    let layout = match (alpha, channels) {
+        ("none", "rgb") => Layout::Rgb,
+        ("height", "rgb") => Layout::RgbHeight,
+        ("one", "rgb") => Layout::RgbOpaque,
+        ("none", "rg") => Layout::Rg,
+        (_, "rg") if ["height", "one"].contains(&alpha) => {
+            return Err(PyValueError::new_err(
+                "invalid option: channels='rg' has no alpha: it is for two-channel (BC5) textures",
+            ));
+        }
+        (other, "rgb" | "rg") => return Err(unknown("alpha", other, "none, height or one")),
+        (_, other) => return Err(unknown("channels", other, "rgb or rg")),
+    };
+    let mut conversion = Conversion::new()
+        .with_fit(opts)
+        .with_borders(borders)
+        .with_read(read_options(max_texels, layer)?)
+        .with_channel(parse_channel(channel)?)
+        .with_format(format)
+        .with_signed(signed)
+        .with_compression(compression)
+        .with_layout(layout)
+        .with_residual(residual);
+    conversion.bits = bits;
+    let summary = py.detach(|| conversion.convert_file(&src, &dst)).map_err(|e| match e.place {
+        Place::Input => file_error(&src, e.error, false),
+        _ => file_error(&dst, e.error, true),
+    })?;
+    Ok(ConversionSummary {
+        width: summary.width,
+        height: summary.height,
+        input_format: summary.input_format.to_string(),
+        borders: (border_name(summary.borders.x), border_name(summary.borders.y)),
+        streamed: summary.streamed,
+        tiling: summary.tiling.map(|r| tiling_report_object(py, &r, summary.width, summary.height)).transpose()?,
+        warnings: summary.warnings.iter().map(ToString::to_string).collect(),
+    })
+}
+
+/// `decode_normals` with every argument given (see `normalfit.decode_normals`).
+#[pyfunction]
+#[pyo3(signature = (path, signed, max_texels, layer))]
+fn decode_normals<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    signed: bool,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let read = read_options(max_texels, layer)?;
+    let (w, h, normals) =
+        py.detach(|| normal_map::read(&path, &read, signed)).map_err(|e| file_error(&path, e, false))?;
+    let flat: Vec<f32> = normals.into_flattened();
+    Ok(PyArray1::from_vec(py, flat).reshape([h, w, 3])?.into_any())
+}
+
+/// `lit_view` with every argument given (see `normalfit.lit_view`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer))]
+fn lit_view<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    light: (f64, f64),
+    tile: bool,
+    kind: &str,
+    channel: Option<String>,
+    signed: bool,
+    patch: &Bound<'py, PyAny>,
+    fit: &str,
+    border: &Bound<'py, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (azimuth_deg, elevation_deg) = light;
+    // The command line's rule for --light (src/cli/args.rs); the library
+    // takes any direction.
+    if !azimuth_deg.is_finite() || !(0.0..=90.0).contains(&elevation_deg) {
+        return Err(PyValueError::new_err(format!(
+            "invalid option: light is (azimuth, elevation) in degrees, the elevation from 0 to 90, got ({azimuth_deg}, {elevation_deg})"
+        )));
+    }
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let lit = LitOptions::new()
+        .with_fit(opts)
+        .with_borders(borders)
+        .with_light(Light { azimuth_deg, elevation_deg })
+        .with_tile(tile)
+        .with_kind(parse_kind(kind)?)
+        .with_channel(parse_channel(channel)?)
+        .with_signed(signed);
+    let read = read_options(max_texels, layer)?;
+    let view = py.detach(|| shade::lit_view_of_file(&path, &read, &lit)).map_err(|e| file_error(&path, e, false))?;
+    let (w, h) = (view.width, view.height);
+    Ok(PyArray1::from_vec(py, view.pixels).reshape([h, w])?.into_any())
+}
+
+/// `check_tiling` of a file (see `normalfit.check_tiling`).
+#[pyfunction]
+#[pyo3(signature = (path, threshold, kind, channel, max_texels, layer))]
+fn check_tiling_file(
+    py: Python<'_>,
+    path: PathBuf,
+    threshold: f64,
+    kind: &str,
+    channel: Option<String>,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<TilingReport> {
+    let opts = tiling_options(threshold, kind)?;
+    let read = read_options(max_texels, layer)?;
+    let channel = parse_channel(channel)?;
+    let (raster, report) = py
+        .detach(|| inspect::tiling_report_of_file(&path, &read, &opts, channel.as_ref()))
+        .map_err(|e| file_error(&path, e, false))?;
+    tiling_report_value(py, &report, raster.width, raster.height)
+}
+
 /// The native half of the `normalfit` package.
 #[pymodule]
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling, m)?)?;
+    m.add_function(wrap_pyfunction!(check_tiling_file, m)?)?;
+    m.add_function(wrap_pyfunction!(convert, m)?)?;
+    m.add_function(wrap_pyfunction!(decode_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(lit_view, m)?)?;
+    m.add_class::<ConversionSummary>()?;
     m.add_class::<AxisReport>()?;
     m.add_class::<TilingReport>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -16,3 +16,9 @@ score: float = report.x.score
 borders: tuple[str, str] = report.suggested_borders
 seamless: bool = report.seamless and report.y.seamless
 version: str = normalfit.__version__
+summary: normalfit.ConversionSummary = normalfit.convert("in.png", "out.png", border="auto", bits=16, alpha="height")
+used: tuple[str, str] = summary.borders
+warnings: list[str] = summary.warnings
+decoded = normalfit.decode_normals("out.png")
+lit = normalfit.lit_view("in.png", light=(45.0, 60.0), tile=True)
+from_file: normalfit.TilingReport = normalfit.check_tiling("in.png", channel="r")

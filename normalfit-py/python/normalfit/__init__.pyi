@@ -1,5 +1,6 @@
 """Type stubs of normalfit (the functions are in __init__.py, the classes native)."""
 
+import os
 from typing import Any, Literal, final
 
 import numpy as np
@@ -8,9 +9,20 @@ import numpy.typing as npt
 from . import _normalfit as _normalfit
 
 __version__: str
-__all__ = ["AxisReport", "TilingReport", "check_tiling", "normals"]
+__all__ = [
+    "AxisReport",
+    "ConversionSummary",
+    "TilingReport",
+    "check_tiling",
+    "convert",
+    "decode_normals",
+    "lit_view",
+    "normals",
+]
 
 _Border = Literal["wrap", "clamp", "mirror"]
+_BorderChoice = Literal["wrap", "clamp", "mirror", "auto"]
+_Path = str | os.PathLike[str]
 _Heights = npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32] | npt.NDArray[np.float64]
 
 @final
@@ -46,7 +58,7 @@ def normals(
     *,
     patch: int = 3,
     fit: Literal["orthogonal", "vertical"] = "orthogonal",
-    border: str | tuple[_Border, _Border] = "wrap",
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
     convention: Literal["opengl", "gl", "directx", "dx"] = "opengl",
     scale: float | None = None,
     relief: float | None = None,
@@ -56,9 +68,74 @@ def normals(
     out: npt.NDArray[Any] | None = None,
     threads: int | None = None,
 ) -> Any: ...
+@final
+class ConversionSummary:
+    """What a conversion did."""
+
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def input_format(self) -> str: ...
+    @property
+    def borders(self) -> tuple[_Border, _Border]: ...
+    @property
+    def streamed(self) -> bool: ...
+    @property
+    def tiling(self) -> TilingReport | None: ...
+    @property
+    def warnings(self) -> list[str]: ...
+
 def check_tiling(
-    image: _Heights,
+    image: _Heights | _Path,
     *,
     threshold: float = 1.5,
     kind: Literal["auto", "height", "normal"] = "auto",
+    channel: str | None = None,
+    max_texels: int | None = None,
+    layer: str | None = None,
 ) -> TilingReport: ...
+def convert(
+    src: _Path,
+    dst: _Path,
+    *,
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    channel: str | None = None,
+    bits: Literal[8, 16, 32] | None = None,
+    format: Literal["png", "exr"] | None = None,
+    signed: bool = False,
+    compression: Literal["fast", "small"] = "fast",
+    alpha: Literal["none", "height", "one"] = "none",
+    channels: Literal["rgb", "rg"] = "rgb",
+    residual: bool = False,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> ConversionSummary: ...
+def decode_normals(
+    path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None
+) -> npt.NDArray[np.float32]: ...
+def lit_view(
+    path: _Path,
+    *,
+    light: tuple[float, float] = (135.0, 35.0),
+    tile: bool = False,
+    kind: Literal["auto", "height", "normal"] = "auto",
+    channel: str | None = None,
+    signed: bool = False,
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> npt.NDArray[np.uint8]: ...
