@@ -169,3 +169,45 @@ def test_auto_picks_wrap_where_an_array_tiles(tmp_path: Path) -> None:
     assert np.array_equal(got, normalfit.normals(tiles, border=("wrap", "mirror")))
     write_png(tmp_path / "t.png", np.round(tiles * 65535).astype(np.uint16))
     assert normalfit.check_tiling(tmp_path / "t.png").suggested_borders == ("wrap", "mirror")
+
+
+def forged_png(width: int, height: int) -> bytes:
+    """A PNG header claiming width x height 16-bit gray texels, then one
+    tiny IDAT: the pixels are not there."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 16, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\x00" * 7)) + chunk(b"IEND", b"")
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda p: p.write_bytes(b""),
+        lambda p: p.write_bytes(ROCK.read_bytes()[:3000]),
+        lambda p: p.write_bytes(forged_png(100_000, 100_000)),
+        lambda p: p.write_bytes(forged_png(2**31 - 1, 1)),
+        lambda p: p.write_bytes(forged_png(300, 200)),
+        lambda p: p.write_bytes(np.random.default_rng(9).integers(0, 256, 5000, dtype=np.uint8).tobytes()),
+        lambda p: p.mkdir(),
+    ],
+    ids=["empty", "truncated", "huge-header", "wide-header", "short-data", "noise", "a-folder"],
+)
+def test_hostile_files_are_os_errors(make, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    bad = tmp_path / "bad.png"
+    make(bad)
+    for call in (
+        lambda: normalfit.convert(bad, tmp_path / "o.png"),
+        lambda: normalfit.convert(bad, tmp_path / "o.png", residual=True, border="auto"),
+        lambda: normalfit.decode_normals(bad),
+        lambda: normalfit.lit_view(bad),
+        lambda: normalfit.check_tiling(bad),
+    ):
+        with pytest.raises(OSError) as caught:
+            call()
+        assert "bad.png" in str(caught.value) and "\n" not in str(caught.value)
+    assert not (tmp_path / "o.png").exists()
