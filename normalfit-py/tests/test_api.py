@@ -206,4 +206,18 @@ def test_help_shows_the_docstrings() -> None:
     assert "convention" in (normalfit.normals.__doc__ or "")
     assert "threshold" in (normalfit.check_tiling.__doc__ or "")
     assert normalfit.AxisReport.__doc__ and normalfit.TilingReport.__doc__
-    assert normalfit.__version__ == "0.1.0" or normalfit.__version__.count(".") == 2
+
+
+def test_version_is_the_crates() -> None:
+    """The package's version is its crate's (maturin's dynamic version),
+    which follows the library's."""
+    import re
+
+    from conftest import ROOT
+
+    def version(manifest: str) -> str:
+        found = re.search(r'^version = "([^"]+)"', (ROOT / manifest).read_text(), re.M)
+        assert found, manifest
+        return found.group(1)
+
+    assert normalfit.__version__ == version("normalfit-py/Cargo.toml") == version("Cargo.toml")
