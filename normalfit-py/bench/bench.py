@@ -125,6 +125,7 @@ def main() -> None:
             times["core fresh"].append(float(line[0]))
             times["core kept"].append(float(line[1]))
     python_fresh, python_out, core_fresh, core_kept = (statistics.median(times[k]) for k in times)
+    one_thread = median_seconds(lambda: normalfit.normals(h, threads=1), max(3, reps // 2))
     recipe64 = median_seconds(lambda: numpy_recipe(h, np.float64), max(3, reps // 2))
     recipe32 = median_seconds(lambda: numpy_recipe(h, np.float32), max(3, reps // 2))
 
@@ -135,8 +136,11 @@ def main() -> None:
     row("Rust core normals_into() (kept output)", core_kept)
     row("normalfit.normals(h) (Python, new output)", python_fresh, f"{python_fresh / core_fresh:.3f}× the core's time")
     row("Rust core normals() (new, zeroed output)", core_fresh)
-    row("NumPy recipe, float64 (np.gradient + norm)", recipe64, f"normalfit is {recipe64 / python_fresh:.1f}× faster")
-    row("NumPy recipe, float32", recipe32, f"normalfit is {recipe32 / python_fresh:.1f}× faster")
+    row("normalfit.normals(h, threads=1)", one_thread, "(NumPy runs on one thread)")
+    row("NumPy recipe, float64 (np.gradient + norm)", recipe64,
+        f"normalfit is {recipe64 / python_fresh:.1f}× faster ({recipe64 / one_thread:.1f}× on one thread)")
+    row("NumPy recipe, float32", recipe32,
+        f"normalfit is {recipe32 / python_fresh:.1f}× faster ({recipe32 / one_thread:.1f}× on one thread)")
 
     child = subprocess.run(
         [sys.executable, __file__, "--peak-memory-child", "--size", str(size)], capture_output=True, text=True, check=True
