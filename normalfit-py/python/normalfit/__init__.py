@@ -1,0 +1,229 @@
+"""Tangent-space normal maps from height maps, by least-squares plane fits.
+
+NumPy arrays in, NumPy arrays out, the same bits as the ``normalfit``
+command line: the work is done by the Rust library the command line is
+built on, with the GIL released.
+
+>>> import numpy as np, normalfit
+>>> heights = np.random.default_rng(1).random((64, 64), dtype=np.float32)
+>>> n = normalfit.normals(heights, patch=5, scale=4.0)   # (64, 64, 3) float32
+>>> rgb = normalfit.normals(heights, patch=5, scale=4.0, dtype=np.uint16)
+>>> normalfit.check_tiling(heights).x.seamless   # noise tiles
+True
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from . import _normalfit
+from ._normalfit import AxisReport, ConversionSummary, TilingReport
+
+__version__: str = _normalfit.__version__
+__all__ = [
+    "AxisReport",
+    "ConversionSummary",
+    "TilingReport",
+    "check_tiling",
+    "convert",
+    "decode_normals",
+    "lit_view",
+    "normals",
+]
+
+
+def normals(
+    heights: Any,
+    *,
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: str | tuple[str, str] = "wrap",
+    convention: str = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    dtype: Any = np.float32,
+    residual: bool = False,
+    out: Any = None,
+    threads: int | None = None,
+) -> Any:
+    """The normal map of a height map.
+
+    heights: a 2-D array (rows, columns) of uint8, uint16, float32 or
+        float64. Integers are heights v / 255 and v / 65535, floats heights
+        as they are (the contract's units, as the command line reads
+        files). A C-contiguous, aligned array in native byte order is read
+        in place; any other (a slice with steps, a transpose, Fortran
+        order) is copied once, in row order, with the GIL released.
+
+    The options are the command line's ``convert`` options, with the same
+    names, defaults and values:
+
+    patch: N, the side of the N x N patch fitted around each texel (odd, >= 3).
+    fit: "orthogonal" (perpendicular distances) or "vertical".
+    border: "wrap", "clamp", "mirror" or "auto" (wrap where the heights
+        tile, mirror where not: the library's tiling check, on a copy of
+        the heights) for both axes, or one per axis as an (x, y) pair or
+        the command line's "x,y".
+    convention: "opengl" ("gl", green up) or "directx" ("dx", green down).
+    scale: the height gain S (default 1); relief: the gain as F x width.
+        Give one or neither.
+    invert: heights are depths.
+
+    dtype: np.float32 (unit vectors, components in [-1, 1]), or np.uint8 /
+        np.uint16 for the encoded RGB round(c_max (n + 1) / 2), bit for bit
+        what ``normalfit convert --bits 8/16`` writes.
+    residual: also return the fit's residual, a (rows, columns) float32
+        array (root-mean-square distance of the patch's points from the
+        plane, in texel widths): the result is then (normals, residual).
+    out: a C-contiguous (rows, columns, 3) array of dtype to write into
+        (returned); it must not share memory with heights.
+    threads: run on a pool of this many threads (pools are kept per size);
+        default: every core (rayon's global pool).
+
+    Returns a (rows, columns, 3) array of dtype.
+
+    Raises TypeError for a heights or out that is not an array of the
+    right number of dimensions and dtype, ValueError for an option out of
+    range, a height that is NaN or infinite, an out of the wrong shape,
+    MemoryError when the memory is not there.
+    """
+    return _normalfit.normals(
+        heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads
+    )
+
+
+def check_tiling(
+    image: Any,
+    *,
+    threshold: float = 1.5,
+    kind: str = "auto",
+    channel: str | None = None,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> TilingReport:
+    """Whether an image tiles seamlessly: ``normalfit tiling`` on an array
+    or a file.
+
+    image: a file (str or os.PathLike: PNG, EXR, TIFF, ... read by content,
+        as the command line reads it; channel, max_texels and layer as its
+        --channel, --max-texels and --layer), or an array: a 2-D (rows,
+        columns) height map, or a 3-D (rows, columns, channels) array of 1
+        to 4 channels (gray, gray + alpha, RGB, RGBA), of uint8, uint16,
+        float32 or float64, in the units the command line reads files in
+        (integers divided by 255 or 65535). An encoded normal map is judged
+        on R, G and B, a height map on its height (the luma of RGB).
+    threshold: an axis is seamless when its score is at most this (> 0).
+    kind: "auto" (decided from the pixels), "height" or "normal".
+
+    Returns a TilingReport: kind, x and y (score, seamless), seamless,
+    width, height, and suggested_borders, the (x, y) borders that add no
+    seam (wrap where it tiles, mirror where not).
+
+    Raises OSError naming the file for a file that cannot be read.
+    """
+    if isinstance(image, (str, os.PathLike)):
+        return _normalfit.check_tiling_file(image, threshold, kind, channel, max_texels, layer)
+    if channel is not None or max_texels is not None or layer is not None:
+        raise TypeError("channel, max_texels and layer are for files; an array's planes are given as they are")
+    return _normalfit.check_tiling(image, threshold, kind)
+
+
+def convert(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    *,
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: str | tuple[str, str] = "wrap",
+    convention: str = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    channel: str | None = None,
+    bits: int | None = None,
+    format: str | None = None,
+    signed: bool = False,
+    compression: str = "fast",
+    alpha: str = "none",
+    channels: str = "rgb",
+    residual: bool = False,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> ConversionSummary:
+    """``normalfit convert SRC -o DST`` with these options (the command
+    line's names and values; see ``normalfit convert --help``): a height
+    map file to a normal map file, through the library's conversion. PNG
+    and scan-line EXR inputs stream (memory grows with the width, not the
+    height); the output appears whole or not at all, and never replaces
+    the input. The GIL is released while it works.
+
+    The fit options are normals()'s. channel: luma, r, g, b, a or an
+    OpenEXR channel's name; bits: 8 or 16 (PNG), 16 or 32 (EXR), default by
+    the input; format: "png" or "exr" when dst's extension does not say;
+    signed: EXR holds n, not (n + 1)/2; compression: "fast" or "small";
+    alpha: "none", "height" or "one"; channels: "rgb" or "rg"; residual:
+    also write <dst stem>_residual.<ext>; max_texels, layer: as the
+    command line's --max-texels and --layer.
+
+    Returns a ConversionSummary (width, height, input_format, borders as
+    used, streamed, tiling, warnings). Raises ValueError for a bad option,
+    OSError naming the file for a file that cannot be read or written.
+    """
+    return _normalfit.convert(
+        src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
+        compression, alpha, channels, residual, max_texels, layer,
+    )
+
+
+def decode_normals(
+    path: str | os.PathLike[str],
+    *,
+    signed: bool = False,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> Any:
+    """A normal map file's colours back to normals: n = 2c - 1 per channel
+    (c the stored value in [0, 1]), or n = c for a signed float (EXR) map.
+    Returns a (rows, columns, 3) float32 array (not renormalised).
+    Raises OSError naming the file, ValueError for signed with an integer
+    image."""
+    return _normalfit.decode_normals(path, signed, max_texels, layer)
+
+
+def lit_view(
+    path: str | os.PathLike[str],
+    *,
+    light: tuple[float, float] = (135.0, 35.0),
+    tile: bool = False,
+    kind: str = "auto",
+    channel: str | None = None,
+    signed: bool = False,
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: str | tuple[str, str] = "wrap",
+    convention: str = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> Any:
+    """``normalfit shade``: a normal map file, or a height map file through
+    the fit (normals()'s options), lit by a directional light.
+
+    light: (azimuth, elevation) in degrees: azimuth counter-clockwise from
+        the image's right (135 = top-left), elevation above the surface
+        (0 to 90). tile: repeat 2 x 2 so wrap seams show. kind: "auto",
+        "height" or "normal". signed: a float normal map holds n itself.
+
+    Returns the gray picture as a (rows, columns) uint8 array (twice each
+    side when tiled), the pixels ``normalfit shade`` writes.
+    """
+    return _normalfit.lit_view(
+        path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
+        max_texels, layer,
+    )

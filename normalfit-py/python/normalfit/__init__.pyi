@@ -1,0 +1,141 @@
+"""Type stubs of normalfit (the functions are in __init__.py, the classes native)."""
+
+import os
+from typing import Any, Literal, final
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _normalfit as _normalfit
+
+__version__: str
+__all__ = [
+    "AxisReport",
+    "ConversionSummary",
+    "TilingReport",
+    "check_tiling",
+    "convert",
+    "decode_normals",
+    "lit_view",
+    "normals",
+]
+
+_Border = Literal["wrap", "clamp", "mirror"]
+_BorderChoice = Literal["wrap", "clamp", "mirror", "auto"]
+_Path = str | os.PathLike[str]
+_Heights = npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32] | npt.NDArray[np.float64]
+
+@final
+class AxisReport:
+    """One axis of a tiling report."""
+
+    @property
+    def score(self) -> float: ...
+    @property
+    def seamless(self) -> bool: ...
+
+@final
+class TilingReport:
+    """The tiling check's verdict on an array."""
+
+    @property
+    def kind(self) -> Literal["height", "normal"]: ...
+    @property
+    def x(self) -> AxisReport: ...
+    @property
+    def y(self) -> AxisReport: ...
+    @property
+    def seamless(self) -> bool: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def suggested_borders(self) -> tuple[_Border, _Border]: ...
+
+def normals(
+    heights: _Heights,
+    *,
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    dtype: npt.DTypeLike = ...,
+    residual: bool = False,
+    out: npt.NDArray[Any] | None = None,
+    threads: int | None = None,
+) -> Any: ...
+@final
+class ConversionSummary:
+    """What a conversion did."""
+
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def input_format(self) -> str: ...
+    @property
+    def borders(self) -> tuple[_Border, _Border]: ...
+    @property
+    def streamed(self) -> bool: ...
+    @property
+    def tiling(self) -> TilingReport | None: ...
+    @property
+    def warnings(self) -> list[str]: ...
+
+def check_tiling(
+    image: _Heights | _Path,
+    *,
+    threshold: float = 1.5,
+    kind: Literal["auto", "height", "normal"] = "auto",
+    channel: str | None = None,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> TilingReport: ...
+def convert(
+    src: _Path,
+    dst: _Path,
+    *,
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    channel: str | None = None,
+    bits: Literal[8, 16, 32] | None = None,
+    format: Literal["png", "exr"] | None = None,
+    signed: bool = False,
+    compression: Literal["fast", "small"] = "fast",
+    alpha: Literal["none", "height", "one"] = "none",
+    channels: Literal["rgb", "rg"] = "rgb",
+    residual: bool = False,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> ConversionSummary: ...
+def decode_normals(
+    path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None
+) -> npt.NDArray[np.float32]: ...
+def lit_view(
+    path: _Path,
+    *,
+    light: tuple[float, float] = (135.0, 35.0),
+    tile: bool = False,
+    kind: Literal["auto", "height", "normal"] = "auto",
+    channel: str | None = None,
+    signed: bool = False,
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> npt.NDArray[np.uint8]: ...

@@ -1,0 +1,79 @@
+"""The native module: every argument positional (normalfit's functions name them)."""
+
+import os
+from typing import Any
+
+from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionSummary, TilingReport as TilingReport
+
+__all__ = [
+    "normals",
+    "check_tiling",
+    "check_tiling_file",
+    "convert",
+    "decode_normals",
+    "lit_view",
+    "ConversionSummary",
+    "AxisReport",
+    "TilingReport",
+    "__version__",
+]
+
+__version__: str
+
+def normals(
+    heights: Any,
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    dtype: Any,
+    residual: bool,
+    out: Any | None,
+    threads: int | None,
+) -> Any: ...
+def check_tiling(image: Any, threshold: float, kind: str) -> TilingReport: ...
+def check_tiling_file(
+    path: str | os.PathLike[str], threshold: float, kind: str, channel: str | None, max_texels: int | None, layer: str | None
+) -> TilingReport: ...
+def convert(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    channel: str | None,
+    bits: int | None,
+    format: str | None,
+    signed: bool,
+    compression: str,
+    alpha: str,
+    channels: str,
+    residual: bool,
+    max_texels: int | None,
+    layer: str | None,
+) -> ConversionSummary: ...
+def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
+def lit_view(
+    path: str | os.PathLike[str],
+    light: tuple[float, float],
+    tile: bool,
+    kind: str,
+    channel: str | None,
+    signed: bool,
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    max_texels: int | None,
+    layer: str | None,
+) -> Any: ...

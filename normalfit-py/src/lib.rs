@@ -1,0 +1,918 @@
+//! `normalfit._normalfit`: the library's calls for Python, on NumPy arrays.
+//!
+//! Everything here only translates: Python values into the library's
+//! options and slices, the library's results and errors back. No rule of
+//! the conversion is made here (the fit, its encodings, the tiling check
+//! and their messages are the library's). The public functions, with their
+//! keyword defaults and docstrings, are in `python/normalfit/__init__.py`,
+//! which calls these with every argument given.
+//!
+//! What holds at this boundary:
+//! * Nothing a caller passes panics: wrong types and shapes are `TypeError`
+//!   or `ValueError`, the library's errors are mapped by [`to_py_err`], and
+//!   output arrays are made by `numpy.empty`, which raises `MemoryError`
+//!   where a direct allocation would abort.
+//! * The GIL is released while the library works (`Python::detach`), so
+//!   other Python threads run, including other conversions.
+//! * A C-contiguous, aligned array of a native dtype is read in place; any
+//!   other layout is copied once, in row order, with the GIL released.
+#![deny(unsafe_code)]
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+use std::path::{Path, PathBuf};
+
+use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
+use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
+use normalfit::shade::{self, Light, LitOptions};
+use normalfit::tiling::{self, HeightSeams, ImageKind, KindChoice, TilingOptions};
+use normalfit::{Border, Borders, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
+use normalfit::{inspect, normal_map};
+use numpy::ndarray::ArrayView2;
+use numpy::{
+    Element, PyArray1, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
+    PyUntypedArrayMethods, dtype,
+};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyInt, PyString, PyTuple};
+use rayon::ThreadPool;
+
+/// The most threads `threads=` may ask for: far more than any machine's
+/// cores, few enough that a typo cannot try to start a million threads.
+const MAX_THREADS: usize = 1024;
+
+/// The library's error as the Python exception a caller expects: options,
+/// sizes and heights are the caller's values (`ValueError`), memory is
+/// `MemoryError`, the operating system's failures `OSError`. The message is
+/// the library's one line.
+fn to_py_err(e: Error) -> PyErr {
+    match e {
+        Error::Limits(_) => PyMemoryError::new_err(e.to_string()),
+        Error::Io(ref io) => PyOSError::new_err((io.raw_os_error().unwrap_or(0), e.to_string())),
+        _ => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// The `ValueError` for an option's value outside its names.
+fn unknown(what: &str, got: &str, names: &str) -> PyErr {
+    PyValueError::new_err(format!("invalid option: unknown {what} '{got}': use {names}"))
+}
+
+/// `fit=`: the CLI's `--fit` values. (The library has no parser of these
+/// names yet; when it has, this and the two below become its `parse`.)
+fn parse_fit(name: &str) -> PyResult<Fit> {
+    match name {
+        "orthogonal" => Ok(Fit::Orthogonal),
+        "vertical" => Ok(Fit::Vertical),
+        other => Err(unknown("fit", other, "orthogonal or vertical")),
+    }
+}
+
+/// `convention=`: the CLI's `--convention` values and their aliases.
+fn parse_convention(name: &str) -> PyResult<Convention> {
+    match name {
+        "opengl" | "gl" => Ok(Convention::OpenGl),
+        "directx" | "dx" => Ok(Convention::DirectX),
+        other => Err(unknown("convention", other, "opengl (gl) or directx (dx)")),
+    }
+}
+
+/// One axis of `border=`: the CLI's `--border` values.
+fn parse_border(name: &str) -> PyResult<BorderChoice> {
+    match name.trim() {
+        "wrap" => Ok(BorderChoice::Fixed(Border::Wrap)),
+        "clamp" => Ok(BorderChoice::Fixed(Border::Clamp)),
+        "mirror" => Ok(BorderChoice::Fixed(Border::Mirror)),
+        "auto" => Ok(BorderChoice::Auto),
+        other => Err(unknown("border mode", other, "wrap, clamp, mirror or auto")),
+    }
+}
+
+/// `border=`: one mode for both axes, `"x,y"` as on the command line, or
+/// an `(x, y)` pair; `auto` is wrap where the image tiles, mirror where not.
+fn parse_borders(border: &Bound<'_, PyAny>) -> PyResult<BorderChoices> {
+    if let Ok(s) = border.cast::<PyString>() {
+        let s = s.to_cow()?;
+        return match s.split_once(',') {
+            None => Ok(BorderChoices::both(parse_border(&s)?)),
+            Some((x, y)) => Ok(BorderChoices { x: parse_border(x)?, y: parse_border(y)? }),
+        };
+    }
+    if let Ok(pair) = border.cast::<PyTuple>()
+        && pair.len() == 2
+    {
+        let (x, y): (String, String) = pair.extract()?;
+        return Ok(BorderChoices { x: parse_border(&x)?, y: parse_border(&y)? });
+    }
+    Err(PyTypeError::new_err(format!("border must be a mode name or an (x, y) pair of them, got {}", shown(border))))
+}
+
+/// An int argument as i128: a negative or huge value is then an option out
+/// of range (`ValueError`, as on the command line), not an `OverflowError`.
+fn whole(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i128> {
+    if obj.cast::<PyInt>().is_err() {
+        let type_name = obj.get_type().name().map_or_else(|_| "?".into(), |n| n.to_string());
+        return Err(PyTypeError::new_err(format!("{name} must be an int, got {type_name}")));
+    }
+    obj.extract::<i128>()
+        .map_err(|_| PyValueError::new_err(format!("invalid option: {name} is out of range, got {}", shown(obj))))
+}
+
+/// `repr(obj)`, for messages.
+fn shown(obj: &Bound<'_, PyAny>) -> String {
+    obj.repr().map_or_else(|_| "?".into(), |r| r.to_string())
+}
+
+/// The fit's options from the keyword arguments, checked by the library,
+/// and the border choices (which may be `auto`).
+#[allow(clippy::too_many_arguments)]
+fn fit_options(
+    patch: &Bound<'_, PyAny>,
+    fit: &str,
+    border: &Bound<'_, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+) -> PyResult<(Options, BorderChoices)> {
+    let patch = whole(patch, "patch")?;
+    let Ok(patch) = usize::try_from(patch) else {
+        return Err(PyValueError::new_err(format!(
+            "invalid option: patch size must be odd and at least 3, got {patch}"
+        )));
+    };
+    let strength = match (scale, relief) {
+        (Some(_), Some(_)) => {
+            return Err(PyValueError::new_err("invalid option: give scale or relief, not both"));
+        }
+        (Some(s), None) => Strength::Scale(s),
+        (None, Some(f)) => Strength::Relief(f),
+        (None, None) => Strength::default(),
+    };
+    let borders = parse_borders(border)?;
+    let opts = Options::new()
+        .with_patch(patch)
+        .with_fit(parse_fit(fit)?)
+        .with_convention(parse_convention(convention)?)
+        .with_strength(strength)
+        .with_invert(invert);
+    opts.validate().map_err(to_py_err)?;
+    Ok((opts, borders))
+}
+
+/// The rayon pools of `threads=`, kept by size: starting threads costs
+/// more than a small image's fit. A call takes a pool out and puts it back
+/// when done, so two concurrent calls never share one (a shared pool of
+/// one thread would run them one after the other); a pool is made when
+/// none of the size is free.
+static POOLS: Mutex<Option<HashMap<usize, Vec<ThreadPool>>>> = Mutex::new(None);
+
+/// A pool taken from [`POOLS`], put back on drop.
+struct Borrowed {
+    threads: usize,
+    pool: Option<ThreadPool>,
+}
+
+impl Drop for Borrowed {
+    fn drop(&mut self) {
+        if let Some(pool) = self.pool.take() {
+            let mut pools = POOLS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            pools.get_or_insert_with(HashMap::new).entry(self.threads).or_default().push(pool);
+        }
+    }
+}
+
+/// A pool of `threads=` threads, or none (rayon's global pool).
+fn pool(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Borrowed>> {
+    let Some(n) = threads else { return Ok(None) };
+    let n = whole(n, "threads")?;
+    let Some(n) = usize::try_from(n).ok().filter(|n| (1..=MAX_THREADS).contains(n)) else {
+        return Err(PyValueError::new_err(format!("invalid option: threads must be from 1 to {MAX_THREADS}, got {n}")));
+    };
+    let kept = {
+        let mut pools = POOLS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        pools.get_or_insert_with(HashMap::new).get_mut(&n).and_then(Vec::pop)
+    };
+    let pool = match kept {
+        Some(pool) => pool,
+        None => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .thread_name(|i| format!("normalfit-{i}"))
+            .build()
+            .map_err(|e| PyOSError::new_err(format!("cannot start {n} threads: {e}")))?,
+    };
+    Ok(Some(Borrowed { threads: n, pool: Some(pool) }))
+}
+
+/// Runs `work` on the pool of `threads=`, or on rayon's global pool.
+fn on_pool<R: Send>(pool: Option<&ThreadPool>, work: impl FnOnce() -> R + Send) -> R {
+    match pool {
+        Some(p) => p.install(work),
+        None => work(),
+    }
+}
+
+/// The sample types a height array may have.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum SampleKind {
+    U8,
+    U16,
+    F32,
+    F64,
+}
+
+/// The array's sample type, or the `TypeError` naming what it is.
+fn sample_kind(array: &Bound<'_, PyUntypedArray>, what: &str) -> PyResult<SampleKind> {
+    let py = array.py();
+    let dt = array.dtype();
+    for (kind, candidate) in [
+        (SampleKind::U8, dtype::<u8>(py)),
+        (SampleKind::U16, dtype::<u16>(py)),
+        (SampleKind::F32, dtype::<f32>(py)),
+        (SampleKind::F64, dtype::<f64>(py)),
+    ] {
+        // Equivalence includes the byte order: a big-endian array is
+        // refused rather than read wrong.
+        if dt.is_equiv_to(&candidate) {
+            return Ok(kind);
+        }
+    }
+    Err(PyTypeError::new_err(format!(
+        "{what} must be uint8, uint16, float32 or float64 (native byte order), got {}",
+        dt.str()?
+    )))
+}
+
+/// `heights` as a NumPy array of `ndim` dimensions, or the `TypeError`.
+fn as_array<'a, 'py>(
+    obj: &'a Bound<'py, PyAny>,
+    what: &str,
+    ndims: &[usize],
+) -> PyResult<&'a Bound<'py, PyUntypedArray>> {
+    let array = obj.cast::<PyUntypedArray>().map_err(|_| {
+        let type_name = obj.get_type().name().map_or_else(|_| "?".into(), |n| n.to_string());
+        PyTypeError::new_err(format!("{what} must be a NumPy array, got {type_name}"))
+    })?;
+    if !ndims.contains(&array.ndim()) {
+        let want = ndims.iter().map(|n| format!("{n}-D")).collect::<Vec<_>>().join(" or ");
+        return Err(PyTypeError::new_err(format!("{what} must be a {want} array, got {}-D", array.ndim())));
+    }
+    Ok(array)
+}
+
+/// The elements of a view in row order, in a new vector (the copy an array
+/// of any other layout needs), or `MemoryError`-bound `Limits`.
+fn row_order<H: Copy>(view: &ArrayView2<'_, H>) -> Result<Vec<H>, Error> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(view.len())
+        .map_err(|_| Error::Limits(format!("cannot allocate a copy of {} heights", view.len())))?;
+    v.extend(view.iter().copied());
+    Ok(v)
+}
+
+/// A `numpy.empty` array: numpy raises `MemoryError` or `ValueError` for a
+/// size it cannot make, where a direct allocation would abort.
+fn empty<'py>(py: Python<'py>, shape: &[usize], dt: Bound<'py, PyArrayDescr>) -> PyResult<Bound<'py, PyAny>> {
+    let shape = PyTuple::new(py, shape)?;
+    py.import("numpy")?.getattr("empty")?.call1((shape, dt))
+}
+
+/// The output array: the caller's `out` after checking it, or a new one.
+fn output<'py, E: Element>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
+    h: usize,
+    w: usize,
+) -> PyResult<Bound<'py, PyArray3<E>>> {
+    let want = dtype::<E>(py);
+    let Some(out) = out else {
+        return Ok(empty(py, &[h, w, 3], want)?.cast_into::<PyArray3<E>>()?);
+    };
+    let array = as_array(out, "out", &[3])?;
+    if !array.dtype().is_equiv_to(&want) {
+        return Err(PyTypeError::new_err(format!(
+            "out must have dtype {} (the dtype asked for), got {}",
+            want.str()?,
+            array.dtype().str()?
+        )));
+    }
+    if array.shape() != [h, w, 3] {
+        return Err(PyValueError::new_err(format!("out must have shape ({h}, {w}, 3), got {:?}", array.shape())));
+    }
+    if !array.is_c_contiguous() {
+        return Err(PyValueError::new_err("out must be C-contiguous (written in place, row by row)"));
+    }
+    Ok(array.cast::<PyArray3<E>>()?.clone())
+}
+
+/// What one `normals` call asks for besides the heights.
+struct Call<'a, 'py> {
+    opts: &'a Options,
+    borders: BorderChoices,
+    out: Option<&'a Bound<'py, PyAny>>,
+    residual: bool,
+    pool: Option<Borrowed>,
+}
+
+/// `normals` for heights of sample type `H` into texels of `[E; 3]`.
+fn fit_typed<'py, H, E>(heights: &Bound<'py, PyUntypedArray>, call: &Call<'_, 'py>) -> PyResult<Bound<'py, PyAny>>
+where
+    H: Stored,
+    E: Element + Copy + Send,
+    [E; 3]: FromNormal,
+{
+    let py = heights.py();
+    let (h, w) = (heights.shape()[0], heights.shape()[1]);
+    let source = heights.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
+    let out = output::<E>(py, call.out, h, w)?;
+    let residual =
+        if call.residual { Some(empty(py, &[h, w], dtype::<f32>(py))?.cast_into::<PyArray2<f32>>()?) } else { None };
+    // Read in place when the memory is already the rows, one after another.
+    let in_place = if heights.is_c_contiguous() { source.as_slice().ok() } else { None };
+    let view = source.as_array();
+    let mut out_rw = out.try_readwrite().map_err(borrow_error)?;
+    let out_flat = out_rw.as_slice_mut().map_err(|e| PyValueError::new_err(format!("out: {e}")))?;
+    let (texels, rest) = out_flat.as_chunks_mut::<3>();
+    debug_assert!(rest.is_empty());
+    let mut residual_rw = match &residual {
+        Some(r) => Some(r.try_readwrite().map_err(borrow_error)?),
+        None => None,
+    };
+    let residual_flat = match residual_rw.as_mut() {
+        Some(r) => Some(r.as_slice_mut().map_err(|e| PyValueError::new_err(format!("residual: {e}")))?),
+        None => None,
+    };
+    let (choices, pool) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()));
+    py.detach(|| -> Result<(), Error> {
+        let copy;
+        let heights: &[H] = match in_place {
+            Some(s) => s,
+            None => {
+                copy = row_order(&view)?;
+                &copy
+            }
+        };
+        let opts = call.opts.clone().with_borders(settle(choices, heights, w, h)?);
+        on_pool(pool, || match residual_flat {
+            Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
+            None => normalfit::normals_into(heights, w, h, &opts, texels),
+        })
+    })
+    .map_err(to_py_err)?;
+    drop(out_rw);
+    drop(residual_rw);
+    let out = out.into_any();
+    match residual {
+        Some(r) => Ok(PyTuple::new(py, [out, r.into_any()])?.into_any()),
+        None => Ok(out),
+    }
+}
+
+/// The sample types an array of heights may hold, and their [`Samples`].
+trait Stored: Sample + Element {
+    /// The samples, owned.
+    fn samples(values: Vec<Self>) -> Samples;
+}
+
+macro_rules! stored {
+    ($($t:ty => $variant:ident),+) => {
+        $(impl Stored for $t {
+            fn samples(values: Vec<Self>) -> Samples {
+                Samples::$variant(values)
+            }
+        })+
+    };
+}
+
+stored!(u8 => U8, u16 => U16, f32 => F32, f64 => F64);
+
+/// The border modes for these heights: `auto` settled as a conversion
+/// settles it (the library's streamed tiling check of a height map, and
+/// [`BorderChoices::resolve`]); fixed modes as they are. `auto` copies the
+/// heights once for the check.
+fn settle<H: Stored>(choices: BorderChoices, heights: &[H], width: usize, height: usize) -> Result<Borders, Error> {
+    if !choices.any_auto() {
+        return Ok(choices.resolve(None));
+    }
+    let mut copy = Vec::new();
+    copy.try_reserve_exact(heights.len())
+        .map_err(|_| Error::Limits(format!("cannot allocate a copy of {} heights", heights.len())))?;
+    copy.extend_from_slice(heights);
+    let samples = H::samples(copy);
+    let mut seams = HeightSeams::new(width, height)?;
+    seams.push_samples(&samples)?;
+    let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height));
+    Ok(choices.resolve(Some(&report)))
+}
+
+/// numpy's borrow checker refused: the arrays overlap (`out` is a view of
+/// `heights`) or another thread holds one mutably.
+fn borrow_error(e: numpy::BorrowError) -> PyErr {
+    PyValueError::new_err(format!("out must not share memory with heights ({e})"))
+}
+
+/// `normals` with every argument given (see `normalfit.normals`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads))]
+fn normals<'py>(
+    py: Python<'py>,
+    heights: &Bound<'py, PyAny>,
+    patch: &Bound<'py, PyAny>,
+    fit: &str,
+    border: &Bound<'py, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    dtype: &Bound<'py, PyAny>,
+    residual: bool,
+    out: Option<&Bound<'py, PyAny>>,
+    threads: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let heights = as_array(heights, "heights", &[2])?;
+    let kind = sample_kind(heights, "heights")?;
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let output = output_kind(py, dtype)?;
+    let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)? };
+    macro_rules! typed {
+        ($h:ty) => {
+            match output {
+                OutputKind::F32 => fit_typed::<$h, f32>(heights, &call),
+                OutputKind::U8 => fit_typed::<$h, u8>(heights, &call),
+                OutputKind::U16 => fit_typed::<$h, u16>(heights, &call),
+            }
+        };
+    }
+    match kind {
+        SampleKind::U8 => typed!(u8),
+        SampleKind::U16 => typed!(u16),
+        SampleKind::F32 => typed!(f32),
+        SampleKind::F64 => typed!(f64),
+    }
+}
+
+/// What the output texels are.
+#[derive(Clone, Copy, Debug)]
+enum OutputKind {
+    /// The unit normal.
+    F32,
+    /// The contract's 8-bit RGB.
+    U8,
+    /// The contract's 16-bit RGB.
+    U16,
+}
+
+/// `dtype=`: anything `numpy.dtype` takes that means float32, uint8 or uint16.
+fn output_kind(py: Python<'_>, dt: &Bound<'_, PyAny>) -> PyResult<OutputKind> {
+    let bad =
+        || PyValueError::new_err(format!("invalid option: dtype must be float32, uint8 or uint16, got {}", shown(dt)));
+    let descr = PyArrayDescr::new(py, dt).map_err(|_| bad())?;
+    for (kind, candidate) in
+        [(OutputKind::F32, dtype::<f32>(py)), (OutputKind::U8, dtype::<u8>(py)), (OutputKind::U16, dtype::<u16>(py))]
+    {
+        if descr.is_equiv_to(&candidate) {
+            return Ok(kind);
+        }
+    }
+    Err(bad())
+}
+
+/// One axis of a tiling report: the `--json` output's `x` or `y`.
+#[pyclass(frozen, get_all, module = "normalfit")]
+#[derive(Clone)]
+struct AxisReport {
+    /// How the wrap pair compares with the interior pairs: about 1 or less
+    /// when it looks like them, larger for a more visible seam.
+    score: f64,
+    /// ``score <= threshold``.
+    seamless: bool,
+}
+
+#[pymethods]
+impl AxisReport {
+    fn __repr__(&self) -> String {
+        format!("AxisReport(score={}, seamless={})", py_float(self.score), py_bool(self.seamless))
+    }
+}
+
+/// The tiling check's verdict on an array: the fields of `normalfit tiling
+/// --json` (kind, x, y, seamless, width, height) and the borders `auto`
+/// would pick.
+#[pyclass(frozen, get_all, module = "normalfit")]
+struct TilingReport {
+    /// ``"height"`` or ``"normal"``: what the array was judged as.
+    kind: &'static str,
+    /// The x seam: last column against first.
+    x: Py<AxisReport>,
+    /// The y seam: last row against first.
+    y: Py<AxisReport>,
+    /// Whether the array tiles on both axes.
+    seamless: bool,
+    /// Columns.
+    width: usize,
+    /// Rows.
+    height: usize,
+    /// Wrap on the axes that tile, mirror on the others, as ``(x, y)``:
+    /// the borders ``border="auto"`` takes.
+    suggested_borders: (&'static str, &'static str),
+}
+
+#[pymethods]
+impl TilingReport {
+    fn __repr__(&self) -> String {
+        format!(
+            "TilingReport(kind='{}', x={}, y={}, seamless={}, width={}, height={})",
+            self.kind,
+            self.x.get().__repr__(),
+            self.y.get().__repr__(),
+            py_bool(self.seamless),
+            self.width,
+            self.height
+        )
+    }
+}
+
+/// A float as Python's `repr` shows it (shortest round trip).
+fn py_float(v: f64) -> String {
+    if v.is_finite() && v == v.trunc() && v.abs() < 1e16 { format!("{v:.1}") } else { format!("{v}") }
+}
+
+fn py_bool(b: bool) -> &'static str {
+    if b { "True" } else { "False" }
+}
+
+fn border_name(b: Border) -> &'static str {
+    match b {
+        Border::Wrap => "wrap",
+        Border::Clamp => "clamp",
+        Border::Mirror => "mirror",
+    }
+}
+
+/// One plane of an array in the contract's units, as f32: the library's
+/// conversion of stored samples ([`Samples::into_f32`]).
+fn plane_f32<H: Element + Copy>(view: ArrayView2<'_, H>, wrap: fn(Vec<H>) -> Samples) -> Result<Vec<f32>, Error> {
+    wrap(row_order(&view)?).into_f32()
+}
+
+/// The planes of a 2-D (H, W) or 3-D (H, W, C) array, C from 1 to 4.
+fn planes_typed<H: Element + Copy>(
+    array: &Bound<'_, PyUntypedArray>,
+    wrap: fn(Vec<H>) -> Samples,
+) -> PyResult<Vec<Vec<f32>>> {
+    let py = array.py();
+    let shape = array.shape().to_vec();
+    let planes = if shape.len() == 2 {
+        let source = array.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
+        let view = source.as_array();
+        py.detach(|| plane_f32(view, wrap).map(|p| vec![p]))
+    } else {
+        let source = array.cast::<PyArray3<H>>()?.try_readonly().map_err(borrow_error)?;
+        let view = source.as_array();
+        py.detach(|| {
+            (0..shape[2])
+                .map(|c| plane_f32(view.index_axis(numpy::ndarray::Axis(2), c), wrap))
+                .collect::<Result<Vec<_>, Error>>()
+        })
+    };
+    planes.map_err(to_py_err)
+}
+
+/// `check_tiling` with every argument given (see `normalfit.check_tiling`).
+#[pyfunction]
+#[pyo3(signature = (image, threshold, kind))]
+fn check_tiling(py: Python<'_>, image: &Bound<'_, PyAny>, threshold: f64, kind: &str) -> PyResult<TilingReport> {
+    let array = as_array(image, "image", &[2, 3])?;
+    let shape = array.shape().to_vec();
+    if shape.len() == 3 && !(1..=4).contains(&shape[2]) {
+        return Err(PyTypeError::new_err(format!(
+            "image must be (height, width) or (height, width, channels) with 1 to 4 channels, got {} channels",
+            shape[2]
+        )));
+    }
+    let opts = tiling_options(threshold, kind)?;
+    let planes = match sample_kind(array, "image")? {
+        SampleKind::U8 => planes_typed::<u8>(array, Samples::U8)?,
+        SampleKind::U16 => planes_typed::<u16>(array, Samples::U16)?,
+        SampleKind::F32 => planes_typed::<f32>(array, Samples::F32)?,
+        SampleKind::F64 => planes_typed::<f64>(array, Samples::F64)?,
+    };
+    let (height, width) = (shape[0], shape[1]);
+    let report = py
+        .detach(|| {
+            let refs: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
+            tiling::check(&refs, width, height, &opts)
+        })
+        .map_err(to_py_err)?;
+    tiling_report_value(py, &report, width, height)
+}
+
+/// The tiling check's options: the threshold refused as the command line
+/// refuses `--threshold` (src/cli/tiling.rs; the library takes any value,
+/// and a NaN passes nothing), the kind by name.
+fn tiling_options(threshold: f64, kind: &str) -> PyResult<TilingOptions> {
+    if threshold.is_nan() || threshold <= 0.0 {
+        return Err(PyValueError::new_err(format!("invalid option: threshold must be positive, got {threshold}")));
+    }
+    Ok(TilingOptions::new().with_threshold(threshold).with_kind(parse_kind(kind)?))
+}
+
+/// The library's report as the Python object.
+fn tiling_report_value(
+    py: Python<'_>,
+    report: &tiling::TilingReport,
+    width: usize,
+    height: usize,
+) -> PyResult<TilingReport> {
+    let axis = |a: tiling::AxisReport| Py::new(py, AxisReport { score: a.score, seamless: a.seamless });
+    let suggested = report.suggested_borders();
+    Ok(TilingReport {
+        kind: match report.kind {
+            ImageKind::Height => "height",
+            ImageKind::Normal => "normal",
+        },
+        x: axis(report.x)?,
+        y: axis(report.y)?,
+        seamless: report.seamless(),
+        width,
+        height,
+        suggested_borders: (border_name(suggested.x), border_name(suggested.y)),
+    })
+}
+
+/// [`tiling_report_value`] as a Python object.
+fn tiling_report_object(
+    py: Python<'_>,
+    report: &tiling::TilingReport,
+    width: usize,
+    height: usize,
+) -> PyResult<Py<TilingReport>> {
+    Py::new(py, tiling_report_value(py, report, width, height)?)
+}
+
+/// A file API's error. `ValueError` for an option (and for an output the
+/// options cannot make, such as 8-bit EXR), the file named; else `OSError`
+/// naming the file: `OSError(errno, message, filename)` when the system
+/// gave an errno (so a missing file is `FileNotFoundError`), else the
+/// library's line after the file's name.
+fn file_error(path: &Path, e: Error, output: bool) -> PyErr {
+    let shown = path.display().to_string();
+    match &e {
+        Error::InvalidOption(_) => PyValueError::new_err(format!("{shown}: {e}")),
+        Error::Unsupported(_) if output => PyValueError::new_err(format!("{shown}: {e}")),
+        Error::Io(io) if io.raw_os_error().is_some() => PyOSError::new_err((io.raw_os_error(), e.to_string(), shown)),
+        _ => PyOSError::new_err(format!("{shown}: {e}")),
+    }
+}
+
+/// How files are read: the CLI's `--max-texels` and `--layer`.
+fn read_options(max_texels: Option<u64>, layer: Option<String>) -> PyResult<ReadOptions> {
+    let mut read = ReadOptions::default();
+    if let Some(n) = max_texels {
+        if n == 0 {
+            return Err(PyValueError::new_err("invalid option: max_texels must be at least 1, got 0"));
+        }
+        read = read.with_max_texels(n);
+    }
+    Ok(match layer {
+        Some(name) => read.with_layer(name),
+        None => read,
+    })
+}
+
+/// `channel=`: a keyword (luma, r, g, b, a) or an OpenEXR channel's name,
+/// resolved per file by the library's rule, as `--channel` is.
+fn parse_channel(channel: Option<String>) -> PyResult<Option<Channel>> {
+    match channel {
+        Some(name) if name.is_empty() => Err(PyValueError::new_err(
+            "invalid option: channel: expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name",
+        )),
+        other => Ok(other.map(Channel::Named)),
+    }
+}
+
+/// `kind=`: what an image holds.
+fn parse_kind(kind: &str) -> PyResult<KindChoice> {
+    match kind {
+        "auto" => Ok(KindChoice::Auto),
+        "height" => Ok(KindChoice::Height),
+        "normal" => Ok(KindChoice::Normal),
+        other => Err(unknown("kind", other, "auto, height or normal")),
+    }
+}
+
+/// What a conversion did: `normalfit.convert`'s result.
+#[pyclass(frozen, get_all, module = "normalfit")]
+struct ConversionSummary {
+    /// Columns.
+    width: usize,
+    /// Rows.
+    height: usize,
+    /// The format read (``"png"``, ``"exr"``, …).
+    input_format: String,
+    /// The border modes the fit used, ``(x, y)``, ``auto`` settled.
+    borders: (&'static str, &'static str),
+    /// Whether the rows streamed from decoder to encoder (else the image
+    /// was read whole).
+    streamed: bool,
+    /// The tiling check, when the borders needed it and it ran.
+    tiling: Option<Py<TilingReport>>,
+    /// Warnings, one line each (a wrap that draws a seam, …).
+    warnings: Vec<String>,
+}
+
+#[pymethods]
+impl ConversionSummary {
+    fn __repr__(&self) -> String {
+        format!(
+            "ConversionSummary(width={}, height={}, input_format='{}', borders=('{}', '{}'), streamed={}, warnings={:?})",
+            self.width,
+            self.height,
+            self.input_format,
+            self.borders.0,
+            self.borders.1,
+            py_bool(self.streamed),
+            self.warnings
+        )
+    }
+}
+
+/// `convert` with every argument given (see `normalfit.convert`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer))]
+fn convert(
+    py: Python<'_>,
+    src: PathBuf,
+    dst: PathBuf,
+    patch: &Bound<'_, PyAny>,
+    fit: &str,
+    border: &Bound<'_, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    channel: Option<String>,
+    bits: Option<u8>,
+    format: Option<&str>,
+    signed: bool,
+    compression: &str,
+    alpha: &str,
+    channels: &str,
+    residual: bool,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<ConversionSummary> {
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let format = match format {
+        None => None,
+        Some("png") => Some(OutputFormat::Png),
+        Some("exr") => Some(OutputFormat::Exr),
+        Some(other) => return Err(unknown("format", other, "png or exr")),
+    };
+    let compression = match compression {
+        "fast" => PngCompression::Fast,
+        "small" => PngCompression::Default,
+        other => return Err(unknown("compression", other, "fast or small")),
+    };
+    // The command line's --alpha and --channels, as it pairs them.
+    let layout = match (alpha, channels) {
+        ("none", "rgb") => Layout::Rgb,
+        ("height", "rgb") => Layout::RgbHeight,
+        ("one", "rgb") => Layout::RgbOpaque,
+        ("none", "rg") => Layout::Rg,
+        (_, "rg") if ["height", "one"].contains(&alpha) => {
+            return Err(PyValueError::new_err(
+                "invalid option: channels='rg' has no alpha: it is for two-channel (BC5) textures",
+            ));
+        }
+        (other, "rgb" | "rg") => return Err(unknown("alpha", other, "none, height or one")),
+        (_, other) => return Err(unknown("channels", other, "rgb or rg")),
+    };
+    let mut conversion = Conversion::new()
+        .with_fit(opts)
+        .with_borders(borders)
+        .with_read(read_options(max_texels, layer)?)
+        .with_channel(parse_channel(channel)?)
+        .with_format(format)
+        .with_signed(signed)
+        .with_compression(compression)
+        .with_layout(layout)
+        .with_residual(residual);
+    conversion.bits = bits;
+    let summary = py.detach(|| conversion.convert_file(&src, &dst)).map_err(|e| match e.place {
+        Place::Input => file_error(&src, e.error, false),
+        _ => file_error(&dst, e.error, true),
+    })?;
+    Ok(ConversionSummary {
+        width: summary.width,
+        height: summary.height,
+        input_format: summary.input_format.to_string(),
+        borders: (border_name(summary.borders.x), border_name(summary.borders.y)),
+        streamed: summary.streamed,
+        tiling: summary.tiling.map(|r| tiling_report_object(py, &r, summary.width, summary.height)).transpose()?,
+        warnings: summary.warnings.iter().map(ToString::to_string).collect(),
+    })
+}
+
+/// `decode_normals` with every argument given (see `normalfit.decode_normals`).
+#[pyfunction]
+#[pyo3(signature = (path, signed, max_texels, layer))]
+fn decode_normals<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    signed: bool,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let read = read_options(max_texels, layer)?;
+    let (w, h, normals) =
+        py.detach(|| normal_map::read(&path, &read, signed)).map_err(|e| file_error(&path, e, false))?;
+    let flat: Vec<f32> = normals.into_flattened();
+    Ok(PyArray1::from_vec(py, flat).reshape([h, w, 3])?.into_any())
+}
+
+/// `lit_view` with every argument given (see `normalfit.lit_view`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer))]
+fn lit_view<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    light: (f64, f64),
+    tile: bool,
+    kind: &str,
+    channel: Option<String>,
+    signed: bool,
+    patch: &Bound<'py, PyAny>,
+    fit: &str,
+    border: &Bound<'py, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (azimuth_deg, elevation_deg) = light;
+    // The command line's rule for --light (src/cli/args.rs); the library
+    // takes any direction.
+    if !azimuth_deg.is_finite() || !(0.0..=90.0).contains(&elevation_deg) {
+        return Err(PyValueError::new_err(format!(
+            "invalid option: light is (azimuth, elevation) in degrees, the elevation from 0 to 90, got ({azimuth_deg}, {elevation_deg})"
+        )));
+    }
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let lit = LitOptions::new()
+        .with_fit(opts)
+        .with_borders(borders)
+        .with_light(Light { azimuth_deg, elevation_deg })
+        .with_tile(tile)
+        .with_kind(parse_kind(kind)?)
+        .with_channel(parse_channel(channel)?)
+        .with_signed(signed);
+    let read = read_options(max_texels, layer)?;
+    let view = py.detach(|| shade::lit_view_of_file(&path, &read, &lit)).map_err(|e| file_error(&path, e, false))?;
+    let (w, h) = (view.width, view.height);
+    Ok(PyArray1::from_vec(py, view.pixels).reshape([h, w])?.into_any())
+}
+
+/// `check_tiling` of a file (see `normalfit.check_tiling`).
+#[pyfunction]
+#[pyo3(signature = (path, threshold, kind, channel, max_texels, layer))]
+fn check_tiling_file(
+    py: Python<'_>,
+    path: PathBuf,
+    threshold: f64,
+    kind: &str,
+    channel: Option<String>,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<TilingReport> {
+    let opts = tiling_options(threshold, kind)?;
+    let read = read_options(max_texels, layer)?;
+    let channel = parse_channel(channel)?;
+    let (raster, report) = py
+        .detach(|| inspect::tiling_report_of_file(&path, &read, &opts, channel.as_ref()))
+        .map_err(|e| file_error(&path, e, false))?;
+    tiling_report_value(py, &report, raster.width, raster.height)
+}
+
+/// The native half of the `normalfit` package.
+#[pymodule]
+fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(normals, m)?)?;
+    m.add_function(wrap_pyfunction!(check_tiling, m)?)?;
+    m.add_function(wrap_pyfunction!(check_tiling_file, m)?)?;
+    m.add_function(wrap_pyfunction!(convert, m)?)?;
+    m.add_function(wrap_pyfunction!(decode_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(lit_view, m)?)?;
+    m.add_class::<ConversionSummary>()?;
+    m.add_class::<AxisReport>()?;
+    m.add_class::<TilingReport>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

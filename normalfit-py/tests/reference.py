@@ -1,0 +1,83 @@
+"""An independent reference: SPEC.md's formula written plainly in NumPy, f64.
+
+Every texel's N x N patch is gathered through the border maps and its sums
+taken directly (no sliding sums, no tiles), so it shares nothing with the
+library but the contract.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+BORDERS = ("wrap", "clamp", "mirror")
+
+
+def border_map(mode: str, k: np.ndarray, n: int) -> np.ndarray:
+    """SPEC section 2's table: index k (any integer) onto [0, n)."""
+    if mode == "wrap":
+        return np.mod(k, n)
+    if mode == "clamp":
+        return np.clip(k, 0, n - 1)
+    if mode == "mirror":
+        if n == 1:
+            return np.zeros_like(k)
+        period = 2 * (n - 1)
+        m = np.mod(k, period)
+        return np.where(m < n, m, period - m)
+    raise ValueError(mode)
+
+
+def heights_of(stored: np.ndarray) -> np.ndarray:
+    """SPEC section 1: integers are v / (2^bits - 1), floats as stored."""
+    if stored.dtype == np.uint8:
+        return stored.astype(np.float64) / 255.0
+    if stored.dtype == np.uint16:
+        return stored.astype(np.float64) / 65535.0
+    return stored.astype(np.float64)
+
+
+def normals(
+    stored: np.ndarray,
+    *,
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: tuple[str, str] = ("wrap", "wrap"),
+    convention: str = "opengl",
+    scale: float = 1.0,
+) -> np.ndarray:
+    """(H, W, 3) unit normals in f64, by the contract's closed forms."""
+    z = scale * heights_of(stored)
+    rows, cols = z.shape
+    r = patch // 2
+    offsets = np.arange(-r, r + 1)
+    xs = border_map(border[0], np.arange(cols)[:, None] + offsets[None, :], cols)  # (W, N)
+    ys = border_map(border[1], np.arange(rows)[:, None] + offsets[None, :], rows)  # (H, N)
+    # p[y, x, j, i] = z(x + i, y + j)
+    p = z[ys[:, None, :, None], xs[None, :, None, :]]
+    sigma = -1.0 if convention == "opengl" else 1.0
+    i = offsets[None, None, None, :].astype(np.float64)
+    j = offsets[None, None, :, None].astype(np.float64)
+    count = patch * patch
+    a = patch * float((offsets**2).sum())
+    cx = (i * p).sum(axis=(2, 3))
+    cy = (sigma * j * p).sum(axis=(2, 3))
+    czz = (p * p).sum(axis=(2, 3)) - p.sum(axis=(2, 3)) ** 2 / count
+    if fit == "vertical":
+        nz = np.full_like(cx, a)
+    else:
+        d = (a - czz) / 2
+        q = np.sqrt(d * d + cx * cx + cy * cy)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nz = np.where(d >= 0, d + q, (cx * cx + cy * cy) / (q - d))
+    n = np.stack([-cx, -cy, nz], axis=-1)
+    flat = cx * cx + cy * cy <= 1e-20 * (a + czz) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    n[flat] = (0.0, 0.0, 1.0)
+    return n
+
+
+def encode(n: np.ndarray, bits: int) -> np.ndarray:
+    """SPEC section 3: round((2^bits - 1) (n + 1) / 2), ties to even."""
+    top = 2**bits - 1
+    return np.rint((n + 1.0) * (top / 2.0)).astype(np.uint8 if bits == 8 else np.uint16)

@@ -1,0 +1,24 @@
+"""Code as a user writes it, for mypy --strict against the stubs (checked
+by test_stubs.py; not a test module itself)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+import normalfit
+
+heights: npt.NDArray[np.uint16] = np.zeros((8, 8), np.uint16)
+unit = normalfit.normals(heights, patch=5, fit="vertical", border=("wrap", "mirror"), convention="dx", scale=2.0)
+rgb = normalfit.normals(heights, dtype=np.uint16, threads=2, border="clamp,wrap")
+report: normalfit.TilingReport = normalfit.check_tiling(heights, threshold=2.0, kind="height")
+score: float = report.x.score
+borders: tuple[str, str] = report.suggested_borders
+seamless: bool = report.seamless and report.y.seamless
+version: str = normalfit.__version__
+summary: normalfit.ConversionSummary = normalfit.convert("in.png", "out.png", border="auto", bits=16, alpha="height")
+used: tuple[str, str] = summary.borders
+warnings: list[str] = summary.warnings
+decoded = normalfit.decode_normals("out.png")
+lit = normalfit.lit_view("in.png", light=(45.0, 60.0), tile=True)
+from_file: normalfit.TilingReport = normalfit.check_tiling("in.png", channel="r")
