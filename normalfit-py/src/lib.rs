@@ -23,7 +23,7 @@ use std::sync::Mutex;
 
 use std::path::{Path, PathBuf};
 
-use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
+use normalfit::convert::{BorderChoices, Conversion, Place};
 use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, HeightSeams, ImageKind, KindChoice, TilingOptions};
@@ -60,34 +60,10 @@ fn unknown(what: &str, got: &str, names: &str) -> PyErr {
     PyValueError::new_err(format!("invalid option: unknown {what} '{got}': use {names}"))
 }
 
-/// `fit=`: the CLI's `--fit` values. (The library has no parser of these
-/// names yet; when it has, this and the two below become its `parse`.)
-fn parse_fit(name: &str) -> PyResult<Fit> {
-    match name {
-        "orthogonal" => Ok(Fit::Orthogonal),
-        "vertical" => Ok(Fit::Vertical),
-        other => Err(unknown("fit", other, "orthogonal or vertical")),
-    }
-}
-
-/// `convention=`: the CLI's `--convention` values and their aliases.
-fn parse_convention(name: &str) -> PyResult<Convention> {
-    match name {
-        "opengl" | "gl" => Ok(Convention::OpenGl),
-        "directx" | "dx" => Ok(Convention::DirectX),
-        other => Err(unknown("convention", other, "opengl (gl) or directx (dx)")),
-    }
-}
-
-/// One axis of `border=`: the CLI's `--border` values.
-fn parse_border(name: &str) -> PyResult<BorderChoice> {
-    match name.trim() {
-        "wrap" => Ok(BorderChoice::Fixed(Border::Wrap)),
-        "clamp" => Ok(BorderChoice::Fixed(Border::Clamp)),
-        "mirror" => Ok(BorderChoice::Fixed(Border::Mirror)),
-        "auto" => Ok(BorderChoice::Auto),
-        other => Err(unknown("border mode", other, "wrap, clamp, mirror or auto")),
-    }
+/// A name the library parses (`fit`, `convention`, a border), its error a
+/// `ValueError` with the library's message.
+fn parse_named<T: std::str::FromStr<Err = Error>>(name: &str) -> PyResult<T> {
+    name.parse().map_err(to_py_err)
 }
 
 /// `border=`: one mode for both axes, `"x,y"` as on the command line, or
@@ -95,16 +71,13 @@ fn parse_border(name: &str) -> PyResult<BorderChoice> {
 fn parse_borders(border: &Bound<'_, PyAny>) -> PyResult<BorderChoices> {
     if let Ok(s) = border.cast::<PyString>() {
         let s = s.to_cow()?;
-        return match s.split_once(',') {
-            None => Ok(BorderChoices::both(parse_border(&s)?)),
-            Some((x, y)) => Ok(BorderChoices { x: parse_border(x)?, y: parse_border(y)? }),
-        };
+        return parse_named(&s);
     }
     if let Ok(pair) = border.cast::<PyTuple>()
         && pair.len() == 2
     {
         let (x, y): (String, String) = pair.extract()?;
-        return Ok(BorderChoices { x: parse_border(&x)?, y: parse_border(&y)? });
+        return Ok(BorderChoices { x: parse_named(&x)?, y: parse_named(&y)? });
     }
     Err(PyTypeError::new_err(format!("border must be a mode name or an (x, y) pair of them, got {}", shown(border))))
 }
@@ -154,8 +127,8 @@ fn fit_options(
     let borders = parse_borders(border)?;
     let opts = Options::new()
         .with_patch(patch)
-        .with_fit(parse_fit(fit)?)
-        .with_convention(parse_convention(convention)?)
+        .with_fit(parse_named::<Fit>(fit)?)
+        .with_convention(parse_named::<Convention>(convention)?)
         .with_strength(strength)
         .with_invert(invert);
     opts.validate().map_err(to_py_err)?;
@@ -544,14 +517,6 @@ fn py_bool(b: bool) -> &'static str {
     if b { "True" } else { "False" }
 }
 
-fn border_name(b: Border) -> &'static str {
-    match b {
-        Border::Wrap => "wrap",
-        Border::Clamp => "clamp",
-        Border::Mirror => "mirror",
-    }
-}
-
 /// One plane of an array in the contract's units, as f32: the library's
 /// conversion of stored samples ([`Samples::into_f32`]).
 fn plane_f32<H: Element + Copy>(view: ArrayView2<'_, H>, wrap: fn(Vec<H>) -> Samples) -> Result<Vec<f32>, Error> {
@@ -639,7 +604,7 @@ fn tiling_report_value(
         seamless: report.seamless(),
         width,
         height,
-        suggested_borders: (border_name(suggested.x), border_name(suggested.y)),
+        suggested_borders: (Border::name(suggested.x), Border::name(suggested.y)),
     })
 }
 
@@ -811,7 +776,7 @@ fn convert(
         width: summary.width,
         height: summary.height,
         input_format: summary.input_format.to_string(),
-        borders: (border_name(summary.borders.x), border_name(summary.borders.y)),
+        borders: (Border::name(summary.borders.x), Border::name(summary.borders.y)),
         streamed: summary.streamed,
         tiling: summary.tiling.map(|r| tiling_report_object(py, &r, summary.width, summary.height)).transpose()?,
         warnings: summary.warnings.iter().map(ToString::to_string).collect(),
