@@ -116,7 +116,7 @@ const TIFF_DECODER: Decoder = Decoder::NotBuilt;
 
 /// TGA has no signature: with its decoder built, bytes are TGA when its
 /// header parses; without, when the header's fixed fields look like one
-/// ([`tga_header_plausible`]), so that the error names the feature.
+/// (`tga_header_plausible`), so that the error names the feature.
 #[cfg(feature = "tga")]
 const TGA_PROBE: fn(&[u8]) -> bool = super::image_crate::is_tga;
 #[cfg(not(feature = "tga"))]
@@ -152,9 +152,9 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "TIFF",
         extensions: &["tif", "tiff"],
         streams: false,
+        feature: Some("tiff"),
         // Classic and BigTIFF, little- and big-endian (`image` knows only
         // classic TIFF's signature; its decoder reads BigTIFF too).
-        feature: Some("tiff"),
         signature: Signature::Magic(&[&[(0, b"II*\0")], &[(0, b"MM\0*")], &[(0, b"II+\0")], &[(0, b"MM\0+")]]),
         decoder: TIFF_DECODER,
     },
@@ -214,8 +214,8 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "Radiance HDR",
         extensions: &["hdr"],
         streams: false,
-        // `image`'s decoder takes this signature only, not "#?RGBE".
         feature: Some("hdr"),
+        // `image`'s decoder takes this signature only, not "#?RGBE".
         signature: Signature::Magic(&[&[(0, b"#?RADIANCE")]]),
         decoder: image_decoder(ImageFormat::Hdr, cfg!(feature = "hdr")),
     },
