@@ -54,7 +54,7 @@
 
 use std::ops::Range;
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::options::{Borders, Fit, Options};
@@ -258,7 +258,7 @@ impl BandFit {
         // Enough blocks per band to keep every core busy, but a band of at
         // most 2^24 texels: a block already holds enough strips (tasks) to
         // share among the threads.
-        let blocks = rayon::current_num_threads().clamp(1, (MAX_BLOCK_TEXELS / (plan.block_rows * width)).max(1));
+        let blocks = crate::par::current_num_threads().clamp(1, (MAX_BLOCK_TEXELS / (plan.block_rows * width)).max(1));
         let band_rows = plan.block_rows * blocks;
         Ok(BandFit { plan, height, band_rows, unit: None })
     }

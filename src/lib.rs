@@ -10,8 +10,9 @@
 //! * [`fit`]: the compute core. Heights in a caller's row-major `f32`
 //!   buffer, [`Options`] in, normals out ([`normals`], [`normals_into`]).
 //!   It knows nothing of files. The cost per texel does not depend on the
-//!   patch size, rows run in parallel on rayon's pool, and the result is the
-//!   same bit for bit whatever the number of threads.
+//!   patch size, rows run in parallel on rayon's pool (with the `parallel`
+//!   feature), and the result is the same bit for bit whatever the number
+//!   of threads, or with none.
 //! * [`io`]: decoding (PNG, OpenEXR, TIFF, JPEG, … chosen by content, with
 //!   size limits checked before any pixel buffer exists) and encoding (PNG,
 //!   OpenEXR) as an [`io::Encoding`] says ([`io::encode_normals`]), and
@@ -162,6 +163,29 @@
 //! assert_eq!((borders.x, borders.y), (normalfit::Border::Wrap, normalfit::Border::Mirror));
 //! # Ok::<(), normalfit::Error>(())
 //! ```
+//!
+//! # Cargo features
+//!
+//! Every feature is on by default, as the `normalfit` program ships. A
+//! library user who wants less starts from `default-features = false`
+//! and adds what it needs: that build reads PNG and OpenEXR (the output
+//! formats, always built) and runs on the calling thread.
+//!
+//! | feature | what it adds | default |
+//! |---|---|---|
+//! | `cli` | the `normalfit` program (clap, serde_json; implies `serde`) | on |
+//! | `serde` | `Serialize` for the reports ([`tiling::TilingReport`] and its parts) | via `cli` |
+//! | `parallel` | fits, decoding and encoding on rayon's pool, EXR blocks on threads | on |
+//! | `all-formats` | every input decoder below | on |
+//! | `tiff`, `jpeg`, `tga`, `bmp`, `webp`, `gif`, `hdr`, `pnm`, `qoi` | reading that format | via `all-formats` |
+//!
+//! Without `parallel` the same code runs serially and gives the same bits:
+//! results never depend on the number of threads. A format whose feature
+//! is off is still recognised by its content (and its extension), and
+//! reading it is an [`Error::Unsupported`], "JPEG support is not built in:
+//! enable normalfit's `jpeg` feature"; [`io::read::formats::names`] and the
+//! program's help list only the formats built in, and
+//! [`io::FormatInfo::built_in`] says whether one is.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -172,6 +196,7 @@ pub mod inspect;
 pub mod io;
 pub mod normal_map;
 pub mod options;
+mod par;
 pub mod pipeline;
 pub mod samples;
 pub mod shade;

@@ -207,7 +207,7 @@
 //! every level. `cargo bench --bench fit -- seams` (4096², 2 cores): see
 //! docs/tiling.md for the figures.
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use crate::options::{Border, Borders};
 use crate::samples::try_vec;
@@ -836,7 +836,7 @@ impl Profiles {
         let (w, h, levels) = (width as u64, height as u64, LEVELS as u64);
         let block = 4 * 2 * w * 4 + levels * w * 4 + 2 * levels * w * 4;
         let per_thread = 2 * levels * w * 8 + block;
-        2 * levels * h * 8 + (rayon::current_num_threads() as u64 + 1) * per_thread
+        2 * levels * h * 8 + (crate::par::current_num_threads() as u64 + 1) * per_thread
     }
 
     fn measure(planes: &[&[f32]], w: usize, h: usize, kind: ImageKind) -> Profiles {
@@ -853,44 +853,37 @@ impl Profiles {
         let zeros = || vec![0.0f64; LEVELS * w];
         // Each task owns CHUNK row pairs of the y profiles and adds its rows
         // to a per-thread x profile; the x profiles are summed at the end.
-        let (vx, cx) = vy
-            .par_chunks_mut(CHUNK * LEVELS)
-            .zip(cy.par_chunks_mut(CHUNK * LEVELS))
-            .enumerate()
-            .fold(
-                || (zeros(), zeros(), Block::new(w)),
-                |(mut vx, mut cx, mut block), (c, (vy, cy))| {
-                    for signal in &signals {
-                        block.measure(signal, c * CHUNK, vy.len() / LEVELS, h, crease);
-                        for (acc, s) in vy.iter_mut().zip(&block.vy) {
-                            *acc += s;
-                        }
-                        for (acc, s) in cy.iter_mut().zip(&block.cy) {
-                            *acc += s;
-                        }
-                        for (acc, &s) in vx.iter_mut().zip(&block.vx) {
-                            *acc += unscaled(s);
-                        }
-                        for (acc, &s) in cx.iter_mut().zip(&block.cx) {
-                            *acc += unscaled(s);
-                        }
+        let (vx, cx, _) = crate::par::fold_reduce(
+            vy.par_chunks_mut(CHUNK * LEVELS).zip(cy.par_chunks_mut(CHUNK * LEVELS)).enumerate(),
+            || (zeros(), zeros(), Block::new(w)),
+            |(mut vx, mut cx, mut block), (c, (vy, cy))| {
+                for signal in &signals {
+                    block.measure(signal, c * CHUNK, vy.len() / LEVELS, h, crease);
+                    for (acc, s) in vy.iter_mut().zip(&block.vy) {
+                        *acc += s;
                     }
-                    (vx, cx, block)
-                },
-            )
-            .map(|(vx, cx, _)| (vx, cx))
-            .reduce(
-                || (zeros(), zeros()),
-                |(mut vx, mut cx), (vx2, cx2)| {
-                    for (a, b) in vx.iter_mut().zip(vx2) {
-                        *a += b;
+                    for (acc, s) in cy.iter_mut().zip(&block.cy) {
+                        *acc += s;
                     }
-                    for (a, b) in cx.iter_mut().zip(cx2) {
-                        *a += b;
+                    for (acc, &s) in vx.iter_mut().zip(&block.vx) {
+                        *acc += unscaled(s);
                     }
-                    (vx, cx)
-                },
-            );
+                    for (acc, &s) in cx.iter_mut().zip(&block.cx) {
+                        *acc += unscaled(s);
+                    }
+                }
+                (vx, cx, block)
+            },
+            |(mut vx, mut cx, block), (vx2, cx2, _)| {
+                for (a, b) in vx.iter_mut().zip(vx2) {
+                    *a += b;
+                }
+                for (a, b) in cx.iter_mut().zip(cx2) {
+                    *a += b;
+                }
+                (vx, cx, block)
+            },
+        );
         Profiles { vx, cx, vy, cy }
     }
 }

@@ -729,6 +729,8 @@ fn heights_of_extreme_size_give_finite_unit_normals() {
     }
 }
 
+// Runs the program, which needs the `cli` feature.
+#[cfg(feature = "cli")]
 #[test]
 fn extreme_heights_through_the_binary() {
     let dir = tempfile::tempdir().unwrap();
@@ -759,6 +761,8 @@ fn extreme_heights_through_the_binary() {
     }
 }
 
+// Runs the program, which needs the `cli` feature.
+#[cfg(feature = "cli")]
 #[test]
 fn a_wrong_extension_is_refused_and_standard_input_is_read_by_content() {
     let dir = tempfile::tempdir().unwrap();

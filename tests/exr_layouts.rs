@@ -22,6 +22,7 @@ use exr::prelude::{
 };
 use normalfit::io::{Channel, ReadOptions, read_path};
 use normalfit::pipeline::{ExrRows, RowSource};
+#[cfg(feature = "cli")]
 use normalfit::{Options, normals};
 
 // ---------------------------------------------------------------------------
@@ -685,6 +686,7 @@ fn broken_luminance_chroma_files_are_clean_errors() {
 // ---------------------------------------------------------------------------
 // The command line: `--channel` with a name, in both readers
 
+#[cfg(feature = "cli")]
 /// The normals the binary writes for `input` (from the file, streamed, and
 /// from standard input, whole: the same), `--signed` EXR out.
 fn cli_normals(input: &Path, extra: &[&str], dir: &Path) -> Result<Vec<[f32; 3]>, String> {
@@ -722,6 +724,8 @@ fn cli_normals(input: &Path, extra: &[&str], dir: &Path) -> Result<Vec<[f32; 3]>
     whole
 }
 
+// Runs the program, which needs the `cli` feature.
+#[cfg(feature = "cli")]
 #[test]
 fn channel_names_on_the_command_line() {
     let dir = tempfile::tempdir().unwrap();

@@ -5,7 +5,9 @@
 use normalfit::io::{Raster, ReadOptions, decode};
 use normalfit::pipeline::PngRows;
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
-use normalfit::{Border, Borders, Error, Fit, Options, Strength};
+use normalfit::{Border, Borders, Error, Options};
+#[cfg(feature = "hdr")]
+use normalfit::{Fit, Strength};
 
 /// The fuzzers' limit: small, so a case never costs much.
 fn read() -> ReadOptions {
@@ -83,6 +85,7 @@ fn exr_b44_block_whose_arithmetic_wraps_decodes() {
 
 /// A Radiance HDR whose texels reach 1.7·10³⁸: their differences overflowed
 /// f32 in the tiling kernels, and both scores were NaN ("x NaN SEAM").
+#[cfg(feature = "hdr")]
 #[test]
 fn hdr_with_texels_near_f32_range_scores_finite() {
     let raster = decode(&case("hdr-huge-values.hdr"), &read()).expect("a valid HDR");

@@ -13,6 +13,7 @@ use std::io::{Seek, Write};
 
 pub use super::atomic::{write_atomically, write_file_atomically};
 
+use crate::par::prelude::*;
 use exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
 use exr::block::writer::{ChunkWriter, ChunksWriter};
 use exr::compression::Compression;
@@ -22,7 +23,6 @@ use exr::meta::header::Header;
 use exr::prelude::{LayerAttributes, SmallVec, f16};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder, ImageError};
-use rayon::prelude::*;
 
 use super::encoding::{Encoding, ExrOptions, PngDepth, PngOptions};
 use crate::error::{Error, Result, one_line};

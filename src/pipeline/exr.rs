@@ -150,10 +150,15 @@ impl ExrRows {
                 block.layer == part && block.pixel_position.y() + block.pixel_size.y() > first_block
             })
             .map_err(from_exr_error)?;
+        // exr decompresses blocks on threads only with its `rayon` feature,
+        // which normalfit's `parallel` turns on.
+        #[cfg(feature = "parallel")]
         let blocks: Blocks = match chunks.parallel_decompressor(false) {
             Ok(parallel) => Box::new(parallel),
             Err(chunks) => Box::new(chunks.sequential_decompressor(false)),
         };
+        #[cfg(not(feature = "parallel"))]
+        let blocks: Blocks = Box::new(chunks.sequential_decompressor(false));
         let decoder = Decoder::Exr { blocks, channels, part, early: BTreeMap::new() };
         Ok(Some(ExrRows::new(decoder, source, size, lines_per_block, first_row)))
     }

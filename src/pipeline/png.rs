@@ -8,7 +8,7 @@ use std::io::{BufReader, Read, Seek, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use super::{RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};

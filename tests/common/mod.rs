@@ -1,3 +1,5 @@
 //! Helpers shared by the integration tests.
+// Runs the program, which only the `cli` feature builds.
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod reference;

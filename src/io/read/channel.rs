@@ -3,7 +3,7 @@
 
 use std::fmt;
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use super::{InputFormat, Plane, Raster};
 use crate::error::{Error, Result};

@@ -10,6 +10,12 @@
 //! error for bytes no format recognises. Adding a format is an entry in
 //! [`FORMATS`] and, when the `image` crate does not read it, a decoder
 //! beside the others in `io/read/`.
+//!
+//! Every format but PNG and OpenEXR has a Cargo feature of its own name
+//! ([`FormatInfo::feature`]). A format whose feature is off stays in the
+//! table, so its files are still recognised (by content and by extension),
+//! and reading one is an [`Error::Unsupported`] naming the feature to
+//! enable; [`names`] lists only the formats built in.
 
 use std::fmt;
 
@@ -64,6 +70,9 @@ pub struct FormatInfo {
     /// output without the whole image in memory (`io::stream`; for
     /// OpenEXR, scan-line files only).
     pub streams: bool,
+    /// The Cargo feature that builds its decoder; `None` for the formats
+    /// always read (PNG, OpenEXR).
+    feature: Option<&'static str>,
     /// How its content is recognised.
     signature: Signature,
     /// What decodes it.
@@ -90,7 +99,28 @@ enum Decoder {
     Own(fn(&[u8], &ReadOptions) -> Result<Raster>),
     /// The `image` crate, told the format.
     Image(ImageFormat),
+    /// None: the format's feature is off.
+    NotBuilt,
 }
+
+/// The `image` crate's decoder of `format` if its feature (`built`) is on.
+const fn image_decoder(format: ImageFormat, built: bool) -> Decoder {
+    if built { Decoder::Image(format) } else { Decoder::NotBuilt }
+}
+
+/// TIFF's decoder, its own, when the `tiff` feature is on.
+#[cfg(feature = "tiff")]
+const TIFF_DECODER: Decoder = Decoder::Own(super::tiff::decode);
+#[cfg(not(feature = "tiff"))]
+const TIFF_DECODER: Decoder = Decoder::NotBuilt;
+
+/// TGA has no signature: with its decoder built, bytes are TGA when its
+/// header parses; without, when the header's fixed fields look like one
+/// (`tga_header_plausible`), so that the error names the feature.
+#[cfg(feature = "tga")]
+const TGA_PROBE: fn(&[u8]) -> bool = super::image_crate::is_tga;
+#[cfg(not(feature = "tga"))]
+const TGA_PROBE: fn(&[u8]) -> bool = tga_header_plausible;
 
 /// Every format normalfit reads, in the order help text lists them.
 /// Signatures do not overlap, so the order does not change which format
@@ -102,6 +132,7 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "PNG",
         extensions: &["png"],
         streams: true,
+        feature: None,
         signature: Signature::Magic(&[&[(0, &super::png::PNG_SIGNATURE)]]),
         decoder: Decoder::Own(super::png::decode),
     },
@@ -111,6 +142,7 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "OpenEXR",
         extensions: &["exr"],
         streams: true,
+        feature: None,
         signature: Signature::Magic(&[&[(0, &super::exr::EXR_MAGIC)]]),
         decoder: Decoder::Own(super::exr::decode_exr),
     },
@@ -120,10 +152,11 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "TIFF",
         extensions: &["tif", "tiff"],
         streams: false,
+        feature: Some("tiff"),
         // Classic and BigTIFF, little- and big-endian (`image` knows only
         // classic TIFF's signature; its decoder reads BigTIFF too).
         signature: Signature::Magic(&[&[(0, b"II*\0")], &[(0, b"MM\0*")], &[(0, b"II+\0")], &[(0, b"MM\0+")]]),
-        decoder: Decoder::Own(super::tiff::decode),
+        decoder: TIFF_DECODER,
     },
     FormatInfo {
         format: InputFormat::Jpeg,
@@ -131,8 +164,9 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "JPEG",
         extensions: &["jpg", "jpeg"],
         streams: false,
+        feature: Some("jpeg"),
         signature: Signature::Magic(&[&[(0, &[0xff, 0xd8, 0xff])]]),
-        decoder: Decoder::Image(ImageFormat::Jpeg),
+        decoder: image_decoder(ImageFormat::Jpeg, cfg!(feature = "jpeg")),
     },
     FormatInfo {
         format: InputFormat::Tga,
@@ -140,8 +174,9 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "TGA",
         extensions: &["tga"],
         streams: false,
-        signature: Signature::Probe(super::image_crate::is_tga),
-        decoder: Decoder::Image(ImageFormat::Tga),
+        feature: Some("tga"),
+        signature: Signature::Probe(TGA_PROBE),
+        decoder: image_decoder(ImageFormat::Tga, cfg!(feature = "tga")),
     },
     FormatInfo {
         format: InputFormat::Bmp,
@@ -149,8 +184,9 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "BMP",
         extensions: &["bmp"],
         streams: false,
+        feature: Some("bmp"),
         signature: Signature::Magic(&[&[(0, b"BM")]]),
-        decoder: Decoder::Image(ImageFormat::Bmp),
+        decoder: image_decoder(ImageFormat::Bmp, cfg!(feature = "bmp")),
     },
     FormatInfo {
         format: InputFormat::WebP,
@@ -158,8 +194,9 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "WebP",
         extensions: &["webp"],
         streams: false,
+        feature: Some("webp"),
         signature: Signature::Magic(&[&[(0, b"RIFF"), (8, b"WEBP")]]),
-        decoder: Decoder::Image(ImageFormat::WebP),
+        decoder: image_decoder(ImageFormat::WebP, cfg!(feature = "webp")),
     },
     FormatInfo {
         format: InputFormat::Gif,
@@ -167,8 +204,9 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "GIF",
         extensions: &["gif"],
         streams: false,
+        feature: Some("gif"),
         signature: Signature::Magic(&[&[(0, b"GIF87a")], &[(0, b"GIF89a")]]),
-        decoder: Decoder::Image(ImageFormat::Gif),
+        decoder: image_decoder(ImageFormat::Gif, cfg!(feature = "gif")),
     },
     FormatInfo {
         format: InputFormat::Hdr,
@@ -176,9 +214,10 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "Radiance HDR",
         extensions: &["hdr"],
         streams: false,
+        feature: Some("hdr"),
         // `image`'s decoder takes this signature only, not "#?RGBE".
         signature: Signature::Magic(&[&[(0, b"#?RADIANCE")]]),
-        decoder: Decoder::Image(ImageFormat::Hdr),
+        decoder: image_decoder(ImageFormat::Hdr, cfg!(feature = "hdr")),
     },
     FormatInfo {
         format: InputFormat::Pnm,
@@ -186,6 +225,7 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "PNM",
         extensions: &["pgm", "ppm", "pbm", "pam", "pnm"],
         streams: false,
+        feature: Some("pnm"),
         signature: Signature::Magic(&[
             &[(0, b"P1")],
             &[(0, b"P2")],
@@ -195,7 +235,7 @@ pub static FORMATS: &[FormatInfo] = &[
             &[(0, b"P6")],
             &[(0, b"P7")],
         ]),
-        decoder: Decoder::Image(ImageFormat::Pnm),
+        decoder: image_decoder(ImageFormat::Pnm, cfg!(feature = "pnm")),
     },
     FormatInfo {
         format: InputFormat::Qoi,
@@ -203,8 +243,9 @@ pub static FORMATS: &[FormatInfo] = &[
         title: "QOI",
         extensions: &["qoi"],
         streams: false,
+        feature: Some("qoi"),
         signature: Signature::Magic(&[&[(0, b"qoif")]]),
-        decoder: Decoder::Image(ImageFormat::Qoi),
+        decoder: image_decoder(ImageFormat::Qoi, cfg!(feature = "qoi")),
     },
 ];
 
@@ -226,12 +267,34 @@ impl FormatInfo {
         matches!(self.signature, Signature::Magic(_))
     }
 
+    /// The Cargo feature that builds the format's decoder ("jpeg"), or
+    /// `None` for the formats always read (PNG and OpenEXR, which are also
+    /// the output formats).
+    #[must_use]
+    pub fn feature(&self) -> Option<&'static str> {
+        self.feature
+    }
+
+    /// Whether this build reads the format: false when its feature is
+    /// off, and reading it is an [`Error::Unsupported`] naming the feature.
+    #[must_use]
+    pub fn built_in(&self) -> bool {
+        !matches!(self.decoder, Decoder::NotBuilt)
+    }
+
     /// Decodes `bytes`, known to be of this format.
     pub(crate) fn decode(&self, bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         match self.decoder {
             Decoder::Own(decode) => decode(bytes, opts),
             Decoder::Image(format) => super::image_crate::decode_with_image(bytes, opts, format, self.format.clone()),
+            Decoder::NotBuilt => Err(self.not_built_in()),
         }
+    }
+
+    /// The error for reading a format this build leaves out.
+    pub(crate) fn not_built_in(&self) -> Error {
+        let feature = self.feature.unwrap_or(self.name);
+        Error::Unsupported(format!("{} support is not built in: enable normalfit's `{feature}` feature", self.title))
     }
 }
 
@@ -289,10 +352,28 @@ impl fmt::Display for InputFormat {
     }
 }
 
-/// The formats read, for help text and messages: "PNG, OpenEXR, TIFF, …".
+/// The formats this build reads, for help text and messages: "PNG,
+/// OpenEXR, TIFF, …" (those whose feature is off left out).
 #[must_use]
 pub fn names() -> String {
-    FORMATS.iter().map(|f| f.title).collect::<Vec<_>>().join(", ")
+    FORMATS.iter().filter(|f| f.built_in()).map(|f| f.title).collect::<Vec<_>>().join(", ")
+}
+
+/// Whether a file's first 18 bytes are a TGA header whose fixed fields
+/// hold values TGA allows: a colour map type of 0 or 1, an image type
+/// with data (colour-mapped, true-colour or gray, raw or run-length), a
+/// pixel depth of 8, 15, 16, 24 or 32 bits, and a non-zero size. The
+/// stand-in for parsing the header when the `tga` feature is off.
+#[cfg(any(not(feature = "tga"), test))]
+fn tga_header_plausible(bytes: &[u8]) -> bool {
+    let Some(header) = bytes.get(..18) else { return false };
+    let (map_type, image_type, depth) = (header[1], header[2], header[16]);
+    let (width, height) = (u16::from_le_bytes([header[12], header[13]]), u16::from_le_bytes([header[14], header[15]]));
+    map_type <= 1
+        && matches!(image_type, 1 | 2 | 3 | 9 | 10 | 11)
+        && matches!(depth, 8 | 15 | 16 | 24 | 32)
+        && width > 0
+        && height > 0
 }
 
 /// Every extension the formats are named by, lower case, in registry
@@ -354,11 +435,18 @@ mod tests {
                     InputFormat::Png => ImageFormat::Png,
                     InputFormat::Exr => ImageFormat::OpenExr,
                     InputFormat::Tiff => ImageFormat::Tiff,
-                    _ => match info.decoder {
-                        Decoder::Image(format) => format,
-                        Decoder::Own(_) => panic!("{}: which `image` format?", info.name),
-                    },
+                    InputFormat::Jpeg => ImageFormat::Jpeg,
+                    InputFormat::Tga => ImageFormat::Tga,
+                    InputFormat::Bmp => ImageFormat::Bmp,
+                    InputFormat::WebP => ImageFormat::WebP,
+                    InputFormat::Gif => ImageFormat::Gif,
+                    InputFormat::Hdr => ImageFormat::Hdr,
+                    InputFormat::Pnm => ImageFormat::Pnm,
+                    InputFormat::Qoi => ImageFormat::Qoi,
                 };
+                if let Decoder::Image(format) = info.decoder {
+                    assert_eq!(format, expected, "{}: the decoder is told its own format", info.name);
+                }
                 let bigtiff = head[2] == b'+' || head[3] == b'+';
                 if !bigtiff {
                     // `image` knows only classic TIFF's signature.
@@ -366,5 +454,63 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The formats whose feature is off in this build are recognised and
+    /// refused with the feature's name; the rest are listed by `names`.
+    #[test]
+    fn a_format_left_out_is_named_with_its_feature() {
+        for info in FORMATS {
+            let built = match info.feature {
+                None => true,
+                Some("tiff") => cfg!(feature = "tiff"),
+                Some("jpeg") => cfg!(feature = "jpeg"),
+                Some("tga") => cfg!(feature = "tga"),
+                Some("bmp") => cfg!(feature = "bmp"),
+                Some("webp") => cfg!(feature = "webp"),
+                Some("gif") => cfg!(feature = "gif"),
+                Some("hdr") => cfg!(feature = "hdr"),
+                Some("pnm") => cfg!(feature = "pnm"),
+                Some("qoi") => cfg!(feature = "qoi"),
+                Some(other) => panic!("{}: unknown feature {other}", info.name),
+            };
+            assert_eq!(info.built_in(), built, "{}", info.name);
+            assert_eq!(names().split(", ").any(|n| n == info.title), built, "{}", info.name);
+            if !built {
+                let message = info.decode(&[], &ReadOptions::default()).unwrap_err().to_string();
+                let feature = info.feature.unwrap();
+                assert_eq!(
+                    message,
+                    format!(
+                        "unsupported: {} support is not built in: enable normalfit's `{feature}` feature",
+                        info.title
+                    )
+                );
+            }
+        }
+    }
+
+    /// A TGA header the `image` crate parses passes the plausibility check
+    /// used without the `tga` feature; text and a header with an image
+    /// type TGA lacks do not.
+    #[test]
+    fn tga_plausibility() {
+        // 2×1 gray, raw (type 3), 8 bits, then its two texels.
+        let mut tga = vec![0u8; 18];
+        tga[2] = 3;
+        tga[12] = 2;
+        tga[14] = 1;
+        tga[16] = 8;
+        tga.extend([10, 20]);
+        assert!(tga_header_plausible(&tga));
+        #[cfg(feature = "tga")]
+        assert!(super::super::image_crate::is_tga(&tga), "the image crate parses it too");
+        assert!(!tga_header_plausible(b"just some text that is long enough"));
+        let mut odd = tga.clone();
+        odd[2] = 4;
+        assert!(!tga_header_plausible(&odd));
+        let mut empty = tga;
+        empty[12] = 0;
+        assert!(!tga_header_plausible(&empty));
     }
 }

@@ -5,8 +5,8 @@
 
 use std::io::Cursor;
 
+use crate::par::prelude::*;
 use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
-use rayon::prelude::*;
 
 use super::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
 use crate::error::{Error, Result};
@@ -42,6 +42,7 @@ pub(super) fn decode_with_image(
 /// signature matches are tried as TGA, and accepted only if its header
 /// parses (its header has enough fixed fields, image type and pixel
 /// depth, that text and most other data fail it).
+#[cfg(feature = "tga")]
 pub(super) fn is_tga(bytes: &[u8]) -> bool {
     let tga = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Tga);
     tga.into_decoder().is_ok()

@@ -41,11 +41,12 @@ pub(crate) mod exr;
 pub mod formats;
 mod image_crate;
 pub(crate) mod png;
+#[cfg(feature = "tiff")]
 mod tiff;
 
 use std::path::Path;
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 pub use self::channel::Channel;
 pub(crate) use self::channel::{Source, select_channel};

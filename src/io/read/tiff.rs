@@ -6,8 +6,8 @@
 
 use std::io::Cursor;
 
+use crate::par::prelude::*;
 use image::ImageFormat;
-use rayon::prelude::*;
 use tiff::tags::{SampleFormat, Tag};
 
 use super::image_crate::decode_with_image;

@@ -7,7 +7,7 @@ pub(crate) mod subsampled;
 
 use std::io::{BufRead, Cursor, Read};
 
-use rayon::prelude::*;
+use crate::par::prelude::*;
 
 use self::subsampled as exr_subsampled;
 use super::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, to_usize};
