@@ -17,12 +17,14 @@ fn ok(out: &Output) {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
-/// The one error line of a failed run; exit code 2.
+/// The one error line of a failed run (besides warnings and the summary
+/// line of a run of many inputs); exit code 2.
 fn error_line(out: &Output) -> String {
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     let err = String::from_utf8_lossy(&out.stderr).to_string();
     assert!(!err.contains("panicked"), "{err}");
-    let lines: Vec<&str> = err.lines().filter(|l| !l.starts_with("normalfit: warning: ")).collect();
+    let summary = |l: &str| l.contains(" shaded, ") && l.ends_with(" s");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.starts_with("normalfit: warning: ") && !summary(l)).collect();
     assert_eq!(lines.len(), 1, "want one error line, got {err:?}");
     lines[0].to_string()
 }

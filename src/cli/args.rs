@@ -130,6 +130,13 @@ pub struct ConvertArgs {
     #[command(flatten)]
     pub channels: ChannelsArgs,
 
+    /// Appended to each input's stem to name its output. Files whose stem
+    /// already ends in it (or in `_residual`) are taken for outputs and
+    /// skipped when folders are searched.
+    #[arg(long, value_name = "TEXT", default_value = "_normal", value_parser = parse_suffix,
+          help_heading = "Batches")]
+    pub suffix: String,
+
     #[command(flatten)]
     pub batch: BatchArgs,
 
@@ -165,7 +172,8 @@ pub struct ChannelsArgs {
     pub residual: Option<PathBuf>,
 }
 
-/// Many files at once.
+/// Many files at once: the options of every command that takes many files
+/// (the batch driver, `batch.rs`).
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Batches")]
 pub struct BatchArgs {
@@ -174,20 +182,14 @@ pub struct BatchArgs {
     #[arg(short, long)]
     pub recursive: bool,
 
-    /// Appended to each input's stem to name its output. Files whose stem
-    /// already ends in it (or in `_residual`) are taken for outputs and
-    /// skipped when folders are searched.
-    #[arg(long, value_name = "TEXT", default_value = "_normal", value_parser = parse_suffix)]
-    pub suffix: String,
-
-    /// Files converted at once. Each file's fit already uses every core;
-    /// more jobs overlap the decoding, compressing and syncing of small
-    /// files, which run on one thread. Default: twice the cores, at most 8.
+    /// Files done at once. Each file's fit already uses every core; more
+    /// jobs overlap the decoding, compressing and syncing of small files,
+    /// which run on one thread. Default: twice the cores, at most 8.
     #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=256))]
     pub jobs: Option<u16>,
 
     /// When an output exists already: always replace it, never (skip the
-    /// input), or only when it is older than the input.
+    /// input's output), or only when it is older than the input.
     #[arg(long, value_enum, default_value_t = OverwriteArg::Always)]
     pub overwrite: OverwriteArg,
 
@@ -224,9 +226,10 @@ pub struct ShadeArgs {
     #[arg(required = true, value_name = "INPUT", help = inputs_help("Normal maps or height maps"))]
     pub inputs: Vec<PathBuf>,
 
-    /// Output PNG, or folder for many inputs; `-` writes standard output.
-    /// Default: `<stem>_lit.png` beside each input (standard output for
-    /// standard input).
+    /// Output PNG, or folder for many inputs (or folders of them, whose
+    /// layout it keeps); `-` writes standard output. Default:
+    /// `<stem>_lit.png` beside each input (standard output for standard
+    /// input). Files named `*_lit.*` are skipped when folders are searched.
     #[arg(short, long, value_name = "OUTPUT")]
     pub output: Option<PathBuf>,
 
@@ -254,7 +257,11 @@ pub struct ShadeArgs {
     #[arg(long)]
     pub signed: bool,
 
-    // Last: its help heading would otherwise cover the options after it.
+    // The groups with a help heading come last: a heading would otherwise
+    // cover the options after it.
+    #[command(flatten)]
+    pub batch: BatchArgs,
+
     #[command(flatten)]
     pub fit: FitArgs,
 }
@@ -305,17 +312,22 @@ pub struct TilingArgs {
     pub channel: Option<Channel>,
 
     /// Write the image shifted by half its width and height, so both wrap
-    /// seams cross the middle (PNG; a folder when there are many images).
+    /// seams cross the middle (PNG; for many images, a folder of
+    /// `<stem>_preview.png`, keeping the layout of folders named as inputs).
     #[arg(long, value_name = "FILE")]
     pub preview: Option<PathBuf>,
 
     /// Height maps: write the lit view of their normal map (fitted with
-    /// wrap), shifted the same way, where slope seams show.
+    /// wrap), shifted the same way, where slope seams show (for many
+    /// images, a folder of `<stem>_preview_lit.png`).
     #[arg(long, value_name = "FILE")]
     pub preview_lit: Option<PathBuf>,
 
     #[command(flatten)]
     pub read: ReadArgs,
+
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 /// How inputs are read: the size limit and, for OpenEXR, the layer.

@@ -5,20 +5,17 @@
 //! files and a terminal: output names and folders, the rule that no output
 //! replaces an input of the run or an earlier output, `--overwrite`.
 
-use std::collections::HashSet;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
 use normalfit::convert::{self, Conversion, ConvertError, Observer, Opened, Output, Place, Warning};
 use normalfit::io::{Layout, OutputFormat, PngCompression};
 
-use super::args::{AlphaArg, ChannelsArg, CompressionArg, ConvertArgs, FormatArg, OverwriteArg};
-use super::batch::{self, ClaimOrder, Job, RESIDUAL_SUFFIX};
+use super::args::{AlphaArg, ChannelsArg, CompressionArg, ConvertArgs, FormatArg};
+use super::batch::{Batch, Job, Outcome, RESIDUAL_SUFFIX, Turn, Words};
 use super::fitting;
-use super::input::{Input, InputIds, check_extension, read_stdin, stdin_at_most_once};
-use super::output::{self, Destination};
-use super::progress::Progress;
-use super::report::{Failure, print_line, warn};
+use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
+use super::output::Destination;
+use super::report::Failure;
 
 /// What `convert` does with every input, decided once from the arguments.
 struct Plan {
@@ -28,7 +25,6 @@ struct Plan {
     residual: Option<ResidualPlace>,
     /// Appended to an input's stem to name its normal map.
     suffix: String,
-    overwrite: OverwriteArg,
     quiet: bool,
 }
 
@@ -40,90 +36,13 @@ enum ResidualPlace {
     Folder(PathBuf),
 }
 
-/// What became of one input.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Outcome {
-    Converted,
-    /// Every output exists already and `--overwrite` keeps it.
-    Skipped,
-    /// The reader of standard output went away (`| head -c4`): the output
-    /// it did not want is no error, as for ripgrep and fd.
-    PipeClosed,
-}
-
-/// What the files of one run share while they are converted at once.
-struct Shared {
-    /// The inputs' identities, so that no output replaces one.
-    ids: InputIds,
-    /// The outputs claimed so far.
-    claimed: Mutex<HashSet<PathBuf>>,
-    order: ClaimOrder,
-    progress: Progress,
-}
-
 /// Converts every input (files, and the images of folders); returns the
 /// failures (already reported).
 pub fn run(args: ConvertArgs) -> Result<usize, Failure> {
-    let batch_args = &args.batch;
-    let listing = batch::gather(&args.inputs, batch_args.recursive, &batch_args.suffix);
-    let many = listing.jobs.len() + listing.failures.len() > 1 || listing.any_folder;
-    let plan = Plan::from_args(&args, many)?;
-    listing.failures.iter().for_each(Failure::report);
-    if !plan.quiet {
-        let hint = if batch_args.recursive { "" } else { " (--recursive searches its subfolders)" };
-        for dir in &listing.empty_folders {
-            warn(dir.display(), format!("holds no image files to convert{hint}"));
-        }
-    }
-    let jobs = &listing.jobs;
-    let files: Vec<PathBuf> = jobs
-        .iter()
-        .filter_map(|j| match &j.input {
-            Input::File(p) => Some(p.clone()),
-            Input::Stdin => None,
-        })
-        .collect();
-    let shared = Shared {
-        ids: InputIds::of(&files),
-        claimed: Mutex::new(HashSet::new()),
-        order: ClaimOrder::new(jobs.len()),
-        progress: Progress::new(jobs.len(), !plan.quiet),
-    };
-    let workers = batch_args.jobs.map_or_else(default_jobs, usize::from);
-    let outcomes = batch::run_jobs(jobs.len(), workers, |k| {
-        shared.progress.begin(k, &jobs[k].input.name().display().to_string());
-        let outcome = plan.convert_one(&jobs[k], k, &shared);
-        // A job that failed before claiming its outputs lets the next claim.
-        shared.order.pass(k);
-        shared.progress.finish(k);
-        if let Err(f) = &outcome {
-            f.report();
-        }
-        outcome
-    });
-    shared.progress.close();
-    let count = |wanted: Outcome| outcomes.iter().filter(|o| o.as_ref().is_ok_and(|&o| o == wanted)).count();
-    let failures = listing.failures.len() + outcomes.iter().filter(|o| o.is_err()).count();
-    if many && !plan.quiet {
-        print_line(&format!(
-            "normalfit: {} converted, {} skipped, {} failed in {:.2} s",
-            count(Outcome::Converted),
-            count(Outcome::Skipped),
-            failures,
-            shared.progress.elapsed().as_secs_f64()
-        ));
-    }
-    Ok(failures)
-}
-
-/// Files converted at once unless `--jobs` says: twice the cores, at most
-/// 8. Each file's fit already uses every core, but its decoding, deflate
-/// and sync to disk run on one thread or wait: on 2 cores, 200 files of
-/// 256² took 1.4 s one at a time, 0.73 s two at a time, 0.55 s four at a
-/// time and no less with eight; four 2048² files took the same time
-/// either way. The cap bounds memory when files are large.
-fn default_jobs() -> usize {
-    std::thread::available_parallelism().map_or(2, |n| (2 * n.get()).min(8))
+    let words = Words { done: "converted", purpose: "to convert" };
+    let batch = Batch::gather(&args.inputs, &args.batch, &args.suffix, words);
+    let plan = Plan::from_args(&args, batch.many())?;
+    Ok(batch.run(|job, turn| plan.convert_one(job, turn)))
 }
 
 impl Plan {
@@ -172,20 +91,13 @@ impl Plan {
             .with_layout(layout)
             .with_residual(residual.is_some());
         conversion.bits = args.bits;
-        Ok(Plan {
-            conversion,
-            destination,
-            residual,
-            suffix: args.batch.suffix.clone(),
-            overwrite: args.batch.overwrite,
-            quiet: args.batch.quiet,
-        })
+        Ok(Plan { conversion, destination, residual, suffix: args.suffix.clone(), quiet: args.batch.quiet })
     }
 
     /// Converts one input: opens it (the header of a file that streams,
     /// else the whole image), names its outputs by the format the library
     /// chooses, claims them, and has the library write them.
-    fn convert_one(&self, job: &Job, k: usize, shared: &Shared) -> Result<Outcome, Failure> {
+    fn convert_one(&self, job: &Job, turn: &Turn) -> Result<Outcome, Failure> {
         let input = &job.input;
         let open = |source| self.conversion.open(source).map_err(|e| Failure::file(input.name(), e));
         let opened = match input {
@@ -197,9 +109,9 @@ impl Plan {
             Input::Stdin => open(convert::Input::Bytes(&read_stdin()?))?,
         };
         let target = self.target(job, &opened)?;
-        self.claim(job, &target, k, shared)?;
-        let write_normals = self.wanted(target.path.as_deref(), input);
-        let residual = target.residual.as_ref().filter(|r| self.wanted(Some(&r.path), input));
+        self.claim(job, &target, turn)?;
+        let write_normals = turn.wanted(target.path.as_deref(), input);
+        let residual = target.residual.as_ref().filter(|r| turn.wanted(Some(&r.path), input));
         if !write_normals && residual.is_none() {
             return Ok(Outcome::Skipped);
         }
@@ -216,10 +128,10 @@ impl Plan {
             }
         };
         let residual = residual.map(|r| (file(&r.path), r.format));
-        let observer = JobObserver { progress: &shared.progress, k, input, quiet: self.quiet };
+        let observer = JobObserver { turn, input, quiet: self.quiet };
         let written = opened.write(&target.encoding, normals, residual, &observer);
         match written {
-            Ok(_) => Ok(Outcome::Converted),
+            Ok(_) => Ok(Outcome::Done),
             Err(e) if target.path.is_none() && e.place == Place::Output && pipe_closed(&e) => Ok(Outcome::PipeClosed),
             Err(ConvertError { place, error }) => Err(Failure::file(
                 match place {
@@ -262,38 +174,15 @@ impl Plan {
     /// Refuses an output that is an input, or that an earlier input of this
     /// run (in the order of the command line, whichever finishes first)
     /// writes too.
-    fn claim(&self, job: &Job, target: &Target, k: usize, shared: &Shared) -> Result<(), Failure> {
-        let outputs: Vec<&PathBuf> = target.path.iter().chain(target.residual.as_ref().map(|r| &r.path)).collect();
+    fn claim(&self, job: &Job, target: &Target, turn: &Turn) -> Result<(), Failure> {
+        let outputs: Vec<&Path> =
+            target.path.iter().chain(target.residual.as_ref().map(|r| &r.path)).map(PathBuf::as_path).collect();
         if let [normals, residual] = outputs[..]
             && normals == residual
         {
             return Err(Failure::file(normals, "is named for both the normal map and the residual"));
         }
-        shared.order.wait_turn(k);
-        let mut claimed = shared.claimed.lock().unwrap_or_else(|e| e.into_inner());
-        for path in outputs {
-            output::claim(path, &job.input, &shared.ids, &mut claimed)?;
-        }
-        drop(claimed);
-        shared.order.pass(k);
-        Ok(())
-    }
-
-    /// Whether `--overwrite` lets the output at `path` (None: standard
-    /// output, always written) be written for `input`.
-    fn wanted(&self, path: Option<&Path>, input: &Input) -> bool {
-        let Some(path) = path else { return true };
-        match self.overwrite {
-            OverwriteArg::Always => true,
-            OverwriteArg::Never => std::fs::metadata(path).is_err(),
-            OverwriteArg::Older => {
-                let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified());
-                match (input, modified(path)) {
-                    (Input::File(source), Ok(written)) => modified(source).is_ok_and(|changed| written < changed),
-                    _ => true,
-                }
-            }
-        }
+        turn.claim(&job.input, &outputs)
     }
 }
 
@@ -322,19 +211,18 @@ struct ResidualTarget {
 /// One job's progress on the progress line, and its warnings printed
 /// (not with `--quiet`).
 struct JobObserver<'a> {
-    progress: &'a Progress,
-    k: usize,
+    turn: &'a Turn<'a>,
     input: &'a Input,
     quiet: bool,
 }
 
 impl Observer for JobObserver<'_> {
     fn size(&self, width: usize, height: usize) {
-        self.progress.size(self.k, width, height);
+        self.turn.size(width, height);
     }
 
     fn row(&self) {
-        self.progress.row(self.k);
+        self.turn.row();
     }
 
     fn warning(&self, warning: &Warning) {

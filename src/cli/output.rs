@@ -22,15 +22,10 @@ pub enum Destination {
 }
 
 impl Destination {
-    /// Reads `-o` for these inputs: `-` is standard output (one input
-    /// only); with many inputs, naming a folder, or ending in a slash, it
-    /// is a folder, made if missing; else a file.
-    pub fn new(output: Option<&Path>, inputs: &[PathBuf]) -> Result<Destination, Failure> {
-        Destination::for_batch(output, inputs.len() > 1)
-    }
-
-    /// Like [`Destination::new`], `many` saying whether the run has more
-    /// than one input (or a folder of them).
+    /// Reads `-o`, `many` saying whether the run has more than one input
+    /// (or a folder of them): `-` is standard output (one input only);
+    /// with many inputs, naming a folder, or ending in a slash, it is a
+    /// folder, made if missing; else a file.
     pub fn for_batch(output: Option<&Path>, many: bool) -> Result<Destination, Failure> {
         let destination = match output {
             None => Destination::BesideInputs,
@@ -56,16 +51,10 @@ impl Destination {
         Ok(destination)
     }
 
-    /// The output of `input`, `file_name` being its name when the
-    /// destination makes one (beside the input or in a folder); `None` is
-    /// standard output.
-    pub fn path_for(&self, input: &Input, file_name: &str) -> Option<PathBuf> {
-        self.path_in(input, Path::new(""), file_name)
-    }
-
-    /// Like [`Destination::path_for`], for an input found in `subfolder` of
-    /// a folder named as input: in an output folder, the output goes into
-    /// the same subfolder.
+    /// The output of `input`, found in `subfolder` of a folder named as
+    /// input (empty for a file named directly), `file_name` being its name
+    /// when the destination makes one (beside the input, or in an output
+    /// folder, under the same subfolder); `None` is standard output.
     pub fn path_in(&self, input: &Input, subfolder: &Path, file_name: &str) -> Option<PathBuf> {
         match self {
             Destination::Stdout => None,

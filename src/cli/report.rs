@@ -2,45 +2,38 @@
 //! `normalfit: <file>: <problem>`, and ends in exit code 2.
 //!
 //! Every line goes through [`print_line`], which takes the one lock on
-//! standard error: lines from files converted at once never mix, and a
-//! progress line ([`show_status`]) is cleared before a message and drawn
-//! again after it.
+//! standard error: lines from files done at once never mix, and a
+//! progress bar ([`super::progress`]) is hidden while a message prints and
+//! drawn again after it.
 
 use std::fmt::Display;
 use std::io::Write;
 use std::path::Path;
 use std::sync::Mutex;
 
-/// The progress line now on the terminal ("" when none).
-static STATUS: Mutex<String> = Mutex::new(String::new());
+use indicatif::ProgressBar;
 
-/// Erases the terminal's current line: back to its start, clear to its end.
-const ERASE_LINE: &str = "\r\x1b[2K";
+/// The progress bar now shown on the terminal, if any.
+static BAR: Mutex<Option<ProgressBar>> = Mutex::new(None);
 
-/// Prints one line on standard error, above the progress line if one is shown.
+/// Prints one line on standard error, above the progress bar if one is shown.
 pub fn print_line(line: &str) {
-    let status = STATUS.lock().unwrap_or_else(|e| e.into_inner());
-    let mut err = std::io::stderr().lock();
-    // Standard error may be closed; there is nowhere else to say so.
-    if status.is_empty() {
+    let bar = BAR.lock().unwrap_or_else(|e| e.into_inner());
+    let print = || {
+        let mut err = std::io::stderr().lock();
+        // Standard error may be closed; there is nowhere else to say so.
         let _ = writeln!(err, "{line}");
-    } else {
-        let _ = write!(err, "{ERASE_LINE}{line}\n{status}");
+        let _ = err.flush();
+    };
+    match &*bar {
+        Some(bar) => bar.suspend(print),
+        None => print(),
     }
-    let _ = err.flush();
 }
 
-/// Shows `line` as the progress line (a terminal only), replacing the last;
-/// an empty `line` erases it.
-pub fn show_status(line: &str) {
-    let mut status = STATUS.lock().unwrap_or_else(|e| e.into_inner());
-    if status.is_empty() && line.is_empty() {
-        return;
-    }
-    let mut err = std::io::stderr().lock();
-    let _ = write!(err, "{ERASE_LINE}{line}");
-    let _ = err.flush();
-    line.clone_into(&mut status);
+/// The bar that [`print_line`] hides while it prints (None: no bar).
+pub fn set_bar(bar: Option<ProgressBar>) {
+    *BAR.lock().unwrap_or_else(|e| e.into_inner()) = bar;
 }
 
 /// An error to print: what it concerns (a file) and what is wrong.

@@ -4,31 +4,38 @@
 //! the output names, the rule that no output replaces an input, and the
 //! messages.
 
-use std::collections::HashSet;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use normalfit::io::{self, ReadOptions};
 use normalfit::shade::{LitOptions, lit_view};
 use normalfit::tiling::KindChoice;
 
 use super::args::{KindArg, ShadeArgs};
+use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::fitting;
-use super::input::{Input, InputIds, read_input, stdin_at_most_once};
-use super::output::{self, Destination};
+use super::input::{read_input, stdin_at_most_once};
+use super::output::Destination;
 use super::report::Failure;
+
+/// The stem ending of lit views: `<stem>_lit.png`.
+const SUFFIX: &str = "_lit";
 
 /// What `shade` does with every input, decided once from the arguments.
 struct Plan {
     lit: LitOptions,
     destination: Destination,
+    quiet: bool,
 }
 
-/// Shades every input; returns the failures (already reported).
+/// Shades every input (files, and the images of folders); returns the
+/// failures (already reported).
 pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
     let fit = fitting::options(&args.fit)?;
     stdin_at_most_once(&args.inputs)?;
-    let destination = Destination::new(args.output.as_deref(), &args.inputs)?;
+    let words = Words { done: "shaded", purpose: "to shade" };
+    let batch = Batch::gather(&args.inputs, &args.batch, SUFFIX, words);
+    let destination = Destination::for_batch(args.output.as_deref(), batch.many())?;
     if let Destination::File(path) = &destination {
         let png = path.extension().is_none_or(|e| e.eq_ignore_ascii_case("png"));
         if !png {
@@ -43,24 +50,8 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
         .with_kind(kind_choice(args.kind))
         .with_channel(args.channel.clone())
         .with_signed(args.signed);
-    let plan = Plan { lit, destination };
-    let ids = InputIds::of(&args.inputs);
-    let mut written = HashSet::new();
-    let mut failures = 0;
-    for path in &args.inputs {
-        let input = Input::from_arg(path);
-        match plan.shade_one(&input, &ids, &mut written) {
-            Ok(Shaded::Written) => {}
-            // The reader of standard output went away: no error, as for
-            // ripgrep and fd, and nothing more to write there.
-            Ok(Shaded::PipeClosed) => break,
-            Err(f) => {
-                f.report();
-                failures += 1;
-            }
-        }
-    }
-    Ok(failures)
+    let plan = Plan { lit, destination, quiet: args.batch.quiet };
+    Ok(batch.run(|job, turn| plan.shade_one(job, turn)))
 }
 
 /// `--kind` as the library's choice.
@@ -72,23 +63,30 @@ pub fn kind_choice(kind: KindArg) -> KindChoice {
     }
 }
 
-/// What became of one input shaded without error.
-enum Shaded {
-    Written,
-    PipeClosed,
-}
-
 impl Plan {
-    fn shade_one(&self, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<Shaded, Failure> {
-        let target = self.destination.path_for(input, &format!("{}_lit.png", input.stem()));
+    fn shade_one(&self, job: &Job, turn: &Turn) -> Result<Outcome, Failure> {
+        let input = &job.input;
+        let name = format!("{}{SUFFIX}.png", input.stem());
+        let target = self.destination.path_in(input, &job.subfolder, &name);
         if let Some(path) = &target {
-            output::claim(path, input, ids, written)?;
+            turn.claim(input, &[path])?;
+        }
+        if !turn.wanted(target.as_deref(), input) {
+            return Ok(Outcome::Skipped);
         }
         let raster = read_input(input, &ReadOptions::default())?;
         let view = lit_view(&raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
-        view.warnings.iter().for_each(|w| fitting::warn(w, input));
+        if !self.quiet {
+            view.warnings.iter().for_each(|w| fitting::warn(w, input));
+        }
         match &target {
             Some(path) => {
+                if !job.subfolder.as_os_str().is_empty()
+                    && let Some(folder) = path.parent()
+                {
+                    std::fs::create_dir_all(folder)
+                        .map_err(|e| Failure::file(folder, format!("cannot create the output folder: {e}")))?;
+                }
                 io::write_file_atomically(path, |out| view.encode(out)).map_err(|e| Failure::file(path, e))?;
             }
             None => {
@@ -97,11 +95,11 @@ impl Plan {
                 view.encode(&mut bytes).map_err(|e| Failure::file(stdout_name, e))?;
                 let mut stdout = std::io::stdout().lock();
                 match stdout.write_all(bytes.get_ref()).and_then(|()| stdout.flush()) {
-                    Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(Shaded::PipeClosed),
+                    Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(Outcome::PipeClosed),
                     other => other.map_err(|e| Failure::file(stdout_name, e))?,
                 }
             }
         }
-        Ok(Shaded::Written)
+        Ok(Outcome::Done)
     }
 }

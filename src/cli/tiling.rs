@@ -4,17 +4,21 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use normalfit::inspect::{seam_preview, seam_preview_lit, tiling_report};
 use normalfit::io::{self, Channel, Encoding, Raster, ReadOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions, TilingReport};
 
 use super::args::TilingArgs;
+use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::exit;
-use super::input::{Input, InputIds, read_input};
+use super::input::{Input, read_input};
 use super::report::Failure;
 
-/// Checks every image; exit 0 if all tile, 1 if one has a seam, 2 on any error.
+/// Checks every image (files, and the images of folders). Exit 2 if any
+/// could not be checked, else 1 if one has a seam, else 0: an error
+/// outranks a seam, since the images not checked may have seams too.
 pub fn run(args: TilingArgs) -> Result<u8, Failure> {
     let mut opts = TilingOptions::default().with_kind(super::shade::kind_choice(args.kind));
     if let Some(t) = args.threshold {
@@ -23,74 +27,92 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
         }
         opts.threshold = t;
     }
-    let channel = args.channel.as_ref();
-    let read = args.read.options();
-    let many = args.inputs.len() > 1;
-    let previews = Previews {
+    let words = Words { done: "checked", purpose: "to check" };
+    // No stem marks a file as ours: previews go where --preview says.
+    let batch = Batch::gather(&args.inputs, &args.batch, "", words);
+    let many = batch.many();
+    let plan = Plan {
+        opts,
+        read: args.read.options(),
+        channel: args.channel.clone(),
+        json: args.json,
         plain: args.preview.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,
         lit: args.preview_lit.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,
-        ids: InputIds::of(&args.inputs),
+        seams: AtomicUsize::new(0),
     };
-    let (mut errors, mut seams) = (0, 0);
-    for path in &args.inputs {
-        let input = Input::from_arg(path);
-        let checked = check_one(&input, &read, channel, &opts).and_then(|(raster, report)| {
-            previews.write(&input, &raster, &report, channel)?;
-            Ok((raster, report))
-        });
-        match checked {
-            Ok((raster, report)) => {
-                if !report.seamless() {
-                    seams += 1;
-                }
-                let size = (raster.width, raster.height);
-                let line = if args.json { json_line(&input, size, &report) } else { Ok(text_line(&input, &report)) };
-                let line = match line {
-                    Ok(line) => line,
-                    Err(f) => {
-                        f.report();
-                        errors += 1;
-                        continue;
-                    }
-                };
-                // A reader that stops early (`| head -3`) closes the pipe:
-                // the reports it does not want are not computed, and that
-                // is no error (`println!` would panic on it).
-                let mut stdout = std::io::stdout().lock();
-                if let Err(e) = writeln!(stdout, "{line}").and_then(|()| stdout.flush()) {
-                    if e.kind() == std::io::ErrorKind::BrokenPipe {
-                        break;
-                    }
-                    super::report::print_line(&format!("normalfit: <standard output>: {e}"));
-                    errors += 1;
-                    break;
-                }
-            }
-            Err(f) => {
-                f.report();
-                errors += 1;
-            }
-        }
-    }
+    let errors = batch.run(|job, turn| plan.check_one(job, turn));
     Ok(if errors > 0 {
         exit::ERROR
-    } else if seams > 0 {
+    } else if plan.seams.load(Ordering::Relaxed) > 0 {
         exit::SEAM
     } else {
         exit::OK
     })
 }
 
-/// Reads one image and checks it.
-fn check_one(
-    input: &Input,
-    read: &ReadOptions,
-    channel: Option<&Channel>,
-    opts: &TilingOptions,
-) -> Result<(Raster, TilingReport), Failure> {
-    let raster = read_input(input, read)?;
-    let report = tiling_report(&raster, opts, channel).map_err(|e| Failure::file(input.name(), e))?;
-    Ok((raster, report))
+/// What `tiling` does with every input, decided once from the arguments.
+struct Plan {
+    opts: TilingOptions,
+    read: ReadOptions,
+    channel: Option<Channel>,
+    json: bool,
+    plain: Option<PreviewTarget>,
+    lit: Option<PreviewTarget>,
+    /// Images found with a seam so far.
+    seams: AtomicUsize,
+}
+
+impl Plan {
+    /// Reads one image, checks it, writes its previews, and prints its line
+    /// once the lines of the images before it are printed.
+    fn check_one(&self, job: &Job, turn: &Turn) -> Result<Outcome, Failure> {
+        let input = &job.input;
+        let channel = self.channel.as_ref();
+        let raster = read_input(input, &self.read)?;
+        let report = tiling_report(&raster, &self.opts, channel).map_err(|e| Failure::file(input.name(), e))?;
+        self.write_previews(job, turn, &raster, &report)?;
+        let size = (raster.width, raster.height);
+        let line = if self.json { json_line(input, size, &report)? } else { text_line(input, &report) };
+        if !report.seamless() {
+            self.seams.fetch_add(1, Ordering::Relaxed);
+        }
+        // A reader that stops early (`| head -3`) closes the pipe: the
+        // reports it does not want are not computed, and that is no error
+        // (`println!` would panic on it).
+        turn.in_order(|| {
+            let mut stdout = std::io::stdout().lock();
+            match writeln!(stdout, "{line}").and_then(|()| stdout.flush()) {
+                Ok(()) => Ok(Outcome::Done),
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(Outcome::PipeClosed),
+                Err(e) => Err(Failure::file("<standard output>", e)),
+            }
+        })
+    }
+
+    /// Writes the asked-for previews of one image, each shifted by half its
+    /// size so that both wrap seams cross the middle.
+    fn write_previews(&self, job: &Job, turn: &Turn, raster: &Raster, report: &TilingReport) -> Result<(), Failure> {
+        let input = &job.input;
+        let channel = self.channel.as_ref();
+        let (w, h) = (raster.width, raster.height);
+        let fail = |e: normalfit::Error| Failure::file(input.name(), e);
+        let plain = self.plain.as_ref().map(|t| t.path_for(job, "preview"));
+        let lit = self.lit.as_ref().map(|t| t.path_for(job, "preview_lit"));
+        let outputs: Vec<&Path> = plain.iter().chain(&lit).map(PathBuf::as_path).collect();
+        if outputs.is_empty() {
+            return Ok(());
+        }
+        turn.claim(input, &outputs)?;
+        if let Some(path) = plain.filter(|p| turn.wanted(Some(p), input)) {
+            let rgb = seam_preview(raster, report, channel).map_err(fail)?;
+            save(&path, !job.subfolder.as_os_str().is_empty(), &rgb, w, h)?;
+        }
+        if let Some(path) = lit.filter(|p| turn.wanted(Some(p), input)) {
+            let rgb = seam_preview_lit(raster, report, channel).map_err(fail)?;
+            save(&path, !job.subfolder.as_os_str().is_empty(), &rgb, w, h)?;
+        }
+        Ok(())
+    }
 }
 
 /// Where `--preview` pictures go: one file, or a folder for many images.
@@ -109,48 +131,25 @@ impl PreviewTarget {
         Ok(PreviewTarget::Folder(path.to_path_buf()))
     }
 
-    fn path_for(&self, input: &Input, suffix: &str) -> PathBuf {
+    /// The preview of `job`: in a folder, `<stem>_<suffix>.png` under the
+    /// input's subfolder.
+    fn path_for(&self, job: &Job, suffix: &str) -> PathBuf {
         match self {
             PreviewTarget::File(p) => p.clone(),
-            PreviewTarget::Folder(dir) => dir.join(format!("{}_{suffix}.png", input.stem())),
+            PreviewTarget::Folder(dir) => dir.join(&job.subfolder).join(format!("{}_{suffix}.png", job.input.stem())),
         }
     }
 }
 
-struct Previews {
-    plain: Option<PreviewTarget>,
-    lit: Option<PreviewTarget>,
-    ids: InputIds,
-}
-
-impl Previews {
-    /// Writes the asked-for previews of one image, each shifted by half its
-    /// size so that both wrap seams cross the middle.
-    fn write(
-        &self,
-        input: &Input,
-        raster: &Raster,
-        report: &TilingReport,
-        channel: Option<&Channel>,
-    ) -> Result<(), Failure> {
-        let (w, h) = (raster.width, raster.height);
-        let fail = |e: normalfit::Error| Failure::file(input.name(), e);
-        if let Some(target) = &self.plain {
-            let rgb = seam_preview(raster, report, channel).map_err(fail)?;
-            self.save(&target.path_for(input, "preview"), &rgb, w, h)?;
-        }
-        if let Some(target) = &self.lit {
-            let rgb = seam_preview_lit(raster, report, channel).map_err(fail)?;
-            self.save(&target.path_for(input, "preview_lit"), &rgb, w, h)?;
-        }
-        Ok(())
+/// Writes one preview; `in_subfolder`: its folder, under the preview
+/// folder, is made if missing.
+fn save(path: &Path, in_subfolder: bool, rgb: &[[u8; 3]], w: usize, h: usize) -> Result<(), Failure> {
+    if in_subfolder && let Some(folder) = path.parent() {
+        std::fs::create_dir_all(folder)
+            .map_err(|e| Failure::file(folder, format!("cannot create the preview folder: {e}")))?;
     }
-
-    fn save(&self, path: &Path, rgb: &[[u8; 3]], w: usize, h: usize) -> Result<(), Failure> {
-        self.ids.refuse_overwrite(path)?;
-        io::write_file_atomically(path, |out| io::encode_normals(rgb, None, w, h, &Encoding::png8(), out))
-            .map_err(|e| Failure::file(path, e))
-    }
+    io::write_file_atomically(path, |out| io::encode_normals(rgb, None, w, h, &Encoding::png8(), out))
+        .map_err(|e| Failure::file(path, e))
 }
 
 fn kind_name(kind: ImageKind) -> &'static str {

@@ -53,14 +53,24 @@ pub fn s(p: &Path) -> &str {
 }
 
 /// Whether a line of standard error is a batch's summary line,
-/// `normalfit: C converted, S skipped, F failed in T s`.
+/// `normalfit: C converted, S skipped, F failed in T s` (`shaded`,
+/// `checked` for `shade` and `tiling`).
 pub fn is_summary(line: &str) -> bool {
+    summary_counts(line).is_some()
+}
+
+/// The counts (done, skipped, failed) of a summary line, and the word
+/// saying what done is.
+pub fn summary_counts(line: &str) -> Option<(&str, usize, usize, usize)> {
     let words: Vec<&str> = line.split(' ').collect();
-    matches!(
-        words[..],
-        ["normalfit:", a, "converted,", b, "skipped,", c, "failed", "in", t, "s"]
-            if [a, b, c].iter().all(|n| n.parse::<usize>().is_ok()) && t.parse::<f64>().is_ok()
-    )
+    match words[..] {
+        ["normalfit:", a, verb @ ("converted," | "shaded," | "checked,"), b, "skipped,", c, "failed", "in", t, "s"]
+            if t.parse::<f64>().is_ok() =>
+        {
+            Some((verb.trim_end_matches(','), a.parse().ok()?, b.parse().ok()?, c.parse().ok()?))
+        }
+        _ => None,
+    }
 }
 
 /// The names in a folder, sorted.

@@ -371,7 +371,8 @@ impl Run {
         self.stderr.lines().filter(|l| !is_summary(l)).collect()
     }
 
-    /// A batch's summary line: `normalfit: C converted, S skipped, F failed in T s`.
+    /// A batch's summary line: `normalfit: C converted, S skipped, F failed
+    /// in T s` (`shaded`, `checked` for `shade` and `tiling`).
     pub fn summary(&self) -> Option<&str> {
         self.stderr.lines().find(|l| is_summary(l))
     }
@@ -381,7 +382,7 @@ fn is_summary(line: &str) -> bool {
     let words: Vec<&str> = line.split(' ').collect();
     matches!(
         words[..],
-        ["normalfit:", c, "converted,", s, "skipped,", f, "failed", "in", t, "s"]
+        ["normalfit:", c, "converted," | "shaded," | "checked,", s, "skipped,", f, "failed", "in", t, "s"]
             if [c, s, f].iter().all(|n| n.parse::<usize>().is_ok()) && t.parse::<f64>().is_ok()
     )
 }
