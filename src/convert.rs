@@ -110,6 +110,25 @@ impl BorderChoices {
         Borders { x: resolve(self.x, suggested.x), y: resolve(self.y, suggested.y) }
     }
 
+    /// The border modes for heights held in memory (`width` × `height`,
+    /// row-major, any [`Sample`](crate::Sample) type): `auto` settled by
+    /// the tiling check of a height map, as a conversion settles it;
+    /// fixed modes as they are, without a check.
+    ///
+    /// Errors: those of [`HeightSeams`] (the memory for the check, heights
+    /// that are not `width` × `height`).
+    pub fn settle<H: crate::Sample>(&self, heights: &[H], width: usize, height: usize) -> Result<Borders> {
+        if !self.any_auto() {
+            return Ok(self.resolve(None));
+        }
+        let mut seams = HeightSeams::new(width, height)?;
+        if heights.len() != width * height {
+            return Err(Error::BufferSize { expected: width * height, actual: heights.len() });
+        }
+        seams.push_heights(heights)?;
+        Ok(self.resolve(Some(&seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)))))
+    }
+
     /// The warning about a wrap asked for on an axis that does not tile
     /// (it draws a seam there), if there is one.
     #[must_use]

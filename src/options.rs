@@ -145,6 +145,8 @@ macro_rules! named_values {
     };
 }
 
+pub(crate) use named_values;
+
 named_values!(Fit, "fit", { Orthogonal => "orthogonal", Vertical => "vertical" });
 named_values!(Border, "border mode", { Wrap => "wrap", Clamp => "clamp", Mirror => "mirror" });
 named_values!(Convention, "convention", { OpenGl => "opengl" | "gl", DirectX => "directx" | "dx" });
@@ -167,6 +169,22 @@ pub enum Strength {
     /// z = F · W · h (W the image width), so the look does not change when
     /// the texture is resampled.
     Relief(f64),
+}
+
+impl Strength {
+    /// The gain from a caller's two optional settings, as every front end
+    /// takes them (`-s`/`--scale` or `--relief`, `scale=` or `relief=`):
+    /// either one, or neither for the default.
+    ///
+    /// Errors: [`Error::InvalidOption`] when both are given.
+    pub fn from_scale_or_relief(scale: Option<f64>, relief: Option<f64>) -> Result<Strength, Error> {
+        match (scale, relief) {
+            (Some(_), Some(_)) => Err(Error::InvalidOption("give scale or relief, not both".into())),
+            (Some(s), None) => Ok(Strength::Scale(s)),
+            (None, Some(f)) => Ok(Strength::Relief(f)),
+            (None, None) => Ok(Strength::default()),
+        }
+    }
 }
 
 impl Default for Strength {

@@ -68,6 +68,25 @@ impl Default for Light {
 }
 
 impl Light {
+    /// A light from `azimuth_deg` at `elevation_deg` above the surface, as
+    /// a caller gives it (`--light`, `light=`).
+    ///
+    /// Errors: [`Error::InvalidOption`] for a non-finite azimuth or an
+    /// elevation outside 0 to 90 degrees.
+    pub fn new(azimuth_deg: f64, elevation_deg: f64) -> Result<Light> {
+        if !azimuth_deg.is_finite() {
+            return Err(Error::InvalidOption(format!(
+                "the light's azimuth must be a finite number of degrees, got {azimuth_deg}"
+            )));
+        }
+        if !(0.0..=90.0).contains(&elevation_deg) {
+            return Err(Error::InvalidOption(format!(
+                "the light's elevation must be from 0 to 90 degrees, got {elevation_deg}"
+            )));
+        }
+        Ok(Light { azimuth_deg, elevation_deg })
+    }
+
     /// The unit vector towards the light in the OpenGL tangent frame.
     #[must_use]
     pub fn direction(self) -> [f64; 3] {

@@ -209,7 +209,7 @@
 
 use crate::par::prelude::*;
 
-use crate::options::{Border, Borders};
+use crate::options::{Border, Borders, named_values};
 use crate::samples::try_vec;
 use crate::{Error, Result};
 
@@ -280,6 +280,8 @@ pub enum KindChoice {
     Normal,
 }
 
+named_values!(KindChoice, "kind", { Auto => "auto", Height => "height", Normal => "normal" });
+
 /// What [`check`] is asked to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -316,6 +318,18 @@ impl TilingOptions {
     pub fn with_kind(mut self, kind: KindChoice) -> Self {
         self.kind = kind;
         self
+    }
+
+    /// Checks the options as a caller gave them: the threshold must be a
+    /// positive number (the library itself judges with any value; a NaN
+    /// passes nothing).
+    ///
+    /// Errors: [`Error::InvalidOption`] naming the threshold.
+    pub fn validate(&self) -> Result<()> {
+        if self.threshold.is_nan() || self.threshold <= 0.0 {
+            return Err(Error::InvalidOption(format!("threshold must be positive, got {}", self.threshold)));
+        }
+        Ok(())
     }
 }
 
@@ -611,6 +625,20 @@ impl HeightSeams {
     /// this width, or holds more rows than are still to come (nothing is
     /// pushed then).
     pub fn push_samples(&mut self, heights: &crate::Samples) -> Result<()> {
+        match heights {
+            crate::Samples::U8(v) => self.push_heights(v),
+            crate::Samples::U16(v) => self.push_heights(v),
+            crate::Samples::F32(v) => self.push_heights(v),
+            crate::Samples::F64(v) => self.push_heights(v),
+        }
+    }
+
+    /// Pushes every row of `heights`, whole rows of this check's width in
+    /// any [`Sample`](crate::Sample) type (a caller's array, such as the
+    /// Python package's), converting one row at a time.
+    ///
+    /// Errors: as [`push_samples`](Self::push_samples).
+    pub fn push_heights<H: crate::Sample>(&mut self, heights: &[H]) -> Result<()> {
         let w = self.width;
         let rows_left = self.height - self.rows;
         let fits =
@@ -618,9 +646,12 @@ impl HeightSeams {
         if !fits {
             return Err(Error::BufferSize { expected: rows_left * w, actual: heights.len() });
         }
-        let mut row = vec![0.0f32; w];
-        for start in (0..heights.len()).step_by(w.max(1)) {
-            heights.heights_f32_into(start, &mut row)?;
+        let mut row = try_vec(w)?;
+        row.resize(w, 0.0f32);
+        for rows in heights.chunks_exact(w.max(1)) {
+            for (o, &v) in row.iter_mut().zip(rows) {
+                *o = crate::samples::contract(v) as f32;
+            }
             self.push_row(&row)?;
         }
         Ok(())

@@ -472,3 +472,70 @@ fn border_choices_parse_as_the_command_line_spells_them() {
     assert_eq!(e.to_string(), "invalid option: unknown border mode 'tile': use wrap, clamp, mirror or auto");
     assert!("wrap,clamp,mirror".parse::<BorderChoices>().is_err(), "two axes at most");
 }
+
+/// Every option a front end takes by name is parsed by the library, with
+/// the same names the command line lists, and the same refusals.
+#[test]
+fn output_and_check_options_parse_by_the_names_every_front_end_uses() {
+    use normalfit::io::{Alpha, OutputChannels};
+    assert_eq!("EXR".parse::<OutputFormat>().unwrap(), OutputFormat::Exr);
+    assert_eq!(OutputFormat::ALL.iter().map(|f| f.to_string()).collect::<Vec<_>>(), ["png", "exr"]);
+    assert_eq!("small".parse::<PngCompression>().unwrap(), PngCompression::Default);
+    assert_eq!("fast".parse::<PngCompression>().unwrap(), PngCompression::Fast);
+    let e = "best".parse::<PngCompression>().unwrap_err();
+    assert_eq!(e.to_string(), "invalid option: unknown compression 'best': use fast or small");
+    assert_eq!("normal".parse::<KindChoice>().unwrap(), KindChoice::Normal);
+    let e = "depth".parse::<KindChoice>().unwrap_err();
+    assert_eq!(e.to_string(), "invalid option: unknown kind 'depth': use auto, height or normal");
+
+    let layout = |c: &str, a: &str| Layout::from_parts(c.parse().unwrap(), a.parse().unwrap());
+    assert_eq!(layout("rgb", "none").unwrap(), Layout::Rgb);
+    assert_eq!(layout("rgb", "height").unwrap(), Layout::RgbHeight);
+    assert_eq!(layout("rgb", "one").unwrap(), Layout::RgbOpaque);
+    assert_eq!(layout("rg", "none").unwrap(), Layout::Rg);
+    for alpha in [Alpha::Height, Alpha::One] {
+        let e = Layout::from_parts(OutputChannels::Rg, alpha).unwrap_err();
+        assert!(matches!(e, Error::InvalidOption(_)) && e.to_string().contains("has no alpha"), "{e}");
+    }
+    assert!("rgba".parse::<OutputChannels>().is_err() && "two".parse::<Alpha>().is_err());
+
+    for bad in [0.0, -1.0, f64::NAN] {
+        let e = TilingOptions::new().with_threshold(bad).validate().unwrap_err();
+        assert!(e.to_string().contains("threshold must be positive"), "{e}");
+    }
+    TilingOptions::new().with_threshold(0.1).validate().unwrap();
+    assert_eq!(Light::new(135.0, 35.0).unwrap(), Light::default());
+    assert!(
+        Light::new(0.0, 90.5).is_err() && Light::new(f64::INFINITY, 30.0).is_err() && Light::new(0.0, -1.0).is_err()
+    );
+    assert!(ReadOptions::default().with_max_texels(0).validate().is_err());
+    ReadOptions::default().with_max_texels(1).validate().unwrap();
+    assert_eq!(Strength::from_scale_or_relief(None, None).unwrap(), Strength::Scale(1.0));
+    assert_eq!(Strength::from_scale_or_relief(Some(4.0), None).unwrap(), Strength::Scale(4.0));
+    assert_eq!(Strength::from_scale_or_relief(None, Some(0.1)).unwrap(), Strength::Relief(0.1));
+    assert!(Strength::from_scale_or_relief(Some(1.0), Some(0.1)).is_err());
+}
+
+/// Heights held in memory settle `auto` as a conversion of the same file
+/// does (wrap in x, where it tiles; mirror in y), in every sample type;
+/// fixed modes need no check; a wrong length is an error, not a panic.
+#[test]
+fn auto_borders_of_heights_in_memory_settle_as_a_conversion_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    let (w, h) = (64, 64);
+    let heights = write_height16(&input, w as u32, h as u32);
+    let auto = BorderChoices::both(BorderChoice::Auto);
+    let summary = Conversion::new().with_borders(auto).convert_file(&input, &dir.path().join("n.png")).unwrap();
+    let want = Borders { x: Border::Wrap, y: Border::Mirror };
+    assert_eq!(summary.borders, want);
+    let as_u16: Vec<u16> = heights.iter().map(|&v| (v * 65535.0).round() as u16).collect();
+    let as_f64: Vec<f64> = heights.iter().map(|&v| f64::from(v)).collect();
+    assert_eq!(auto.settle(&as_u16, w, h).unwrap(), want);
+    assert_eq!(auto.settle(&heights, w, h).unwrap(), want);
+    assert_eq!(auto.settle(&as_f64, w, h).unwrap(), want);
+    let half = BorderChoices { x: BorderChoice::Fixed(Border::Clamp), y: BorderChoice::Auto };
+    assert_eq!(half.settle(&heights, w, h).unwrap(), Borders { x: Border::Clamp, y: Border::Mirror });
+    let fixed = BorderChoices::both(BorderChoice::Fixed(Border::Wrap));
+    assert!(matches!(auto.settle(&heights[..10], w, h), Err(Error::BufferSize { .. })));
+}

@@ -428,6 +428,28 @@ fn streaming_refuses_samples_that_are_not_whole_rows_or_too_many() {
     assert_eq!(seams.rows(), 2);
 }
 
+/// A caller's slice of any sample type gives the report its samples give,
+/// and that of the whole-image check of its heights, bit for bit.
+#[test]
+fn heights_pushed_from_a_slice_report_as_their_samples_do() {
+    let (w, h) = (37, 23);
+    let mut rng = Rng(7);
+    let values: Vec<u16> = (0..w * h).map(|_| (rng.next() * 65535.0) as u16).collect();
+    let opts = TilingOptions::new().with_kind(KindChoice::Height);
+    let mut from_slice = HeightSeams::new(w, h).unwrap();
+    from_slice.push_heights(&values[..w * 10]).unwrap();
+    from_slice.push_heights(&values[w * 10..]).unwrap();
+    let mut from_samples = HeightSeams::new(w, h).unwrap();
+    from_samples.push_samples(&Samples::U16(values.clone())).unwrap();
+    let heights = Samples::U16(values.clone()).to_f32().unwrap();
+    let whole = check(&[&heights], w, h, &opts).unwrap();
+    let (a, b) = (from_slice.finish(&opts), from_samples.finish(&opts));
+    assert_eq!(a, b);
+    assert_eq!(a, whole);
+    let mut seams = HeightSeams::new(w, h).unwrap();
+    assert!(matches!(seams.push_heights(&values[..w + 1]), Err(Error::BufferSize { .. })));
+}
+
 #[test]
 fn bad_arguments_are_errors_not_panics() {
     let opts = TilingOptions::new();

@@ -26,8 +26,8 @@ use std::path::{Path, PathBuf};
 use normalfit::convert::{BorderChoices, Conversion, Place};
 use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
 use normalfit::shade::{self, Light, LitOptions};
-use normalfit::tiling::{self, HeightSeams, ImageKind, KindChoice, TilingOptions};
-use normalfit::{Border, Borders, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
+use normalfit::tiling::{self, ImageKind, TilingOptions};
+use normalfit::{Border, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
 use normalfit::{inspect, normal_map};
 use numpy::ndarray::ArrayView2;
 use numpy::{
@@ -53,11 +53,6 @@ fn to_py_err(e: Error) -> PyErr {
         Error::Io(ref io) => PyOSError::new_err((io.raw_os_error().unwrap_or(0), e.to_string())),
         _ => PyValueError::new_err(e.to_string()),
     }
-}
-
-/// The `ValueError` for an option's value outside its names.
-fn unknown(what: &str, got: &str, names: &str) -> PyErr {
-    PyValueError::new_err(format!("invalid option: unknown {what} '{got}': use {names}"))
 }
 
 /// A name the library parses (`fit`, `convention`, a border), its error a
@@ -116,14 +111,7 @@ fn fit_options(
             "invalid option: patch size must be odd and at least 3, got {patch}"
         )));
     };
-    let strength = match (scale, relief) {
-        (Some(_), Some(_)) => {
-            return Err(PyValueError::new_err("invalid option: give scale or relief, not both"));
-        }
-        (Some(s), None) => Strength::Scale(s),
-        (None, Some(f)) => Strength::Relief(f),
-        (None, None) => Strength::default(),
-    };
+    let strength = Strength::from_scale_or_relief(scale, relief).map_err(to_py_err)?;
     let borders = parse_borders(border)?;
     let opts = Options::new()
         .with_patch(patch)
@@ -327,7 +315,8 @@ where
                 &copy
             }
         };
-        let opts = call.opts.clone().with_borders(settle(choices, heights, w, h)?);
+        // `auto` settled by the library's tiling check, as a conversion does.
+        let opts = call.opts.clone().with_borders(choices.settle(heights, w, h)?);
         on_pool(pool, || match residual_flat {
             Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
             None => normalfit::normals_into(heights, w, h, &opts, texels),
@@ -343,42 +332,10 @@ where
     }
 }
 
-/// The sample types an array of heights may hold, and their [`Samples`].
-trait Stored: Sample + Element {
-    /// The samples, owned.
-    fn samples(values: Vec<Self>) -> Samples;
-}
+/// The sample types an array of heights may hold.
+trait Stored: Sample + Element {}
 
-macro_rules! stored {
-    ($($t:ty => $variant:ident),+) => {
-        $(impl Stored for $t {
-            fn samples(values: Vec<Self>) -> Samples {
-                Samples::$variant(values)
-            }
-        })+
-    };
-}
-
-stored!(u8 => U8, u16 => U16, f32 => F32, f64 => F64);
-
-/// The border modes for these heights: `auto` settled as a conversion
-/// settles it (the library's streamed tiling check of a height map, and
-/// [`BorderChoices::resolve`]); fixed modes as they are. `auto` copies the
-/// heights once for the check.
-fn settle<H: Stored>(choices: BorderChoices, heights: &[H], width: usize, height: usize) -> Result<Borders, Error> {
-    if !choices.any_auto() {
-        return Ok(choices.resolve(None));
-    }
-    let mut copy = Vec::new();
-    copy.try_reserve_exact(heights.len())
-        .map_err(|_| Error::Limits(format!("cannot allocate a copy of {} heights", heights.len())))?;
-    copy.extend_from_slice(heights);
-    let samples = H::samples(copy);
-    let mut seams = HeightSeams::new(width, height)?;
-    seams.push_samples(&samples)?;
-    let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height));
-    Ok(choices.resolve(Some(&report)))
-}
+impl<T: Sample + Element> Stored for T {}
 
 /// numpy's borrow checker refused: the arrays overlap (`out` is a view of
 /// `heights`) or another thread holds one mutably.
@@ -575,14 +532,12 @@ fn check_tiling(py: Python<'_>, image: &Bound<'_, PyAny>, threshold: f64, kind: 
     tiling_report_value(py, &report, width, height)
 }
 
-/// The tiling check's options: the threshold refused as the command line
-/// refuses `--threshold` (src/cli/tiling.rs; the library takes any value,
-/// and a NaN passes nothing), the kind by name.
+/// The tiling check's options, checked by the library as the command line's
+/// are.
 fn tiling_options(threshold: f64, kind: &str) -> PyResult<TilingOptions> {
-    if threshold.is_nan() || threshold <= 0.0 {
-        return Err(PyValueError::new_err(format!("invalid option: threshold must be positive, got {threshold}")));
-    }
-    Ok(TilingOptions::new().with_threshold(threshold).with_kind(parse_kind(kind)?))
+    let opts = TilingOptions::new().with_threshold(threshold).with_kind(parse_named(kind)?);
+    opts.validate().map_err(to_py_err)?;
+    Ok(opts)
 }
 
 /// The library's report as the Python object.
@@ -637,15 +592,13 @@ fn file_error(path: &Path, e: Error, output: bool) -> PyErr {
 fn read_options(max_texels: Option<u64>, layer: Option<String>) -> PyResult<ReadOptions> {
     let mut read = ReadOptions::default();
     if let Some(n) = max_texels {
-        if n == 0 {
-            return Err(PyValueError::new_err("invalid option: max_texels must be at least 1, got 0"));
-        }
         read = read.with_max_texels(n);
     }
-    Ok(match layer {
-        Some(name) => read.with_layer(name),
-        None => read,
-    })
+    if let Some(name) = layer {
+        read = read.with_layer(name);
+    }
+    read.validate().map_err(to_py_err)?;
+    Ok(read)
 }
 
 /// `channel=`: a keyword (luma, r, g, b, a) or an OpenEXR channel's name,
@@ -656,16 +609,6 @@ fn parse_channel(channel: Option<String>) -> PyResult<Option<Channel>> {
             "invalid option: channel: expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name",
         )),
         other => Ok(other.map(Channel::Named)),
-    }
-}
-
-/// `kind=`: what an image holds.
-fn parse_kind(kind: &str) -> PyResult<KindChoice> {
-    match kind {
-        "auto" => Ok(KindChoice::Auto),
-        "height" => Ok(KindChoice::Height),
-        "normal" => Ok(KindChoice::Normal),
-        other => Err(unknown("kind", other, "auto, height or normal")),
     }
 }
 
@@ -732,31 +675,9 @@ fn convert(
     layer: Option<String>,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let format = match format {
-        None => None,
-        Some("png") => Some(OutputFormat::Png),
-        Some("exr") => Some(OutputFormat::Exr),
-        Some(other) => return Err(unknown("format", other, "png or exr")),
-    };
-    let compression = match compression {
-        "fast" => PngCompression::Fast,
-        "small" => PngCompression::Default,
-        other => return Err(unknown("compression", other, "fast or small")),
-    };
-    // The command line's --alpha and --channels, as it pairs them.
-    let layout = match (alpha, channels) {
-        ("none", "rgb") => Layout::Rgb,
-        ("height", "rgb") => Layout::RgbHeight,
-        ("one", "rgb") => Layout::RgbOpaque,
-        ("none", "rg") => Layout::Rg,
-        (_, "rg") if ["height", "one"].contains(&alpha) => {
-            return Err(PyValueError::new_err(
-                "invalid option: channels='rg' has no alpha: it is for two-channel (BC5) textures",
-            ));
-        }
-        (other, "rgb" | "rg") => return Err(unknown("alpha", other, "none, height or one")),
-        (_, other) => return Err(unknown("channels", other, "rgb or rg")),
-    };
+    let format = format.map(parse_named::<OutputFormat>).transpose()?;
+    let compression = parse_named::<PngCompression>(compression)?;
+    let layout = Layout::from_parts(parse_named(channels)?, parse_named(alpha)?).map_err(to_py_err)?;
     let mut conversion = Conversion::new()
         .with_fit(opts)
         .with_borders(borders)
@@ -822,21 +743,14 @@ fn lit_view<'py>(
     max_texels: Option<u64>,
     layer: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (azimuth_deg, elevation_deg) = light;
-    // The command line's rule for --light (src/cli/args.rs); the library
-    // takes any direction.
-    if !azimuth_deg.is_finite() || !(0.0..=90.0).contains(&elevation_deg) {
-        return Err(PyValueError::new_err(format!(
-            "invalid option: light is (azimuth, elevation) in degrees, the elevation from 0 to 90, got ({azimuth_deg}, {elevation_deg})"
-        )));
-    }
+    let light = Light::new(light.0, light.1).map_err(to_py_err)?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let lit = LitOptions::new()
         .with_fit(opts)
         .with_borders(borders)
-        .with_light(Light { azimuth_deg, elevation_deg })
+        .with_light(light)
         .with_tile(tile)
-        .with_kind(parse_kind(kind)?)
+        .with_kind(parse_named(kind)?)
         .with_channel(parse_channel(channel)?)
         .with_signed(signed);
     let read = read_options(max_texels, layer)?;

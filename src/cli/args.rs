@@ -8,9 +8,10 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
 use normalfit::convert::BorderChoices;
-use normalfit::io::{Channel, ReadOptions};
+use normalfit::io::{Alpha, Channel, OutputChannels, OutputFormat, PngCompression, ReadOptions};
 use normalfit::options::MAX_PATCH;
 use normalfit::shade::Light;
+use normalfit::tiling::KindChoice;
 use normalfit::{Convention, Fit};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
@@ -110,8 +111,8 @@ pub struct ConvertArgs {
 
     /// Output format; default: the output file's extension, else the input's
     /// format (PNG for integer images, EXR for float ones).
-    #[arg(long, value_enum)]
-    pub format: Option<FormatArg>,
+    #[arg(long, value_parser = named::<OutputFormat>(OutputFormat::ALL))]
+    pub format: Option<OutputFormat>,
 
     /// Write the normal's components in [−1, 1] instead of (n + 1)/2 (EXR only).
     #[arg(long)]
@@ -119,8 +120,8 @@ pub struct ConvertArgs {
 
     /// PNG output: fast (one cheap filter for every row) or small (each
     /// row's best filter: about 12 % smaller, a little slower).
-    #[arg(long, value_enum, default_value_t = CompressionArg::Fast)]
-    pub compression: CompressionArg,
+    #[arg(long, default_value_t = PngCompression::Fast, value_parser = named::<PngCompression>(PngCompression::NAMED))]
+    pub compression: PngCompression,
 
     #[command(flatten)]
     pub read: ReadArgs,
@@ -151,14 +152,14 @@ pub struct ChannelsArgs {
     /// Alpha channel: none (RGB), height (the input height, for parallax
     /// mapping: integer inputs in [0, 1], float ones as stored, clamped to
     /// [0, 1] in PNG), or one (opaque).
-    #[arg(long, value_enum, default_value_t = AlphaArg::None)]
-    pub alpha: AlphaArg,
+    #[arg(long, default_value_t = Alpha::None, value_parser = named::<Alpha>(Alpha::ALL))]
+    pub alpha: Alpha,
 
     /// rgb, or rg for two-channel (BC5) pipelines whose shader rebuilds z:
     /// EXR gets channels R and G only; PNG stays RGB with B = 0, which BC5
     /// encoders ignore.
-    #[arg(long, value_enum, default_value_t = ChannelsArg::Rgb)]
-    pub channels: ChannelsArg,
+    #[arg(long, default_value_t = OutputChannels::Rgb, value_parser = named::<OutputChannels>(OutputChannels::ALL))]
+    pub channels: OutputChannels,
 
     /// Also write the fit's residual: per texel, the root-mean-square
     /// distance of the patch's points from the fitted plane (perpendicular
@@ -199,19 +200,6 @@ pub struct BatchArgs {
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AlphaArg {
-    None,
-    Height,
-    One,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ChannelsArg {
-    Rgb,
-    Rg,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OverwriteArg {
     Always,
     Never,
@@ -245,8 +233,8 @@ pub struct ShadeArgs {
     pub tile: bool,
 
     /// What the inputs hold; auto decides from the pixels (as `tiling` does).
-    #[arg(long, value_enum, default_value_t = KindArg::Auto)]
-    pub kind: KindArg,
+    #[arg(long, default_value_t = KindChoice::Auto, value_parser = named::<KindChoice>(KindChoice::ALL))]
+    pub kind: KindChoice,
 
     /// Channel of a height map that holds the height: luma, r, g, b, a, or
     /// an OpenEXR channel by name.
@@ -281,12 +269,6 @@ pub struct ManArgs {
     pub out: Option<PathBuf>,
 }
 
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CompressionArg {
-    Fast,
-    Small,
-}
-
 #[derive(Args, Debug)]
 pub struct TilingArgs {
     /// Images to check (height or normal maps, in the formats read, from
@@ -303,8 +285,8 @@ pub struct TilingArgs {
     pub threshold: Option<f64>,
 
     /// What the images hold; auto decides from the pixels.
-    #[arg(long, value_enum, default_value_t = KindArg::Auto)]
-    pub kind: KindArg,
+    #[arg(long, default_value_t = KindChoice::Auto, value_parser = named::<KindChoice>(KindChoice::ALL))]
+    pub kind: KindChoice,
 
     /// Channel of a height map that holds the height: luma, r, g, b, a, or
     /// an OpenEXR channel by name.
@@ -352,19 +334,6 @@ impl ReadArgs {
             None => opts,
         }
     }
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FormatArg {
-    Png,
-    Exr,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum KindArg {
-    Auto,
-    Height,
-    Normal,
 }
 
 fn parse_patch(s: &str) -> Result<usize, String> {
@@ -435,26 +404,24 @@ trait NamedValue {
     fn aliases(self) -> &'static [&'static str];
 }
 
-impl NamedValue for Fit {
-    fn name(self) -> &'static str {
-        Fit::name(self)
-    }
-    fn aliases(self) -> &'static [&'static str] {
-        Fit::aliases(self)
-    }
+/// [`NamedValue`] for library enums that name their values.
+macro_rules! named_value {
+    ($($t:ty),+) => {
+        $(impl NamedValue for $t {
+            fn name(self) -> &'static str {
+                <$t>::name(self)
+            }
+            fn aliases(self) -> &'static [&'static str] {
+                <$t>::aliases(self)
+            }
+        })+
+    };
 }
 
-impl NamedValue for Convention {
-    fn name(self) -> &'static str {
-        Convention::name(self)
-    }
-    fn aliases(self) -> &'static [&'static str] {
-        Convention::aliases(self)
-    }
-}
+named_value!(Fit, Convention, OutputFormat, PngCompression, Alpha, OutputChannels, KindChoice);
 
 /// A library error's message without its kind ("invalid option: ").
-fn library_message(e: &normalfit::Error) -> String {
+pub fn library_message(e: &normalfit::Error) -> String {
     match e {
         normalfit::Error::InvalidOption(m) => m.clone(),
         other => other.to_string(),
@@ -476,11 +443,8 @@ fn parse_light(s: &str) -> Result<LightArg, String> {
     let usage = || format!("--light takes AZIMUTH,ELEVATION in degrees, such as 135,35; got '{s}'");
     let (azimuth, elevation) = s.split_once(',').ok_or_else(usage)?;
     let number = |v: &str| v.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(usage);
-    let (azimuth_deg, elevation_deg) = (number(azimuth)?, number(elevation)?);
-    if !(0.0..=90.0).contains(&elevation_deg) {
-        return Err(format!("the light's elevation must be from 0 to 90 degrees, got {elevation_deg}"));
-    }
-    Ok(LightArg(Light { azimuth_deg, elevation_deg }))
+    let light = Light::new(number(azimuth)?, number(elevation)?).map_err(|e| library_message(&e))?;
+    Ok(LightArg(light))
 }
 
 /// The help of a command's inputs: what they are, then the formats the

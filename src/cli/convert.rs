@@ -8,9 +8,9 @@
 use std::path::{Path, PathBuf};
 
 use normalfit::convert::{self, Conversion, ConvertError, Observer, Opened, Output, Place, Warning};
-use normalfit::io::{Layout, OutputFormat, PngCompression};
+use normalfit::io::{Layout, OutputFormat};
 
-use super::args::{AlphaArg, ChannelsArg, CompressionArg, ConvertArgs, FormatArg};
+use super::args::{ConvertArgs, library_message};
 use super::batch::{Batch, Job, Outcome, RESIDUAL_SUFFIX, Turn, Words};
 use super::fitting;
 use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
@@ -50,15 +50,8 @@ impl Plan {
         let fit = fitting::options(&args.fit)?;
         stdin_at_most_once(&args.inputs)?;
         let destination = Destination::for_batch(args.output.as_deref(), many)?;
-        let layout = match (args.channels.alpha, args.channels.channels) {
-            (AlphaArg::None, ChannelsArg::Rgb) => Layout::Rgb,
-            (AlphaArg::Height, ChannelsArg::Rgb) => Layout::RgbHeight,
-            (AlphaArg::One, ChannelsArg::Rgb) => Layout::RgbOpaque,
-            (AlphaArg::None, ChannelsArg::Rg) => Layout::Rg,
-            (_, ChannelsArg::Rg) => {
-                return Err(Failure::usage("--channels rg has no alpha: it is for two-channel (BC5) textures"));
-            }
-        };
+        let layout = Layout::from_parts(args.channels.channels, args.channels.alpha)
+            .map_err(|e| Failure::usage(format!("--{}", library_message(&e))))?;
         let residual = match &args.channels.residual {
             None => None,
             Some(r) if r.as_os_str() == "-" => {
@@ -79,15 +72,9 @@ impl Plan {
             .with_borders(args.fit.border)
             .with_read(args.read.options())
             .with_channel(args.channel.clone())
-            .with_format(args.format.map(|f| match f {
-                FormatArg::Png => OutputFormat::Png,
-                FormatArg::Exr => OutputFormat::Exr,
-            }))
+            .with_format(args.format)
             .with_signed(args.signed)
-            .with_compression(match args.compression {
-                CompressionArg::Fast => PngCompression::Fast,
-                CompressionArg::Small => PngCompression::Default,
-            })
+            .with_compression(args.compression)
             .with_layout(layout)
             .with_residual(residual.is_some());
         conversion.bits = args.bits;

@@ -9,9 +9,8 @@ use std::path::Path;
 
 use normalfit::io::{self, ReadOptions};
 use normalfit::shade::{LitOptions, lit_view};
-use normalfit::tiling::KindChoice;
 
-use super::args::{KindArg, ShadeArgs};
+use super::args::ShadeArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::fitting;
 use super::input::{read_input, stdin_at_most_once};
@@ -47,20 +46,11 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
         .with_borders(args.fit.border)
         .with_light(args.light.0)
         .with_tile(args.tile)
-        .with_kind(kind_choice(args.kind))
+        .with_kind(args.kind)
         .with_channel(args.channel.clone())
         .with_signed(args.signed);
     let plan = Plan { lit, destination, quiet: args.batch.quiet };
     Ok(batch.run(|job, turn| plan.shade_one(job, turn)))
-}
-
-/// `--kind` as the library's choice.
-pub fn kind_choice(kind: KindArg) -> KindChoice {
-    match kind {
-        KindArg::Auto => KindChoice::Auto,
-        KindArg::Height => KindChoice::Height,
-        KindArg::Normal => KindChoice::Normal,
-    }
 }
 
 impl Plan {

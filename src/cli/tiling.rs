@@ -10,7 +10,7 @@ use normalfit::inspect::{seam_preview, seam_preview_lit, tiling_report};
 use normalfit::io::{self, Channel, Encoding, Raster, ReadOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions, TilingReport};
 
-use super::args::TilingArgs;
+use super::args::{TilingArgs, library_message};
 use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::exit;
 use super::input::{Input, read_input};
@@ -20,13 +20,11 @@ use super::report::Failure;
 /// could not be checked, else 1 if one has a seam, else 0: an error
 /// outranks a seam, since the images not checked may have seams too.
 pub fn run(args: TilingArgs) -> Result<u8, Failure> {
-    let mut opts = TilingOptions::default().with_kind(super::shade::kind_choice(args.kind));
+    let mut opts = TilingOptions::default().with_kind(args.kind);
     if let Some(t) = args.threshold {
-        if t <= 0.0 {
-            return Err(Failure::usage(format!("--threshold must be positive, got {t}")));
-        }
-        opts.threshold = t;
+        opts = opts.with_threshold(t);
     }
+    opts.validate().map_err(|e| Failure::usage(format!("--{}", library_message(&e))))?;
     let words = Words { done: "checked", purpose: "to check" };
     // No stem marks a file as ours: previews go where --preview says.
     let batch = Batch::gather(&args.inputs, &args.batch, "", words);

@@ -8,6 +8,7 @@ use std::path::Path;
 use super::read::{InputFormat, SampleType};
 use super::write::{ExrDepth, Layout, PngCompression};
 use crate::error::{Error, Result};
+use crate::options::named_values;
 
 /// The two file formats normal maps are written in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -18,6 +19,8 @@ pub enum OutputFormat {
     /// OpenEXR: half or float samples, (n + 1)/2 or n itself.
     Exr,
 }
+
+named_values!(OutputFormat, "format", { Png => "png", Exr => "exr" });
 
 impl OutputFormat {
     /// The format a file name's extension names (`.png`, `.exr`, in any

@@ -25,6 +25,6 @@ pub use read::{Channel, FormatInfo, InputFormat, Plane, Raster, ReadOptions, Sam
 pub(crate) use read::exr::subsampled as exr_subsampled;
 pub(crate) use read::png::zlib as png_zlib;
 pub use write::{
-    ExrDepth, GrayValue, Layout, NormalTexel, PngCompression, PngSample, Sample, encode_gray, encode_normals,
-    write_atomically, write_file_atomically,
+    Alpha, ExrDepth, GrayValue, Layout, NormalTexel, OutputChannels, PngCompression, PngSample, Sample, encode_gray,
+    encode_normals, write_atomically, write_file_atomically,
 };

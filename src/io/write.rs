@@ -26,6 +26,7 @@ use image::{ExtendedColorType, ImageEncoder, ImageError};
 
 use super::encoding::{Encoding, ExrOptions, PngDepth, PngOptions};
 use crate::error::{Error, Result, one_line};
+use crate::options::named_values;
 
 /// How hard the PNG encoder compresses.
 ///
@@ -46,6 +47,28 @@ pub enum PngCompression {
 }
 
 impl PngCompression {
+    /// The settings callers choose by name (`--compression`,
+    /// `compression=`): fast and small. [`Best`](Self::Best) is for library
+    /// callers of the whole-image writer alone: the streamed writer makes
+    /// the same file at `Default` and `Best`.
+    pub const NAMED: &'static [PngCompression] = &[PngCompression::Fast, PngCompression::Default];
+
+    /// The setting's name: `fast`, `small` (for `Default`) or `best`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            PngCompression::Fast => "fast",
+            PngCompression::Default => "small",
+            PngCompression::Best => "best",
+        }
+    }
+
+    /// Other spellings that parse as this setting.
+    #[must_use]
+    pub fn aliases(self) -> &'static [&'static str] {
+        &[]
+    }
+
     /// The `image` setting this stands for.
     fn to_image(self) -> CompressionType {
         match self {
@@ -89,7 +112,72 @@ pub enum Layout {
     Rg,
 }
 
+impl std::fmt::Display for PngCompression {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for PngCompression {
+    type Err = Error;
+
+    /// One of [`NAMED`](Self::NAMED)'s names, ASCII case ignored.
+    fn from_str(s: &str) -> Result<Self> {
+        let s = s.trim();
+        let names: Vec<&str> = PngCompression::NAMED.iter().map(|c| c.name()).collect();
+        PngCompression::NAMED.iter().copied().find(|c| s.eq_ignore_ascii_case(c.name())).ok_or_else(|| {
+            Error::InvalidOption(format!("unknown compression '{s}': use {}", crate::options::one_of(&names)))
+        })
+    }
+}
+
+/// What a normal map's alpha channel holds, as callers ask for it: with
+/// [`OutputChannels`], [`Layout::from_parts`] makes the [`Layout`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Alpha {
+    /// No alpha channel. The default.
+    #[default]
+    None,
+    /// The texel's height (for parallax mapping).
+    Height,
+    /// An opaque alpha, 1.
+    One,
+}
+
+/// Which components of the normal a map holds, as callers ask for them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum OutputChannels {
+    /// x, y and z as R, G and B. The default.
+    #[default]
+    Rgb,
+    /// x and y alone, for two-channel (BC5) textures.
+    Rg,
+}
+
+named_values!(Alpha, "alpha", { None => "none", Height => "height", One => "one" });
+named_values!(OutputChannels, "channels", { Rgb => "rgb", Rg => "rg" });
+
 impl Layout {
+    /// The layout of a map with these channels and this alpha: what the
+    /// command line's `--channels` and `--alpha`, and the Python package's
+    /// `channels=` and `alpha=`, ask for together.
+    ///
+    /// Errors: [`Error::InvalidOption`] for an alpha beside red-green
+    /// alone, which has none.
+    pub fn from_parts(channels: OutputChannels, alpha: Alpha) -> Result<Layout> {
+        match (channels, alpha) {
+            (OutputChannels::Rgb, Alpha::None) => Ok(Layout::Rgb),
+            (OutputChannels::Rgb, Alpha::Height) => Ok(Layout::RgbHeight),
+            (OutputChannels::Rgb, Alpha::One) => Ok(Layout::RgbOpaque),
+            (OutputChannels::Rg, Alpha::None) => Ok(Layout::Rg),
+            (OutputChannels::Rg, _) => Err(Error::InvalidOption(format!(
+                "channels rg has no alpha (asked for alpha {alpha}): it is for two-channel (BC5) textures"
+            ))),
+        }
+    }
+
     /// Samples per texel in a PNG.
     pub(crate) fn png_samples(self) -> usize {
         match self {

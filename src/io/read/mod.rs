@@ -158,6 +158,17 @@ impl ReadOptions {
         self
     }
 
+    /// Checks the options as a caller gave them: the texel limit must be
+    /// at least 1 (0 would refuse every image).
+    ///
+    /// Errors: [`Error::InvalidOption`] naming the limit.
+    pub fn validate(&self) -> Result<()> {
+        if self.max_texels == 0 {
+            return Err(Error::InvalidOption("max texels must be a whole number of texels, at least 1, got 0".into()));
+        }
+        Ok(())
+    }
+
     /// The same options reading the OpenEXR layer `name`.
     #[must_use]
     pub fn with_layer(mut self, name: impl Into<String>) -> Self {
