@@ -129,7 +129,7 @@ def test_lit_view_of_a_normal_map_and_refusals(tmp_path: Path) -> None:
     of_heights = normalfit.lit_view(ROCK, scale=16.0)
     assert of_normals.shape == (512, 512)
     assert np.abs(of_normals.astype(int) - of_heights.astype(int)).max() <= 2
-    with pytest.raises(ValueError, match="elevation from 0 to 90"):
+    with pytest.raises(ValueError, match="elevation must be from 0 to 90"):
         normalfit.lit_view(ROCK, light=(0.0, 95.0))
     with pytest.raises(FileNotFoundError):
         normalfit.lit_view(tmp_path / "missing.png")

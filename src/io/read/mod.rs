@@ -164,7 +164,7 @@ impl ReadOptions {
     /// Errors: [`Error::InvalidOption`] naming the limit.
     pub fn validate(&self) -> Result<()> {
         if self.max_texels == 0 {
-            return Err(Error::InvalidOption("max texels must be a whole number of texels, at least 1, got 0".into()));
+            return Err(Error::InvalidOption("max_texels must be at least 1, got 0".into()));
         }
         Ok(())
     }
