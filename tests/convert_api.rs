@@ -537,5 +537,6 @@ fn auto_borders_of_heights_in_memory_settle_as_a_conversion_does() {
     let half = BorderChoices { x: BorderChoice::Fixed(Border::Clamp), y: BorderChoice::Auto };
     assert_eq!(half.settle(&heights, w, h).unwrap(), Borders { x: Border::Clamp, y: Border::Mirror });
     let fixed = BorderChoices::both(BorderChoice::Fixed(Border::Wrap));
+    assert_eq!(fixed.settle(&heights, w, h).unwrap(), Borders::both(Border::Wrap), "as asked, whatever the image");
     assert!(matches!(auto.settle(&heights[..10], w, h), Err(Error::BufferSize { .. })));
 }
