@@ -364,10 +364,10 @@ pub fn convert_exr<W: Write + Seek>(
     let options: ExrOptions = options.into();
     let ExrOptions { depth, layout, .. } = options;
     write_exr_rows(out, w, h, depth, layout.exr_channels(), |push| {
-        let prepare = |_: Range<usize>, mut normals: Vec<[f32; 3]>, heights: Vec<f32>| {
-            options.store_all(&mut normals);
+        let prepare = |_: Range<usize>, normals: &mut [[f32; 3]], heights: Vec<f32>| {
+            options.store_all(normals);
             let mut samples = Vec::with_capacity(normals.len() * layout.exr_channels().len());
-            lay_out(&normals, &heights, layout, Container::Exr, &mut samples);
+            lay_out(normals, &heights, layout, Container::Exr, &mut samples);
             samples
         };
         let consume = |_: usize, samples: Vec<f32>| push(&samples);

@@ -193,7 +193,9 @@ type Rows<'a, H> = dyn Fn(usize) -> &'a [H] + 'a;
 struct Stages<Prepare, Consume> {
     /// On the fit thread: turns the band's rows (range, texels, and its
     /// heights in contract units when the layout writes them, else none)
-    /// into what the encoder takes.
+    /// into what the encoder takes. The texels are the fit stage's buffer,
+    /// lent for the band (it may change them: EXR stores its encoding in
+    /// place).
     prepare: Prepare,
     /// On the caller's thread: encodes and writes a prepared band, given
     /// with its first row.
@@ -216,7 +218,7 @@ where
     S: RowSource,
     T: FromNormal + Default,
     B: Send,
-    Prepare: FnMut(Range<usize>, Vec<T>, Vec<f32>) -> Vec<B> + Send,
+    Prepare: FnMut(Range<usize>, &mut [T], Vec<f32>) -> Vec<B> + Send,
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     // Rows in f32 where that is exact: half the memory and bandwidth.
@@ -241,7 +243,7 @@ where
     S: RowSource,
     T: FromNormal + Default,
     B: Send,
-    Prepare: FnMut(Range<usize>, Vec<T>, Vec<f32>) -> Vec<B> + Send,
+    Prepare: FnMut(Range<usize>, &mut [T], Vec<f32>) -> Vec<B> + Send,
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     let Stages { prepare, mut consume } = stages;
@@ -252,12 +254,16 @@ where
     // holding more than a few bands.
     let (heights_tx, heights_rx) = sync_channel::<Band<H>>(2);
     let (out_tx, out_rx) = sync_channel::<Band<B>>(2);
+    // A band of heights the fit is done with goes back to the decoder, to
+    // be filled again: a new band each time would cost its zeroing and
+    // its page faults (4 % of a 32768² conversion's processor time).
+    let (spare_tx, spare_rx) = sync_channel::<Vec<H>>(1);
     let band = fit.band_rows();
     let unit = rows.unit();
     std::thread::scope(|scope| -> Result<()> {
-        scope.spawn(move || decode_stage(&mut rows, band, &heights_tx));
+        scope.spawn(move || decode_stage(&mut rows, band, &heights_tx, &spare_rx));
         let fitting = Fitting { fit, unit, tail, deferred, needs_heights };
-        scope.spawn(move || fit_stage(&fitting, &mut visit, prepare, heights_rx, &out_tx));
+        scope.spawn(move || fit_stage(&fitting, &mut visit, prepare, heights_rx, &out_tx, &spare_tx));
         // Returning early drops the receiver, which stops the other stages.
         for message in out_rx {
             let (y0, values) = message?;
@@ -274,15 +280,15 @@ where
 /// ([`BandFit`]), so only images some 10^7 texels wide get here.
 ///
 /// What is held at once, per texel of a band: the heights (`H`) of the
-/// band being decoded, two queued and two that the fit reads (the band and
-/// the rows above it); the normals (`T`) and what the encoder takes (`B`,
+/// band being decoded, two queued, two that the fit reads (the band and
+/// the rows above it) and one given back to the decoder; the normals (`T`) and what the encoder takes (`B`,
 /// counted as one more `T` and 4 bytes) of the band being fitted, two
 /// queued and the one being written. Besides, a copy of the first 2r rows,
 /// the tail and a row of heights for `visit`.
 fn check_stream_memory<H, T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
     let (w, h, r, band) = (fit.width() as u64, fit.height() as u64, fit.radius() as u64, fit.band_rows() as u64);
     // No more rows than the image has.
-    let height_rows = (5 * band).min(h);
+    let height_rows = (6 * band).min(h);
     let output_rows = (4 * band).min(h);
     let output_bytes = (2 * size_of::<T>() as u64 + 4).max(size_of::<B>() as u64);
     let head_rows = (2 * r).min(h);
@@ -297,13 +303,22 @@ fn check_stream_memory<H, T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
 /// Decodes bands of `band` rows and sends them on; stops at the first
 /// error (sent on) or when the receiver is gone. Decoding is the one stage
 /// that cannot be split, so it does nothing else.
-fn decode_stage<H: RowValue>(rows: &mut impl RowSource, band: usize, tx: &SyncSender<Band<H>>) {
+fn decode_stage<H: RowValue>(
+    rows: &mut impl RowSource,
+    band: usize,
+    tx: &SyncSender<Band<H>>,
+    spares: &Receiver<Vec<H>>,
+) {
     let (w, h) = (rows.width(), rows.height());
     for y0 in (0..h).step_by(band) {
         let n = band.min(h - y0);
-        // Zeroed by the allocator (fresh pages need no clearing); the
+        // A band given back, of this size, is filled again (every value is
+        // overwritten below); else a new one, zeroed by the allocator. The
         // room for the bands was checked before the stages started.
-        let mut heights = vec![H::default(); n * w];
+        let mut heights = match spares.try_recv() {
+            Ok(spare) if spare.len() == n * w => spare,
+            _ => vec![H::default(); n * w],
+        };
         let result = heights.chunks_exact_mut(w).try_for_each(|row| H::read(rows, row));
         let failed = result.is_err();
         if tx.send(result.map(|()| (y0, heights))).is_err() || failed {
@@ -351,9 +366,10 @@ struct Fitting<'a, H> {
 fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     &Fitting { fit, unit, tail, deferred, needs_heights }: &Fitting<'_, H>,
     visit: &mut dyn FnMut(&[f32]),
-    mut prepare: impl FnMut(Range<usize>, Vec<T>, Vec<f32>) -> Vec<B>,
+    mut prepare: impl FnMut(Range<usize>, &mut [T], Vec<f32>) -> Vec<B>,
     rx: Receiver<Band<H>>,
     tx: &SyncSender<Band<B>>,
+    spares: &SyncSender<Vec<H>>,
 ) {
     let (w, h, r) = (fit.width(), fit.height(), fit.radius());
     if let Some(tail) = tail
@@ -374,6 +390,7 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     let head_rows = (2 * r).min(h);
     let mut head: Vec<H> = Vec::new();
     let mut heights = vec![0.0f32; w];
+    let mut normals: Vec<T> = Vec::new();
     let mut incoming = rx.into_iter();
     let mut bands: Vec<_> = fit.bands().collect();
     if deferred {
@@ -418,10 +435,12 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
                 &t[(y + r.min(h) - h) * w..][..w]
             }
         };
-        let mut normals = vec![T::default(); (y1 - y0) * w];
+        // One buffer for every band's texels, each overwritten whole by the
+        // fit: no zeroing per band.
+        normals.resize((y1 - y0) * w, T::default());
         let result = fit.fit_band(rows.clone(), &row, &mut normals).map(|()| {
             let heights = if needs_heights { heights_of(rows.clone(), &row, unit) } else { Vec::new() };
-            prepare(rows, normals, heights)
+            prepare(rows, &mut normals, heights)
         });
         let failed = result.is_err();
         if tx.send(result.map(|values| (y0, values))).is_err() || failed {
@@ -431,7 +450,10 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
         // band last, the last r rows stay for it): older bands can go.
         let keep_from = y1.saturating_sub(r);
         while window.front().is_some_and(|(first, rows)| first + rows.len() / w <= keep_from) {
-            window.pop_front();
+            if let Some((_, rows)) = window.pop_front() {
+                // Dropped when the decoder has one already.
+                let _ = spares.try_send(rows);
+            }
         }
     }
 }

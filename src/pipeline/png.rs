@@ -345,12 +345,12 @@ where
     // The last row of the band before, which the next band's first row is
     // filtered against.
     let mut prior: Option<Vec<u8>> = None;
-    let prepare = |rows: Range<usize>, normals: Vec<[S; 3]>, heights: Vec<f32>| -> Vec<u8> {
+    let prepare = |rows: Range<usize>, normals: &mut [[S; 3]], heights: Vec<f32>| -> Vec<u8> {
         let laid_out = if layout == Layout::Rgb {
             Cow::Borrowed(normals.as_flattened())
         } else {
             let mut laid_out = Vec::with_capacity(normals.len() * samples);
-            lay_out(&normals, &heights, layout, Container::Png, &mut laid_out);
+            lay_out(normals, &heights, layout, Container::Png, &mut laid_out);
             Cow::Owned(laid_out)
         };
         let raw = S::be_bytes(&laid_out);
