@@ -282,15 +282,16 @@ where
 ///
 /// What is held at once, per texel of a band: the heights (`H`) of the
 /// band being decoded, two queued, two that the fit reads (the band and
-/// the rows above it) and one given back to the decoder; the normals (`T`) and what the encoder takes (`B`,
-/// counted as one more `T` and 4 bytes) of the band being fitted, two
-/// queued and the one being written. Besides, a copy of the first 2r rows,
+/// the rows above it) and one given back to the decoder; the normals (`T`)
+/// and what the encoder takes (`B`, counted as one more `T` and 4 bytes)
+/// of the band being fitted, two queued, the one being written and one
+/// given back to be filled again. Besides, a copy of the first 2r rows,
 /// the tail and a row of heights for `visit`.
 fn check_stream_memory<H, T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
     let (w, h, r, band) = (fit.width() as u64, fit.height() as u64, fit.radius() as u64, fit.band_rows() as u64);
     // No more rows than the image has.
     let height_rows = (6 * band).min(h);
-    let output_rows = (4 * band).min(h);
+    let output_rows = (5 * band).min(h);
     let output_bytes = (2 * size_of::<T>() as u64 + 4).max(size_of::<B>() as u64);
     let head_rows = (2 * r).min(h);
     let height_bytes = size_of::<H>() as u64;

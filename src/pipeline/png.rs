@@ -345,7 +345,11 @@ where
     // The last row of the band before, which the next band's first row is
     // filtered against.
     let mut prior: Option<Vec<u8>> = None;
-    let prepare = |rows: Range<usize>, normals: &mut [[S; 3]], heights: Vec<f32>| -> Vec<u8> {
+    // A band's filtered bytes, once compressed, go back to be filled again
+    // by the next band's filtering: a new buffer each band would be zeroed
+    // first (1 to 2 % of a 32768² conversion).
+    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<u8>>(1);
+    let prepare = move |rows: Range<usize>, normals: &mut [[S; 3]], heights: Vec<f32>| -> Vec<u8> {
         let laid_out = if layout == Layout::Rgb {
             Cow::Borrowed(normals.as_flattened())
         } else {
@@ -358,7 +362,8 @@ where
             // Stored as they are: filter type 0 before each row.
             raw.chunks_exact(stride).flat_map(|row| std::iter::once(0).chain(row.iter().copied())).collect()
         } else {
-            let filtered = filter_rows(&raw, stride, texel_bytes, prior.as_deref(), adaptive);
+            let spare = spare_rx.try_recv().unwrap_or_default();
+            let filtered = filter_rows(&raw, stride, texel_bytes, prior.as_deref(), adaptive, spare);
             prior = Some(raw[raw.len() - stride..].to_vec());
             filtered
         }
@@ -369,6 +374,8 @@ where
         } else {
             compressor.write_data(&bytes)?;
             fed += bytes.len() as u64;
+            // Dropped when a spare is waiting already.
+            let _ = spare_tx.try_send(bytes);
         }
         Ok(())
     };
@@ -400,7 +407,8 @@ const PAETH: u8 = 4;
 /// PNG-filters rows of `stride` bytes (texels of `bpp` bytes), in
 /// parallel, each row after its filter byte. `prior` is the row above the
 /// first one; without it (the first row written in the stream) only the
-/// filters that do not look up are used.
+/// filters that do not look up are used. The rows go into `out`, whose
+/// bytes are all overwritten (a buffer of an earlier band, or empty).
 ///
 /// Not `adaptive`: Avg (the mean of the left and upper bytes predicts each
 /// byte) for every row with a row above, Sub (the left byte) otherwise.
@@ -409,9 +417,16 @@ const PAETH: u8 = 4;
 /// filtering time). `adaptive`: every filter is tried and the row keeps
 /// the one whose bytes, as signed numbers, have the least absolute sum —
 /// the usual heuristic (libpng's, the `png` crate's).
-fn filter_rows(raw: &[u8], stride: usize, bpp: usize, prior: Option<&[u8]>, adaptive: bool) -> Vec<u8> {
+fn filter_rows(
+    raw: &[u8],
+    stride: usize,
+    bpp: usize,
+    prior: Option<&[u8]>,
+    adaptive: bool,
+    mut out: Vec<u8>,
+) -> Vec<u8> {
     let rows = raw.len() / stride;
-    let mut out = vec![0u8; rows * (stride + 1)];
+    out.resize(rows * (stride + 1), 0);
     out.par_chunks_mut(stride + 1).enumerate().for_each(|(k, dst)| {
         let cur = &raw[k * stride..][..stride];
         let above = if k == 0 { prior } else { Some(&raw[(k - 1) * stride..][..stride]) };
