@@ -61,7 +61,15 @@ fn verdicts_exit_codes_and_json_lines() {
 
     // A high enough threshold accepts the seam.
     assert_eq!(run(&["tiling", "--threshold", "1000", s(&half)]).status.code(), Some(0));
-    assert_eq!(run(&["tiling", "--threshold", "-1", s(&half)]).status.code(), Some(2));
+    // A threshold that is no positive number is refused by the library's
+    // rule, in one line naming it (a negative number is a value, not a flag).
+    for bad in ["-1", "0"] {
+        let r = run(&["tiling", "--threshold", bad, s(&half)]);
+        assert_eq!(r.status.code(), Some(2), "{bad}");
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert!(stderr.contains(&format!("--threshold must be positive, got {bad}")), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    }
 }
 
 /// Every `--json` line is one JSON object (parsed here by a JSON parser,

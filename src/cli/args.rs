@@ -270,6 +270,7 @@ pub struct ManArgs {
 }
 
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct TilingArgs {
     /// Images to check (height or normal maps, in the formats read, from
     /// the library's registry; `-` reads standard input).
