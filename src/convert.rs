@@ -121,10 +121,10 @@ impl BorderChoices {
         if !self.any_auto() {
             return Ok(self.resolve(None));
         }
-        let mut seams = HeightSeams::new(width, height)?;
-        if heights.len() != width * height {
-            return Err(Error::BufferSize { expected: width * height, actual: heights.len() });
+        if Some(heights.len()) != width.checked_mul(height) {
+            return Err(Error::BufferSize { expected: width.saturating_mul(height), actual: heights.len() });
         }
+        let mut seams = HeightSeams::new(width, height)?;
         seams.push_heights(heights)?;
         Ok(self.resolve(Some(&seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)))))
     }

@@ -101,6 +101,8 @@ macro_rules! with_slice {
     };
 }
 
+pub(crate) use with_slice;
+
 impl Samples {
     /// How many samples.
     #[must_use]

@@ -209,6 +209,7 @@
 
 use crate::par::prelude::*;
 
+use crate::Samples;
 use crate::options::{Border, Borders, named_values};
 use crate::samples::try_vec;
 use crate::{Error, Result};
@@ -624,13 +625,8 @@ impl HeightSeams {
     /// Errors: [`Error::BufferSize`] when `heights` is not whole rows of
     /// this width, or holds more rows than are still to come (nothing is
     /// pushed then).
-    pub fn push_samples(&mut self, heights: &crate::Samples) -> Result<()> {
-        match heights {
-            crate::Samples::U8(v) => self.push_heights(v),
-            crate::Samples::U16(v) => self.push_heights(v),
-            crate::Samples::F32(v) => self.push_heights(v),
-            crate::Samples::F64(v) => self.push_heights(v),
-        }
+    pub fn push_samples(&mut self, heights: &Samples) -> Result<()> {
+        crate::samples::with_slice!(heights, s => self.push_heights(s))
     }
 
     /// Pushes every row of `heights`, whole rows of this check's width in

@@ -352,11 +352,13 @@ fn parse_suffix(s: &str) -> Result<String, String> {
     Ok(s.to_string())
 }
 
+/// `--max-texels`: a whole number the library accepts as a limit.
 fn parse_max_texels(s: &str) -> Result<u64, String> {
-    match s.parse::<u64>() {
-        Ok(n) if n > 0 => Ok(n),
-        _ => Err(format!("--max-texels must be a whole number of texels, at least 1, got '{s}'")),
-    }
+    let accepted = |&n: &u64| ReadOptions::default().with_max_texels(n).validate().is_ok();
+    s.parse::<u64>()
+        .ok()
+        .filter(accepted)
+        .ok_or_else(|| format!("--max-texels must be a whole number of texels, at least 1, got '{s}'"))
 }
 
 fn parse_bits(s: &str) -> Result<u8, String> {

@@ -79,6 +79,25 @@ impl PngCompression {
     }
 }
 
+impl std::fmt::Display for PngCompression {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for PngCompression {
+    type Err = Error;
+
+    /// One of [`NAMED`](Self::NAMED)'s names, ASCII case ignored.
+    fn from_str(s: &str) -> Result<Self> {
+        let s = s.trim();
+        let names: Vec<&str> = PngCompression::NAMED.iter().map(|c| c.name()).collect();
+        PngCompression::NAMED.iter().copied().find(|c| s.eq_ignore_ascii_case(c.name())).ok_or_else(|| {
+            Error::InvalidOption(format!("unknown compression '{s}': use {}", crate::options::one_of(&names)))
+        })
+    }
+}
+
 /// Sample type of an EXR output (SPEC §3: `--bits 16` or `--bits 32`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -110,25 +129,6 @@ pub enum Layout {
     /// PNG, which has no red-green type, stays RGB with B = 0, which BC5
     /// encoders ignore and deflate stores almost for free.
     Rg,
-}
-
-impl std::fmt::Display for PngCompression {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for PngCompression {
-    type Err = Error;
-
-    /// One of [`NAMED`](Self::NAMED)'s names, ASCII case ignored.
-    fn from_str(s: &str) -> Result<Self> {
-        let s = s.trim();
-        let names: Vec<&str> = PngCompression::NAMED.iter().map(|c| c.name()).collect();
-        PngCompression::NAMED.iter().copied().find(|c| s.eq_ignore_ascii_case(c.name())).ok_or_else(|| {
-            Error::InvalidOption(format!("unknown compression '{s}': use {}", crate::options::one_of(&names)))
-        })
-    }
 }
 
 /// What a normal map's alpha channel holds, as callers ask for it: with
