@@ -65,8 +65,8 @@ def normals(
     patch: N, the side of the N x N patch fitted around each texel (odd, >= 3).
     fit: "orthogonal" (perpendicular distances) or "vertical".
     border: "wrap", "clamp", "mirror" or "auto" (wrap where the heights
-        tile, mirror where not: the library's tiling check, on a copy of
-        the heights) for both axes, or one per axis as an (x, y) pair or
+        tile, mirror where not: the library's tiling check, reading the
+        heights in place) for both axes, or one per axis as an (x, y) pair or
         the command line's "x,y".
     convention: "opengl" ("gl", green up) or "directx" ("dx", green down).
     scale: the height gain S (default 1); relief: the gain as F x width.
