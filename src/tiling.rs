@@ -271,6 +271,7 @@ pub enum ImageKind {
 
 /// How [`check`] decides the [`ImageKind`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
 pub enum KindChoice {
     /// [`ImageKind::detect`] decides. The default.
     #[default]
