@@ -202,9 +202,10 @@
 //! block of rows, so no full-size copy is made. The levels add, per row,
 //! its runs along x (W/2 + W/4 + … sums) and the y pairs of those, and
 //! per 2^l rows one row of runs along y and its x pairs: about twice the
-//! work of level 0 alone. [`HeightSeams`] runs the same kernels one row
-//! at a time on the caller's thread, keeping 6 rows and the profiles at
-//! every level. `cargo bench --bench fit -- seams` (4096², 2 cores): see
+//! work of level 0 alone. [`HeightSeams`] runs the same kernels on the
+//! caller's thread, on blocks of up to 32 rows 1024 columns at a time (so
+//! that the rows and sums of a pass stay in cache at any width), keeping
+//! 6 rows and the profiles at every level. `cargo bench --bench fit -- seams` (4096², 2 cores): see
 //! docs/tiling.md for the figures.
 
 use crate::par::prelude::*;
@@ -517,11 +518,14 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 /// profiles (4 W values) and the y profiles (2 H); the first 2 rows and
 /// the last 4 with their runs along x (about 2 W each; the pairs that
 /// cross the y wrap, value H−1 → 0 and crease H−2, H−1, 0, 1, need rows
-/// H−2, H−1, 0 and 1); and one run of rows in progress per level (W
-/// each). Each
-/// [`push_row`](Self::push_row) is O(W) work on the caller's thread, in
-/// branch-free loops over slices that vectorise; [`finish`](Self::finish)
-/// adds the pairs across the wrap and selects the references, O(W + H).
+/// H−2, H−1, 0 and 1); one run of rows in progress per level (W each);
+/// and the rows pushed but not yet measured, up to 32 (fewer when 32 rows
+/// would take more than 4 MiB). Every 32nd
+/// [`push_row`](Self::push_row) measures the rows that wait, O(W) work a
+/// row on the caller's thread, in branch-free loops over slices that
+/// vectorise, 1024 columns at a time; [`finish`](Self::finish) measures
+/// the rest, adds the pairs across the wrap and selects the references,
+/// O(W + H).
 ///
 /// # Same as check
 ///
@@ -555,15 +559,30 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 pub struct HeightSeams {
     width: usize,
     height: usize,
-    /// Rows pushed so far.
+    /// Rows pushed so far, the pending ones included.
     rows: usize,
+    /// Rows pushed and not yet measured, judged (times [`JUDGE_SCALE`],
+    /// non-finite values as 0): `pending_rows` of `width` values. They are
+    /// measured [`TILE_COLS`] columns at a time, so that each pass's rows
+    /// and sums stay in a core's cache however wide the image.
+    pending: Vec<f32>,
+    pending_rows: usize,
+    /// Rows measured at once: up to [`CHUNK`], fewer for very wide images.
+    block_rows: usize,
+    /// Columns per pass: [`TILE_COLS`] (tests change it).
+    tile_cols: usize,
     /// Rows 0 and 1 as far as pushed (non-finite values as 0), at every
     /// level.
     first: Runs,
-    /// The last 4 rows pushed, at every level: row y in slot y mod 4.
+    /// The last 4 rows measured, at every level: row y in slot y mod 4.
     ring: Runs,
     /// The runs of rows that the x pairs of the coarser levels compare.
     stack: RowStack,
+    /// What a pass over some columns leaves to the passes over the others.
+    edges: EdgeLog,
+    /// The y sums of the pending rows in progress, row after row, level
+    /// after level: value then crease.
+    lanes: Vec<[Lanes; 2]>,
     /// The x sums of the current block of [`CHUNK`] rows, in f32 as in
     /// [`Block`], level after level.
     vx_block: Vec<f32>,
@@ -591,13 +610,20 @@ impl HeightSeams {
     pub fn new(width: usize, height: usize) -> Result<Self> {
         image_len(width, height)?;
         crate::io::check_memory("the tiling check", Self::bytes_needed(width, height))?;
+        let block_rows = pending_rows_for(width, height);
         Ok(HeightSeams {
             width,
             height,
             rows: 0,
+            pending: vec![0.0; block_rows * width],
+            pending_rows: 0,
+            block_rows,
+            tile_cols: TILE_COLS,
             first: Runs::new(width, 2.min(height)),
             ring: Runs::new(width, 4.min(height)),
             stack: RowStack::new(width),
+            edges: EdgeLog::default(),
+            lanes: vec![[Lanes::default(); 2]; block_rows * LEVELS],
             vx_block: vec![0.0; LEVELS * width],
             cx_block: vec![0.0; LEVELS * width],
             vx: vec![0.0; LEVELS * width],
@@ -607,8 +633,9 @@ impl HeightSeams {
         })
     }
 
-    /// The bytes a check of a `width` × `height` image holds (its profiles
-    /// and row buffers, at every level): about 220 a column and 96 a row.
+    /// The bytes a check of a `width` × `height` image holds (its profiles,
+    /// row buffers and pending rows, at every level): about 350 a column
+    /// and 96 a row.
     #[must_use]
     pub fn bytes_needed(width: usize, height: usize) -> u64 {
         let (w, h, levels) = (width as u64, height as u64, LEVELS as u64);
@@ -616,7 +643,8 @@ impl HeightSeams {
         let row_levels: u64 = (0..LEVELS).map(|l| w.div_ceil(1 << l)).sum();
         let runs = (2.min(h) + 4.min(h)) * row_levels * 4;
         let x_sums = levels * w * 4 + 2 * levels * w * 4 + 2 * levels * w * 8;
-        runs + x_sums + 2 * levels * h * 8
+        let pending = pending_rows_for(width, height) as u64 * w * 4;
+        runs + x_sums + pending + 2 * levels * h * 8
     }
 
     /// Pushes every row of `heights`, an image of this check's width held
@@ -667,41 +695,89 @@ impl HeightSeams {
     /// [`Error::InvalidOption`] when all `height` rows are in already; the
     /// check is unchanged then.
     pub fn push_row(&mut self, row: &[f32]) -> Result<()> {
-        let (w, y) = (self.width, self.rows);
+        let w = self.width;
         if row.len() != w {
             return Err(Error::BufferSize { expected: w, actual: row.len() });
         }
-        if y >= self.height {
+        if self.rows >= self.height {
             return Err(Error::InvalidOption(format!("all {} rows of the tiling check are in already", self.height)));
         }
         self.rows += 1;
         if w == 0 {
             return Ok(());
         }
-        for (o, &v) in self.ring.slot_mut(y % 4).iter_mut().zip(row) {
+        for (o, &v) in self.pending[self.pending_rows * w..][..w].iter_mut().zip(row) {
             *o = judged(v);
         }
-        self.ring.coarsen(y % 4);
-        if y < 2 {
-            self.first.copy_slot(y, &self.ring, y % 4);
-        }
-        let ring = &self.ring;
-        self.stack.push(ring.row(0, y % 4), &mut self.vx_block, &mut self.cx_block, true);
-        if (y + 1) % CHUNK == 0 {
-            flush(&mut self.vx, &mut self.vx_block);
-            flush(&mut self.cx, &mut self.cx_block);
-        }
-        // The y pairs whose stencils end at this row and do not wrap.
-        for level in 0..LEVELS {
-            let r = |j: usize| ring.row(level, j % 4);
-            if y >= 1 {
-                self.vy[(y - 1) * LEVELS + level] = y_value(r(y - 1), r(y));
-            }
-            if y >= 3 {
-                self.cy[(y - 2) * LEVELS + level] = y_crease(r(y - 3), r(y - 2), r(y - 1), r(y));
-            }
+        self.pending_rows += 1;
+        if self.pending_rows == self.block_rows {
+            self.measure_pending(false);
         }
         Ok(())
+    }
+
+    /// Measures the pending rows, [`TILE_COLS`] columns at a time: each
+    /// pass runs every row's kernels over its columns, so the kernels add
+    /// into every sum in the order of the rows, as a pass over whole rows
+    /// would, and give the same bits. With `last`, the runs of rows cut
+    /// short by the end are closed too, as [`check`] ends them.
+    fn measure_pending(&mut self, last: bool) {
+        let (w, n) = (self.width, self.pending_rows);
+        let y0 = self.rows - n;
+        let counts = self.stack.count;
+        self.lanes[..n * LEVELS].fill([Lanes::default(); 2]);
+        for x0 in (0..w).step_by(self.tile_cols) {
+            let cols = Cols { x0, x1: (x0 + self.tile_cols).min(w), w };
+            // Every pass replays the same runs of rows.
+            self.stack.count = counts;
+            self.edges.next = 0;
+            for i in 0..n {
+                let y = y0 + i;
+                let slot = y % 4;
+                self.ring.slot_mut(slot)[cols.range()].copy_from_slice(&self.pending[i * w..][cols.range()]);
+                self.ring.coarsen(slot, &cols);
+                if y < 2 {
+                    self.first.copy_slot(y, &self.ring, slot, &cols);
+                }
+                let mut sums =
+                    XSums { vx: &mut self.vx_block, cx: &mut self.cx_block, crease: true, edges: &mut self.edges };
+                self.stack.push(self.ring.row(0, slot), &cols, &mut sums);
+                if (y + 1).is_multiple_of(CHUNK) {
+                    flush_cols(&mut self.vx, &mut self.vx_block, &mut self.cx, &mut self.cx_block, &cols);
+                }
+                // The y pairs whose stencils end at this row and do not wrap.
+                let ring = &self.ring;
+                for (level, lanes) in self.lanes[i * LEVELS..][..LEVELS].iter_mut().enumerate() {
+                    let r = |j: usize| ring.row(level, j % 4);
+                    let part = cols.at_level(level, ring.widths[level]);
+                    if y >= 1 {
+                        lanes[0].add(part.clone(), [r(y - 1), r(y)], |[b, c]| (c - b).abs());
+                    }
+                    if y >= 3 {
+                        lanes[1]
+                            .add(part, [r(y - 3), r(y - 2), r(y - 1), r(y)], |[a, b, c, d]| ((d - c) - (b - a)).abs());
+                    }
+                }
+            }
+            if last {
+                let mut sums =
+                    XSums { vx: &mut self.vx_block, cx: &mut self.cx_block, crease: true, edges: &mut self.edges };
+                self.stack.finish(&cols, &mut sums);
+                flush_cols(&mut self.vx, &mut self.vx_block, &mut self.cx, &mut self.cx_block, &cols);
+            }
+        }
+        for (i, lanes) in self.lanes[..n * LEVELS].chunks_exact(LEVELS).enumerate() {
+            let y = y0 + i;
+            for (level, [value, crease]) in lanes.iter().enumerate() {
+                if y >= 1 {
+                    self.vy[(y - 1) * LEVELS + level] = value.total();
+                }
+                if y >= 3 {
+                    self.cy[(y - 2) * LEVELS + level] = crease.total();
+                }
+            }
+        }
+        self.pending_rows = 0;
     }
 
     /// The report, judged as [`ImageKind::Height`] under `opts.threshold`.
@@ -718,15 +794,13 @@ impl HeightSeams {
         if w == 0 || h == 0 {
             return Profiles::empty_report(ImageKind::Height, opts);
         }
-        // The runs of rows cut short by the last row, as `check` ends them.
-        self.stack.finish(&mut self.vx_block, &mut self.cx_block, true);
-        flush(&mut self.vx, &mut self.vx_block);
-        flush(&mut self.cx, &mut self.cx_block);
+        // The pending rows, and the runs of rows cut short by the last row.
+        self.measure_pending(true);
         let (first, ring) = (&self.first, &self.ring);
         let (mut vy, mut cy) = (self.vy, self.cy);
         vy.truncate(h * LEVELS);
         cy.truncate(h * LEVELS);
-        // The seams; push_row did the interior pairs. Row j mod H: the
+        // The seams; the passes did the interior pairs. Row j mod H: the
         // seam stencils only reach rows H − 2, H − 1, 0, 1.
         for level in 0..LEVELS {
             let row = |j: usize| {
@@ -737,6 +811,104 @@ impl HeightSeams {
             cy[(h - 1) * LEVELS + level] = y_crease(row(2 * h - 2), row(h - 1), row(h), row(h + 1));
         }
         Profiles { vx: self.vx, cx: self.cx, vy, cy }.report(ImageKind::Height, opts)
+    }
+}
+
+/// Columns of one pass of [`HeightSeams`] over its pending rows: a
+/// multiple of 8 · 2^(LEVELS − 1), so that every pass starts on whole runs
+/// at every level and on lane 0 of the y sums. The pass's rows and sums,
+/// about 330 bytes a column with 32 pending rows, then stay in a core's
+/// cache (at 32768 columns, whole rows took 3 MB and did not).
+const TILE_COLS: usize = 1024;
+
+/// Bytes of pending rows [`HeightSeams`] holds at most (unless one row is
+/// longer).
+const PENDING_BYTES: usize = 4 << 20;
+
+/// Rows [`HeightSeams`] measures at once for an image `width` wide: as many
+/// as [`CHUNK`] (more add nothing: the x sums are flushed every CHUNK rows
+/// anyway), fewer when they would take more than [`PENDING_BYTES`].
+fn pending_rows_for(width: usize, height: usize) -> usize {
+    (PENDING_BYTES / (4 * width.max(1))).clamp(1, CHUNK).min(height.max(1))
+}
+
+/// The columns `x0 .. x1` of a row `w` wide that a pass measures.
+#[derive(Clone, Copy, Debug)]
+struct Cols {
+    x0: usize,
+    x1: usize,
+    w: usize,
+}
+
+impl Cols {
+    /// The whole row.
+    fn whole(w: usize) -> Self {
+        Cols { x0: 0, x1: w, w }
+    }
+
+    fn range(&self) -> std::ops::Range<usize> {
+        self.x0..self.x1
+    }
+
+    fn is_first(&self) -> bool {
+        self.x0 == 0
+    }
+
+    fn is_last(&self) -> bool {
+        self.x1 == self.w
+    }
+
+    /// The values of a level-`level` row (`width` of them) made from these
+    /// columns' texels.
+    fn at_level(&self, level: usize, width: usize) -> std::ops::Range<usize> {
+        let end = if self.is_last() { width } else { self.x1 >> level };
+        (self.x0 >> level)..end
+    }
+}
+
+/// What the x kernels of a pass over some columns leave to the passes over
+/// the others, per event (a row measured, or a run of rows closed), in the
+/// order the events come: the last 3 values of the row, for the pairs that
+/// straddle the next pass's first column, and the first 3, for the pairs
+/// across the wrap, which the last pass adds.
+#[derive(Clone, Debug, Default)]
+struct EdgeLog {
+    /// The event being measured.
+    next: usize,
+    ends: Vec<[f32; 3]>,
+    starts: Vec<[f32; 3]>,
+}
+
+/// Where the x kernels add their sums (level-major, as in [`Profiles`]),
+/// and what they need from the other passes.
+struct XSums<'a> {
+    vx: &'a mut [f32],
+    cx: &'a mut [f32],
+    crease: bool,
+    edges: &'a mut EdgeLog,
+}
+
+/// Adds the f32 block sums that a pass over `cols` adds to into the f64
+/// totals, and clears them: the columns each pass's x kernels own (see
+/// [`add_row_x`]), so that each column is flushed after all its rows'
+/// additions, as with whole rows.
+fn flush_cols(vx: &mut [f64], vx_block: &mut [f32], cx: &mut [f64], cx_block: &mut [f32], cols: &Cols) {
+    let w = cols.w;
+    let (first, last) = (cols.is_first(), cols.is_last());
+    let value = if first { 0 } else { cols.x0 - 1 }..if last { w } else { cols.x1 - 1 };
+    // Crease 0 crosses the wrap: the last pass adds it.
+    let crease = match (first, last) {
+        (true, true) => [0..w, 0..0],
+        (true, false) => [1..cols.x1 - 2, 0..0],
+        (false, true) => [cols.x0 - 2..w, 0..1],
+        (false, false) => [cols.x0 - 2..cols.x1 - 2, 0..0],
+    };
+    for level in 0..LEVELS {
+        let at = |r: &std::ops::Range<usize>| level * w + r.start..level * w + r.end;
+        flush(&mut vx[at(&value)], &mut vx_block[at(&value)]);
+        for part in &crease {
+            flush(&mut cx[at(part)], &mut cx_block[at(part)]);
+        }
     }
 }
 
@@ -945,36 +1117,38 @@ impl Runs {
         &mut self.levels[0][slot * n..][..n]
     }
 
-    /// Levels 1 … of the row in `slot` from its texels: each level sums
-    /// pairs of the one below.
-    fn coarsen(&mut self, slot: usize) {
+    /// Levels 1 … of the row in `slot` from its texels in `cols`: each
+    /// level sums pairs of the one below.
+    fn coarsen(&mut self, slot: usize, cols: &Cols) {
         for level in 1..LEVELS {
             let (below, above) = self.levels.split_at_mut(level);
             let (nb, na) = (self.widths[level - 1], self.widths[level]);
-            let src = &below[level - 1][slot * nb..][..nb];
-            let dst = &mut above[0][slot * na..][..na];
-            let pairs = nb / 2;
+            let src = &below[level - 1][slot * nb..][cols.at_level(level - 1, nb)];
+            let dst = &mut above[0][slot * na..][cols.at_level(level, na)];
             for (d, s) in dst.iter_mut().zip(src.chunks_exact(2)) {
                 *d = s[0] + s[1];
             }
-            if nb % 2 == 1 {
-                dst[pairs] = src[nb - 1];
+            if src.len() % 2 == 1 {
+                dst[src.len() / 2] = src[src.len() - 1];
             }
         }
     }
 
-    /// Copies every level of `from`'s row in `from_slot` into `slot`.
-    fn copy_slot(&mut self, slot: usize, from: &Runs, from_slot: usize) {
+    /// Copies every level of `from`'s row in `from_slot` into `slot`, the
+    /// values made from `cols`.
+    fn copy_slot(&mut self, slot: usize, from: &Runs, from_slot: usize, cols: &Cols) {
         for level in 0..LEVELS {
             let n = self.widths[level];
-            self.levels[level][slot * n..][..n].copy_from_slice(from.row(level, from_slot));
+            let part = cols.at_level(level, n);
+            self.levels[level][slot * n..][part.clone()].copy_from_slice(&from.row(level, from_slot)[part]);
         }
     }
 }
 
 /// Rows summed in runs of 2^l rows (aligned on multiples of 2^l from row 0),
 /// whose x pairs are level l's: each row pushed is level 0; two finished
-/// runs of a level make one of the next.
+/// runs of a level make one of the next. A pass over some columns keeps
+/// those columns of the runs.
 #[derive(Clone, Debug)]
 struct RowStack {
     /// Level l's run in progress (level 0 unused).
@@ -988,36 +1162,36 @@ impl RowStack {
         RowStack { sums: std::array::from_fn(|_| vec![0.0; w]), count: [0; LEVELS] }
     }
 
-    /// Adds the x pairs of row `r` (level 0) to `vx`, `cx` (level-major, as
-    /// in [`Profiles`]), and those of every run it completes.
-    fn push(&mut self, r: &[f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
-        let w = r.len();
-        add_row_x(r, &mut vx[..w], &mut cx[..w], crease);
-        self.add_into(1, r);
+    /// Adds the x pairs of row `r` (level 0) to the sums, and those of
+    /// every run it completes, over `cols`.
+    fn push(&mut self, r: &[f32], cols: &Cols, sums: &mut XSums) {
+        add_row_x(r, cols, 0, sums);
+        self.add_into(1, r, cols);
         let mut level = 1;
         while level < LEVELS && self.count[level] == 2 {
-            self.close(level, vx, cx, crease);
+            self.close(level, cols, sums);
             level += 1;
         }
     }
 
     /// Closes the runs cut short by the end of the rows, finest first (each
     /// then counts as one run of the next level).
-    fn finish(&mut self, vx: &mut [f32], cx: &mut [f32], crease: bool) {
+    fn finish(&mut self, cols: &Cols, sums: &mut XSums) {
         for level in 1..LEVELS {
             if self.count[level] > 0 {
-                self.close(level, vx, cx, crease);
+                self.close(level, cols, sums);
             }
         }
     }
 
-    fn add_into(&mut self, level: usize, r: &[f32]) {
+    fn add_into(&mut self, level: usize, r: &[f32], cols: &Cols) {
         // The first run of a level is copied, not added to zeros: no pass
         // to clear the sums when a run closes.
+        let (sums, r) = (&mut self.sums[level][cols.range()], &r[cols.range()]);
         if self.count[level] == 0 {
-            self.sums[level].copy_from_slice(r);
+            sums.copy_from_slice(r);
         } else {
-            for (s, &v) in self.sums[level].iter_mut().zip(r) {
+            for (s, &v) in sums.iter_mut().zip(r) {
                 *s += v;
             }
         }
@@ -1025,12 +1199,11 @@ impl RowStack {
     }
 
     /// Measures level `level`'s run, hands it to the next level, clears it.
-    fn close(&mut self, level: usize, vx: &mut [f32], cx: &mut [f32], crease: bool) {
-        let w = self.sums[level].len();
+    fn close(&mut self, level: usize, cols: &Cols, sums: &mut XSums) {
         let run = std::mem::take(&mut self.sums[level]);
-        add_row_x(&run, &mut vx[level * w..][..w], &mut cx[level * w..][..w], crease);
+        add_row_x(&run, cols, level, sums);
         if level + 1 < LEVELS {
-            self.add_into(level + 1, &run);
+            self.add_into(level + 1, &run, cols);
         }
         self.sums[level] = run;
         self.count[level] = 0;
@@ -1057,6 +1230,8 @@ struct Block {
     /// Row after row, as in [`Profiles`].
     vy: Vec<f64>,
     cy: Vec<f64>,
+    /// Unused: a block's rows are measured whole.
+    edges: EdgeLog,
 }
 
 impl Block {
@@ -1068,6 +1243,7 @@ impl Block {
             cx: vec![0.0; LEVELS * w],
             vy: Vec::with_capacity(CHUNK * LEVELS),
             cy: Vec::with_capacity(CHUNK * LEVELS),
+            edges: EdgeLog::default(),
         }
     }
 
@@ -1082,12 +1258,15 @@ impl Block {
         // as soon as it is made, while it and the three before it are in
         // cache: its x pairs (rows 1 … n), and the y pair whose stencil it
         // ends (pair i − 2, over rows i − 3 … i).
+        let cols = Cols::whole(self.vx.len() / LEVELS);
+        self.edges.next = 0;
         for i in 0..n + 3 {
             signal.fill((y0 + h - 1 + i) % h, self.rows.slot_mut(i % 4));
-            self.rows.coarsen(i % 4);
+            self.rows.coarsen(i % 4, &cols);
             let rows = &self.rows;
             if (1..=n).contains(&i) {
-                self.stack.push(rows.row(0, i % 4), &mut self.vx, &mut self.cx, crease);
+                let mut sums = XSums { vx: &mut self.vx, cx: &mut self.cx, crease, edges: &mut self.edges };
+                self.stack.push(rows.row(0, i % 4), &cols, &mut sums);
             }
             if i >= 3 {
                 for level in 0..LEVELS {
@@ -1098,7 +1277,8 @@ impl Block {
                 }
             }
         }
-        self.stack.finish(&mut self.vx, &mut self.cx, crease);
+        let mut sums = XSums { vx: &mut self.vx, cx: &mut self.cx, crease, edges: &mut self.edges };
+        self.stack.finish(&cols, &mut sums);
     }
 }
 
@@ -1126,36 +1306,97 @@ fn unscaled(s: f32) -> f64 {
     f64::from(s) * UNSCALE
 }
 
-/// Adds the x pairs of one row `r` (W ≥ 1 values) to the f32 sums `vx` and,
-/// with `crease`, its x creases to `cx`. The one x kernel of [`check`] and [`HeightSeams`].
+/// Adds the x pairs of row `r` at `level` (W ≥ 1 values, of which a pass
+/// over `cols` holds those columns) to the f32 sums and, with
+/// `sums.crease`, its x creases. The one x kernel of [`check`] and
+/// [`HeightSeams`].
+///
+/// A pass adds the pairs whose stencils end in its columns: value pair k
+/// (texels k, k + 1) for k = x0 − 1 … x1 − 2 and crease k (k − 1 … k + 2)
+/// for k = x0 − 2 … x1 − 3, with the last 3 texels of the same event from
+/// the pass before; the last pass adds the pairs across the wrap too, with
+/// the first 3 texels from the first pass. A pass over the whole row does
+/// it all with its own texels.
 #[inline]
-fn add_row_x(r: &[f32], vx: &mut [f32], cx: &mut [f32], crease: bool) {
-    let w = r.len();
-    // h(k) for any k, through the wrap: only for the few columns whose
-    // stencil crosses it, so the loops over the rest read `r` in place.
-    let h = |k: usize| r[k % w];
+fn add_row_x(r: &[f32], cols: &Cols, level: usize, sums: &mut XSums) {
+    let Cols { x0, x1, w } = *cols;
+    let (first, last) = (cols.is_first(), cols.is_last());
+    let vx = &mut sums.vx[level * w..][..w];
+    let cx = &mut sums.cx[level * w..][..w];
+    let log = &mut *sums.edges;
+    let event = log.next;
+    log.next += 1;
+    let (before, start) = if first { ([0.0; 3], [0.0; 3]) } else { (log.ends[event], log.starts[event]) };
+    if !last {
+        let end = [r[x1 - 3], r[x1 - 2], r[x1 - 1]];
+        if first {
+            set_or_push(&mut log.ends, event, end);
+            set_or_push(&mut log.starts, event, [r[0], r[1], r[2]]);
+        } else {
+            log.ends[event] = end;
+        }
+    }
+    // h(k) for any k a stencil of this pass reaches (mod W): its own
+    // columns, the 3 before them, and across the wrap the row's first 3.
+    // Only for the few columns at the pass's edges or across the wrap, so
+    // the loops over the rest read `r` in place.
+    let h = |k: usize| {
+        let k = k % w;
+        if k >= x0 {
+            r[k]
+        } else if k + 3 >= x0 {
+            before[k + 3 - x0]
+        } else {
+            start[k]
+        }
+    };
     let crease_at = |k: usize| ((h(k + 2) - h(k + 1)) - (h(k) - h(k + w - 1))).abs();
     // Values: pair k → k + 1, the last one the wrap.
-    for ((v, &b), &c) in vx[..w - 1].iter_mut().zip(r).zip(&r[1..]) {
+    for ((v, &b), &c) in vx[x0..x1 - 1].iter_mut().zip(&r[x0..x1]).zip(&r[x0 + 1..x1]) {
         *v += (c - b).abs();
     }
-    vx[w - 1] += (h(0) - r[w - 1]).abs();
-    if crease {
+    if !first {
+        vx[x0 - 1] += (r[x0] - before[2]).abs();
+    }
+    if last {
+        vx[w - 1] += (h(0) - r[w - 1]).abs();
+    }
+    if !sums.crease {
+        return;
+    }
+    if w >= 4 {
         // Creases: a, b, c, d = h(k−1), h(k), h(k+1), h(k+2); in place for
-        // k = 1 … W−3, through the wrap for k = 0, W−2 and W−1.
-        if w >= 4 {
-            let (a, b, c, d) = (&r[..w - 3], &r[1..w - 2], &r[2..w - 1], &r[3..]);
-            for (k, s) in cx[1..w - 2].iter_mut().enumerate() {
+        // k = x0 + 1 … x1 − 3, from the pass before for k = x0 − 2 … x0,
+        // through the wrap for k = 0, W−2 and W−1.
+        let inside = (x0 + 1).min(x1.saturating_sub(2));
+        let lo = if first { 1 } else { x0 - 2 };
+        for (k, s) in cx.iter_mut().enumerate().take(inside).skip(lo) {
+            *s += crease_at(k);
+        }
+        if x1 >= inside + 3 {
+            let (a, b, c, d) = (&r[inside - 1..x1 - 3], &r[inside..x1 - 2], &r[inside + 1..x1 - 1], &r[inside + 2..x1]);
+            for (k, s) in cx[inside..x1 - 2].iter_mut().enumerate() {
                 *s += ((d[k] - c[k]) - (b[k] - a[k])).abs();
             }
+        }
+        if last {
             for k in [0, w - 2, w - 1] {
                 cx[k] += crease_at(k);
             }
-        } else {
-            for (k, s) in cx[..w].iter_mut().enumerate() {
-                *s += crease_at(k);
-            }
         }
+    } else {
+        for (k, s) in cx[..w].iter_mut().enumerate() {
+            *s += crease_at(k);
+        }
+    }
+}
+
+/// Sets `log[at]`, growing it by one when `at` is its length.
+fn set_or_push(log: &mut Vec<[f32; 3]>, at: usize, value: [f32; 3]) {
+    if at < log.len() {
+        log[at] = value;
+    } else {
+        log.push(value);
     }
 }
 
@@ -1172,23 +1413,52 @@ fn y_crease(a: &[f32], b: &[f32], c: &[f32], d: &[f32]) -> f64 {
     lane_sum([a, b, c, d], |[a, b, c, d]| ((d - c) - (b - a)).abs())
 }
 
-/// Σ f(rows at x) for x in 0 … n − 1 (n the first row's length), in 8 f32
-/// lanes (lane l takes x ≡ l mod 8; the loop over fixed chunks
-/// vectorises) added in f64, and scaled back to height units.
+/// Σ f(rows at x) for x in 0 … n − 1 (n the first row's length): see
+/// [`Lanes`].
 #[inline(always)]
 fn lane_sum<const K: usize>(rows: [&[f32]; K], f: impl Fn([f32; K]) -> f32) -> f64 {
-    let n = rows[0].len();
-    let whole = n - n % 8;
-    let rows_whole = rows.map(|r| &r[..whole]);
-    let mut lanes = [0.0f32; 8];
-    for x0 in (0..whole).step_by(8) {
-        let at: [&[f32; 8]; K] = rows_whole.map(|r| r[x0..x0 + 8].try_into().expect("8 values"));
-        for (l, lane) in lanes.iter_mut().enumerate() {
-            *lane += f(at.map(|c| c[l]));
+    let mut lanes = Lanes::default();
+    lanes.add(0..rows[0].len(), rows, f);
+    lanes.total()
+}
+
+/// A y sum over the texels of rows, some columns at a time: in 8 f32
+/// lanes (lane l takes x ≡ l mod 8; the loop over fixed chunks
+/// vectorises), the texels past the rows' last multiple of 8 in f64, all
+/// added in f64 at the end and scaled back to height units. Parts added
+/// left to right, each starting on a multiple of 8, give the bits of one
+/// part over the whole rows.
+#[derive(Clone, Copy, Debug, Default)]
+struct Lanes {
+    lanes: [f32; 8],
+    tail: f64,
+}
+
+impl Lanes {
+    /// Adds f(rows at x) for x in `part` (starting on a multiple of 8).
+    #[inline(always)]
+    fn add<const K: usize>(&mut self, part: std::ops::Range<usize>, rows: [&[f32]; K], f: impl Fn([f32; K]) -> f32) {
+        let n = rows[0].len();
+        let whole = (n - n % 8).min(part.end);
+        let rows_whole = rows.map(|r| &r[part.start..whole]);
+        // A local copy: through `self` the lanes were stored at every step.
+        let mut lanes = self.lanes;
+        for x0 in (0..whole - part.start).step_by(8) {
+            let at: [&[f32; 8]; K] = rows_whole.map(|r| r[x0..x0 + 8].try_into().expect("8 values"));
+            for (l, lane) in lanes.iter_mut().enumerate() {
+                *lane += f(at.map(|c| c[l]));
+            }
+        }
+        self.lanes = lanes;
+        if part.end > whole {
+            self.tail = (whole..part.end).map(|x| f64::from(f(rows.map(|r| r[x])))).sum();
         }
     }
-    let tail: f64 = (whole..n).map(|x| f64::from(f(rows.map(|r| r[x])))).sum();
-    (tail + lanes.iter().map(|&l| f64::from(l)).sum::<f64>()) * UNSCALE
+
+    /// The sum, in height units.
+    fn total(&self) -> f64 {
+        (self.tail + self.lanes.iter().map(|&l| f64::from(l)).sum::<f64>()) * UNSCALE
+    }
 }
 
 #[cfg(test)]
@@ -1204,17 +1474,64 @@ mod tests {
             let r: Vec<f32> = (0..w).map(|k| ((k * 7919 + 13) % 101) as f32 * 0.37 - 9.0).collect();
             let h = |k: usize| r[k % w];
             let earlier: Vec<f32> = (0..w).map(|k| k as f32 * 0.5).collect();
-            let (mut vx, mut cx) = (earlier.clone(), earlier.clone());
-            add_row_x(&r, &mut vx, &mut cx, true);
-            for k in 0..w {
-                let value = (h(k + 1) - h(k)).abs();
-                let crease = ((h(k + 2) - h(k + 1)) - (h(k) - h(k + w - 1))).abs();
-                assert_eq!(vx[k], earlier[k] + value, "value of column {k}, W = {w}");
-                assert_eq!(cx[k], earlier[k] + crease, "crease of column {k}, W = {w}");
+            // Whole, then in passes of 3 … W − 1 columns (a pass before
+            // the last holds at least the 3 texels the next one needs).
+            for pass in std::iter::once(w).chain(3..w) {
+                let (mut vx, mut cx) = (earlier.clone(), earlier.clone());
+                let mut edges = EdgeLog::default();
+                for x0 in (0..w).step_by(pass) {
+                    edges.next = 0;
+                    let mut sums = XSums { vx: &mut vx, cx: &mut cx, crease: true, edges: &mut edges };
+                    add_row_x(&r, &Cols { x0, x1: (x0 + pass).min(w), w }, 0, &mut sums);
+                }
+                for k in 0..w {
+                    let value = (h(k + 1) - h(k)).abs();
+                    let crease = ((h(k + 2) - h(k + 1)) - (h(k) - h(k + w - 1))).abs();
+                    assert_eq!(vx[k], earlier[k] + value, "value of column {k}, W = {w}, passes of {pass}");
+                    assert_eq!(cx[k], earlier[k] + crease, "crease of column {k}, W = {w}, passes of {pass}");
+                }
             }
-            let mut untouched = earlier.clone();
-            add_row_x(&r, &mut vx, &mut untouched, false);
+            let (mut vx, mut untouched) = (earlier.clone(), earlier.clone());
+            let mut edges = EdgeLog::default();
+            let mut sums = XSums { vx: &mut vx, cx: &mut untouched, crease: false, edges: &mut edges };
+            add_row_x(&r, &Cols::whole(w), 0, &mut sums);
             assert_eq!(untouched, earlier, "no creases asked for, W = {w}");
+        }
+    }
+
+    /// The profiles of a [`HeightSeams`] fed `rows` (`w` wide), measured
+    /// `tile_cols` columns at a time.
+    fn streamed_profiles(rows: &[f32], w: usize, h: usize, tile_cols: usize) -> Vec<Vec<u64>> {
+        let mut seams = HeightSeams::new(w, h).unwrap();
+        seams.tile_cols = tile_cols;
+        for row in rows.chunks_exact(w) {
+            seams.push_row(row).unwrap();
+        }
+        seams.measure_pending(true);
+        [&seams.vx, &seams.cx, &seams.vy, &seams.cy].map(|p| p.iter().map(|v| v.to_bits()).collect()).to_vec()
+    }
+
+    #[test]
+    fn passes_over_some_columns_give_the_bits_of_whole_rows() {
+        // Passes of 256 columns (the narrowest that keeps every level's
+        // runs and the 8 lanes whole) against one pass over the whole row:
+        // pass edges after 1, 2 and 3 columns of the last pass, wide and
+        // narrow last passes, heights that end blocks and runs early.
+        let mut state = 7u64;
+        let mut random = move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for w in [257, 258, 259, 260, 300, 511, 512, 513, 700, 1029] {
+            for h in [1, 2, 3, 4, 5, 33, 70] {
+                // Structure along both axes, so every level's sums differ.
+                let rows: Vec<f32> = (0..w * h)
+                    .map(|k| ((k % w) / 7 % 3) as f32 * 5.0 + ((k / w) / 3 % 2) as f32 * 3.0 + random())
+                    .collect();
+                let whole = streamed_profiles(&rows, w, h, w.next_multiple_of(256));
+                assert_eq!(streamed_profiles(&rows, w, h, 256), whole, "{w}×{h}");
+                assert!(whole[0].iter().any(|&v| f64::from_bits(v) > 0.0), "{w}×{h}: zero sums");
+            }
         }
     }
 
