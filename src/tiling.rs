@@ -571,6 +571,9 @@ pub struct HeightSeams {
     block_rows: usize,
     /// Columns per pass: [`TILE_COLS`] (tests change it).
     tile_cols: usize,
+    /// Whether the kernels use the processor's widest vectors (tests turn
+    /// it off to compare with the baseline build).
+    widest: bool,
     /// Rows 0 and 1 as far as pushed (non-finite values as 0), at every
     /// level.
     first: Runs,
@@ -619,6 +622,7 @@ impl HeightSeams {
             pending_rows: 0,
             block_rows,
             tile_cols: TILE_COLS,
+            widest: true,
             first: Runs::new(width, 2.min(height)),
             ring: Runs::new(width, 4.min(height)),
             stack: RowStack::new(width),
@@ -722,6 +726,17 @@ impl HeightSeams {
     /// would, and give the same bits. With `last`, the runs of rows cut
     /// short by the end are closed too, as [`check`] ends them.
     fn measure_pending(&mut self, last: bool) {
+        if self.widest {
+            pulp::Arch::new().dispatch(MeasurePending { seams: self, last });
+        } else {
+            pulp::WithSimd::with_simd(MeasurePending { seams: self, last }, pulp::Scalar::new());
+        }
+    }
+
+    /// [`measure_pending`](Self::measure_pending), inlined into the
+    /// dispatch so that it is compiled for each instruction set.
+    #[inline(always)]
+    fn measure_pending_here(&mut self, last: bool) {
         let (w, n) = (self.width, self.pending_rows);
         let y0 = self.rows - n;
         let counts = self.stack.count;
@@ -814,6 +829,26 @@ impl HeightSeams {
     }
 }
 
+/// [`HeightSeams::measure_pending`] for [`pulp::Arch::dispatch`]: the
+/// kernels built for the widest vectors the processor has (AVX2 on most
+/// x86-64 of the last decade; baseline x86-64 has only SSE2's 4 lanes),
+/// chosen at run time. The kernels add, subtract and take absolute values
+/// lane by lane, in the same order in every build, and nothing fuses a
+/// multiply with an add: the same bits on every processor
+/// (`tests::every_instruction_set_gives_the_same_bits`).
+struct MeasurePending<'a> {
+    seams: &'a mut HeightSeams,
+    last: bool,
+}
+
+impl pulp::WithSimd for MeasurePending<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        self.seams.measure_pending_here(self.last);
+    }
+}
+
 /// Columns of one pass of [`HeightSeams`] over its pending rows: a
 /// multiple of 8 · 2^(LEVELS − 1), so that every pass starts on whole runs
 /// at every level and on lane 0 of the y sums. The pass's rows and sums,
@@ -892,6 +927,7 @@ struct XSums<'a> {
 /// totals, and clears them: the columns each pass's x kernels own (see
 /// [`add_row_x`]), so that each column is flushed after all its rows'
 /// additions, as with whole rows.
+#[inline(always)]
 fn flush_cols(vx: &mut [f64], vx_block: &mut [f32], cx: &mut [f64], cx_block: &mut [f32], cols: &Cols) {
     let w = cols.w;
     let (first, last) = (cols.is_first(), cols.is_last());
@@ -913,6 +949,7 @@ fn flush_cols(vx: &mut [f64], vx_block: &mut [f32], cx: &mut [f64], cx_block: &m
 }
 
 /// Adds the f32 block sums into the f64 totals and clears them.
+#[inline(always)]
 fn flush(total: &mut [f64], block: &mut [f32]) {
     for (t, b) in total.iter_mut().zip(block.iter_mut()) {
         *t += unscaled(*b);
@@ -1119,6 +1156,7 @@ impl Runs {
 
     /// Levels 1 … of the row in `slot` from its texels in `cols`: each
     /// level sums pairs of the one below.
+    #[inline(always)]
     fn coarsen(&mut self, slot: usize, cols: &Cols) {
         for level in 1..LEVELS {
             let (below, above) = self.levels.split_at_mut(level);
@@ -1136,6 +1174,7 @@ impl Runs {
 
     /// Copies every level of `from`'s row in `from_slot` into `slot`, the
     /// values made from `cols`.
+    #[inline(always)]
     fn copy_slot(&mut self, slot: usize, from: &Runs, from_slot: usize, cols: &Cols) {
         for level in 0..LEVELS {
             let n = self.widths[level];
@@ -1164,6 +1203,7 @@ impl RowStack {
 
     /// Adds the x pairs of row `r` (level 0) to the sums, and those of
     /// every run it completes, over `cols`.
+    #[inline(always)]
     fn push(&mut self, r: &[f32], cols: &Cols, sums: &mut XSums) {
         add_row_x(r, cols, 0, sums);
         self.add_into(1, r, cols);
@@ -1176,6 +1216,7 @@ impl RowStack {
 
     /// Closes the runs cut short by the end of the rows, finest first (each
     /// then counts as one run of the next level).
+    #[inline(always)]
     fn finish(&mut self, cols: &Cols, sums: &mut XSums) {
         for level in 1..LEVELS {
             if self.count[level] > 0 {
@@ -1184,6 +1225,7 @@ impl RowStack {
         }
     }
 
+    #[inline(always)]
     fn add_into(&mut self, level: usize, r: &[f32], cols: &Cols) {
         // The first run of a level is copied, not added to zeros: no pass
         // to clear the sums when a run closes.
@@ -1199,6 +1241,7 @@ impl RowStack {
     }
 
     /// Measures level `level`'s run, hands it to the next level, clears it.
+    #[inline(always)]
     fn close(&mut self, level: usize, cols: &Cols, sums: &mut XSums) {
         let run = std::mem::take(&mut self.sums[level]);
         add_row_x(&run, cols, level, sums);
@@ -1317,7 +1360,7 @@ fn unscaled(s: f32) -> f64 {
 /// the pass before; the last pass adds the pairs across the wrap too, with
 /// the first 3 texels from the first pass. A pass over the whole row does
 /// it all with its own texels.
-#[inline]
+#[inline(always)]
 fn add_row_x(r: &[f32], cols: &Cols, level: usize, sums: &mut XSums) {
     let Cols { x0, x1, w } = *cols;
     let (first, last) = (cols.is_first(), cols.is_last());
@@ -1502,8 +1545,14 @@ mod tests {
     /// The profiles of a [`HeightSeams`] fed `rows` (`w` wide), measured
     /// `tile_cols` columns at a time.
     fn streamed_profiles(rows: &[f32], w: usize, h: usize, tile_cols: usize) -> Vec<Vec<u64>> {
+        profiles_of(rows, w, h, tile_cols, true)
+    }
+
+    /// The same, with the kernels built for the widest vectors or not.
+    fn profiles_of(rows: &[f32], w: usize, h: usize, tile_cols: usize, widest: bool) -> Vec<Vec<u64>> {
         let mut seams = HeightSeams::new(w, h).unwrap();
         seams.tile_cols = tile_cols;
+        seams.widest = widest;
         for row in rows.chunks_exact(w) {
             seams.push_row(row).unwrap();
         }
@@ -1533,6 +1582,23 @@ mod tests {
                 assert!(whole[0].iter().any(|&v| f64::from_bits(v) > 0.0), "{w}×{h}: zero sums");
             }
         }
+    }
+
+    #[test]
+    fn every_instruction_set_gives_the_same_bits() {
+        // The kernels as built for this processor's widest vectors, and for
+        // baseline x86-64 (or the target's baseline elsewhere): the same
+        // sums, to the bit, on values of every size the judge sees.
+        let (w, h) = (1000, 75);
+        let rows: Vec<f32> = (0..w * h)
+            .map(|k| {
+                let (x, y) = ((k % w) as f32, (k / w) as f32);
+                (x * 0.37).sin() * 1e3 + (y * 0.11).cos() * 7.0 + ((k * 7919) % 101) as f32 * 1e-3
+            })
+            .collect();
+        let widest = profiles_of(&rows, w, h, 256, true);
+        assert_eq!(profiles_of(&rows, w, h, 256, false), widest);
+        assert!(widest[1].iter().any(|&v| f64::from_bits(v) > 0.0), "zero creases");
     }
 
     #[test]
