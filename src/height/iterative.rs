@@ -51,7 +51,9 @@ pub(crate) fn exact(
     rho.resize(len, 1.0);
     let mut next_rho: Vec<f64> = try_vec(len)?;
     next_rho.resize(len, 1.0);
-    patch.ratios(z, &mut rho);
+    patch.ratios(z, slopes, &mut rho);
+    let mut direction: Vec<i8> = try_vec(len)?;
+    direction.resize(len, 0);
     let mut best: Option<(f64, Vec<f64>)> = None;
     let (mut last_change, mut growing) = (f64::INFINITY, 0);
     converged = false;
@@ -64,9 +66,8 @@ pub(crate) fn exact(
             }
         };
         vertical(&weighted, z)?;
-        patch.ratios(z, &mut next_rho);
+        patch.ratios(z, slopes, &mut next_rho);
         let change = rho.iter().zip(&next_rho).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-        std::mem::swap(&mut rho, &mut next_rho);
         if !change.is_finite() {
             break;
         }
@@ -74,6 +75,15 @@ pub(crate) fn exact(
             converged = true;
             break;
         }
+        // A texel whose ratio moved the other way than on the last step
+        // oscillates (patches at a mirrored edge, steep ones): it moves half
+        // way, which damps the swing and keeps the fixed point.
+        rho.iter_mut().zip(&next_rho).zip(&mut direction).for_each(|((r, &f), dir)| {
+            let now = if f > *r { 1 } else { -1 };
+            let step = if now == -*dir { 0.5 } else { 1.0 };
+            *dir = now;
+            *r += step * (f - *r);
+        });
         // The guard: the heights with the smallest change so far are kept.
         if best.as_ref().is_none_or(|(c, _)| change < *c) {
             best = Some((change, z.to_vec()));
@@ -171,9 +181,20 @@ impl Patch {
         gx.iter_mut().chain(gy.iter_mut()).for_each(|g| *g /= self.a);
     }
 
-    /// ρ = (A − λ)/A per texel: the orthogonal fit's slopes are the
-    /// vertical ones over ρ (SPEC §2's closed form; 1 where the patch is flat).
-    fn ratios(&self, z: &[f64], rho: &mut [f64]) {
+    /// The ratios ρ = vertical slope / orthogonal slope per texel that make
+    /// the orthogonal fit of `z`'s patches give the slopes `slopes` asks
+    /// for, the patches' roughness held.
+    ///
+    /// A patch is a plane of vertical slope v plus what the vertical fit
+    /// leaves, whose squares sum to R = Czz − A|v|². With that R held, the
+    /// orthogonal fit's slope is A|v| / (d + q), d = (A − A|v|² − R)/2,
+    /// q = √(d² + A²|v|²) (SPEC §2); setting it to g = |g*| gives
+    /// s² + s(1 − g²)/g − (1 − R/A) = 0 for s = |v|, whose positive root
+    /// makes ρ = s/g. Only R then carries over from the last heights, and
+    /// it follows the slopes weakly: the iteration converges in a few
+    /// solves. Where no positive root exists (R ≥ A: a patch rougher than
+    /// its texels are wide) ρ is the current patch's (A − λ)/A.
+    fn ratios(&self, z: &[f64], slopes: Slopes<'_>, rho: &mut [f64]) {
         let w = self.w;
         rho.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
             let mut rows = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
@@ -186,19 +207,40 @@ impl Patch {
             self.ramp_x.row(boxed, &mut si);
             self.box_x.row(ramped, &mut sj);
             self.box_x.row(squares, &mut szz);
+            let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
+            slopes(y, &mut gx, &mut gy);
+            let a = self.a;
             for x in 0..w {
                 let czz = (szz[x] - s0[x] * s0[x] / self.n2).max(0.0);
                 let tilt2 = si[x] * si[x] + sj[x] * sj[x];
-                let a = self.a;
-                let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
-                let d = 0.5 * (a - czz);
-                let q = (d * d + tilt2).sqrt();
-                let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
-                out[x] = if flat { 1.0 } else { a_minus_lambda / a };
+                let current = {
+                    let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
+                    let d = 0.5 * (a - czz);
+                    let q = (d * d + tilt2).sqrt();
+                    let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
+                    if flat { 1.0 } else { a_minus_lambda / a }
+                };
+                let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
+                let rough = ((czz - tilt2 / a) / a).max(0.0);
+                let c = 1.0 - rough;
+                let b = (1.0 - g * g) / g;
+                let disc = b * b + 4.0 * c;
+                out[x] = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
+                    let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
+                    root / g
+                } else if g <= 1e-12 && c > 0.0 {
+                    // The limit g → 0 of s/g.
+                    c
+                } else {
+                    current
+                };
             }
         });
     }
 }
+
+/// The conjugate gradients' iterations at most.
+const CG_ITERATIONS: usize = 2000;
 
 /// Conjugate gradients on the normal equations (DxᵀDx + DyᵀDy + λ) z =
 /// Dxᵀgx + Dyᵀgy with the exact operator, from the nearest transform's
@@ -244,9 +286,21 @@ fn conjugate_gradients(
             o.iter_mut().zip(&t).for_each(|(a, b)| *a = (*a + b) / patch.a);
         });
     };
+    // Least squares over the period: a mirrored axis counts its texels but
+    // the two edge ones twice (the period holds them twice).
+    let multiplicity = |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
+    let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.borders.x, x)).collect();
+    let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.borders.y, y)).collect();
+    let weigh = |y: usize, rx: &mut [f64], ry: &mut [f64]| {
+        for ((gx, gy), m) in rx.iter_mut().zip(ry.iter_mut()).zip(&wx) {
+            *gx *= m * wy[y];
+            *gy *= m * wy[y];
+        }
+    };
     let apply = |z: &[f64], gx: &mut [f64], gy: &mut [f64]| {
         gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| {
             patch.slopes(z, y, rx, ry);
+            weigh(y, rx, ry);
         });
     };
     let dot = |a: &[f64], b: &[f64]| -> f64 {
@@ -256,22 +310,37 @@ fn conjugate_gradients(
     };
     // b = Dᵀ g.
     let mut rhs = alloc()?;
-    gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| slopes(y, rx, ry));
+    gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| {
+        slopes(y, rx, ry);
+        weigh(y, rx, ry);
+    });
     adjoint(&mut gx, &mut gy, &mut rhs);
     let normal = |v: &[f64], out: &mut [f64], gx: &mut [f64], gy: &mut [f64]| {
         apply(v, gx, gy);
         adjoint(gx, gy, out);
         out.iter_mut().zip(v).for_each(|(o, v)| *o += lambda * v);
     };
+    // Preconditioned by the period's multiplicities W: the steps are then
+    // W-orthogonal to the null space, and the solution keeps the start's
+    // minimum W-norm there, as the transforms' solutions have it.
+    let inverse_weight = |r: &[f64], out: &mut [f64]| {
+        out.par_chunks_mut(w).zip(r.par_chunks(w)).enumerate().for_each(|(y, (o, r))| {
+            for ((o, r), m) in o.iter_mut().zip(r).zip(&wx) {
+                *o = r / (m * wy[y]);
+            }
+        });
+    };
     let mut r = alloc()?;
     normal(z, &mut r, &mut gx, &mut gy);
     r.iter_mut().zip(&rhs).for_each(|(r, b)| *r = b - *r);
-    let mut p = r.clone();
+    let mut y = alloc()?;
+    inverse_weight(&r, &mut y);
+    let mut p = y.clone();
     let mut ap = alloc()?;
-    let target = 1e-24 * dot(&rhs, &rhs);
-    let mut rr = dot(&r, &r);
-    let mut converged = rr <= target;
-    for _ in 0..opts.max_iterations.max(len.min(2000)) {
+    let target = 1e-26 * dot(&rhs, &rhs);
+    let mut ry = dot(&r, &y);
+    let mut converged = dot(&r, &r) <= target;
+    for _ in 0..CG_ITERATIONS {
         if converged {
             break;
         }
@@ -280,14 +349,15 @@ fn conjugate_gradients(
         if pap <= 0.0 {
             break;
         }
-        let alpha = rr / pap;
+        let alpha = ry / pap;
         z.iter_mut().zip(&p).for_each(|(z, p)| *z += alpha * p);
         r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-        let next = dot(&r, &r);
-        converged = next <= target;
-        let beta = next / rr;
-        rr = next;
-        p.iter_mut().zip(&r).for_each(|(p, r)| *p = r + beta * *p);
+        converged = dot(&r, &r) <= target;
+        inverse_weight(&r, &mut y);
+        let next = dot(&r, &y);
+        let beta = next / ry;
+        ry = next;
+        p.iter_mut().zip(&y).for_each(|(p, y)| *p = y + beta * *p);
     }
     Ok((converged, start))
 }

@@ -419,7 +419,7 @@ pub fn heights_of_rows(
         row(y, &mut normals);
         for ((n, sx), sy) in normals.iter().zip(gx.iter_mut()).zip(gy.iter_mut()) {
             (*sx, *sy) = match slope(n) {
-                Some([a, b]) => (a, -sigma * b),
+                Some([a, b]) => (a, sigma * b),
                 None => (0.0, 0.0),
             };
         }

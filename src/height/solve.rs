@@ -284,7 +284,7 @@ impl Solver {
 
         // Columns: extended → FFT, combined, inverse FFT, back in place.
         let blocks = column_blocks(&mut a, kx, COLUMNS_PER_TASK);
-        let b = &b;
+        let spectra_b = &b;
         let partial: Vec<f64> = blocks
             .into_par_iter()
             .enumerate()
@@ -301,7 +301,7 @@ impl Solver {
                     let kxi = block * COLUMNS_PER_TASK + c;
                     for (y, row) in rows.iter().enumerate() {
                         col_a[y] = row[c];
-                        col_b[y] = b[y * kx + kxi];
+                        col_b[y] = spectra_b[y * kx + kxi];
                     }
                     self.y.extend(&col_a, &mut ext_a, false);
                     self.y.extend(&col_b, &mut ext_b, true);
