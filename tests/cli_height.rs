@@ -59,7 +59,7 @@ fn convert_then_height_gives_the_heights_back() {
     let dir = tempfile::tempdir().unwrap();
     let (hmap, nmap, back) = (dir.path().join("h.png"), dir.path().join("n.exr"), dir.path().join("back.exr"));
     let original = write_heights(&hmap, 64, 48);
-    for (fit, scale) in [("vertical", "4"), ("orthogonal", "12")] {
+    for (fit, scale) in [("vertical", "12"), ("orthogonal", "4")] {
         ok(&run(&["convert", s(&hmap), "-o", s(&nmap), "-s", scale, "-n", "5", "--fit", fit]));
         let err = ok(&run(&["height", s(&nmap), "-o", s(&back), "-s", scale, "-n", "5", "--fit", fit]));
         assert!(err.is_empty(), "no notes for a float map with a fixed convention: {err}");
@@ -149,5 +149,5 @@ fn help_man_page_and_completions_cover_height() {
     let man = String::from_utf8_lossy(&run(&["man"]).stdout).into_owned();
     assert!(man.contains("NORMALFIT HEIGHT") && man.contains("Frankot"), "{}", &man[..man.len().min(400)]);
     let bash = String::from_utf8_lossy(&run(&["completions", "bash"]).stdout).into_owned();
-    assert!(bash.contains("normalfit__height") && bash.contains("generic"), "bash completions lack height");
+    assert!(bash.contains("normalfit__subcmd__height") && bash.contains("generic"), "bash completions lack height");
 }

@@ -49,13 +49,13 @@ pub(crate) fn exact(
     let len = w * h;
     let mut rho: Vec<f64> = try_vec(len)?;
     rho.resize(len, 1.0);
-    let mut next_rho: Vec<f64> = try_vec(len)?;
-    next_rho.resize(len, 1.0);
-    patch.ratios(z, slopes, &mut rho);
     let mut direction: Vec<i8> = try_vec(len)?;
     direction.resize(len, 0);
-    let mut best: Option<(f64, Vec<f64>)> = None;
-    let (mut last_change, mut growing) = (f64::INFINITY, 0);
+    patch.update_ratios(z, slopes, &mut rho, &mut direction, 1.0);
+    let (mut last_change, mut growing, mut damping) = (f64::INFINITY, 0, 1.0);
+    // The heights of the smallest change so far, kept (as f32) for when the
+    // iteration does not settle.
+    let mut best: Option<(f64, Vec<f32>)> = None;
     converged = false;
     for _ in 1..opts.max_iterations {
         let weighted = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
@@ -66,36 +66,42 @@ pub(crate) fn exact(
             }
         };
         vertical(&weighted, z)?;
-        patch.ratios(z, slopes, &mut next_rho);
-        let change = rho.iter().zip(&next_rho).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-        if !change.is_finite() {
-            break;
-        }
+        let change = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping);
         if change <= opts.tolerance {
             converged = true;
             break;
         }
-        // A texel whose ratio moved the other way than on the last step
-        // oscillates (patches at a mirrored edge, steep ones): it moves half
-        // way, which damps the swing and keeps the fixed point.
-        rho.iter_mut().zip(&next_rho).zip(&mut direction).for_each(|((r, &f), dir)| {
-            let now = if f > *r { 1 } else { -1 };
-            let step = if now == -*dir { 0.5 } else { 1.0 };
-            *dir = now;
-            *r += step * (f - *r);
-        });
-        // The guard: the heights with the smallest change so far are kept.
-        if best.as_ref().is_none_or(|(c, _)| change < *c) {
-            best = Some((change, z.to_vec()));
+        // The guard: a change that grows three steps running (or is not a
+        // number) stops the iteration; the report says it did not converge.
+        // A change that grows halves the steps (down to 1/64); the guard
+        // stops after 8 growths running, or a change that is not a number.
+        if change.is_finite() && best.as_ref().is_none_or(|(c, _)| change < *c) {
+            let kept = match best.take() {
+                Some((_, mut v)) => {
+                    v.iter_mut().zip(z.iter()).for_each(|(k, &z)| *k = z as f32);
+                    v
+                }
+                None => {
+                    let mut v: Vec<f32> = try_vec(len)?;
+                    v.extend(z.iter().map(|&z| z as f32));
+                    v
+                }
+            };
+            best = Some((change, kept));
         }
-        growing = if change > last_change { growing + 1 } else { 0 };
+        if change > last_change || !change.is_finite() {
+            growing += 1;
+            damping = (damping * 0.5f64).max(1.0 / 64.0);
+        } else {
+            growing = 0;
+        }
         last_change = change;
-        if growing >= 3 {
+        if growing >= 8 || !change.is_finite() {
             break;
         }
     }
     if !converged && let Some((_, kept)) = best {
-        z.copy_from_slice(&kept);
+        z.iter_mut().zip(&kept).for_each(|(z, &k)| *z = f64::from(k));
     }
     Ok((iterations, converged, noise_gain))
 }
@@ -194,9 +200,15 @@ impl Patch {
     /// it follows the slopes weakly: the iteration converges in a few
     /// solves. Where no positive root exists (R ≥ A: a patch rougher than
     /// its texels are wide) ρ is the current patch's (A − λ)/A.
-    fn ratios(&self, z: &[f64], slopes: Slopes<'_>, rho: &mut [f64]) {
+    ///
+    /// Each texel's ratio moves to its new value, or half way where it
+    /// moved the other way on the last step (`direction`): such a texel
+    /// oscillates (patches at a mirrored edge, steep ones), and the half
+    /// step damps the swing and keeps the fixed point. Returns the largest
+    /// change of a ratio asked for, |new − old|.
+    fn update_ratios(&self, z: &[f64], slopes: Slopes<'_>, rho: &mut [f64], direction: &mut [i8], damping: f64) -> f64 {
         let w = self.w;
-        rho.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        let changes: Vec<f64> = rho.par_chunks_mut(w).zip(direction.par_chunks_mut(w)).enumerate().map(|(y, (out, dir))| {
             let mut rows = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
             let [boxed, ramped, squares] = &mut rows;
             self.box_y.column(z, w, y, boxed, |v| v);
@@ -210,6 +222,7 @@ impl Patch {
             let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
             slopes(y, &mut gx, &mut gy);
             let a = self.a;
+            let mut largest = 0.0f64;
             for x in 0..w {
                 let czz = (szz[x] - s0[x] * s0[x] / self.n2).max(0.0);
                 let tilt2 = si[x] * si[x] + sj[x] * sj[x];
@@ -225,7 +238,7 @@ impl Patch {
                 let c = 1.0 - rough;
                 let b = (1.0 - g * g) / g;
                 let disc = b * b + 4.0 * c;
-                out[x] = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
+                let wanted = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
                     let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
                     root / g
                 } else if g <= 1e-12 && c > 0.0 {
@@ -234,8 +247,16 @@ impl Patch {
                 } else {
                     current
                 };
+                let change = wanted - out[x];
+                let now = if change > 0.0 { 1 } else { -1 };
+                let step = if now == -dir[x] { 0.5 * damping } else { damping };
+                dir[x] = now;
+                out[x] += step * change;
+                largest = largest.max(change.abs());
             }
-        });
+            largest
+        }).collect();
+        changes.iter().fold(0.0f64, |m, &c| if c.is_nan() { f64::NAN } else { m.max(c) })
     }
 }
 
