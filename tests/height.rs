@@ -560,3 +560,32 @@ fn bad_options_and_buffers_are_errors() {
     assert!("frankot-chellappa".parse::<Model>().unwrap() == Model::Generic);
     assert!("auto".parse::<ConventionChoice>().unwrap() == ConventionChoice::Auto);
 }
+
+/// Where the orthogonal fit's iteration does not settle (steep, rough
+/// patches: N = 5, S = 12 over a wave of nine texels, where λ is most of A
+/// and grows with the heights), the guard stops it and returns the heights
+/// whose re-fitted normals are closest to the given ones: never farther
+/// than the vertical solution's.
+#[test]
+fn a_steep_rough_map_stops_at_the_closest_heights_found() {
+    let (w, h) = (64, 48);
+    let tau = std::f64::consts::TAU;
+    let original: Vec<f64> = (0..w * h)
+        .map(|k| {
+            let (u, v) = ((k % w) as f64 / w as f64, (k / w) as f64 / h as f64);
+            0.5 + 0.2 * (tau * (2.0 * u + v)).sin() + 0.15 * (tau * 5.0 * v + 1.0).cos() + 0.1 * (tau * 7.0 * u).sin()
+        })
+        .collect();
+    let opts = Options::new().with_patch(5).with_strength(Strength::Scale(12.0));
+    let given = normals(&original, w, h, &opts).unwrap();
+    let back = heights(&given, w, h, &HeightOptions::from_fit(&opts)).unwrap();
+    assert!(back.values.iter().all(|v| v.is_finite()));
+    let vertical = heights(&given, w, h, &HeightOptions::from_fit(&opts.clone().with_fit(Fit::Vertical))).unwrap();
+    let distance = |hs: &[f64]| {
+        let refit = normals(hs, w, h, &opts).unwrap();
+        refit.iter().zip(&given).map(|(a, b)| (0..3).map(|c| f64::from(a[c] - b[c]).powi(2)).sum::<f64>()).sum::<f64>()
+    };
+    let (ours, first) = (distance(&back.values), distance(&vertical.values));
+    assert!(ours <= first * (1.0 + 1e-6), "{ours} against the vertical solution's {first}");
+    assert!(back.report.iterations > 1);
+}

@@ -51,11 +51,14 @@ pub(crate) fn exact(
     rho.resize(len, 1.0);
     let mut direction: Vec<i8> = try_vec(len)?;
     direction.resize(len, 0);
-    patch.update_ratios(z, slopes, &mut rho, &mut direction, 1.0);
+    // The heights whose re-fitted normals are closest to the given ones so
+    // far (the sum of squared differences of unit normals, which steep
+    // texels cannot dominate), kept as f32: the vertical solution first.
+    let (_, first) = patch.update_ratios(z, slopes, &mut rho, &mut direction, 1.0);
+    let mut kept: Vec<f32> = try_vec(len)?;
+    kept.extend(z.iter().map(|&z| z as f32));
+    let mut best = first;
     let (mut last_change, mut growing, mut damping) = (f64::INFINITY, 0, 1.0);
-    // The heights of the smallest change so far, kept (as f32) for when the
-    // iteration does not settle.
-    let mut best: Option<(f64, Vec<f32>)> = None;
     converged = false;
     for _ in 1..opts.max_iterations {
         let weighted = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
@@ -66,29 +69,18 @@ pub(crate) fn exact(
             }
         };
         vertical(&weighted, z)?;
-        let change = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping);
+        let (change, mismatch) = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping);
+        if mismatch < best {
+            best = mismatch;
+            kept.iter_mut().zip(z.iter()).for_each(|(k, &z)| *k = z as f32);
+        }
         if change <= opts.tolerance {
             converged = true;
             break;
         }
-        // The guard: a change that grows three steps running (or is not a
-        // number) stops the iteration; the report says it did not converge.
         // A change that grows halves the steps (down to 1/64); the guard
-        // stops after 8 growths running, or a change that is not a number.
-        if change.is_finite() && best.as_ref().is_none_or(|(c, _)| change < *c) {
-            let kept = match best.take() {
-                Some((_, mut v)) => {
-                    v.iter_mut().zip(z.iter()).for_each(|(k, &z)| *k = z as f32);
-                    v
-                }
-                None => {
-                    let mut v: Vec<f32> = try_vec(len)?;
-                    v.extend(z.iter().map(|&z| z as f32));
-                    v
-                }
-            };
-            best = Some((change, kept));
-        }
+        // stops after 8 growths running, or a change that is not a number,
+        // and the closest heights found are returned (not converged).
         if change > last_change || !change.is_finite() {
             growing += 1;
             damping = (damping * 0.5f64).max(1.0 / 64.0);
@@ -100,7 +92,7 @@ pub(crate) fn exact(
             break;
         }
     }
-    if !converged && let Some((_, kept)) = best {
+    if !converged {
         z.iter_mut().zip(&kept).for_each(|(z, &k)| *z = f64::from(k));
     }
     Ok((iterations, converged, noise_gain))
@@ -205,10 +197,19 @@ impl Patch {
     /// moved the other way on the last step (`direction`): such a texel
     /// oscillates (patches at a mirrored edge, steep ones), and the half
     /// step damps the swing and keeps the fixed point. Returns the largest
-    /// change of a ratio asked for, |new − old|.
-    fn update_ratios(&self, z: &[f64], slopes: Slopes<'_>, rho: &mut [f64], direction: &mut [i8], damping: f64) -> f64 {
+    /// change of a ratio asked for, |new − old|, and how far `z`'s
+    /// orthogonal fit is from the slopes asked for: Σ |n(o) − n(g)|², the
+    /// unit normals of the fitted slopes o and of the given g.
+    fn update_ratios(
+        &self,
+        z: &[f64],
+        slopes: Slopes<'_>,
+        rho: &mut [f64],
+        direction: &mut [i8],
+        damping: f64,
+    ) -> (f64, f64) {
         let w = self.w;
-        let changes: Vec<f64> = rho.par_chunks_mut(w).zip(direction.par_chunks_mut(w)).enumerate().map(|(y, (out, dir))| {
+        let rows: Vec<(f64, f64)> = rho.par_chunks_mut(w).zip(direction.par_chunks_mut(w)).enumerate().map(|(y, (out, dir))| {
             let mut rows = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
             let [boxed, ramped, squares] = &mut rows;
             self.box_y.column(z, w, y, boxed, |v| v);
@@ -222,7 +223,11 @@ impl Patch {
             let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
             slopes(y, &mut gx, &mut gy);
             let a = self.a;
-            let mut largest = 0.0f64;
+            let (mut largest, mut mismatch) = (0.0f64, 0.0);
+            let unit = |p: f64, q: f64| {
+                let inv = 1.0 / (1.0 + p * p + q * q).sqrt();
+                [-p * inv, -q * inv, inv]
+            };
             for x in 0..w {
                 let czz = (szz[x] - s0[x] * s0[x] / self.n2).max(0.0);
                 let tilt2 = si[x] * si[x] + sj[x] * sj[x];
@@ -233,6 +238,9 @@ impl Patch {
                     let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
                     if flat { 1.0 } else { a_minus_lambda / a }
                 };
+                let fitted = unit(si[x] / (current * a), sj[x] / (current * a));
+                let given = unit(gx[x], gy[x]);
+                mismatch += (0..3).map(|c| (fitted[c] - given[c]).powi(2)).sum::<f64>();
                 let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
                 let rough = ((czz - tilt2 / a) / a).max(0.0);
                 let c = 1.0 - rough;
@@ -254,9 +262,9 @@ impl Patch {
                 out[x] += step * change;
                 largest = largest.max(change.abs());
             }
-            largest
+            (largest, mismatch)
         }).collect();
-        changes.iter().fold(0.0f64, |m, &c| if c.is_nan() { f64::NAN } else { m.max(c) })
+        rows.iter().fold((0.0f64, 0.0), |(m, e), &(c, r)| (m.max(c), e + r))
     }
 }
 
