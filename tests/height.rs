@@ -58,7 +58,8 @@ fn a_single_fourier_mode_comes_back_to_1e_9() {
             for convention in [Convention::OpenGl, Convention::DirectX] {
                 for scale in [1.0, 7.5] {
                     let (amp, phi) = (0.8, 0.3);
-                    let (wx, wy) = (std::f64::consts::TAU * kx as f64 / w as f64, std::f64::consts::TAU * ky as f64 / h as f64);
+                    let (wx, wy) =
+                        (std::f64::consts::TAU * kx as f64 / w as f64, std::f64::consts::TAU * ky as f64 / h as f64);
                     let a = a_of(n);
                     let (sx, bx) = ramp_and_box(n, wx);
                     let (sy, by) = ramp_and_box(n, wy);
@@ -272,7 +273,8 @@ fn the_transforms_match_a_dense_least_squares_solve() {
 /// Heights with detail at every scale, in [0, 1]-ish: a few waves and bumps.
 fn terrain(w: usize, h: usize, seed: u64) -> Vec<f64> {
     let mut rng = Lcg(seed);
-    let waves: Vec<[f64; 4]> = (0..12).map(|_| [rng.next() * 0.4, rng.next() * 0.4, rng.next() * 3.0, rng.next() * 0.1]).collect();
+    let waves: Vec<[f64; 4]> =
+        (0..12).map(|_| [rng.next() * 0.4, rng.next() * 0.4, rng.next() * 3.0, rng.next() * 0.1]).collect();
     (0..w * h)
         .map(|k| {
             let (x, y) = ((k % w) as f64, (k / w) as f64);
@@ -291,7 +293,10 @@ fn periodic_terrain(w: usize, h: usize, seed: u64) -> Vec<f64> {
     (0..w * h)
         .map(|k| {
             let (x, y) = ((k % w) as f64, (k / w) as f64);
-            0.5 + waves.iter().map(|[kx, ky, p, a]| a * (tau * (kx * x / w as f64 + ky * y / h as f64) + p).sin()).sum::<f64>()
+            0.5 + waves
+                .iter()
+                .map(|[kx, ky, p, a]| a * (tau * (kx * x / w as f64 + ky * y / h as f64) + p).sin())
+                .sum::<f64>()
         })
         .collect()
 }
@@ -300,8 +305,9 @@ fn periodic_terrain(w: usize, h: usize, seed: u64) -> Vec<f64> {
 fn mirror_terrain(w: usize, h: usize, seed: u64) -> Vec<f64> {
     let mut rng = Lcg(seed);
     let pi = std::f64::consts::PI;
-    let waves: Vec<[f64; 3]> =
-        (0..12).map(|_| [(rng.next().abs() * 9.0).round(), (rng.next().abs() * 9.0).round(), rng.next() * 0.1]).collect();
+    let waves: Vec<[f64; 3]> = (0..12)
+        .map(|_| [(rng.next().abs() * 9.0).round(), (rng.next().abs() * 9.0).round(), rng.next() * 0.1])
+        .collect();
     (0..w * h)
         .map(|k| {
             let (x, y) = ((k % w) as f64, (k / w) as f64);
@@ -342,7 +348,8 @@ fn visible_round_trip_error(original: &[f64], back: &[f64], w: usize) -> f64 {
         }
     }
     let c = lu_solve(&lu_factor(m, 4), &v, 4);
-    let rest: Vec<f64> = diff.iter().enumerate().map(|(k, d)| d - basis(k).iter().zip(&c).map(|(b, c)| b * c).sum::<f64>()).collect();
+    let rest: Vec<f64> =
+        diff.iter().enumerate().map(|(k, d)| d - basis(k).iter().zip(&c).map(|(b, c)| b * c).sum::<f64>()).collect();
     rest.iter().fold(0.0f64, |m, v| m.max(v.abs())) / (hi - lo)
 }
 
@@ -385,7 +392,8 @@ fn mirror_round_trips_are_exact_but_for_the_heights_no_fit_sees() {
         let opts = Options::new().with_patch(n).with_fit(Fit::Vertical).with_borders(Borders::both(Border::Mirror));
         let n32 = normals(&original, w, h, &opts).unwrap();
         let back = heights(&n32, w, h, &HeightOptions::from_fit(&opts)).unwrap();
-        let (raw, visible) = (round_trip_error(&original, &back.values), visible_round_trip_error(&original, &back.values, w));
+        let (raw, visible) =
+            (round_trip_error(&original, &back.values), visible_round_trip_error(&original, &back.values, w));
         assert!(visible < 1e-4 && raw > visible, "N {n}: {visible:e}, raw {raw:e}");
     }
 }
@@ -397,8 +405,11 @@ fn clamp_round_trips_are_within_1e_4_of_the_range() {
     let original = terrain(w, h, 9);
     for n in [3, 5] {
         for fit in [Fit::Vertical, Fit::Orthogonal] {
-            let opts =
-                Options::new().with_patch(n).with_fit(fit).with_borders(Borders::both(Border::Clamp)).with_strength(Strength::Scale(4.0));
+            let opts = Options::new()
+                .with_patch(n)
+                .with_fit(fit)
+                .with_borders(Borders::both(Border::Clamp))
+                .with_strength(Strength::Scale(4.0));
             let n32 = normals(&original, w, h, &opts).unwrap();
             let back = heights(&n32, w, h, &HeightOptions::from_fit(&opts)).unwrap();
             let err = visible_round_trip_error(&original, &back.values, w);
@@ -433,7 +444,10 @@ fn quantised_round_trips_stay_within_their_stated_errors() {
         let relative = rms / (hi - lo);
         assert!(relative < bound, "{bits}-bit: RMS {relative:e} of the range");
         let predicted = back.report.quantisation_error.unwrap();
-        assert!(predicted > rms / 10.0 && predicted < rms * 10.0, "{bits}-bit: predicted {predicted:e}, measured {rms:e}");
+        assert!(
+            predicted > rms / 10.0 && predicted < rms * 10.0,
+            "{bits}-bit: predicted {predicted:e}, measured {rms:e}"
+        );
     }
 }
 
@@ -475,7 +489,11 @@ fn shifting_commutes_with_the_solve_under_wrap() {
 fn any_thread_count_gives_the_same_bits() {
     let (w, h) = (70, 50);
     let original = terrain(w, h, 6);
-    for (fit, borders) in [(Fit::Orthogonal, Borders::both(Border::Wrap)), (Fit::Vertical, Borders { x: Border::Mirror, y: Border::Clamp }), (Fit::Vertical, Borders::both(Border::Clamp))] {
+    for (fit, borders) in [
+        (Fit::Orthogonal, Borders::both(Border::Wrap)),
+        (Fit::Vertical, Borders { x: Border::Mirror, y: Border::Clamp }),
+        (Fit::Vertical, Borders::both(Border::Clamp)),
+    ] {
         let opts = Options::new().with_fit(fit).with_patch(5).with_borders(borders).with_strength(Strength::Scale(3.0));
         let n32 = normals(&original, w, h, &opts).unwrap();
         let ho = HeightOptions::from_fit(&opts).with_convention(ConventionChoice::Auto);
@@ -503,7 +521,9 @@ fn texels_without_a_slope_count_as_flat() {
     let good = normals(&original, w, h, &opts).unwrap();
     let mut bad = good.clone();
     let mut flat = good.clone();
-    for (k, n) in [(5, [0.1, 0.2, 0.0]), (77, [0.3, 0.0, -0.5]), (300, [f32::NAN, 0.0, 1.0]), (301, [0.0, f32::INFINITY, 1.0])] {
+    for (k, n) in
+        [(5, [0.1, 0.2, 0.0]), (77, [0.3, 0.0, -0.5]), (300, [f32::NAN, 0.0, 1.0]), (301, [0.0, f32::INFINITY, 1.0])]
+    {
         bad[k] = n;
         flat[k] = [0.0, 0.0, 1.0];
     }

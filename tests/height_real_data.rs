@@ -190,7 +190,8 @@ fn real_normal_maps_integrate_to_their_own_heights() {
 #[ignore = "needs ../shared/data"]
 fn auto_tells_the_conventions_of_a_set_apart() {
     let d = data_dir().join("tileable/ambientcg_Bricks061");
-    for (file, want) in [("Bricks061_1K-JPG_NormalGL.jpg", Convention::OpenGl), ("Bricks061_1K-JPG_NormalDX.jpg", Convention::DirectX)]
+    for (file, want) in
+        [("Bricks061_1K-JPG_NormalGL.jpg", Convention::OpenGl), ("Bricks061_1K-JPG_NormalDX.jpg", Convention::DirectX)]
     {
         let (w, h, normals, step) = normal_map(&d.join(file));
         let opts = HeightOptions::new().with_convention(ConventionChoice::Auto).with_step(step);

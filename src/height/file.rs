@@ -231,16 +231,7 @@ impl HeightConversion {
         if !report.converged {
             warnings.push(HeightWarning::NotConverged { iterations: report.iterations });
         }
-        Ok(HeightSummary {
-            width: w,
-            height: h,
-            input_format,
-            sample,
-            format,
-            report,
-            png_range,
-            warnings,
-        })
+        Ok(HeightSummary { width: w, height: h, input_format, sample, format, report, png_range, warnings })
     }
 }
 

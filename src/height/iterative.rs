@@ -209,61 +209,66 @@ impl Patch {
         damping: f64,
     ) -> (f64, f64) {
         let w = self.w;
-        let rows: Vec<(f64, f64)> = rho.par_chunks_mut(w).zip(direction.par_chunks_mut(w)).enumerate().map(|(y, (out, dir))| {
-            let mut rows = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
-            let [boxed, ramped, squares] = &mut rows;
-            self.box_y.column(z, w, y, boxed, |v| v);
-            self.ramp_y.column(z, w, y, ramped, |v| v);
-            self.box_y.column(z, w, y, squares, |v| v * v);
-            let (mut s0, mut si, mut sj, mut szz) = (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-            self.box_x.row(boxed, &mut s0);
-            self.ramp_x.row(boxed, &mut si);
-            self.box_x.row(ramped, &mut sj);
-            self.box_x.row(squares, &mut szz);
-            let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
-            slopes(y, &mut gx, &mut gy);
-            let a = self.a;
-            let (mut largest, mut mismatch) = (0.0f64, 0.0);
-            let unit = |p: f64, q: f64| {
-                let inv = 1.0 / (1.0 + p * p + q * q).sqrt();
-                [-p * inv, -q * inv, inv]
-            };
-            for x in 0..w {
-                let czz = (szz[x] - s0[x] * s0[x] / self.n2).max(0.0);
-                let tilt2 = si[x] * si[x] + sj[x] * sj[x];
-                let current = {
-                    let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
-                    let d = 0.5 * (a - czz);
-                    let q = (d * d + tilt2).sqrt();
-                    let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
-                    if flat { 1.0 } else { a_minus_lambda / a }
+        let rows: Vec<(f64, f64)> = rho
+            .par_chunks_mut(w)
+            .zip(direction.par_chunks_mut(w))
+            .enumerate()
+            .map(|(y, (out, dir))| {
+                let mut rows = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+                let [boxed, ramped, squares] = &mut rows;
+                self.box_y.column(z, w, y, boxed, |v| v);
+                self.ramp_y.column(z, w, y, ramped, |v| v);
+                self.box_y.column(z, w, y, squares, |v| v * v);
+                let (mut s0, mut si, mut sj, mut szz) = (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
+                self.box_x.row(boxed, &mut s0);
+                self.ramp_x.row(boxed, &mut si);
+                self.box_x.row(ramped, &mut sj);
+                self.box_x.row(squares, &mut szz);
+                let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
+                slopes(y, &mut gx, &mut gy);
+                let a = self.a;
+                let (mut largest, mut mismatch) = (0.0f64, 0.0);
+                let unit = |p: f64, q: f64| {
+                    let inv = 1.0 / (1.0 + p * p + q * q).sqrt();
+                    [-p * inv, -q * inv, inv]
                 };
-                let fitted = unit(si[x] / (current * a), sj[x] / (current * a));
-                let given = unit(gx[x], gy[x]);
-                mismatch += (0..3).map(|c| (fitted[c] - given[c]).powi(2)).sum::<f64>();
-                let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
-                let rough = ((czz - tilt2 / a) / a).max(0.0);
-                let c = 1.0 - rough;
-                let b = (1.0 - g * g) / g;
-                let disc = b * b + 4.0 * c;
-                let wanted = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
-                    let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
-                    root / g
-                } else if g <= 1e-12 && c > 0.0 {
-                    // The limit g → 0 of s/g.
-                    c
-                } else {
-                    current
-                };
-                let change = wanted - out[x];
-                let now = if change > 0.0 { 1 } else { -1 };
-                let step = if now == -dir[x] { 0.5 * damping } else { damping };
-                dir[x] = now;
-                out[x] += step * change;
-                largest = largest.max(change.abs());
-            }
-            (largest, mismatch)
-        }).collect();
+                for x in 0..w {
+                    let czz = (szz[x] - s0[x] * s0[x] / self.n2).max(0.0);
+                    let tilt2 = si[x] * si[x] + sj[x] * sj[x];
+                    let current = {
+                        let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
+                        let d = 0.5 * (a - czz);
+                        let q = (d * d + tilt2).sqrt();
+                        let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
+                        if flat { 1.0 } else { a_minus_lambda / a }
+                    };
+                    let fitted = unit(si[x] / (current * a), sj[x] / (current * a));
+                    let given = unit(gx[x], gy[x]);
+                    mismatch += (0..3).map(|c| (fitted[c] - given[c]).powi(2)).sum::<f64>();
+                    let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
+                    let rough = ((czz - tilt2 / a) / a).max(0.0);
+                    let c = 1.0 - rough;
+                    let b = (1.0 - g * g) / g;
+                    let disc = b * b + 4.0 * c;
+                    let wanted = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
+                        let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
+                        root / g
+                    } else if g <= 1e-12 && c > 0.0 {
+                        // The limit g → 0 of s/g.
+                        c
+                    } else {
+                        current
+                    };
+                    let change = wanted - out[x];
+                    let now = if change > 0.0 { 1 } else { -1 };
+                    let step = if now == -dir[x] { 0.5 * damping } else { damping };
+                    dir[x] = now;
+                    out[x] += step * change;
+                    largest = largest.max(change.abs());
+                }
+                (largest, mismatch)
+            })
+            .collect();
         rows.iter().fold((0.0f64, 0.0), |(m, e), &(c, r)| (m.max(c), e + r))
     }
 }
@@ -317,7 +322,8 @@ fn conjugate_gradients(
     };
     // Least squares over the period: a mirrored axis counts its texels but
     // the two edge ones twice (the period holds them twice).
-    let multiplicity = |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
+    let multiplicity =
+        |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
     let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.borders.x, x)).collect();
     let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.borders.y, y)).collect();
     let weigh = |y: usize, rx: &mut [f64], ry: &mut [f64]| {

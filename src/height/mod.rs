@@ -376,7 +376,12 @@ pub struct Heights {
 /// Errors: [`Error::InvalidOption`] for invalid options or a zero size,
 /// [`Error::BufferSize`] for a buffer that is not `width * height`,
 /// [`Error::Limits`] when the memory is not there.
-pub fn heights<T: NormalComponent>(normals: &[[T; 3]], width: usize, height: usize, opts: &HeightOptions) -> Result<Heights> {
+pub fn heights<T: NormalComponent>(
+    normals: &[[T; 3]],
+    width: usize,
+    height: usize,
+    opts: &HeightOptions,
+) -> Result<Heights> {
     let len = crate::fit::checked_len(width, height)?;
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
@@ -450,8 +455,16 @@ pub fn heights_of_rows(
         range = (range.0.min(*v), range.1.max(*v));
     }
     let quantisation_error = (opts.step > 0.0).then(|| q * noise_gain / scale.abs());
-    let report =
-        HeightReport { convention, curl, bad_texels, iterations, converged, regularisation: lambda, quantisation_error, range };
+    let report = HeightReport {
+        convention,
+        curl,
+        bad_texels,
+        iterations,
+        converged,
+        regularisation: lambda,
+        quantisation_error,
+        range,
+    };
     Ok(Heights { values: z, width, height, report })
 }
 

@@ -292,8 +292,7 @@ impl Solver {
                 let p = self.y.period;
                 let (mut col_a, mut col_b) = (vec![C::default(); h], vec![C::default(); h]);
                 let (mut ext_a, mut ext_b) = (vec![C::default(); p], vec![C::default(); p]);
-                let scratch_len =
-                    self.forward.get_inplace_scratch_len().max(self.inverse.get_inplace_scratch_len());
+                let scratch_len = self.forward.get_inplace_scratch_len().max(self.inverse.get_inplace_scratch_len());
                 let mut scratch = vec![C::default(); scratch_len];
                 let width = rows.first().map_or(0, |r| r.len());
                 let mut noise = 0.0;
