@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 
 use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
 use normalfit::height::file::HeightConversion;
-use normalfit::height::{self, ConventionChoice, HeightOptions, Model};
+use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
 use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
@@ -805,7 +805,7 @@ fn height_typed<T: Element + Copy + Send + Sync>(
                 *o = [to_n(view[[y, x, 0]]), to_n(view[[y, x, 1]]), to_n(view[[y, x, 2]])];
             }
         };
-        let found = on_pool(pool, || height::heights_of_rows(&row, w, h, opts))?;
+        let found = on_pool(pool, || heights_of_rows(&row, w, h, opts))?;
         Ok((found.values, w, h, found.report))
     })
     .map_err(to_py_err)
