@@ -334,7 +334,7 @@ fn round_trip_error(original: &[f64], back: &[f64]) -> f64 {
 fn visible_round_trip_error(original: &[f64], back: &[f64], w: usize) -> f64 {
     let want = demean(original);
     let (lo, hi) = want.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
-    let sign = |k: usize| if k % 2 == 0 { 1.0 } else { -1.0 };
+    let sign = |k: usize| if k.is_multiple_of(2) { 1.0 } else { -1.0 };
     let basis = |k: usize| [1.0, sign(k % w), sign(k / w), sign(k % w) * sign(k / w)];
     let diff: Vec<f64> = want.iter().zip(back).map(|(a, b)| a - b).collect();
     let (mut m, mut v) = (vec![0.0; 16], vec![0.0; 4]);

@@ -104,7 +104,7 @@ fn round_trip_errors(original: &[f64], back: &[f64], w: usize) -> (f64, f64, f64
     let diff: Vec<f64> = want.iter().zip(back).map(|(a, b)| a - b).collect();
     let max = diff.iter().fold(0.0f64, |m, d| m.max(d.abs()));
     let rms = (diff.iter().map(|d| d * d).sum::<f64>() / diff.len() as f64).sqrt();
-    let sign = |k: usize| if k % 2 == 0 { 1.0 } else { -1.0 };
+    let sign = |k: usize| if k.is_multiple_of(2) { 1.0 } else { -1.0 };
     // Even sizes: the three patterns are orthogonal to each other and to 1.
     let pattern = |which: usize, k: usize| match which {
         0 => sign(k % w),

@@ -17,8 +17,7 @@ use crate::samples::try_vec;
 use super::solve::Solver;
 use super::{HeightOptions, Model};
 
-/// Slopes of row y into (gx, gy).
-type Slopes<'a> = &'a (dyn Fn(usize, &mut [f64], &mut [f64]) + Sync);
+use super::solve::SlopeRows as Slopes;
 
 /// The exact model's heights (texel units) into `z`; returns the solves
 /// run, whether the iteration converged, and the solve's noise gain.

@@ -66,7 +66,7 @@ mod iterative;
 mod solve;
 
 use crate::error::{Error, Result};
-use crate::options::{Border, Borders, Convention, Fit, MAX_GAIN, MAX_PATCH, Strength, named_values};
+use crate::options::{Border, Borders, Convention, Fit, Strength, named_values};
 use crate::par::prelude::*;
 use crate::samples::try_vec;
 
@@ -288,7 +288,6 @@ impl HeightOptions {
         if self.max_iterations == 0 || !(self.tolerance.is_finite() && self.tolerance > 0.0) {
             return Err(Error::InvalidOption("max_iterations must be ≥ 1 and tolerance finite and > 0".into()));
         }
-        debug_assert!(MAX_PATCH >= 3 && MAX_GAIN > 0.0);
         Ok(())
     }
 }

@@ -57,6 +57,9 @@ use super::Model;
 
 type C = Complex<f64>;
 
+/// Fills row y's slopes (gx, gy).
+pub(crate) type SlopeRows<'a> = &'a (dyn Fn(usize, &mut [f64], &mut [f64]) + Sync);
+
 /// Below this, ux² + uy² is a zero of the response (a null mode), not a
 /// small one: rounding leaves the exact zeros at about 1e-32, while the
 /// lowest frequency of an image of 2^20 texels a side gives about 4e-11.
@@ -250,12 +253,7 @@ impl Solver {
     /// The heights z (texel units, mean not fixed) whose vertical-fit
     /// slopes are closest to the slopes `slopes(y, gx, gy)` fills for row
     /// y (gx = ∂z/∂x, gy = ∂z/∂y, y down), into `out` (w × h).
-    pub fn solve(
-        &self,
-        slopes: &(dyn Fn(usize, &mut [f64], &mut [f64]) + Sync),
-        lambda: f64,
-        out: &mut [f64],
-    ) -> Result<SolveStats> {
+    pub fn solve(&self, slopes: SlopeRows<'_>, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let len = kx * h;
         let mut a: Vec<C> = try_vec(len)?;
@@ -341,7 +339,7 @@ impl Solver {
             let mut scratch = self.c2r.make_scratch_vec();
             for (row, spectrum) in out_rows.chunks_mut(w).zip(spectra.chunks_mut(kx)) {
                 spectrum[0].im = 0.0;
-                if self.x.period % 2 == 0 {
+                if self.x.period.is_multiple_of(2) {
                     spectrum[kx - 1].im = 0.0;
                 }
                 let _ = self.c2r.process_with_scratch(spectrum, &mut ext, &mut scratch);
