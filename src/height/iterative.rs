@@ -58,6 +58,9 @@ pub(crate) fn exact(
     kept.extend(z.iter().map(|&z| z as f32));
     let mut best = first;
     let (mut last_change, mut growing, mut damping) = (f64::INFINITY, 0, 1.0);
+    // Ratios settled to the input's own precision (its step) are settled:
+    // the slopes asked for are known no better.
+    let tolerance = opts.tolerance.max(opts.step);
     converged = false;
     for _ in 1..opts.max_iterations {
         let weighted = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
@@ -73,7 +76,7 @@ pub(crate) fn exact(
             best = mismatch;
             kept.iter_mut().zip(z.iter()).for_each(|(k, &z)| *k = z as f32);
         }
-        if change <= opts.tolerance {
+        if change <= tolerance {
             converged = true;
             break;
         }

@@ -148,7 +148,8 @@ pub struct HeightOptions {
     /// The orthogonal fit's (and clamp's) iterations at most. Default: 100.
     pub max_iterations: usize,
     /// The orthogonal fit stops when no texel's slope ratio A/(A − λ)
-    /// changes by more than this. Default: 1e-10.
+    /// changes by more than this, or than [`step`](Self::step) (the input
+    /// knows its slopes no better). Default: 1e-10.
     pub tolerance: f64,
 }
 
