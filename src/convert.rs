@@ -904,7 +904,7 @@ fn write_all(writer: &mut dyn Write, bytes: &[u8]) -> Result<()> {
 }
 
 /// Whether `a` and `b` are the same file (through links too).
-fn same_file(a: &Path, b: &Path) -> bool {
+pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     match (std::fs::metadata(a), std::fs::metadata(b)) {
         #[cfg(unix)]
         (Ok(a), Ok(b)) => {

@@ -192,6 +192,7 @@
 pub mod convert;
 pub mod error;
 pub mod fit;
+pub mod height;
 pub mod inspect;
 pub mod io;
 pub mod normal_map;

@@ -29,7 +29,7 @@ fn commands() -> Vec<String> {
         .filter(|c| *c != "help")
         .map(str::to_owned)
         .collect();
-    for known in ["convert", "tiling", "shade", "completions", "man"] {
+    for known in ["convert", "tiling", "shade", "height", "completions", "man"] {
         assert!(listed.iter().any(|c| c == known), "{known} missing from {listed:?}");
     }
     listed

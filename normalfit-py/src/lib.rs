@@ -23,7 +23,9 @@ use std::sync::Mutex;
 
 use std::path::{Path, PathBuf};
 
-use normalfit::convert::{BorderChoices, Conversion, Place};
+use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
+use normalfit::height::file::HeightConversion;
+use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
 use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
@@ -780,6 +782,193 @@ fn check_tiling_file(
     tiling_report_value(py, &report, raster.width, raster.height)
 }
 
+/// `height` of an array of normals of component type `T`, read as n by
+/// `to_n` (encoded integers: 2c − 1), `step` the storage's step.
+fn height_typed<T: Element + Copy + Send + Sync>(
+    normals: &Bound<'_, PyUntypedArray>,
+    opts: &HeightOptions,
+    to_n: fn(T) -> f64,
+    pool: Option<Borrowed>,
+) -> PyResult<(Vec<f64>, usize, usize, normalfit::height::HeightReport)> {
+    let py = normals.py();
+    let shape = normals.shape();
+    let (h, w) = (shape[0], shape[1]);
+    if shape[2] != 3 {
+        return Err(PyValueError::new_err(format!("normals must have shape (rows, columns, 3), got {shape:?}")));
+    }
+    let source = normals.cast::<PyArray3<T>>()?.try_readonly().map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let view = source.as_array();
+    let pool = pool.as_ref().and_then(|b| b.pool.as_ref());
+    py.detach(|| -> Result<_, Error> {
+        let row = |y: usize, out: &mut [[f64; 3]]| {
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = [to_n(view[[y, x, 0]]), to_n(view[[y, x, 1]]), to_n(view[[y, x, 2]])];
+            }
+        };
+        let found = on_pool(pool, || heights_of_rows(&row, w, h, opts))?;
+        Ok((found.values, w, h, found.report))
+    })
+    .map_err(to_py_err)
+}
+
+/// `height` with every argument given (see `normalfit.height`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (normals, patch, fit, border, convention, scale, relief, invert, model, step, threads))]
+fn height<'py>(
+    py: Python<'py>,
+    normals: &Bound<'py, PyAny>,
+    patch: &Bound<'py, PyAny>,
+    fit: &str,
+    border: &Bound<'py, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    model: &str,
+    step: Option<f64>,
+    threads: Option<&Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyAny>, HeightInfo)> {
+    let normals = as_array(normals, "normals", &[3])?;
+    let kind = sample_kind(normals, "normals")?;
+    let opts = height_options(patch, fit, border, convention, scale, relief, invert, model)?;
+    let stored_step = match kind {
+        SampleKind::U8 => 2.0 / 255.0,
+        SampleKind::U16 => 2.0 / 65535.0,
+        SampleKind::F32 => f64::from(f32::EPSILON),
+        SampleKind::F64 => 0.0,
+    };
+    let opts = opts.with_step(step.unwrap_or(stored_step));
+    opts.validate().map_err(to_py_err)?;
+    let pool = pool(threads)?;
+    let (values, w, h, report) = match kind {
+        SampleKind::U8 => height_typed::<u8>(normals, &opts, |c| 2.0 * f64::from(c) / 255.0 - 1.0, pool),
+        SampleKind::U16 => height_typed::<u16>(normals, &opts, |c| 2.0 * f64::from(c) / 65535.0 - 1.0, pool),
+        SampleKind::F32 => height_typed::<f32>(normals, &opts, f64::from, pool),
+        SampleKind::F64 => height_typed::<f64>(normals, &opts, |c| c, pool),
+    }?;
+    let array = PyArray1::from_vec(py, values).reshape([h, w])?.into_any();
+    Ok((array, HeightInfo::from_report(&report, Vec::new(), None)))
+}
+
+/// The height options from the keyword arguments, checked by the library.
+#[allow(clippy::too_many_arguments)]
+fn height_options(
+    patch: &Bound<'_, PyAny>,
+    fit: &str,
+    border: &Bound<'_, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    model: &str,
+) -> PyResult<HeightOptions> {
+    let (opts, borders) = fit_options(patch, fit, border, "opengl", scale, relief, invert)?;
+    let fixed = |c: BorderChoice| match c {
+        BorderChoice::Fixed(b) => Ok(b),
+        BorderChoice::Auto => Err(PyValueError::new_err(
+            "invalid option: border of a normal map names the modes it was made with (wrap, clamp, mirror), not auto",
+        )),
+    };
+    let borders = normalfit::Borders { x: fixed(borders.x)?, y: fixed(borders.y)? };
+    let opts = HeightOptions::from_fit(&opts.with_borders(borders))
+        .with_convention(parse_named::<ConventionChoice>(convention)?)
+        .with_model(parse_named::<Model>(model)?);
+    opts.validate().map_err(to_py_err)?;
+    Ok(opts)
+}
+
+/// What `height` and `height_file` found besides the heights.
+#[pyclass(frozen, get_all, module = "normalfit")]
+struct HeightInfo {
+    /// The convention used (``"opengl"`` or ``"directx"``; chosen under auto).
+    convention: &'static str,
+    /// Under auto: the relative curl as OpenGL and as DirectX.
+    curl: Option<(f64, f64)>,
+    /// Texels with nz <= 0 or a non-finite component, taken as flat.
+    bad_texels: usize,
+    /// Solves run.
+    iterations: usize,
+    /// Whether the iteration met its tolerance.
+    converged: bool,
+    /// The RMS height error the input's quantisation leaves, if not exact.
+    quantisation_error: Option<f64>,
+    /// The smallest and largest height.
+    range: (f64, f64),
+    /// A PNG output: the heights 0 and 1 stand for.
+    png_range: Option<(f64, f64)>,
+    /// Warnings, one line each.
+    warnings: Vec<String>,
+}
+
+impl HeightInfo {
+    fn from_report(r: &normalfit::height::HeightReport, warnings: Vec<String>, png_range: Option<(f64, f64)>) -> Self {
+        HeightInfo {
+            convention: r.convention.name(),
+            curl: r.curl.map(|[a, b]| (a, b)),
+            bad_texels: r.bad_texels,
+            iterations: r.iterations,
+            converged: r.converged,
+            quantisation_error: r.quantisation_error,
+            range: r.range,
+            png_range,
+            warnings,
+        }
+    }
+}
+
+#[pymethods]
+impl HeightInfo {
+    fn __repr__(&self) -> String {
+        format!(
+            "HeightInfo(convention='{}', bad_texels={}, iterations={}, converged={}, range=({}, {}), warnings={:?})",
+            self.convention,
+            self.bad_texels,
+            self.iterations,
+            py_bool(self.converged),
+            py_float(self.range.0),
+            py_float(self.range.1),
+            self.warnings
+        )
+    }
+}
+
+/// `height_file` with every argument given (see `normalfit.height_file`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, model, signed, format, max_texels, layer))]
+fn height_file(
+    py: Python<'_>,
+    src: PathBuf,
+    dst: PathBuf,
+    patch: &Bound<'_, PyAny>,
+    fit: &str,
+    border: &Bound<'_, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    model: &str,
+    signed: bool,
+    format: Option<&str>,
+    max_texels: Option<u64>,
+    layer: Option<String>,
+) -> PyResult<HeightInfo> {
+    let opts = height_options(patch, fit, border, convention, scale, relief, invert, model)?;
+    let format = format.map(parse_named::<OutputFormat>).transpose()?;
+    let conversion = HeightConversion::new()
+        .with_options(opts)
+        .with_read(read_options(max_texels, layer)?)
+        .with_signed(signed)
+        .with_format(format);
+    let summary = py.detach(|| conversion.convert_file(&src, &dst)).map_err(|e| match e.place {
+        Place::Input => file_error(&src, e.error, false),
+        _ => file_error(&dst, e.error, true),
+    })?;
+    let warnings = summary.warnings.iter().map(ToString::to_string).collect();
+    Ok(HeightInfo::from_report(&summary.report, warnings, summary.png_range))
+}
+
 /// The native half of the `normalfit` package.
 #[pymodule]
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -789,6 +978,9 @@ fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(convert, m)?)?;
     m.add_function(wrap_pyfunction!(decode_normals, m)?)?;
     m.add_function(wrap_pyfunction!(lit_view, m)?)?;
+    m.add_function(wrap_pyfunction!(height, m)?)?;
+    m.add_function(wrap_pyfunction!(height_file, m)?)?;
+    m.add_class::<HeightInfo>()?;
     m.add_class::<ConversionSummary>()?;
     m.add_class::<AxisReport>()?;
     m.add_class::<TilingReport>()?;

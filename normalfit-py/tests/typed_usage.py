@@ -22,3 +22,6 @@ warnings: list[str] = summary.warnings
 decoded = normalfit.decode_normals("out.png")
 lit = normalfit.lit_view("in.png", light=(45.0, 60.0), tile=True)
 from_file: normalfit.TilingReport = normalfit.check_tiling("in.png", channel="r")
+back, info = normalfit.height(unit, scale=2.0, fit="vertical", convention="auto", model="exact")
+range_: tuple[float, float] = info.range
+written: normalfit.HeightInfo = normalfit.height_file("out.png", "height.exr", border=("wrap", "mirror"))

@@ -7,12 +7,13 @@ use std::path::PathBuf;
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
-use normalfit::convert::BorderChoices;
+use normalfit::convert::{BorderChoice, BorderChoices};
+use normalfit::height::{ConventionChoice, Model};
 use normalfit::io::{Alpha, Channel, OutputChannels, OutputFormat, PngCompression, ReadOptions};
 use normalfit::options::MAX_PATCH;
 use normalfit::shade::Light;
 use normalfit::tiling::KindChoice;
-use normalfit::{Convention, Fit};
+use normalfit::{Borders, Convention, Fit};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -38,6 +39,17 @@ pub enum Command {
     /// n itself); --convention says which way its green points. Lambert
     /// shading with a little ambient light, so slopes turned away stay grey.
     Shade(ShadeArgs),
+    /// Turn a normal map back into heights: the exact inverse of the fit
+    /// (the heights whose fitted normals are closest, in least squares, to
+    /// the map's slopes), or a generic integration for maps normalfit did
+    /// not make.
+    ///
+    /// Give the fit options the normal map was made with (-n, --fit,
+    /// --border, -s or --relief, --invert): `convert -s S` then `height -s
+    /// S` returns the original heights up to a constant. The output is an
+    /// EXR of float heights (channel Y, mean 0, units of the gain) or, named
+    /// .png, a 16-bit gray PNG normalised to [0, 1] whose range is printed.
+    Height(HeightArgs),
     /// Print a shell completion script to standard output.
     Completions(CompletionsArgs),
     /// Print the manual page (roff) to standard output, or write one page
@@ -255,6 +267,72 @@ pub struct ShadeArgs {
 }
 
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
+pub struct HeightArgs {
+    /// The normal map (the formats read, from the library's registry): R, G
+    /// and B hold (n + 1)/2, or n for a float map with --signed.
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+
+    /// Output file: .exr (float heights, the default) or .png (16-bit,
+    /// normalised to [0, 1]). Default: `<stem>_height.exr` beside the input.
+    #[arg(short, long, value_name = "OUTPUT")]
+    pub output: Option<PathBuf>,
+
+    /// Output format when the output's name does not say.
+    #[arg(long, value_parser = named::<OutputFormat>(OutputFormat::ALL))]
+    pub format: Option<OutputFormat>,
+
+    /// exact: the inverse of normalfit's fit (its N, fit and borders), for
+    /// maps normalfit made; generic: Frankot–Chellappa integration, for
+    /// maps of other origin (bakes, scans) or unknown N.
+    #[arg(long, default_value_t = Model::Exact, value_parser = named::<Model>(Model::ALL))]
+    pub model: Model,
+
+    /// Float (EXR) normal maps hold n in [−1, 1], not (n + 1)/2.
+    #[arg(long)]
+    pub signed: bool,
+
+    /// Patch size N the normal map was fitted with (odd, ≥ 3).
+    #[arg(short = 'n', long, value_name = "N", default_value_t = 3, value_parser = parse_patch)]
+    pub patch: usize,
+
+    /// Height gain S the normal map was made with; heights come back in its
+    /// units.
+    #[arg(short, long, value_name = "S", default_value_t = 1.0, value_parser = parse_finite, conflicts_with = "relief")]
+    pub scale: f64,
+
+    /// Gain relative to the width: S = F × image width.
+    #[arg(long, value_name = "F", value_parser = parse_finite)]
+    pub relief: Option<f64>,
+
+    /// The gain was negated (heights were depths).
+    #[arg(long)]
+    pub invert: bool,
+
+    /// The fit the normal map was made with.
+    #[arg(long, default_value_t = Fit::Orthogonal, value_parser = named::<Fit>(Fit::ALL))]
+    pub fit: Fit,
+
+    /// Border mode the normal map was made with, one for both axes or `X,Y`:
+    /// wrap, clamp or mirror.
+    #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_fixed_borders)]
+    pub border: Borders,
+
+    /// Which way the map's green points: opengl (up), directx (down), or
+    /// auto (the one whose slopes are more nearly integrable; printed).
+    #[arg(long, default_value_t = ConventionChoice::OpenGl, value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
+    pub convention: ConventionChoice,
+
+    /// No notes or warnings: errors only.
+    #[arg(short, long)]
+    pub quiet: bool,
+
+    #[command(flatten)]
+    pub read: ReadArgs,
+}
+
+#[derive(Args, Debug)]
 pub struct CompletionsArgs {
     /// The shell to complete for.
     #[arg(value_enum)]
@@ -386,6 +464,15 @@ fn parse_finite(s: &str) -> Result<f64, String> {
     }
 }
 
+/// `--border` of `height`: fixed modes only (the map was made with them).
+fn parse_fixed_borders(s: &str) -> Result<Borders, String> {
+    let choices = parse_borders(s)?;
+    match (choices.x, choices.y) {
+        (BorderChoice::Fixed(x), BorderChoice::Fixed(y)) => Ok(Borders { x, y }),
+        _ => Err(format!("--border of a normal map names the modes it was made with (wrap, clamp, mirror), got '{s}'")),
+    }
+}
+
 /// `--border`: the library's rule (one mode, or x then y; `auto`).
 fn parse_borders(s: &str) -> Result<BorderChoices, String> {
     s.parse().map_err(|e: normalfit::Error| library_message(&e))
@@ -421,7 +508,7 @@ macro_rules! named_value {
     };
 }
 
-named_value!(Fit, Convention, OutputFormat, PngCompression, Alpha, OutputChannels, KindChoice);
+named_value!(Fit, Convention, OutputFormat, PngCompression, Alpha, OutputChannels, KindChoice, Model, ConventionChoice);
 
 /// A library error's message without its kind ("invalid option: ").
 pub fn library_message(e: &normalfit::Error) -> String {

@@ -6,6 +6,7 @@ pub mod batch;
 pub mod completions;
 pub mod convert;
 pub mod fitting;
+pub mod height;
 pub mod input;
 pub mod man;
 pub mod output;
@@ -47,6 +48,7 @@ pub fn main() -> ExitCode {
         Command::Convert(args) => convert::run(args).map(all_written),
         Command::Tiling(args) => tiling::run(args),
         Command::Shade(args) => shade::run(args).map(all_written),
+        Command::Height(args) => height::run(&args).map(|()| exit::OK),
         Command::Completions(args) => completions::run(&args).map(|()| exit::OK),
         Command::Man(args) => man::run(&args).map(|()| exit::OK),
     };

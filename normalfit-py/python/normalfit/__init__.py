@@ -20,16 +20,19 @@ from typing import Any
 import numpy as np
 
 from . import _normalfit
-from ._normalfit import AxisReport, ConversionSummary, TilingReport
+from ._normalfit import AxisReport, ConversionSummary, HeightInfo, TilingReport
 
 __version__: str = _normalfit.__version__
 __all__ = [
     "AxisReport",
     "ConversionSummary",
+    "HeightInfo",
     "TilingReport",
     "check_tiling",
     "convert",
     "decode_normals",
+    "height",
+    "height_file",
     "lit_view",
     "normals",
 ]
@@ -225,5 +228,85 @@ def lit_view(
     """
     return _normalfit.lit_view(
         path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
+        max_texels, layer,
+    )
+
+
+def height(
+    normals: Any,
+    *,
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: str | tuple[str, str] = "wrap",
+    convention: str = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    model: str = "exact",
+    step: float | None = None,
+    threads: int | None = None,
+) -> tuple[Any, HeightInfo]:
+    """The heights of a normal map: ``normalfit height`` on an array, the
+    inverse of normals().
+
+    normals: a (rows, columns, 3) array: float32 or float64 holding n
+        itself (as normals() returns it), or uint8 / uint16 holding the
+        encoded (n + 1)/2 (as normals(dtype=np.uint8) returns it, or a PNG
+        holds it). Only the direction of n matters.
+
+    The fit options are normals()'s and must be those the map was made with
+    for the exact inverse (border: "wrap", "clamp" or "mirror", not auto).
+    convention may also be "auto" (the one whose slopes have less curl).
+    model: "exact" (the inverse of normalfit's fit) or "generic"
+        (Frankot-Chellappa, for maps of other origin or unknown patch).
+    step: the step of a stored component, for the quantisation's
+        regularisation and error figure; default from the dtype (2/255,
+        2/65535, float32's epsilon, 0 for float64).
+    threads: as for normals().
+
+    Returns (heights, info): a (rows, columns) float64 array, mean 0, in
+    units of the gain (``normals(h, scale=S)`` then ``height(n, scale=S)``
+    gives h back up to a constant), and a HeightInfo (convention used,
+    curl under auto, bad_texels, iterations, converged,
+    quantisation_error, range).
+
+    Raises TypeError for an array of the wrong dimensions or dtype,
+    ValueError for a bad option or shape, MemoryError when the memory is
+    not there.
+    """
+    return _normalfit.height(
+        normals, patch, fit, border, convention, scale, relief, invert, model, step, threads
+    )
+
+
+def height_file(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    *,
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: str | tuple[str, str] = "wrap",
+    convention: str = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    model: str = "exact",
+    signed: bool = False,
+    format: str | None = None,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> HeightInfo:
+    """``normalfit height SRC -o DST`` with these options: a normal map
+    file to heights, an EXR of float heights (channel Y) or, for a .png
+    dst (or format="png"), a 16-bit gray PNG normalised to [0, 1] whose
+    range is the result's png_range. signed: a float map holds n itself.
+    The output appears whole or not at all and never replaces src.
+
+    Returns a HeightInfo (with warnings, one line each). Raises ValueError
+    for a bad option, OSError naming the file for a file that cannot be
+    read or written.
+    """
+    return _normalfit.height_file(
+        src, dst, patch, fit, border, convention, scale, relief, invert, model, signed, format,
         max_texels, layer,
     )

@@ -12,10 +12,13 @@ __version__: str
 __all__ = [
     "AxisReport",
     "ConversionSummary",
+    "HeightInfo",
     "TilingReport",
     "check_tiling",
     "convert",
     "decode_normals",
+    "height",
+    "height_file",
     "lit_view",
     "normals",
 ]
@@ -139,3 +142,57 @@ def lit_view(
     max_texels: int | None = None,
     layer: str | None = None,
 ) -> npt.NDArray[np.uint8]: ...
+@final
+class HeightInfo:
+    """What height() and height_file() found besides the heights."""
+
+    @property
+    def convention(self) -> Literal["opengl", "directx"]: ...
+    @property
+    def curl(self) -> tuple[float, float] | None: ...
+    @property
+    def bad_texels(self) -> int: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def converged(self) -> bool: ...
+    @property
+    def quantisation_error(self) -> float | None: ...
+    @property
+    def range(self) -> tuple[float, float]: ...
+    @property
+    def png_range(self) -> tuple[float, float] | None: ...
+    @property
+    def warnings(self) -> list[str]: ...
+
+def height(
+    normals: _Heights,
+    *,
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_Border, _Border] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx", "auto"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    model: Literal["exact", "generic", "frankot-chellappa", "fc"] = "exact",
+    step: float | None = None,
+    threads: int | None = None,
+) -> tuple[npt.NDArray[np.float64], HeightInfo]: ...
+def height_file(
+    src: _Path,
+    dst: _Path,
+    *,
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_Border, _Border] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx", "auto"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    model: Literal["exact", "generic", "frankot-chellappa", "fc"] = "exact",
+    signed: bool = False,
+    format: Literal["png", "exr"] | None = None,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> HeightInfo: ...

@@ -3,7 +3,7 @@
 import os
 from typing import Any
 
-from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionSummary, TilingReport as TilingReport
+from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionSummary, HeightInfo as HeightInfo, TilingReport as TilingReport
 
 __all__ = [
     "normals",
@@ -12,7 +12,10 @@ __all__ = [
     "convert",
     "decode_normals",
     "lit_view",
+    "height",
+    "height_file",
     "ConversionSummary",
+    "HeightInfo",
     "AxisReport",
     "TilingReport",
     "__version__",
@@ -77,3 +80,32 @@ def lit_view(
     max_texels: int | None,
     layer: str | None,
 ) -> Any: ...
+def height(
+    normals: Any,
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    model: str,
+    step: float | None,
+    threads: int | None,
+) -> tuple[Any, HeightInfo]: ...
+def height_file(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    model: str,
+    signed: bool,
+    format: str | None,
+    max_texels: int | None,
+    layer: str | None,
+) -> HeightInfo: ...

@@ -1,0 +1,249 @@
+//! A normal map file to a height map file in one call, as `normalfit
+//! height` does: the normals read back from the file's R, G and B (c =
+//! (n + 1)/2, or n for a signed float map), the step of their storage
+//! taken for the quantisation, the heights written as an EXR of float
+//! heights (channel Y, mean 0, units of the gain) or a 16-bit gray PNG
+//! normalised to [0, 1] with the range in the summary. Outputs appear
+//! whole or not at all and never replace the input. Nothing prints:
+//! warnings are data ([`HeightWarning`]).
+//!
+//! ```no_run
+//! use normalfit::height::file::HeightConversion;
+//! use normalfit::height::{ConventionChoice, HeightOptions};
+//!
+//! let conversion = HeightConversion::new()
+//!     .with_options(HeightOptions::new().with_convention(ConventionChoice::Auto));
+//! let summary = conversion.convert_file("rock_normal.png".as_ref(), "rock_height.exr".as_ref())?;
+//! println!("{:?} {:?}", summary.report.convention, summary.warnings);
+//! # Ok::<(), normalfit::convert::ConvertError>(())
+//! ```
+
+use std::fmt;
+use std::path::Path;
+
+use crate::convert::{ConvertError, Place};
+use crate::error::{Error, Result};
+use crate::io::{self, ExrDepth, ExrOptions, InputFormat, OutputFormat, PngDepth, PngOptions, ReadOptions, SampleType};
+use crate::samples::{Samples, try_vec, with_slice};
+
+use super::{HeightOptions, HeightReport, heights_of_rows};
+
+/// Something the caller may want to tell its user; the heights were written.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum HeightWarning {
+    /// Texels with nz ≤ 0 or a non-finite component, taken as flat.
+    BadTexels(usize),
+    /// The normals are stored in 8 bits: the RMS height error their
+    /// rounding leaves (height units), and that as a fraction of the range.
+    Precision {
+        /// Bits per stored component.
+        bits: u8,
+        /// RMS height error from the rounding.
+        error: f64,
+        /// `error` over the heights' range.
+        relative: f64,
+    },
+    /// The iteration (orthogonal fit, clamp with N ≥ 5) stopped before its
+    /// tolerance: the best heights found were written.
+    NotConverged {
+        /// Solves run.
+        iterations: usize,
+    },
+}
+
+impl fmt::Display for HeightWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            HeightWarning::BadTexels(n) => {
+                write!(f, "{n} texels have nz ≤ 0 or a non-finite component: taken as flat")
+            }
+            HeightWarning::Precision { bits, error, relative } => write!(
+                f,
+                "{bits}-bit normals lose precision: their rounding leaves an RMS height error of {error:.3e} ({:.3} % of the range); a 16-bit or float normal map keeps it",
+                relative * 100.0
+            ),
+            HeightWarning::NotConverged { iterations } => {
+                write!(f, "the iteration did not settle in {iterations} solves: the best heights found were written")
+            }
+        }
+    }
+}
+
+/// What a conversion did.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct HeightSummary {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// The format read.
+    pub input_format: InputFormat,
+    /// The normal map's samples.
+    pub sample: SampleType,
+    /// The format written.
+    pub format: OutputFormat,
+    /// The solve's report (convention chosen, range, …).
+    pub report: HeightReport,
+    /// For a PNG: the heights that 0 and 1 stand for. `convert -s S·(hi −
+    /// lo)` of the PNG makes the normals again.
+    pub png_range: Option<(f64, f64)>,
+    /// The warnings, in order.
+    pub warnings: Vec<HeightWarning>,
+}
+
+/// Every choice of a normal-map-to-height conversion.
+#[derive(Clone, Debug, Default)]
+#[non_exhaustive]
+pub struct HeightConversion {
+    /// The solve's options; [`HeightOptions::step`] is replaced by the
+    /// file's storage step unless [`HeightConversion::step`] is set.
+    pub options: HeightOptions,
+    /// Limits and the EXR layer.
+    pub read: ReadOptions,
+    /// Float maps hold n itself, not (n + 1)/2.
+    pub signed: bool,
+    /// The output format when the output's name does not say (default EXR).
+    pub format: Option<OutputFormat>,
+    /// The step of a stored component, if not the file's.
+    pub step: Option<f64>,
+}
+
+impl HeightConversion {
+    /// The defaults.
+    #[must_use]
+    pub fn new() -> Self {
+        HeightConversion::default()
+    }
+    /// With these solve options.
+    #[must_use]
+    pub fn with_options(mut self, options: HeightOptions) -> Self {
+        self.options = options;
+        self
+    }
+    /// With these read options.
+    #[must_use]
+    pub fn with_read(mut self, read: ReadOptions) -> Self {
+        self.read = read;
+        self
+    }
+    /// Float maps hold n itself.
+    #[must_use]
+    pub fn with_signed(mut self, signed: bool) -> Self {
+        self.signed = signed;
+        self
+    }
+    /// The format when the name does not say.
+    #[must_use]
+    pub fn with_format(mut self, format: Option<OutputFormat>) -> Self {
+        self.format = format;
+        self
+    }
+
+    /// Reads the normal map `input` and writes its heights to `output`.
+    ///
+    /// Errors: [`Place::Input`] for reading, decoding, a map without R, G
+    /// and B, invalid options and the solve; [`Place::Output`] for the
+    /// output's name, memory, encoding and writing, and an output that is
+    /// the input.
+    pub fn convert_file(&self, input: &Path, output: &Path) -> Result<HeightSummary, ConvertError> {
+        let fail_in = |error| ConvertError { place: Place::Input, error };
+        let fail_out = |error| ConvertError { place: Place::Output, error };
+        let format = OutputFormat::from_path(output).map_err(fail_out)?.or(self.format).unwrap_or(OutputFormat::Exr);
+        self.options.validate().map_err(fail_in)?;
+        if crate::convert::same_file(input, output) {
+            return Err(fail_out(Error::InvalidOption(
+                "the output is the input (or a link to it): normalfit never writes over an input".into(),
+            )));
+        }
+        let raster = io::read_path(input, &self.read).map_err(fail_in)?;
+        let (w, h) = (raster.width, raster.height);
+        let (input_format, sample) = (raster.format.clone(), raster.sample);
+        let planes = match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
+            (Some(r), Some(g), Some(b)) => [&r.data, &g.data, &b.data],
+            _ => return Err(fail_in(Error::Unsupported("a normal map needs R, G and B channels".into()))),
+        };
+        if self.signed && raster.sample != SampleType::Float {
+            return Err(fail_in(Error::InvalidOption(
+                "signed normal maps are float (EXR); an integer image stores (n + 1)/2".into(),
+            )));
+        }
+        let (step, bits) = match raster.sample {
+            SampleType::Int { bits } | SampleType::SignedInt { bits } => {
+                (2.0 / ((1u64 << bits.min(63)) - 1) as f64, Some(bits))
+            }
+            SampleType::Float => (f64::from(f32::EPSILON), None),
+        };
+        let options = HeightOptions { step: self.step.unwrap_or(step), ..self.options.clone() };
+        let texels = (w as u64).saturating_mul(h as u64);
+        io::check_memory("finding the heights", texels.saturating_mul(per_texel(&options, w))).map_err(fail_in)?;
+        let signed = self.signed;
+        let row = |y: usize, out: &mut [[f64; 3]]| {
+            for (c, plane) in planes.iter().enumerate() {
+                with_slice!(plane, s => {
+                    for (o, &v) in out.iter_mut().zip(&s[y * w..][..w]) {
+                        let stored = crate::samples::contract(v);
+                        o[c] = if signed { stored } else { 2.0 * stored - 1.0 };
+                    }
+                });
+            }
+        };
+        let found = heights_of_rows(&row, w, h, &options).map_err(fail_in)?;
+        drop(raster);
+        let report = found.report.clone();
+        let (lo, hi) = report.range;
+        let png_range = (format == OutputFormat::Png).then_some((lo, hi));
+        let values = found.values;
+        let result = match format {
+            OutputFormat::Exr => {
+                let mut stored: Vec<f32> = try_vec(values.len()).map_err(fail_out)?;
+                stored.extend(values.iter().map(|&v| v as f32));
+                drop(values);
+                io::write_file_atomically(output, |file| {
+                    io::encode_gray(&stored, w, h, &ExrOptions::new(ExrDepth::Float).into(), file)
+                })
+            }
+            OutputFormat::Png => {
+                let span = hi - lo;
+                let mut stored: Vec<u16> = try_vec(values.len()).map_err(fail_out)?;
+                let unit = if span > 0.0 { 65535.0 / span } else { 0.0 };
+                stored.extend(values.iter().map(|&v| ((v - lo) * unit).round().clamp(0.0, 65535.0) as u16));
+                drop(values);
+                io::write_file_atomically(output, |file| {
+                    io::encode_gray(&stored, w, h, &PngOptions::new(PngDepth::Sixteen).into(), file)
+                })
+            }
+        };
+        result.map_err(fail_out)?;
+        let mut warnings = Vec::new();
+        if report.bad_texels > 0 {
+            warnings.push(HeightWarning::BadTexels(report.bad_texels));
+        }
+        if let (Some(bits @ ..=8), Some(error)) = (bits, report.quantisation_error) {
+            let span = hi - lo;
+            warnings.push(HeightWarning::Precision {
+                bits,
+                error,
+                relative: if span > 0.0 { error / span } else { 0.0 },
+            });
+        }
+        if !report.converged {
+            warnings.push(HeightWarning::NotConverged { iterations: report.iterations });
+        }
+        Ok(HeightSummary { width: w, height: h, input_format, sample, format, report, png_range, warnings })
+    }
+}
+
+/// Bytes a conversion holds per texel besides the decoded image: the
+/// solve's two planes of row spectra (16 bytes a texel for a wrapped x,
+/// 32 for a mirrored or clamped one), the heights (8), the orthogonal
+/// fit's ratios and kept heights (24), the conjugate gradients' vectors
+/// (48, clamp with N ≥ 5), the output's samples (4).
+fn per_texel(options: &HeightOptions, width: usize) -> u64 {
+    let spectra = super::solve::Solver::memory(width, 1, options.borders);
+    let clamp = options.borders.x == crate::Border::Clamp || options.borders.y == crate::Border::Clamp;
+    let iterative = if clamp && options.patch > 3 { 48 } else { 0 };
+    let orthogonal = if options.fit == crate::Fit::Orthogonal { 24 } else { 0 };
+    spectra.div_ceil(width.max(1) as u64) + 8 + orthogonal + iterative + 4
+}

@@ -1,0 +1,400 @@
+//! The iterations: the orthogonal fit from the vertical one, and clamp
+//! borders with N ≥ 5, which no transform fits, by conjugate gradients
+//! with the exact operator.
+//!
+//! The exact operator here is written with the borders' index maps
+//! ([`Border::map`]): per axis, sparse lists "output texel ← input texels
+//! with weights" for the box (weights 1) and the ramp (weights i) of the
+//! patch, and their transposes. Every pass is a row (or a combination of
+//! rows) at a time, in parallel over rows, in a fixed order per texel:
+//! the same bits whatever the thread count.
+
+use crate::error::Result;
+use crate::options::{Border, Fit};
+use crate::par::prelude::*;
+use crate::samples::try_vec;
+
+use super::solve::Solver;
+use super::{HeightOptions, Model};
+
+use super::solve::SlopeRows as Slopes;
+
+/// The exact model's heights (texel units) into `z`; returns the solves
+/// run, whether the iteration converged, and the solve's noise gain.
+pub(crate) fn exact(
+    slopes: Slopes<'_>,
+    w: usize,
+    h: usize,
+    opts: &HeightOptions,
+    lambda: f64,
+    z: &mut [f64],
+) -> Result<(usize, bool, f64)> {
+    let solver = Solver::new(w, h, opts.borders, opts.patch, Model::Exact);
+    let patch = Patch::new(w, h, opts);
+    let mut iterations = 0;
+    // One vertical solve: the transform's, else conjugate gradients.
+    let mut vertical = |s: Slopes<'_>, z: &mut [f64]| -> Result<(bool, f64)> {
+        iterations += 1;
+        match &solver {
+            Some(solver) => Ok((true, solver.solve(s, lambda, z)?.noise_gain)),
+            None => conjugate_gradients(&patch, s, lambda, opts, z),
+        }
+    };
+    let (mut converged, noise_gain) = vertical(slopes, z)?;
+    if opts.fit == Fit::Vertical {
+        return Ok((iterations, converged, noise_gain));
+    }
+    // The orthogonal fit: vertical slopes g · ρ(z), ρ = (A − λ)/A.
+    let len = w * h;
+    let mut rho: Vec<f64> = try_vec(len)?;
+    rho.resize(len, 1.0);
+    let mut direction: Vec<i8> = try_vec(len)?;
+    direction.resize(len, 0);
+    // The heights whose re-fitted normals are closest to the given ones so
+    // far (the sum of squared differences of unit normals, which steep
+    // texels cannot dominate), kept as f32: the vertical solution first.
+    let (_, first) = patch.update_ratios(z, slopes, &mut rho, &mut direction, 1.0);
+    let mut kept: Vec<f32> = try_vec(len)?;
+    kept.extend(z.iter().map(|&z| z as f32));
+    let mut best = first;
+    let (mut last_change, mut growing, mut damping) = (f64::INFINITY, 0, 1.0);
+    // Ratios settled to the input's own precision (its step) are settled:
+    // the slopes asked for are known no better.
+    let tolerance = opts.tolerance.max(opts.step);
+    converged = false;
+    for _ in 1..opts.max_iterations {
+        let weighted = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
+            slopes(y, gx, gy);
+            for ((x, y), r) in gx.iter_mut().zip(gy.iter_mut()).zip(&rho[y * w..][..w]) {
+                *x *= r;
+                *y *= r;
+            }
+        };
+        vertical(&weighted, z)?;
+        let (change, mismatch) = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping);
+        if mismatch < best {
+            best = mismatch;
+            kept.iter_mut().zip(z.iter()).for_each(|(k, &z)| *k = z as f32);
+        }
+        if change <= tolerance {
+            converged = true;
+            break;
+        }
+        // A change that grows halves the steps (down to 1/64); the guard
+        // stops after 8 growths running, or a change that is not a number,
+        // and the closest heights found are returned (not converged).
+        if change > last_change || !change.is_finite() {
+            growing += 1;
+            damping = (damping * 0.5f64).max(1.0 / 64.0);
+        } else {
+            growing = 0;
+        }
+        last_change = change;
+        if growing >= 8 || !change.is_finite() {
+            break;
+        }
+    }
+    if !converged {
+        z.iter_mut().zip(&kept).for_each(|(z, &k)| *z = f64::from(k));
+    }
+    Ok((iterations, converged, noise_gain))
+}
+
+/// A sparse 1-D operator: `lists[o]` holds (input index, weight) pairs.
+struct Lists(Vec<Vec<(usize, f64)>>);
+
+impl Lists {
+    /// out[x] = Σ_i weight(i) · in[map(x + i)], i ∈ [−r, r].
+    fn correlation(n: usize, border: Border, r: usize, weight: impl Fn(isize) -> f64) -> Lists {
+        let r = r as isize;
+        Lists(
+            (0..n as isize)
+                .map(|x| (-r..=r).map(|i| (border.map(x + i, n), weight(i))).filter(|p| p.1 != 0.0).collect())
+                .collect(),
+        )
+    }
+
+    /// The transpose.
+    fn transposed(&self) -> Lists {
+        let mut t = vec![Vec::new(); self.0.len()];
+        for (o, list) in self.0.iter().enumerate() {
+            for &(i, wgt) in list {
+                t[i].push((o, wgt));
+            }
+        }
+        Lists(t)
+    }
+
+    /// Applied along a row.
+    fn row(&self, src: &[f64], dst: &mut [f64]) {
+        for (d, list) in dst.iter_mut().zip(&self.0) {
+            *d = list.iter().map(|&(i, wgt)| wgt * src[i]).sum();
+        }
+    }
+
+    /// Row `y` of the operator applied down the columns of `src` (rows of
+    /// `w`), through `f` on each value.
+    fn column(&self, src: &[f64], w: usize, y: usize, dst: &mut [f64], f: impl Fn(f64) -> f64) {
+        dst.fill(0.0);
+        for &(i, wgt) in &self.0[y] {
+            for (d, &s) in dst.iter_mut().zip(&src[i * w..][..w]) {
+                *d += wgt * f(s);
+            }
+        }
+    }
+}
+
+/// The patch sums of the fit, with the borders' maps.
+struct Patch {
+    w: usize,
+    n2: f64,
+    a: f64,
+    box_x: Lists,
+    ramp_x: Lists,
+    box_y: Lists,
+    ramp_y: Lists,
+}
+
+impl Patch {
+    fn new(w: usize, h: usize, opts: &HeightOptions) -> Patch {
+        let r = opts.patch / 2;
+        let (bx, by) = (opts.borders.x, opts.borders.y);
+        Patch {
+            w,
+            n2: (opts.patch * opts.patch) as f64,
+            a: (opts.patch * r * (r + 1) * (2 * r + 1)) as f64 / 3.0,
+            box_x: Lists::correlation(w, bx, r, |_| 1.0),
+            ramp_x: Lists::correlation(w, bx, r, |i| i as f64),
+            box_y: Lists::correlation(h, by, r, |_| 1.0),
+            ramp_y: Lists::correlation(h, by, r, |i| i as f64),
+        }
+    }
+
+    /// The vertical fit's slopes of row y of `z`: Dx z, Dy z.
+    fn slopes(&self, z: &[f64], y: usize, gx: &mut [f64], gy: &mut [f64]) {
+        let w = self.w;
+        let (mut boxed, mut ramped) = (vec![0.0; w], vec![0.0; w]);
+        self.box_y.column(z, w, y, &mut boxed, |v| v);
+        self.ramp_y.column(z, w, y, &mut ramped, |v| v);
+        self.ramp_x.row(&boxed, gx);
+        self.box_x.row(&ramped, gy);
+        gx.iter_mut().chain(gy.iter_mut()).for_each(|g| *g /= self.a);
+    }
+
+    /// The ratios ρ = vertical slope / orthogonal slope per texel that make
+    /// the orthogonal fit of `z`'s patches give the slopes `slopes` asks
+    /// for, the patches' roughness held.
+    ///
+    /// A patch is a plane of vertical slope v plus what the vertical fit
+    /// leaves, whose squares sum to R = Czz − A|v|². With that R held, the
+    /// orthogonal fit's slope is A|v| / (d + q), d = (A − A|v|² − R)/2,
+    /// q = √(d² + A²|v|²) (SPEC §2); setting it to g = |g*| gives
+    /// s² + s(1 − g²)/g − (1 − R/A) = 0 for s = |v|, whose positive root
+    /// makes ρ = s/g. Only R then carries over from the last heights, and
+    /// it follows the slopes weakly: the iteration converges in a few
+    /// solves. Where no positive root exists (R ≥ A: a patch rougher than
+    /// its texels are wide) ρ is the current patch's (A − λ)/A.
+    ///
+    /// Each texel's ratio moves to its new value, or half way where it
+    /// moved the other way on the last step (`direction`): such a texel
+    /// oscillates (patches at a mirrored edge, steep ones), and the half
+    /// step damps the swing and keeps the fixed point. Returns the largest
+    /// change of a ratio asked for, |new − old|, and how far `z`'s
+    /// orthogonal fit is from the slopes asked for: Σ |n(o) − n(g)|², the
+    /// unit normals of the fitted slopes o and of the given g.
+    fn update_ratios(
+        &self,
+        z: &[f64],
+        slopes: Slopes<'_>,
+        rho: &mut [f64],
+        direction: &mut [i8],
+        damping: f64,
+    ) -> (f64, f64) {
+        let w = self.w;
+        let rows: Vec<(f64, f64)> = rho
+            .par_chunks_mut(w)
+            .zip(direction.par_chunks_mut(w))
+            .enumerate()
+            .map(|(y, (out, dir))| {
+                let mut rows = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+                let [boxed, ramped, squares] = &mut rows;
+                self.box_y.column(z, w, y, boxed, |v| v);
+                self.ramp_y.column(z, w, y, ramped, |v| v);
+                self.box_y.column(z, w, y, squares, |v| v * v);
+                let (mut s0, mut si, mut sj, mut szz) = (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
+                self.box_x.row(boxed, &mut s0);
+                self.ramp_x.row(boxed, &mut si);
+                self.box_x.row(ramped, &mut sj);
+                self.box_x.row(squares, &mut szz);
+                let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
+                slopes(y, &mut gx, &mut gy);
+                let a = self.a;
+                let (mut largest, mut mismatch) = (0.0f64, 0.0);
+                let unit = |p: f64, q: f64| {
+                    let inv = 1.0 / (1.0 + p * p + q * q).sqrt();
+                    [-p * inv, -q * inv, inv]
+                };
+                for x in 0..w {
+                    let czz = (szz[x] - s0[x] * s0[x] / self.n2).max(0.0);
+                    let tilt2 = si[x] * si[x] + sj[x] * sj[x];
+                    let current = {
+                        let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
+                        let d = 0.5 * (a - czz);
+                        let q = (d * d + tilt2).sqrt();
+                        let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
+                        if flat { 1.0 } else { a_minus_lambda / a }
+                    };
+                    let fitted = unit(si[x] / (current * a), sj[x] / (current * a));
+                    let given = unit(gx[x], gy[x]);
+                    mismatch += (0..3).map(|c| (fitted[c] - given[c]).powi(2)).sum::<f64>();
+                    let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
+                    let rough = ((czz - tilt2 / a) / a).max(0.0);
+                    let c = 1.0 - rough;
+                    let b = (1.0 - g * g) / g;
+                    let disc = b * b + 4.0 * c;
+                    let wanted = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
+                        let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
+                        root / g
+                    } else if g <= 1e-12 && c > 0.0 {
+                        // The limit g → 0 of s/g.
+                        c
+                    } else {
+                        current
+                    };
+                    let change = wanted - out[x];
+                    let now = if change > 0.0 { 1 } else { -1 };
+                    let step = if now == -dir[x] { 0.5 * damping } else { damping };
+                    dir[x] = now;
+                    out[x] += step * change;
+                    largest = largest.max(change.abs());
+                }
+                (largest, mismatch)
+            })
+            .collect();
+        rows.iter().fold((0.0f64, 0.0), |(m, e), &(c, r)| (m.max(c), e + r))
+    }
+}
+
+/// The conjugate gradients' iterations at most.
+const CG_ITERATIONS: usize = 2000;
+
+/// Conjugate gradients on the normal equations (DxᵀDx + DyᵀDy + λ) z =
+/// Dxᵀgx + Dyᵀgy with the exact operator, from the nearest transform's
+/// solution (clamp as a half-sample reflection), until the residual falls
+/// below 1e-12 of the right-hand side's or the iterations run out.
+fn conjugate_gradients(
+    patch: &Patch,
+    slopes: Slopes<'_>,
+    lambda: f64,
+    opts: &HeightOptions,
+    z: &mut [f64],
+) -> Result<(bool, f64)> {
+    let w = patch.w;
+    let len = z.len();
+    let h = len / w;
+    // The start: clamp read as a half-sample reflection, exact for N = 3.
+    let start = Solver::nearest(w, h, opts.borders, opts.patch, Model::Exact)
+        .map(|s| s.solve(slopes, lambda, z).map(|st| st.noise_gain))
+        .transpose()?
+        .unwrap_or(0.0);
+    let (box_xt, ramp_xt, box_yt, ramp_yt) =
+        (patch.box_x.transposed(), patch.ramp_x.transposed(), patch.box_y.transposed(), patch.ramp_y.transposed());
+    let alloc = || -> Result<Vec<f64>> {
+        let mut v = try_vec(len)?;
+        v.resize(len, 0.0);
+        Ok(v)
+    };
+    let (mut gx, mut gy) = (alloc()?, alloc()?);
+    // Dᵀ applied to (gx, gy): Dxᵀ = box_yᵀ ramp_xᵀ / A, Dyᵀ = ramp_yᵀ box_xᵀ / A.
+    let adjoint = |gx: &mut [f64], gy: &mut [f64], out: &mut [f64]| {
+        gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).for_each(|(rx, ry)| {
+            let (mut tx, mut ty) = (vec![0.0; w], vec![0.0; w]);
+            ramp_xt.row(rx, &mut tx);
+            box_xt.row(ry, &mut ty);
+            rx.copy_from_slice(&tx);
+            ry.copy_from_slice(&ty);
+        });
+        let (gx, gy) = (&*gx, &*gy);
+        out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
+            let mut t = vec![0.0; w];
+            box_yt.column(gx, w, y, o, |v| v);
+            ramp_yt.column(gy, w, y, &mut t, |v| v);
+            o.iter_mut().zip(&t).for_each(|(a, b)| *a = (*a + b) / patch.a);
+        });
+    };
+    // Least squares over the period: a mirrored axis counts its texels but
+    // the two edge ones twice (the period holds them twice).
+    let multiplicity =
+        |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
+    let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.borders.x, x)).collect();
+    let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.borders.y, y)).collect();
+    let weigh = |y: usize, rx: &mut [f64], ry: &mut [f64]| {
+        for ((gx, gy), m) in rx.iter_mut().zip(ry.iter_mut()).zip(&wx) {
+            *gx *= m * wy[y];
+            *gy *= m * wy[y];
+        }
+    };
+    let apply = |z: &[f64], gx: &mut [f64], gy: &mut [f64]| {
+        gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| {
+            patch.slopes(z, y, rx, ry);
+            weigh(y, rx, ry);
+        });
+    };
+    let dot = |a: &[f64], b: &[f64]| -> f64 {
+        let rows: Vec<f64> =
+            a.par_chunks(w).zip(b.par_chunks(w)).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect();
+        rows.iter().sum()
+    };
+    // b = Dᵀ g.
+    let mut rhs = alloc()?;
+    gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| {
+        slopes(y, rx, ry);
+        weigh(y, rx, ry);
+    });
+    adjoint(&mut gx, &mut gy, &mut rhs);
+    let normal = |v: &[f64], out: &mut [f64], gx: &mut [f64], gy: &mut [f64]| {
+        apply(v, gx, gy);
+        adjoint(gx, gy, out);
+        out.iter_mut().zip(v).for_each(|(o, v)| *o += lambda * v);
+    };
+    // Preconditioned by the period's multiplicities W: the steps are then
+    // W-orthogonal to the null space, and the solution keeps the start's
+    // minimum W-norm there, as the transforms' solutions have it.
+    let inverse_weight = |r: &[f64], out: &mut [f64]| {
+        out.par_chunks_mut(w).zip(r.par_chunks(w)).enumerate().for_each(|(y, (o, r))| {
+            for ((o, r), m) in o.iter_mut().zip(r).zip(&wx) {
+                *o = r / (m * wy[y]);
+            }
+        });
+    };
+    let mut r = alloc()?;
+    normal(z, &mut r, &mut gx, &mut gy);
+    r.iter_mut().zip(&rhs).for_each(|(r, b)| *r = b - *r);
+    let mut y = alloc()?;
+    inverse_weight(&r, &mut y);
+    let mut p = y.clone();
+    let mut ap = alloc()?;
+    let target = 1e-26 * dot(&rhs, &rhs);
+    let mut ry = dot(&r, &y);
+    let mut converged = dot(&r, &r) <= target;
+    for _ in 0..CG_ITERATIONS {
+        if converged {
+            break;
+        }
+        normal(&p, &mut ap, &mut gx, &mut gy);
+        let pap = dot(&p, &ap);
+        if pap <= 0.0 {
+            break;
+        }
+        let alpha = ry / pap;
+        z.iter_mut().zip(&p).for_each(|(z, p)| *z += alpha * p);
+        r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
+        converged = dot(&r, &r) <= target;
+        inverse_weight(&r, &mut y);
+        let next = dot(&r, &y);
+        let beta = next / ry;
+        ry = next;
+        p.iter_mut().zip(&y).for_each(|(p, y)| *p = y + beta * *p);
+    }
+    Ok((converged, start))
+}

@@ -1,0 +1,535 @@
+//! Normal map → height: the exact inverse of the fit.
+//!
+//! [`heights`] finds the heights whose fitted normals (the same N, fit,
+//! borders and gain as [`crate::normals`] takes) are closest, in least
+//! squares, to a given normal map's slopes. For a normal map normalfit made
+//! from float heights the round trip gives the heights back up to a
+//! constant; for other maps it is the least-squares integration of their
+//! slopes through the fit's own operator.
+//!
+//! # The math
+//!
+//! The fit of SPEC §2 gives, per texel, n ∝ (−Cx, −Cy, A) (vertical) or
+//! (−Cx, −Cy, A − λ) (orthogonal), with Cx = Σ i·z and Cy = σ Σ j·z over
+//! the N×N patch. So a normal map's slopes are
+//!
+//! ```text
+//! gx = −nx / nz,   gy = −σ · ny / nz      (gy = ∂z/∂y, y down; σ = −1 OpenGL, +1 DirectX)
+//! ```
+//!
+//! and for the vertical fit gx = Dx z = (1/A) Σ i·z(x+i, y+j), gy = Dy z =
+//! (1/A) Σ j·z(x+i, y+j): a linear, separable filter. `solve.rs` solves
+//! min ‖Dx z − gx‖² + ‖Dy z − gy‖² per frequency (wrap: the FFT; mirror:
+//! the type-I cosine transform, as an FFT of the mirrored period; clamp
+//! with N = 3: the type-II one), minimum-norm where the operator has a
+//! null space. Clamp with N ≥ 5 has no transform: `iterative.rs` solves
+//! it by conjugate gradients with the exact operator, from the mirror
+//! solution. For mirror, the least squares are over one period of the
+//! mirrored texture (its edge rows and columns count once, the others
+//! twice), where the fit's operator is exactly periodic.
+//!
+//! The orthogonal fit's slopes are the vertical ones times A / (A − λ), λ
+//! depending on the heights: from the vertical solution, each step solves
+//! for the vertical slopes g · (A − λ(z)) / A, until those ratios stop
+//! changing ([`HeightOptions::tolerance`]); a step that makes them change
+//! more than the one before, three times running, stops the iteration with
+//! the best heights so far ([`HeightReport::converged`] false).
+//!
+//! Heights come back as h = z / S, S the gain of [`HeightOptions::strength`]
+//! (with [`HeightOptions::invert`]), with mean 0 over the image: `convert
+//! -s S` then `height -s S` gives the heights back up to a constant.
+//!
+//! # Texels without a slope
+//!
+//! A texel whose nz ≤ 0 or whose components are not all finite has no
+//! slope: it counts as flat (slope 0), and [`HeightReport::bad_texels`]
+//! counts them.
+//!
+//! # Quantisation
+//!
+//! Stored normals are rounded: [`HeightOptions::step`] is the step of a
+//! stored component (2/255 for 8-bit, 2/65535 for 16-bit, 0 exact). The
+//! slopes then carry noise of RMS q = step/√12 per component, and the
+//! solve adds λ = q² / (P_x P_y) to every frequency's normal equation: a
+//! frequency is damped only where even a mode carrying one texel² of
+//! height would drown in that noise (about the exact zeros of the
+//! response). [`HeightReport::quantisation_error`] is the RMS height error
+//! the noise leaves, through the same solve.
+//!
+//! # The generic model
+//!
+//! [`Model::Generic`] is Frankot–Chellappa: the same solve with the ideal
+//! derivative iω and no box, for normal maps that normalfit did not make
+//! (baked, scanned) or whose N is unknown.
+
+mod iterative;
+mod solve;
+
+use crate::error::{Error, Result};
+use crate::options::{Border, Borders, Convention, Fit, Strength, named_values};
+use crate::par::prelude::*;
+use crate::samples::try_vec;
+
+pub mod file;
+
+/// Which operator the heights are fitted through.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Model {
+    /// normalfit's own fit (its N, fit and borders): the exact inverse of
+    /// a map normalfit made. The default.
+    #[default]
+    Exact,
+    /// Frankot–Chellappa: the slopes integrated with the ideal derivative,
+    /// for maps of unknown origin (baked, scanned, another tool's filter).
+    Generic,
+}
+
+named_values!(Model, "model", { Exact => "exact", Generic => "generic" | "frankot-chellappa" | "fc" });
+
+/// The normal map's green convention: as given, or chosen from the map.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum ConventionChoice {
+    /// Green up (OpenGL). The default.
+    #[default]
+    OpenGl,
+    /// Green down (DirectX).
+    DirectX,
+    /// The convention whose slope field is more nearly integrable (less
+    /// curl): a true slope field has none, and the wrong green sign gives it
+    /// as much curl as it has slope variation.
+    Auto,
+}
+
+named_values!(ConventionChoice, "convention", {
+    OpenGl => "opengl" | "gl",
+    DirectX => "directx" | "dx",
+    Auto => "auto",
+});
+
+impl From<Convention> for ConventionChoice {
+    fn from(c: Convention) -> Self {
+        match c {
+            Convention::OpenGl => ConventionChoice::OpenGl,
+            Convention::DirectX => ConventionChoice::DirectX,
+        }
+    }
+}
+
+/// Everything [`heights`] needs besides the normals. The fit's fields mean
+/// what they mean in [`crate::Options`], and must be those the normal map
+/// was made with for the exact inverse.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct HeightOptions {
+    /// Patch size N (odd, ≥ 3). Default: 3.
+    pub patch: usize,
+    /// The fit the normals came from. Default: orthogonal.
+    pub fit: Fit,
+    /// Border modes. Default: wrap on both axes.
+    pub borders: Borders,
+    /// The green convention, or auto. Default: OpenGL.
+    pub convention: ConventionChoice,
+    /// The gain the normals were made with; heights come back in its
+    /// units. Default: `Scale(1.0)`.
+    pub strength: Strength,
+    /// The gain was negated (heights were depths). Default: false.
+    pub invert: bool,
+    /// Exact inverse of the fit, or generic integration. Default: exact.
+    pub model: Model,
+    /// The step of a stored normal component (2/255 for 8-bit, 2/65535 for
+    /// 16-bit, 0 for exact values). Default: 0.
+    pub step: f64,
+    /// λ added to every frequency's normal equation; `None`: from
+    /// [`step`](Self::step) (q² / texels of the period, q = step/√12).
+    /// Default: `None`.
+    pub regularisation: Option<f64>,
+    /// The orthogonal fit's (and clamp's) iterations at most. Default: 100.
+    pub max_iterations: usize,
+    /// The orthogonal fit stops when no texel's slope ratio A/(A − λ)
+    /// changes by more than this, or than [`step`](Self::step) (the input
+    /// knows its slopes no better). Default: 1e-10.
+    pub tolerance: f64,
+}
+
+impl Default for HeightOptions {
+    fn default() -> Self {
+        HeightOptions::new()
+    }
+}
+
+impl HeightOptions {
+    /// The defaults: the fit's (3×3, orthogonal, wrap, OpenGL, scale 1),
+    /// the exact model, exact input.
+    #[must_use]
+    pub fn new() -> Self {
+        HeightOptions {
+            patch: 3,
+            fit: Fit::Orthogonal,
+            borders: Borders::default(),
+            convention: ConventionChoice::OpenGl,
+            strength: Strength::Scale(1.0),
+            invert: false,
+            model: Model::Exact,
+            step: 0.0,
+            regularisation: None,
+            max_iterations: 100,
+            tolerance: 1e-10,
+        }
+    }
+
+    /// The fit's options of a conversion: patch, fit, borders, convention,
+    /// gain and invert as they are there.
+    #[must_use]
+    pub fn from_fit(fit: &crate::Options) -> Self {
+        HeightOptions {
+            patch: fit.patch,
+            fit: fit.fit,
+            borders: fit.borders,
+            convention: fit.convention.into(),
+            strength: fit.strength,
+            invert: fit.invert,
+            ..HeightOptions::new()
+        }
+    }
+
+    /// Sets N.
+    #[must_use]
+    pub fn with_patch(mut self, n: usize) -> Self {
+        self.patch = n;
+        self
+    }
+    /// Sets the fit.
+    #[must_use]
+    pub fn with_fit(mut self, fit: Fit) -> Self {
+        self.fit = fit;
+        self
+    }
+    /// Sets the borders.
+    #[must_use]
+    pub fn with_borders(mut self, borders: Borders) -> Self {
+        self.borders = borders;
+        self
+    }
+    /// Sets the convention (or auto).
+    #[must_use]
+    pub fn with_convention(mut self, convention: impl Into<ConventionChoice>) -> Self {
+        self.convention = convention.into();
+        self
+    }
+    /// Sets the gain.
+    #[must_use]
+    pub fn with_strength(mut self, strength: Strength) -> Self {
+        self.strength = strength;
+        self
+    }
+    /// Sets invert.
+    #[must_use]
+    pub fn with_invert(mut self, invert: bool) -> Self {
+        self.invert = invert;
+        self
+    }
+    /// Sets the model.
+    #[must_use]
+    pub fn with_model(mut self, model: Model) -> Self {
+        self.model = model;
+        self
+    }
+    /// Sets the step of a stored component (0: exact).
+    #[must_use]
+    pub fn with_step(mut self, step: f64) -> Self {
+        self.step = step;
+        self
+    }
+    /// Sets λ (`None`: from the step).
+    #[must_use]
+    pub fn with_regularisation(mut self, lambda: Option<f64>) -> Self {
+        self.regularisation = lambda;
+        self
+    }
+
+    /// The gain S for an image `width` texels wide, sign included.
+    #[must_use]
+    pub fn scale_for_width(&self, width: usize) -> f64 {
+        self.fit_options(Convention::OpenGl).scale_for_width(width)
+    }
+
+    /// The forward fit's options with `convention`.
+    #[must_use]
+    pub fn fit_options(&self, convention: Convention) -> crate::Options {
+        crate::Options::new()
+            .with_patch(self.patch)
+            .with_fit(self.fit)
+            .with_borders(self.borders)
+            .with_convention(convention)
+            .with_strength(self.strength)
+            .with_invert(self.invert)
+    }
+
+    /// Checks the options on their own.
+    ///
+    /// Errors: [`Error::InvalidOption`] naming the field.
+    pub fn validate(&self) -> Result<()> {
+        self.fit_options(Convention::OpenGl).validate()?;
+        let gain = match self.strength {
+            Strength::Scale(s) | Strength::Relief(s) => s,
+        };
+        if gain == 0.0 {
+            return Err(Error::InvalidOption("a gain of 0 makes every map flat: heights need a non-zero scale".into()));
+        }
+        if !(self.step.is_finite() && (0.0..=2.0).contains(&self.step)) {
+            return Err(Error::InvalidOption(format!("step must be in [0, 2], got {}", self.step)));
+        }
+        if let Some(l) = self.regularisation
+            && !(l.is_finite() && l >= 0.0)
+        {
+            return Err(Error::InvalidOption(format!("regularisation must be finite and ≥ 0, got {l}")));
+        }
+        if self.max_iterations == 0 || !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(Error::InvalidOption("max_iterations must be ≥ 1 and tolerance finite and > 0".into()));
+        }
+        Ok(())
+    }
+}
+
+/// A normal's component type: `f32` or `f64`, the normal n itself.
+pub trait NormalComponent: Copy + Send + Sync + 'static {
+    /// The value in f64.
+    fn to_f64(self) -> f64;
+}
+
+impl NormalComponent for f32 {
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl NormalComponent for f64 {
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+/// What [`heights`] found besides the heights.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct HeightReport {
+    /// The convention used (chosen, under auto).
+    pub convention: Convention,
+    /// Under auto: the curl of the slope field with each convention,
+    /// OpenGL then DirectX, relative to its slope variation (0: integrable;
+    /// the wrong convention of a true normal map gives about 1).
+    pub curl: Option<[f64; 2]>,
+    /// Texels with nz ≤ 0 or a non-finite component, taken as flat.
+    pub bad_texels: usize,
+    /// Solves run (1 for the vertical fit's transforms).
+    pub iterations: usize,
+    /// Whether the iteration (orthogonal fit, clamp with N ≥ 5) met its
+    /// tolerance; always true for a single solve.
+    pub converged: bool,
+    /// The regularisation λ used.
+    pub regularisation: f64,
+    /// The RMS height error (in height units) that the input's quantisation
+    /// leaves, through the solve; `None` for exact input.
+    pub quantisation_error: Option<f64>,
+    /// The smallest and largest height.
+    pub range: (f64, f64),
+}
+
+/// Heights found from a normal map.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct Heights {
+    /// Row-major, `width * height`, mean 0, in units of the gain.
+    pub values: Vec<f64>,
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// What was found besides.
+    pub report: HeightReport,
+}
+
+/// The heights of a normal map given as unit normals n (row-major `[x, y,
+/// z]`, `width * height` of them; their length does not matter, only
+/// their direction).
+///
+/// ```
+/// use normalfit::height::{HeightOptions, heights};
+/// use normalfit::{Fit, Options, normals};
+///
+/// let (w, h) = (32, 16);
+/// let original: Vec<f64> = (0..w * h)
+///     .map(|k| ((k % w) as f64 * 0.4).sin() * ((k / w) as f64 * 0.8).cos())
+///     .collect();
+/// let opts = Options::new().with_fit(Fit::Vertical);
+/// let n = normals(&original, w, h, &opts)?;
+/// let back = heights(&n, w, h, &HeightOptions::from_fit(&opts))?;
+/// let mean = original.iter().sum::<f64>() / (w * h) as f64;
+/// for (a, b) in original.iter().zip(&back.values) {
+///     assert!((a - mean - b).abs() < 1e-4);
+/// }
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+///
+/// Errors: [`Error::InvalidOption`] for invalid options or a zero size,
+/// [`Error::BufferSize`] for a buffer that is not `width * height`,
+/// [`Error::Limits`] when the memory is not there.
+pub fn heights<T: NormalComponent>(
+    normals: &[[T; 3]],
+    width: usize,
+    height: usize,
+    opts: &HeightOptions,
+) -> Result<Heights> {
+    let len = crate::fit::checked_len(width, height)?;
+    if normals.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: normals.len() });
+    }
+    let row = |y: usize, out: &mut [[f64; 3]]| {
+        for (o, n) in out.iter_mut().zip(&normals[y * width..][..width]) {
+            *o = n.map(T::to_f64);
+        }
+    };
+    heights_of_rows(&row, width, height, opts)
+}
+
+/// [`heights`] of a normal map given row by row: `row(y, out)` fills
+/// `out` (`width` normals) with row y's. For callers whose normals are
+/// stored otherwise (planes of a decoded file), without a copy of them.
+///
+/// Errors: as [`heights`].
+pub fn heights_of_rows(
+    row: &(dyn Fn(usize, &mut [[f64; 3]]) + Sync),
+    width: usize,
+    height: usize,
+    opts: &HeightOptions,
+) -> Result<Heights> {
+    opts.validate()?;
+    let len = crate::fit::checked_len(width, height)?;
+    let (convention, curl) = match opts.convention {
+        ConventionChoice::OpenGl => (Convention::OpenGl, None),
+        ConventionChoice::DirectX => (Convention::DirectX, None),
+        ConventionChoice::Auto => {
+            let curl = curl(row, width, height);
+            let choice = if curl[0] <= curl[1] { Convention::OpenGl } else { Convention::DirectX };
+            (choice, Some(curl))
+        }
+    };
+    let sigma = convention.sigma();
+    let bad_texels = count_bad(row, width, height);
+    // The slopes of row y: gx = −nx/nz, gy = −σ ny/nz; 0 where there is none.
+    let slopes = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
+        let mut normals = vec![[0.0; 3]; width];
+        row(y, &mut normals);
+        for ((n, sx), sy) in normals.iter().zip(gx.iter_mut()).zip(gy.iter_mut()) {
+            (*sx, *sy) = match slope(n) {
+                Some([a, b]) => (a, sigma * b),
+                None => (0.0, 0.0),
+            };
+        }
+    };
+
+    let periods = period_texels(width, height, opts.borders);
+    let q = opts.step / 12f64.sqrt();
+    let lambda = opts.regularisation.unwrap_or(q * q / periods);
+    let mut z: Vec<f64> = try_vec(len)?;
+    z.resize(len, 0.0);
+    let (iterations, converged, noise_gain) = match opts.model {
+        Model::Generic => {
+            // Frankot–Chellappa knows no clamp: its nearest transform is mirror's.
+            let borders = Borders { x: generic_border(opts.borders.x), y: generic_border(opts.borders.y) };
+            let solver = solve::Solver::new(width, height, borders, 3, Model::Generic)
+                .ok_or_else(|| Error::InvalidOption("no transform for these borders".into()))?;
+            let stats = solver.solve(&slopes, lambda, &mut z)?;
+            (1, true, stats.noise_gain)
+        }
+        Model::Exact => iterative::exact(&slopes, width, height, opts, lambda, &mut z)?,
+    };
+
+    let scale = opts.scale_for_width(width);
+    let mean = z.iter().sum::<f64>() / len as f64;
+    let mut range = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in &mut z {
+        *v = (*v - mean) / scale;
+        range = (range.0.min(*v), range.1.max(*v));
+    }
+    let quantisation_error = (opts.step > 0.0).then(|| q * noise_gain / scale.abs());
+    let report = HeightReport {
+        convention,
+        curl,
+        bad_texels,
+        iterations,
+        converged,
+        regularisation: lambda,
+        quantisation_error,
+        range,
+    };
+    Ok(Heights { values: z, width, height, report })
+}
+
+/// The slopes (−nx/nz, −ny/nz) of a normal, `None` where nz ≤ 0 or a
+/// component is not finite.
+#[inline]
+fn slope(n: &[f64; 3]) -> Option<[f64; 2]> {
+    let [x, y, z] = *n;
+    (x.is_finite() && y.is_finite() && z.is_finite() && z > 0.0).then(|| [-x / z, -y / z])
+}
+
+fn generic_border(b: Border) -> Border {
+    match b {
+        Border::Clamp => Border::Mirror,
+        other => other,
+    }
+}
+
+/// Texels of the period the solve works on (for λ's scale).
+fn period_texels(w: usize, h: usize, borders: Borders) -> f64 {
+    let period = |n: usize, b: Border| match b {
+        Border::Wrap => n,
+        Border::Mirror if n <= 2 => n,
+        Border::Mirror => 2 * (n - 1),
+        Border::Clamp => 2 * n,
+    };
+    (period(w, borders.x) * period(h, borders.y)) as f64
+}
+
+/// Texels without a slope.
+fn count_bad(row: &(dyn Fn(usize, &mut [[f64; 3]]) + Sync), w: usize, h: usize) -> usize {
+    (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut normals = vec![[0.0; 3]; w];
+            row(y, &mut normals);
+            normals.iter().filter(|n| slope(n).is_none()).count()
+        })
+        .sum()
+}
+
+/// The relative curl of the slope field under OpenGL and DirectX: with
+/// ∂y gx and ∂x gy as differences of neighbours inside the image,
+/// Σ(∂y gx − ∂x gy)² / Σ((∂y gx)² + (∂x gy)²). A true slope field has
+/// none; the wrong green sign gives ∂y gx + ∂x gy, about 1.
+fn curl(row: &(dyn Fn(usize, &mut [[f64; 3]]) + Sync), w: usize, h: usize) -> [f64; 2] {
+    let per_row: Vec<[f64; 3]> = (0..h.saturating_sub(1))
+        .into_par_iter()
+        .map(|y| {
+            let (mut top, mut below) = (vec![[0.0; 3]; w], vec![[0.0; 3]; w]);
+            row(y, &mut top);
+            row(y + 1, &mut below);
+            let s = |n: &[f64; 3]| slope(n).unwrap_or([0.0, 0.0]);
+            let mut sums = [0.0; 3];
+            for x in 0..w.saturating_sub(1) {
+                let dgx_dy = s(&below[x])[0] - s(&top[x])[0];
+                // ny/nz, which is gy under OpenGL and −gy under DirectX.
+                let dny_dx = -(s(&top[x + 1])[1] - s(&top[x])[1]);
+                sums[0] += (dgx_dy - dny_dx) * (dgx_dy - dny_dx);
+                sums[1] += (dgx_dy + dny_dx) * (dgx_dy + dny_dx);
+                sums[2] += dgx_dy * dgx_dy + dny_dx * dny_dx;
+            }
+            sums
+        })
+        .collect();
+    let total = per_row.iter().fold([0.0; 3], |a, r| [a[0] + r[0], a[1] + r[1], a[2] + r[2]]);
+    if total[2] > 0.0 { [total[0] / total[2], total[1] / total[2]] } else { [0.0, 0.0] }
+}

@@ -1,0 +1,396 @@
+//! The least-squares solve of the vertical fit's slopes, per frequency.
+//!
+//! Every border that a transform fits is a periodic problem in disguise:
+//!
+//! * wrap: the image itself is the period (P = n);
+//! * mirror (SPEC §2: reflection about the edge texel, edge not repeated):
+//!   the whole-sample symmetric extension, period P = 2(n − 1), which the
+//!   type-I cosine transform diagonalises; heights and the slope across
+//!   the axis extend evenly, the slope along it oddly (zero on the two
+//!   texels the reflection fixes);
+//! * clamp with N = 3 (r = 1): index −1 maps to 0 and n to n − 1, the
+//!   half-sample symmetric extension, period P = 2n (the type-II cosine
+//!   transform's). Wider patches read −2 → 0, which no symmetric extension
+//!   gives: those go to the iterative solver (`iterative.rs`).
+//!
+//! An axis of one texel acts as wrap with P = 1, and a mirrored axis of two
+//! texels has period 2, the same as wrap.
+//!
+//! So each axis is extended to its period and transformed by a real (rows)
+//! or complex (columns) FFT of length P; the cosine and sine transforms are
+//! those FFTs of the extended sequences, computed as such. On the period the
+//! vertical fit is a correlation, with frequency responses (ω = 2πk/P)
+//!
+//! ```text
+//! Dx: i · S(ωx) · B(ωy) / A        Dy: i · B(ωx) · S(ωy) / A
+//! S(ω) = 2 Σ_{m=1..r} m sin(mω)    B(ω) = 1 + 2 Σ_{m=1..r} cos(mω)
+//! ```
+//!
+//! and the normal equations are one division per frequency:
+//! Z = −i (ux Gx + uy Gy) / (ux² + uy² + λ), with ux = S(ωx)B(ωy)/A and
+//! uy = B(ωx)S(ωy)/A. Where ux² + uy² vanishes (the constant, the
+//! checkerboards ω = π, and the zeros of B, which a window of N texels
+//! cannot see) Z = 0: the minimum-norm solution over the period. λ is the
+//! regularisation the input's quantisation calls for (0 for exact input).
+//!
+//! The restriction of the periodic solution to the image is the answer:
+//! the minimiser over the period is unique up to the null space, and the
+//! extension's symmetry maps it to itself, so it has that symmetry.
+//!
+//! Rows are transformed in parallel blocks; the column pass works on
+//! blocks of columns, each a set of disjoint slices of every row, so it
+//! runs in place. Each 1-D transform is the same whatever the thread count:
+//! the result is too.
+
+use std::sync::Arc;
+
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use rustfft::num_complex::Complex;
+use rustfft::{Fft, FftPlanner};
+
+use crate::error::Result;
+use crate::options::{Border, Borders};
+use crate::par::prelude::*;
+use crate::samples::try_vec;
+
+use super::Model;
+
+type C = Complex<f64>;
+
+/// Fills row y's slopes (gx, gy).
+pub(crate) type SlopeRows<'a> = &'a (dyn Fn(usize, &mut [f64], &mut [f64]) + Sync);
+
+/// Below this, ux² + uy² is a zero of the response (a null mode), not a
+/// small one: rounding leaves the exact zeros at about 1e-32, while the
+/// lowest frequency of an image of 2^20 texels a side gives about 4e-11.
+const NULL: f64 = 1e-20;
+
+/// Rows per task in the row passes.
+const ROWS_PER_TASK: usize = 8;
+/// Columns per task in the column pass.
+const COLUMNS_PER_TASK: usize = 8;
+
+/// How an axis extends to its period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Extension {
+    /// The axis is its own period.
+    Periodic,
+    /// Whole-sample symmetric (mirror): P = 2(n − 1).
+    Whole,
+    /// Half-sample symmetric (clamp with r = 1): P = 2n.
+    Half,
+}
+
+/// One axis: its texels, how it extends, its period.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Axis {
+    pub n: usize,
+    pub ext: Extension,
+    pub period: usize,
+}
+
+impl Axis {
+    /// The axis of `n` texels with `border` for a patch of radius `r`;
+    /// `None` when no symmetric extension matches (clamp, r ≥ 2).
+    pub fn new(n: usize, border: Border, r: usize) -> Option<Axis> {
+        let periodic = Axis { n, ext: Extension::Periodic, period: n };
+        match border {
+            Border::Wrap => Some(periodic),
+            Border::Mirror if n <= 2 => Some(periodic),
+            Border::Mirror => Some(Axis { n, ext: Extension::Whole, period: 2 * (n - 1) }),
+            Border::Clamp if n == 1 => Some(periodic),
+            Border::Clamp if r == 1 => Some(Axis { n, ext: Extension::Half, period: 2 * n }),
+            Border::Clamp => None,
+        }
+    }
+
+    /// `src` (n values) extended to the period in `dst` (P values): evenly,
+    /// or oddly (`odd`: the slope along this axis).
+    pub fn extend<T: Copy + Default + std::ops::Neg<Output = T>>(&self, src: &[T], dst: &mut [T], odd: bool) {
+        let (n, p) = (self.n, self.period);
+        dst[..n].copy_from_slice(src);
+        let sign = |v: T| if odd { -v } else { v };
+        match self.ext {
+            Extension::Periodic => {}
+            Extension::Whole => {
+                for j in 1..n - 1 {
+                    dst[p - j] = sign(src[j]);
+                }
+                if odd {
+                    // The texels the reflection fixes: an odd sequence is 0 there.
+                    dst[0] = T::default();
+                    dst[n - 1] = T::default();
+                }
+            }
+            Extension::Half => {
+                for j in 0..n {
+                    dst[p - 1 - j] = sign(src[j]);
+                }
+            }
+        }
+    }
+
+    /// The slope response S and the box response B at the frequencies
+    /// k = 0 … count − 1 of the period.
+    fn responses(&self, count: usize, model: Model, r: usize) -> (Vec<f64>, Vec<f64>) {
+        let p = self.period as f64;
+        let mut s = Vec::with_capacity(count);
+        let mut b = Vec::with_capacity(count);
+        for k in 0..count {
+            let omega = std::f64::consts::TAU * k as f64 / p;
+            match model {
+                Model::Exact => {
+                    let (mut sk, mut bk) = (0.0, 1.0);
+                    for m in 1..=r {
+                        let (sin, cos) = (m as f64 * omega).sin_cos();
+                        sk += 2.0 * m as f64 * sin;
+                        bk += 2.0 * cos;
+                    }
+                    s.push(sk);
+                    b.push(bk);
+                }
+                Model::Generic => {
+                    // The ideal derivative iω, ω in (−π, π); the Nyquist
+                    // frequency of an even period has no sign, and no slope.
+                    let signed = if 2 * k < self.period {
+                        omega
+                    } else if 2 * k == self.period {
+                        0.0
+                    } else {
+                        omega - std::f64::consts::TAU
+                    };
+                    s.push(signed);
+                    b.push(1.0);
+                }
+            }
+        }
+        (s, b)
+    }
+}
+
+/// What a solve found besides the heights.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct SolveStats {
+    /// The RMS height error (texel units) that white noise of unit RMS in
+    /// each slope component would leave, through the same solve: the
+    /// quantisation's figure is this times the slope noise.
+    pub noise_gain: f64,
+}
+
+/// The planned solve for one image size, border pair, patch and model.
+pub(crate) struct Solver {
+    w: usize,
+    h: usize,
+    x: Axis,
+    y: Axis,
+    /// Row coefficients kept: P_x / 2 + 1.
+    kx: usize,
+    sx: Vec<f64>,
+    bx: Vec<f64>,
+    sy: Vec<f64>,
+    by: Vec<f64>,
+    /// Σ i² of the patch (1 for the generic model).
+    a: f64,
+    r2c: Arc<dyn RealToComplex<f64>>,
+    c2r: Arc<dyn ComplexToReal<f64>>,
+    forward: Arc<dyn Fft<f64>>,
+    inverse: Arc<dyn Fft<f64>>,
+}
+
+impl Solver {
+    /// Plans the solve; `None` when a border has no matching transform.
+    pub fn new(w: usize, h: usize, borders: Borders, patch: usize, model: Model) -> Option<Solver> {
+        let r = patch / 2;
+        Some(Solver::with_axes(w, h, Axis::new(w, borders.x, r)?, Axis::new(h, borders.y, r)?, patch, model))
+    }
+
+    /// The solve with the nearest transform: clamp read as a half-sample
+    /// reflection whatever N (exact for N = 3 only), the start of the
+    /// iterative solver.
+    pub fn nearest(w: usize, h: usize, borders: Borders, patch: usize, model: Model) -> Option<Solver> {
+        Some(Solver::with_axes(w, h, Axis::new(w, borders.x, 1)?, Axis::new(h, borders.y, 1)?, patch, model))
+    }
+
+    fn with_axes(w: usize, h: usize, x: Axis, y: Axis, patch: usize, model: Model) -> Solver {
+        let r = patch / 2;
+        let kx = x.period / 2 + 1;
+        let (sx, bx) = x.responses(kx, model, r);
+        let (sy, by) = y.responses(y.period, model, r);
+        let a = match model {
+            Model::Exact => (patch * r * (r + 1) * (2 * r + 1)) as f64 / 3.0,
+            Model::Generic => 1.0,
+        };
+        let mut real = RealFftPlanner::<f64>::new();
+        let mut complex = FftPlanner::<f64>::new();
+        Solver {
+            w,
+            h,
+            x,
+            y,
+            kx,
+            sx,
+            bx,
+            sy,
+            by,
+            a,
+            r2c: real.plan_fft_forward(x.period),
+            c2r: real.plan_fft_inverse(x.period),
+            forward: complex.plan_fft_forward(y.period),
+            inverse: complex.plan_fft_inverse(y.period),
+        }
+    }
+
+    /// Bytes the solve holds besides its output: two planes of row spectra.
+    pub fn memory(w: usize, h: usize, borders: Borders) -> u64 {
+        let kx = match borders.x {
+            Border::Wrap => w / 2 + 1,
+            Border::Mirror => w,
+            Border::Clamp => w + 1,
+        } as u64;
+        2 * kx * h as u64 * size_of::<C>() as u64
+    }
+
+    /// The heights z (texel units, mean not fixed) whose vertical-fit
+    /// slopes are closest to the slopes `slopes(y, gx, gy)` fills for row
+    /// y (gx = ∂z/∂x, gy = ∂z/∂y, y down), into `out` (w × h).
+    pub fn solve(&self, slopes: SlopeRows<'_>, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
+        let (w, h, kx) = (self.w, self.h, self.kx);
+        let len = kx * h;
+        let mut a: Vec<C> = try_vec(len)?;
+        a.resize(len, C::default());
+        let mut b: Vec<C> = try_vec(len)?;
+        b.resize(len, C::default());
+
+        // Rows: slopes → extended → real FFT.
+        let chunk = kx * ROWS_PER_TASK;
+        a.par_chunks_mut(chunk).zip(b.par_chunks_mut(chunk)).enumerate().for_each(|(block, (ra, rb))| {
+            let p = self.x.period;
+            let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
+            let mut ext = self.r2c.make_input_vec();
+            let mut scratch = self.r2c.make_scratch_vec();
+            for (k, (row_a, row_b)) in ra.chunks_mut(kx).zip(rb.chunks_mut(kx)).enumerate() {
+                let y = block * ROWS_PER_TASK + k;
+                slopes(y, &mut gx, &mut gy);
+                debug_assert_eq!(ext.len(), p);
+                self.x.extend(&gx, &mut ext, true);
+                // The transform cannot fail on buffers it made itself.
+                let _ = self.r2c.process_with_scratch(&mut ext, row_a, &mut scratch);
+                self.x.extend(&gy, &mut ext, false);
+                let _ = self.r2c.process_with_scratch(&mut ext, row_b, &mut scratch);
+            }
+        });
+
+        // Columns: extended → FFT, combined, inverse FFT, back in place.
+        let blocks = column_blocks(&mut a, kx, COLUMNS_PER_TASK);
+        let spectra_b = &b;
+        let partial: Vec<f64> = blocks
+            .into_par_iter()
+            .enumerate()
+            .map(|(block, mut rows)| {
+                let p = self.y.period;
+                let (mut col_a, mut col_b) = (vec![C::default(); h], vec![C::default(); h]);
+                let (mut ext_a, mut ext_b) = (vec![C::default(); p], vec![C::default(); p]);
+                let scratch_len = self.forward.get_inplace_scratch_len().max(self.inverse.get_inplace_scratch_len());
+                let mut scratch = vec![C::default(); scratch_len];
+                let width = rows.first().map_or(0, |r| r.len());
+                let mut noise = 0.0;
+                for c in 0..width {
+                    let kxi = block * COLUMNS_PER_TASK + c;
+                    for (y, row) in rows.iter().enumerate() {
+                        col_a[y] = row[c];
+                        col_b[y] = spectra_b[y * kx + kxi];
+                    }
+                    self.y.extend(&col_a, &mut ext_a, false);
+                    self.y.extend(&col_b, &mut ext_b, true);
+                    self.forward.process_with_scratch(&mut ext_a, &mut scratch);
+                    self.forward.process_with_scratch(&mut ext_b, &mut scratch);
+                    let (s_x, b_x) = (self.sx[kxi], self.bx[kxi]);
+                    // Both halves of a real row's spectrum but its first and
+                    // (even period) last coefficient.
+                    let twice = kxi != 0 && 2 * kxi != self.x.period;
+                    let weight = if twice { 2.0 } else { 1.0 };
+                    for ky in 0..p {
+                        let ux = s_x * self.by[ky] / self.a;
+                        let uy = b_x * self.sy[ky] / self.a;
+                        let den = ux * ux + uy * uy;
+                        ext_a[ky] = if den <= NULL {
+                            C::default()
+                        } else {
+                            let num = ext_a[ky] * ux + ext_b[ky] * uy;
+                            let scale = 1.0 / (den + lambda);
+                            noise += weight * den * scale * scale;
+                            C::new(num.im * scale, -num.re * scale)
+                        };
+                    }
+                    self.inverse.process_with_scratch(&mut ext_a, &mut scratch);
+                    for (y, row) in rows.iter_mut().enumerate() {
+                        row[c] = ext_a[y];
+                    }
+                }
+                noise
+            })
+            .collect();
+        drop(b);
+
+        // Rows: inverse real FFT, the first w values of the period.
+        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
+        out.par_chunks_mut(w * ROWS_PER_TASK).zip(a.par_chunks_mut(chunk)).for_each(|(out_rows, spectra)| {
+            let mut ext = self.c2r.make_output_vec();
+            let mut scratch = self.c2r.make_scratch_vec();
+            for (row, spectrum) in out_rows.chunks_mut(w).zip(spectra.chunks_mut(kx)) {
+                spectrum[0].im = 0.0;
+                if self.x.period.is_multiple_of(2) {
+                    spectrum[kx - 1].im = 0.0;
+                }
+                let _ = self.c2r.process_with_scratch(spectrum, &mut ext, &mut scratch);
+                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
+                    *o = e * norm;
+                }
+            }
+        });
+        let periods = self.x.period as f64 * self.y.period as f64;
+        Ok(SolveStats { noise_gain: (partial.iter().sum::<f64>() / periods).sqrt() })
+    }
+}
+
+/// `data` (rows of `row_len`) cut into blocks of `block` columns: for each
+/// block, its slice of every row, so blocks of columns can be worked on in
+/// parallel, in place.
+fn column_blocks<T>(data: &mut [T], row_len: usize, block: usize) -> Vec<Vec<&mut [T]>> {
+    let rows = data.len() / row_len.max(1);
+    let mut blocks: Vec<Vec<&mut [T]>> = (0..row_len.div_ceil(block)).map(|_| Vec::with_capacity(rows)).collect();
+    for row in data.chunks_mut(row_len) {
+        for (k, piece) in row.chunks_mut(block).enumerate() {
+            blocks[k].push(piece);
+        }
+    }
+    blocks
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn extensions_follow_the_borders() {
+        let src = [1.0, 2.0, 3.0, 4.0];
+        let mirror = Axis::new(4, Border::Mirror, 1).unwrap();
+        let mut ext = vec![0.0; mirror.period];
+        mirror.extend(&src, &mut ext, false);
+        assert_eq!(ext, [1.0, 2.0, 3.0, 4.0, 3.0, 2.0]);
+        for k in -4..10isize {
+            assert_eq!(ext[k.rem_euclid(6) as usize], src[Border::Mirror.map(k, 4)], "{k}");
+        }
+        mirror.extend(&src, &mut ext, true);
+        assert_eq!(ext, [0.0, 2.0, 3.0, 0.0, -3.0, -2.0]);
+        let clamp = Axis::new(4, Border::Clamp, 1).unwrap();
+        let mut ext = vec![0.0; clamp.period];
+        clamp.extend(&src, &mut ext, false);
+        assert_eq!(ext, [1.0, 2.0, 3.0, 4.0, 4.0, 3.0, 2.0, 1.0]);
+        for k in -1..5isize {
+            assert_eq!(ext[k.rem_euclid(8) as usize], src[Border::Clamp.map(k, 4)], "{k}");
+        }
+        assert!(Axis::new(4, Border::Clamp, 2).is_none());
+        assert_eq!(Axis::new(2, Border::Mirror, 3).unwrap().ext, Extension::Periodic);
+    }
+}
