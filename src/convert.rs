@@ -83,6 +83,19 @@ impl BorderChoices {
         BorderChoices { x: choice, y: choice }
     }
 
+    /// The modes themselves, for what was made with known borders (a
+    /// normal map going back to heights): `auto` names no mode.
+    ///
+    /// Errors: [`Error::InvalidOption`] when an axis is `auto`.
+    pub fn fixed(&self) -> Result<Borders> {
+        match (self.x, self.y) {
+            (BorderChoice::Fixed(x), BorderChoice::Fixed(y)) => Ok(Borders { x, y }),
+            _ => Err(Error::InvalidOption(
+                "border of a normal map names the modes it was made with (wrap, clamp, mirror), not auto".into(),
+            )),
+        }
+    }
+
     /// Whether an axis is [`BorderChoice::Auto`].
     #[must_use]
     pub fn any_auto(&self) -> bool {

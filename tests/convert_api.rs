@@ -540,3 +540,15 @@ fn auto_borders_of_heights_in_memory_settle_as_a_conversion_does() {
     assert_eq!(fixed.settle(&heights, w, h).unwrap(), Borders::both(Border::Wrap), "as asked, whatever the image");
     assert!(matches!(auto.settle(&heights[..10], w, h), Err(Error::BufferSize { .. })));
 }
+
+#[test]
+fn fixed_borders_are_the_modes_named_and_auto_names_none() {
+    let choices: BorderChoices = "wrap,mirror".parse().unwrap();
+    assert_eq!(choices.fixed().unwrap(), Borders { x: Border::Wrap, y: Border::Mirror });
+    for auto in ["auto", "clamp,auto", "auto,wrap"] {
+        let choices: BorderChoices = auto.parse().unwrap();
+        let err = choices.fixed().unwrap_err();
+        assert!(matches!(err, Error::InvalidOption(_)), "{auto}: {err}");
+        assert!(err.to_string().contains("not auto"), "{auto}: {err}");
+    }
+}

@@ -23,7 +23,7 @@ use std::sync::Mutex;
 
 use std::path::{Path, PathBuf};
 
-use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
+use normalfit::convert::{BorderChoices, Conversion, Place};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
 use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
@@ -864,13 +864,7 @@ fn height_options(
     model: &str,
 ) -> PyResult<HeightOptions> {
     let (opts, borders) = fit_options(patch, fit, border, "opengl", scale, relief, invert)?;
-    let fixed = |c: BorderChoice| match c {
-        BorderChoice::Fixed(b) => Ok(b),
-        BorderChoice::Auto => Err(PyValueError::new_err(
-            "invalid option: border of a normal map names the modes it was made with (wrap, clamp, mirror), not auto",
-        )),
-    };
-    let borders = normalfit::Borders { x: fixed(borders.x)?, y: fixed(borders.y)? };
+    let borders = borders.fixed().map_err(to_py_err)?;
     let opts = HeightOptions::from_fit(&opts.with_borders(borders))
         .with_convention(parse_named::<ConventionChoice>(convention)?)
         .with_model(parse_named::<Model>(model)?);

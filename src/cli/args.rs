@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
-use normalfit::convert::{BorderChoice, BorderChoices};
+use normalfit::convert::BorderChoices;
 use normalfit::height::{ConventionChoice, Model};
 use normalfit::io::{Alpha, Channel, OutputChannels, OutputFormat, PngCompression, ReadOptions};
 use normalfit::options::MAX_PATCH;
@@ -466,11 +466,9 @@ fn parse_finite(s: &str) -> Result<f64, String> {
 
 /// `--border` of `height`: fixed modes only (the map was made with them).
 fn parse_fixed_borders(s: &str) -> Result<Borders, String> {
-    let choices = parse_borders(s)?;
-    match (choices.x, choices.y) {
-        (BorderChoice::Fixed(x), BorderChoice::Fixed(y)) => Ok(Borders { x, y }),
-        _ => Err(format!("--border of a normal map names the modes it was made with (wrap, clamp, mirror), got '{s}'")),
-    }
+    parse_borders(s)?.fixed().map_err(|_| {
+        format!("--border of a normal map names the modes it was made with (wrap, clamp, mirror), got '{s}'")
+    })
 }
 
 /// `--border`: the library's rule (one mode, or x then y; `auto`).

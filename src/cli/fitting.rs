@@ -11,18 +11,20 @@ use super::report::{self, Failure};
 /// The fit's options; the borders stay the default until an image settles
 /// them (the library's `BorderChoices::resolve`).
 pub fn options(args: &FitArgs) -> Result<Options, Failure> {
-    let strength = match args.relief {
-        Some(f) => Strength::Relief(f),
-        None => Strength::Scale(args.scale),
-    };
     let fit = Options::new()
         .with_patch(args.patch)
         .with_fit(args.fit)
         .with_convention(args.convention)
-        .with_strength(strength)
+        .with_strength(strength(args.scale, args.relief))
         .with_invert(args.invert);
     fit.validate().map_err(|e| Failure::usage(e.to_string()))?;
     Ok(fit)
+}
+
+/// The gain from `--scale` (which has a default) and `--relief` (which
+/// clap lets through only without `--scale`).
+pub fn strength(scale: f64, relief: Option<f64>) -> Strength {
+    relief.map_or(Strength::Scale(scale), Strength::Relief)
 }
 
 /// Prints a conversion's warning about `input`; a seam drawn by a wrap

@@ -4,10 +4,10 @@
 
 use std::path::PathBuf;
 
+use normalfit::Border;
 use normalfit::convert::Place;
 use normalfit::height::HeightOptions;
 use normalfit::height::file::HeightConversion;
-use normalfit::{Border, Strength};
 
 use super::args::HeightArgs;
 use super::input::check_extension;
@@ -18,16 +18,12 @@ const SUFFIX: &str = "_height";
 
 /// Converts the one input; prints the notes and warnings.
 pub fn run(args: &HeightArgs) -> Result<(), Failure> {
-    let strength = match args.relief {
-        Some(f) => Strength::Relief(f),
-        None => Strength::Scale(args.scale),
-    };
     let options = HeightOptions::new()
         .with_patch(args.patch)
         .with_fit(args.fit)
         .with_borders(args.border)
         .with_convention(args.convention)
-        .with_strength(strength)
+        .with_strength(super::fitting::strength(args.scale, args.relief))
         .with_invert(args.invert)
         .with_model(args.model);
     options.validate().map_err(|e| Failure::usage(e.to_string()))?;
@@ -67,8 +63,7 @@ pub fn run(args: &HeightArgs) -> Result<(), Failure> {
     for w in &summary.warnings {
         warn(&name, w);
     }
-    if let Some((lo, hi)) = summary.png_range {
-        let gain = conversion.options.scale_for_width(summary.width) * (hi - lo);
+    if let (Some((lo, hi)), Some(gain)) = (summary.png_range, summary.png_scale) {
         let borders = args.border;
         let border = |b: Border| b.name();
         print_line(&format!(

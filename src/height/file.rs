@@ -89,6 +89,8 @@ pub struct HeightSummary {
     /// For a PNG: the heights that 0 and 1 stand for. `convert -s S·(hi −
     /// lo)` of the PNG makes the normals again.
     pub png_range: Option<(f64, f64)>,
+    /// For a PNG: that gain, S·(hi − lo) with S the gain for this width.
+    pub png_scale: Option<f64>,
     /// The warnings, in order.
     pub warnings: Vec<HeightWarning>,
 }
@@ -194,6 +196,7 @@ impl HeightConversion {
         let report = found.report.clone();
         let (lo, hi) = report.range;
         let png_range = (format == OutputFormat::Png).then_some((lo, hi));
+        let png_scale = png_range.map(|(lo, hi)| options.scale_for_width(w) * (hi - lo));
         let values = found.values;
         let result = match format {
             OutputFormat::Exr => {
@@ -231,7 +234,7 @@ impl HeightConversion {
         if !report.converged {
             warnings.push(HeightWarning::NotConverged { iterations: report.iterations });
         }
-        Ok(HeightSummary { width: w, height: h, input_format, sample, format, report, png_range, warnings })
+        Ok(HeightSummary { width: w, height: h, input_format, sample, format, report, png_range, png_scale, warnings })
     }
 }
 
