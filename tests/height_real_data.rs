@@ -19,11 +19,9 @@ use normalfit::height::{ConventionChoice, HeightOptions, Model, heights};
 use normalfit::io::{ReadOptions, SampleType, read_path};
 use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normal_map, normals};
 
-fn data_dir() -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    assert!(dir.is_dir(), "{} is absent: the real-texture tests need it beside the clone", dir.display());
-    dir
-}
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::{correlation, data_dir};
 
 /// (name, height map, OpenGL normal map).
 fn sets() -> Vec<(&'static str, PathBuf, PathBuf)> {
@@ -61,18 +59,6 @@ fn normal_map(path: &Path) -> (usize, usize, Vec<[f32; 3]>, f64) {
         _ => f64::from(f32::EPSILON),
     };
     (raster.width, raster.height, normal_map::decode(&raster, false).unwrap(), step)
-}
-
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma) * (x - ma);
-        sbb += (y - mb) * (y - mb);
-    }
-    sab / (saa * sbb).sqrt()
 }
 
 /// RMS of `want − (a·got + b)` with the least-squares a, b, over want's range.

@@ -10,30 +10,14 @@
 //! repository) and run by `cargo test -- --include-ignored`, the README's
 //! and CI's command; there, absent data is a failure.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use normalfit::io::{ReadOptions, read_path};
 use normalfit::{Convention, Options, Strength};
 
-/// `../shared/data`; a test that needs it fails when it is absent.
-fn data_dir() -> PathBuf {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    assert!(dir.is_dir(), "{} is absent: the real-texture tests need it beside the clone", dir.display());
-    dir
-}
-
-/// Pearson correlation of two equally long series.
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma) * (x - ma);
-        sbb += (y - mb) * (y - mb);
-    }
-    sab / (saa * sbb).sqrt()
-}
+#[path = "common/shared_data.rs"]
+mod shared_data;
+use shared_data::{correlation, data_dir};
 
 /// The fit's options for the real textures under `convention`.
 fn fit_options(convention: Convention) -> Options {
