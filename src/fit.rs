@@ -20,37 +20,42 @@
 //!
 //! # How the sums are found
 //!
-//! The four patch sums Σz, Σiz, Σjz, Σz² are separable, so each is a
-//! horizontal running sum along a row followed by a vertical running sum
-//! down the columns. Every step adds the entering texel and removes the
-//! leaving one, so the cost per texel is the same for N = 3 and N = 63.
+//! The four patch sums Σz, Σiz, Σjz, Σz² are separable: each is a sum
+//! along a row's window, then a sum of those down the patch's rows. The
+//! cost per texel is the same for N = 3 and N = 63, and every texel's sums
+//! are made from its own patch alone, by operations fixed by the image and
+//! N: so threads, the tiles a streaming caller asks for, and windows of the
+//! image computed apart ([`window_normals_into`], a Dask chunk) all give
+//! the same bits.
 //!
-//! Rules the loops obey, and why:
-//! * Sums are f64 over z − c, where c is one texel's value per tile
-//!   (a block of rows × a segment of columns). Subtracting c leaves Cx, Cy
-//!   and Czz unchanged, and keeps Σz² − (Σz)²/N² from cancelling when the
-//!   heights sit far from zero (a float map around 1000 with fine detail).
-//! * Running sums restart from scratch at every tile edge, so rounding drift
-//!   is bounded by the tile size, and the tiles are fixed by the image and
-//!   N alone. Rows are split among threads by whole tiles, so every texel is
-//!   computed by the same operations in the same order whatever the number
-//!   of threads: the output is identical bit for bit.
+//! * Stored integers (8 and 16 bits) are summed as they are, unscaled:
+//!   every sum is an integer below 2^53, exact in f64, so running sums
+//!   (add the entering texel, remove the leaving one: two steps a texel)
+//!   give each texel exactly its patch's sums wherever the run started.
+//!   The gain S / (2^bits − 1) comes after, in f64, and Czz is formed as
+//!   (N²·Σz² − (Σz)²)/N², whose numerator is exact too.
+//! * Floats (z = S · h) would carry the rounding of wherever a running sum
+//!   started, so their windows are summed over blocks aligned on the image
+//!   (van Herk / Gil–Werman): texel t of block k (x = kN + t) has the
+//!   suffix of the values [kN − r, kN + r] from x − r plus the prefix of
+//!   the next N values up to x + r, each summed in a fixed order from the
+//!   patch's values; the same down the rows. About three steps a texel,
+//!   and no sum runs over more than 2N values, so rounding stays that of a
+//!   few additions (no reference value needs subtracting: within SPEC's
+//!   |S·h| ≤ 1000, Σz² − (Σz)²/N² keeps its digits).
 //! * The first row tile is the top r rows, the only rows whose patches
 //!   reach above row 0; the others start at row r. With a wrap in y, only
 //!   that tile reads the image's last rows, so a streaming caller
-//!   ([`BandFit`]) can fit the rest before it has them, and get the same
-//!   bits as the whole-image path.
-//! * Tiles are at least 8·N long, so restarting (N steps) costs at most an
-//!   eighth of the sliding work (2 steps a texel): the cost stays flat in N.
+//!   ([`BandFit`]) can fit the rest before it has them.
 //! * A block of rows holds between 2^14 and 2^24 texels, whatever the
 //!   image's shape: a narrow image (one column, 2^24 rows) gets blocks tall
 //!   enough that the work of a block outweighs its setup, and a very wide one
 //!   (2^26 columns) blocks of fewer rows, so that a band of blocks, which a
-//!   streaming caller holds, stays a bounded number of texels. (Only beyond
-//!   2^24 / (8·N) columns do blocks get shorter than 8·N, and the cost grows
-//!   with N there.) Each task's own sums are a strip of ~512 columns, and
-//!   borders are mapped as they are read, so the fit's working memory does
-//!   not grow with the image's width or height.
+//!   streaming caller holds, stays a bounded number of texels. Each task's
+//!   own sums are a strip of ~512 columns (at least 8·N, so starting a
+//!   strip's sums costs at most an eighth of its work), and borders are
+//!   mapped as they are read, so the fit's working memory does not grow
+//!   with the image's width or height.
 
 use std::ops::Range;
 
@@ -59,6 +64,9 @@ use crate::par::prelude::*;
 use crate::error::{Error, Result};
 use crate::options::{Borders, Fit, Options};
 use crate::samples::Sample;
+
+mod window;
+pub use window::{Halo, Window, window_normals_and_residual_into, window_normals_into};
 
 /// A type an output texel can be made from a unit normal.
 ///
@@ -206,8 +214,8 @@ fn fit_image<H: Sample, T: FromNormal>(
     if let Some((x, y)) = first_non_finite(heights, width) {
         return Err(Error::NonFiniteHeight { x, y });
     }
-    let source_row = |y: usize| &heights[y * width..][..width];
-    plan.fit_rows(&source_row, H::UNIT, 0, out, residual);
+    let rows = |v: isize| RowRef { values: &heights[plan.borders.y.map(v, height) * width..][..width], x0: 0 };
+    plan.fit_rows(&rows, H::UNIT, (0, 0..width), out, residual);
     Ok(())
 }
 
@@ -344,7 +352,8 @@ impl BandFit {
                 return Err(Error::NonFiniteHeight { x, y });
             }
         }
-        self.plan.fit_rows(row, self.unit.unwrap_or(H::UNIT), rows.start, out, None);
+        let source = |v: isize| RowRef { values: row(self.plan.borders.y.map(v, h)), x0: 0 };
+        self.plan.fit_rows(&source, self.unit.unwrap_or(H::UNIT), (rows.start, 0..w), out, None);
         Ok(())
     }
 }
@@ -375,7 +384,7 @@ pub(crate) fn first_non_finite<H: Sample>(heights: &[H], width: usize) -> Option
 /// normals (see [`Plan::emit_with`]).
 const EMIT_CHUNK: usize = 32;
 
-/// Columns per parallel task of the fit, rounded to whole segments: the
+/// Columns per parallel task of the fit (at least 8·N): the
 /// task's sums (a few rows of f64 per column) then fit in a core's cache.
 const STRIP_COLS: usize = 512;
 
@@ -414,7 +423,6 @@ struct Plan {
     borders: Borders,
     height: usize,
     block_rows: usize,
-    segment_cols: usize,
 }
 
 impl Plan {
@@ -439,41 +447,39 @@ impl Plan {
             borders: opts.borders,
             height,
             block_rows,
-            segment_cols: tile,
         })
     }
 
-    /// Fits the output rows `y0 .. y0 + out.len() / width` (from a tile
-    /// edge), tile by tile in parallel.
-    ///
-    /// The tiles are fixed by the image and N alone: the top r rows, whose
-    /// patches reach above row 0 (through a wrap, to the image's last rows),
-    /// then `block_rows` at a time. Every texel is then made by the same
-    /// operations whichever rows a caller asks for at once. `residual`,
+    /// Fits the output rows from `y0`, columns `cols`, into `out` (rows of
+    /// `cols.len()` texels), tile by tile and strip by strip in parallel.
+    /// `rows(v)` gives source row v for every v the patches reach (beyond
+    /// the image's edges too: the caller's source maps them). `residual`,
     /// when given, holds as many texels as `out` and gets the fit's RMS
     /// distances.
     ///
-    /// Each tile is cut further into strips of whole segments, the tasks
-    /// that run in parallel: a column's sums depend only on its own segment,
-    /// so the strips change no result, while many small tasks keep both
-    /// cores busy beside the pipeline's other threads (two tasks a band left
-    /// one core idle while the other finished its tile) and a strip's sums
-    /// stay in the core's cache.
+    /// Every texel's sums come from its own patch by the same operations
+    /// whichever tile, strip or window holds it (see the module docs), so
+    /// the cuts change no result. Tiles: the top r rows, then `block_rows`
+    /// at a time, so that a streaming caller's bands are whole tiles.
+    /// Strips of about 512 columns are the tasks that run in parallel: many
+    /// small tasks keep both cores busy beside the pipeline's other threads
+    /// (two tasks a band left one core idle while the other finished its
+    /// tile), and a strip's sums stay in the core's cache.
     fn fit_rows<'a, H: Sample, T: FromNormal>(
         &self,
-        source_row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        rows: &SourceRows<'_, 'a, H>,
         unit: f64,
-        y0: usize,
+        (y0, cols): (usize, Range<usize>),
         out: &mut [T],
         residual: Option<&mut [f32]>,
     ) {
-        let w = self.width;
+        let w = cols.len();
         let strip = self.strip_cols();
         let mut tasks: Vec<Strip<'_, T>> = Vec::new();
         let (mut y, mut rest, mut rest_residual) = (y0, out, residual);
         while !rest.is_empty() {
-            let rows = if y < self.r { self.r - y } else { self.block_rows - (y - self.r) % self.block_rows };
-            let len = (rows * w).min(rest.len());
+            let tile_rows = if y < self.r { self.r - y } else { self.block_rows - (y - self.r) % self.block_rows };
+            let len = (tile_rows * w).min(rest.len());
             let (tile, tail) = rest.split_at_mut(len);
             let (tile_residual, residual_tail) = match rest_residual {
                 Some(r) => {
@@ -483,7 +489,7 @@ impl Plan {
                 None => (None, None),
             };
             let first = tasks.len();
-            for x0 in (0..w).step_by(strip) {
+            for x0 in cols.clone().step_by(strip) {
                 let has_residual = tile_residual.is_some();
                 tasks.push(Strip { y0: y, x0, out: Vec::new(), residual: has_residual.then(Vec::new) });
             }
@@ -499,14 +505,22 @@ impl Plan {
                     }
                 }
             }
-            y += rows;
+            y += tile_rows;
             rest = tail;
             rest_residual = residual_tail;
         }
         // The product of S and the unit, once: every path that fits these
         // samples forms the same gain, and so the same bits.
         let gain = self.scale * unit;
-        tasks.into_par_iter().for_each(|task| self.fit_strip(source_row, gain, task));
+        // A unit below 1 is that of stored integers (1/255, 1/65535).
+        let integers = unit != 1.0;
+        tasks.into_par_iter().for_each(|task| match (integers, self.n) {
+            (true, _) => self.fit_strip_sliding(rows, gain, task),
+            (false, 3) => self.fit_strip_direct::<H, T, 3>(rows, gain, task),
+            (false, 5) => self.fit_strip_direct::<H, T, 5>(rows, gain, task),
+            (false, 7) => self.fit_strip_direct::<H, T, 7>(rows, gain, task),
+            (false, _) => self.fit_strip_blocked(rows, gain, task),
+        });
     }
 
     /// The source row of padded row p = y + j + r, through the y border.
@@ -515,40 +529,68 @@ impl Plan {
         self.borders.y.map(p as isize - self.r as isize, self.height)
     }
 
-    /// Columns per parallel task: whole segments, about 512 columns.
+    /// Columns per parallel task: about 512, and at least 8·N, so that
+    /// starting a strip's sums (N steps a row) costs at most an eighth of
+    /// the strip's work.
     fn strip_cols(&self) -> usize {
-        self.segment_cols * (STRIP_COLS / self.segment_cols).max(1)
+        STRIP_COLS.max(8 * self.n)
     }
 
-    /// Fits one strip: the output rows from `y0`, the columns from `x0`.
-    fn fit_strip<'a, H: Sample, T: FromNormal>(
+    /// The heights of columns `lo .. hi` of `src`, times `gain`, into
+    /// `padded`: those that `src` holds as they are, the others through
+    /// the x border (which the caller made sure maps them into `src`).
+    #[inline]
+    fn padded_row<H: Sample>(&self, src: RowRef<'_, H>, (lo, hi): (isize, isize), gain: f64, padded: &mut Vec<f64>) {
+        padded.clear();
+        let (a, b) = (lo - src.x0, hi - src.x0);
+        if a >= 0 && b <= src.values.len() as isize {
+            // Away from the borders: a slice, and a loop that vectorises.
+            padded.extend(src.values[a as usize..b as usize].iter().map(|&h| gain * h.to_f64()));
+        } else {
+            self.bordered_row(src, (lo, hi), gain, padded);
+        }
+    }
+
+    /// [`Self::padded_row`] where some column is not in `src`. Out of
+    /// line: only a row's first and last strips come here, and the hot
+    /// loop stays small.
+    #[inline(never)]
+    fn bordered_row<H: Sample>(&self, src: RowRef<'_, H>, (lo, hi): (isize, isize), gain: f64, padded: &mut Vec<f64>) {
+        let held = src.x0..src.x0 + src.values.len() as isize;
+        let (inside_lo, inside_hi) = (lo.max(held.start).min(hi), hi.min(held.end).max(lo));
+        let value = |u: isize| {
+            let at = if held.contains(&u) { u } else { self.borders.x.map(u, self.width) as isize };
+            gain * src.values[(at - src.x0) as usize].to_f64()
+        };
+        padded.extend((lo..inside_lo).map(value));
+        let inside = &src.values[(inside_lo - src.x0) as usize..(inside_hi - src.x0) as usize];
+        padded.extend(inside.iter().map(|&h| gain * h.to_f64()));
+        padded.extend((inside_hi..hi).map(value));
+    }
+
+    /// Fits one strip of stored integers by running sums. Sums of the
+    /// integers themselves are exact in f64 (below 2^53 for 16 bits and
+    /// N ≤ 63), so adding the entering texel and removing the leaving one
+    /// gives every texel exactly the sums of its own patch, wherever the
+    /// run started; the gain comes after, in the normals.
+    fn fit_strip_sliding<'a, H: Sample, T: FromNormal>(
         &self,
-        source_row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        rows: &SourceRows<'_, 'a, H>,
         gain: f64,
         strip: Strip<'_, T>,
     ) {
         let Strip { y0, x0, mut out, mut residual } = strip;
         let Some(first) = out.first() else { return };
-        let (n, r) = (self.n, self.r);
+        let n = self.n;
         let cols = x0..x0 + first.len();
         let w = cols.len();
-        let row_of = |p: usize| source_row(self.source_y(p));
-
-        // The reference c of each column: one texel per (block, segment).
-        let reference: Vec<f64> = cols
-            .clone()
-            .map(|x| {
-                let s0 = x - x % self.segment_cols;
-                // Column s0 is inside the image: its own value.
-                gain * row_of(y0 + r)[s0].to_f64()
-            })
-            .collect();
+        let row_of = |p: usize| rows(p as isize - self.r as isize);
 
         // Ring of the N rows' horizontal sums: slot p % N holds padded row p.
         let mut ring: Vec<RowSums> = (y0..y0 + n)
             .map(|p| {
                 let mut sums = RowSums::zeros(w);
-                self.horizontal_sums(row_of(p), gain, cols.clone(), &reference, &mut sums);
+                self.sliding_row_sums(row_of(p), cols.clone(), &mut sums);
                 sums
             })
             .collect();
@@ -556,121 +598,254 @@ impl Plan {
         let mut entering = RowSums::zeros(w);
         let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
 
-        // Vertical sums over the window, started from scratch at the block's top.
         let mut v = WindowSums::zeros(w);
         for j in 0..n {
-            let offset = j as f64 - r as f64;
-            let h = &ring[(y0 + j) % n];
-            v.add(h, offset);
+            v.add(&ring[(y0 + j) % n], j as f64 - self.r as f64);
         }
 
-        let (rf, r1) = (r as f64, r as f64 + 1.0);
+        let (rf, r1) = (self.r as f64, self.r as f64 + 1.0);
         for (k, out_row) in out.iter_mut().enumerate() {
             if k > 0 {
                 // Slide down one row: padded row p_in enters, p_out leaves.
                 let p_out = y0 + k - 1;
                 let p_in = p_out + n;
-                self.horizontal_sums(row_of(p_in), gain, cols.clone(), &reference, &mut entering);
+                self.sliding_row_sums(row_of(p_in), cols.clone(), &mut entering);
                 v.slide(&ring[p_out % n], &entering, rf, r1);
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
-            self.emit(&v, &mut normal, out_row);
+            self.emit(&v, gain, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, residual[k]);
+                self.emit_residual(&v, gain, residual[k]);
             }
         }
     }
 
-    /// Σz, Σiz, Σz² over each column's horizontal window of one source row,
-    /// z relative to the column's reference.
-    fn horizontal_sums<H: Sample>(
-        &self,
-        src: &[H],
-        gain: f64,
-        cols: Range<usize>,
-        reference: &[f64],
-        out: &mut RowSums,
-    ) {
-        // Disjoint borrows, and below slices of the segment's length: the
+    /// Σh, Σih, Σh² over each column's horizontal window of one source row
+    /// of integers, by a running sum along the strip.
+    fn sliding_row_sums<H: Sample>(&self, src: RowRef<'_, H>, cols: Range<usize>, out: &mut RowSums) {
+        // Disjoint borrows, and below slices of the strip's length: the
         // sliding loop then keeps every pointer in a register and has no
         // bounds checks (through `out`, it reloaded the planes' pointers
         // and lengths at every texel, 17 % more instructions).
-        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded } = out;
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, .. } = out;
         let (n, r) = (self.n, self.r);
         let (rf, r1) = (r as f64, r as f64 + 1.0);
-        // Indices into `out` and `reference` count from the strip's first column.
-        let base = cols.start;
-        for start in cols.clone().step_by(self.segment_cols) {
-            let end = (start + self.segment_cols).min(cols.end);
-            let (x0, x1) = (start - base, end - base);
-            let c = reference[x0];
-            // The segment's texels with their borders: padded[q] is column start + q − r.
-            padded.clear();
-            // `move`: gain and c by value, kept in registers (by reference,
-            // the loop reloaded them from memory at every texel).
-            let to_z = move |h: H| gain * h.to_f64() - c;
-            if start >= r && end + r <= src.len() {
-                // Away from the borders the columns are the source's own, in
-                // order: read as a slice, the loop vectorises.
-                padded.extend(src[start - r..end + r].iter().map(|&h| to_z(h)));
-            } else {
-                self.bordered_segment(src, start..end, (gain, c), padded);
+        let w = cols.len();
+        self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), 1.0, padded);
+        let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
+        for (q, &z) in padded[..n].iter().enumerate() {
+            s0 += z;
+            si += (q as f64 - rf) * z;
+            szz += z * z;
+        }
+        let (out_s0, out_si, out_szz) = (&mut out_s0[..w], &mut out_si[..w], &mut out_szz[..w]);
+        out_s0[0] = s0;
+        out_si[0] = si;
+        out_szz[0] = szz;
+        // Texel k (k ≥ 1): padded[k − 1] leaves the window, padded[k − 1 + n] enters it.
+        let slides = padded.iter().zip(&padded[n..]);
+        let outs = out_s0[1..].iter_mut().zip(&mut out_si[1..]).zip(&mut out_szz[1..]);
+        for ((&leaving, &entering), ((o0, oi), ozz)) in slides.zip(outs) {
+            s0 += entering - leaving;
+            si += rf * leaving + r1 * entering - s0;
+            szz += entering * entering - leaving * leaving;
+            *o0 = s0;
+            *oi = si;
+            *ozz = szz;
+        }
+    }
+
+    /// Fits one strip of floats with a small patch (N ≤ 7) by summing each
+    /// texel's patch outright, its values in order along the row and then
+    /// its rows in order: a texel's sums are made from its patch alone, the
+    /// same bits in whatever strip, tile or window it is computed. At this
+    /// size the sums take no more work than running sums, and the loops
+    /// run across the columns, so they vectorise.
+    fn fit_strip_direct<'a, H: Sample, T: FromNormal, const N: usize>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        gain: f64,
+        strip: Strip<'_, T>,
+    ) {
+        let Strip { y0, x0, mut out, mut residual } = strip;
+        let Some(first) = out.first() else { return };
+        let r = (N / 2) as isize;
+        let cols = x0..x0 + first.len();
+        let w = cols.len();
+        let row_sums = |v: isize, sums: &mut RowSums| self.direct_row_sums::<H, N>(rows(v), gain, cols.clone(), sums);
+        let mut cache = RowCache::new(N, w);
+        let mut v = WindowSums::zeros(w);
+        let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        for (k, out_row) in out.iter_mut().enumerate() {
+            let y = (y0 + k) as isize;
+            for j in 0..N as isize {
+                cache.get(y - r + j, &row_sums);
             }
-            let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
-            for (q, &z) in padded[..n].iter().enumerate() {
-                s0 += z;
-                si += (q as f64 - rf) * z;
-                szz += z * z;
-            }
-            let (seg_s0, seg_si, seg_szz) = (&mut out_s0[x0..x1], &mut out_si[x0..x1], &mut out_szz[x0..x1]);
-            seg_s0[0] = s0;
-            seg_si[0] = si;
-            seg_szz[0] = szz;
-            // Texel k (k ≥ 1) of the segment: padded[k − 1] leaves the
-            // window, padded[k − 1 + n] enters it.
-            let slides = padded.iter().zip(&padded[n..]);
-            let outs = seg_s0[1..].iter_mut().zip(&mut seg_si[1..]).zip(&mut seg_szz[1..]);
-            for ((&leaving, &entering), ((o0, oi), ozz)) in slides.zip(outs) {
-                s0 += entering - leaving;
-                si += rf * leaving + r1 * entering - s0;
-                szz += entering * entering - leaving * leaving;
-                *o0 = s0;
-                *oi = si;
-                *ozz = szz;
+            let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
+            v.sum_rows(&patch_rows);
+            self.emit(&v, 1.0, &mut normal, out_row);
+            if let Some(residual) = residual.as_mut() {
+                self.emit_residual(&v, 1.0, residual[k]);
             }
         }
     }
 
-    /// The z values of columns `segment.start − r … segment.end + r − 1`
-    /// of `src` into `padded`: those outside the image through the x
-    /// border, the rest as a slice. Out of line: only the first and last
-    /// segments of a row come here, and the hot loop stays small.
-    #[inline(never)]
-    fn bordered_segment<H: Sample>(
+    /// Σz, Σiz, Σz² (z = gain · h) over each column's horizontal window of
+    /// one source row, each window summed outright (see
+    /// [`Self::fit_strip_direct`]).
+    fn direct_row_sums<H: Sample, const N: usize>(
         &self,
-        src: &[H],
-        segment: Range<usize>,
-        (gain, c): (f64, f64),
-        padded: &mut Vec<f64>,
+        src: RowRef<'_, H>,
+        gain: f64,
+        cols: Range<usize>,
+        out: &mut RowSums,
     ) {
-        let to_z = |h: H| gain * h.to_f64() - c;
-        let r = self.r as isize;
-        let (lo, hi, w) = (segment.start as isize - r, segment.end as isize + r, self.width as isize);
-        let (inside_lo, inside_hi) = (lo.max(0), hi.min(w));
-        let outside = |x: isize| to_z(src[self.borders.x.map(x, self.width)]);
-        padded.extend((lo..inside_lo).map(outside));
-        padded.extend(src[inside_lo as usize..inside_hi as usize].iter().map(|&h| to_z(h)));
-        padded.extend((inside_hi..hi).map(outside));
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, squares, .. } = out;
+        let r = N / 2;
+        let w = cols.len();
+        self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), gain, padded);
+        // Σiz pairs the texels at ±d: Σ d·(z[r + d] − z[r − d]).
+        squares.clear();
+        squares.extend(padded.iter().map(|z| z * z));
+        let outs = out_s0[..w].iter_mut().zip(&mut out_si[..w]).zip(&mut out_szz[..w]);
+        for ((window, squares), ((o0, oi), ozz)) in padded.windows(N).zip(squares.windows(N)).zip(outs) {
+            let z: &[f64; N] = window.try_into().expect("windows of N");
+            let zz: &[f64; N] = squares.try_into().expect("windows of N");
+            let (mut s0, mut si, mut szz) = (z[0], z[r + 1] - z[r - 1], zz[0]);
+            for q in 1..N {
+                s0 += z[q];
+                szz += zz[q];
+            }
+            for d in 2..=r {
+                si += d as f64 * (z[r + d] - z[r - d]);
+            }
+            *o0 = s0;
+            *oi = si;
+            *ozz = szz;
+        }
+    }
+
+    /// Fits one strip of floats by sums over blocks aligned on the image
+    /// (van Herk, Gil–Werman). Output texel t of block k (x = kN + t,
+    /// 0 ≤ t < N) has the window [x − r, x + r]: the suffix of the values
+    /// [kN − r, kN + r] from x − r, plus the prefix of the next N values up
+    /// to x + r (empty for t = 0). Each is summed in a fixed order from
+    /// values of the patch alone, across and then down, so a texel's sums
+    /// are the same bits in whatever strip, tile or window it is computed
+    /// (running sums of floats would carry the rounding of wherever they
+    /// started); the cost per texel stays flat in N.
+    fn fit_strip_blocked<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        gain: f64,
+        strip: Strip<'_, T>,
+    ) {
+        let Strip { y0, x0, mut out, mut residual } = strip;
+        let Some(first) = out.first() else { return };
+        let (n, r) = (self.n, self.r as isize);
+        let cols = x0..x0 + first.len();
+        let w = cols.len();
+        let y_end = y0 + out.len();
+
+        // Horizontal sums of the source rows a block of output rows and
+        // the next one read (2N rows), in slot v mod 2N.
+        let mut cache = RowCache::new(2 * n, w);
+        let row_sums = |v: isize, sums: &mut RowSums| self.blocked_row_sums(rows(v), gain, cols.clone(), sums);
+        let mut suffix: Vec<WindowSums> = (0..n).map(|_| WindowSums::zeros(w)).collect();
+        let (mut running, mut prefix, mut v) = (WindowSums::zeros(w), WindowSums::zeros(w), WindowSums::zeros(w));
+        let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+
+        for block in y0 / n..=(y_end - 1) / n {
+            let top = (block * n) as isize;
+            let ts = y0.saturating_sub(block * n)..(y_end - block * n).min(n);
+            // Weights j relative to o = top + r + 1, the next block's first
+            // source row; output row t's own offsets are j − (t − r − 1).
+            let o = top + r + 1;
+            // Suffixes: rows top + r down to top + t − r.
+            running.clear();
+            for u in (top + ts.start as isize - r..=top + r).rev() {
+                running.add(cache.get(u, &row_sums), (u - o) as f64);
+                let t = (u - top + r) as usize;
+                if ts.contains(&t) {
+                    suffix[t].copy_from(&running);
+                }
+            }
+            // Prefixes: rows top + r + 1 up to top + r + t.
+            prefix.clear();
+            let mut through = top + r;
+            for t in ts.clone() {
+                while through < top + r + t as isize {
+                    through += 1;
+                    prefix.add(cache.get(through, &row_sums), (through - o) as f64);
+                }
+                v.combine(&suffix[t], &prefix, (t as isize - r - 1) as f64);
+                let k = block * n + t - y0;
+                self.emit(&v, 1.0, &mut normal, out[k]);
+                if let Some(residual) = residual.as_mut() {
+                    self.emit_residual(&v, 1.0, residual[k]);
+                }
+            }
+        }
+    }
+
+    /// Σz, Σiz, Σz² (z = gain · h) over each column's horizontal window of
+    /// one source row, from block-aligned suffix and prefix sums (see
+    /// [`Self::fit_strip_blocked`]).
+    fn blocked_row_sums<H: Sample>(&self, src: RowRef<'_, H>, gain: f64, cols: Range<usize>, out: &mut RowSums) {
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, suffix, .. } = out;
+        let (n, r) = (self.n, self.r);
+        self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), gain, padded);
+        // Weights relative to the next block's first value (q = 2r + 1).
+        let weight = |q: usize| q as f64 - (2 * r + 1) as f64;
+        for block in cols.start / n..=(cols.end - 1) / n {
+            let bx = block * n;
+            let ts = cols.start.saturating_sub(bx)..(cols.end - bx).min(n);
+            // Value q of the block (column bx − r + q) is padded[bx + q − cols.start].
+            let z = &padded[bx + ts.start - cols.start..];
+            let at = |q: usize| z[q - ts.start];
+            // Suffixes: values q = 2r down to t.
+            suffix.clear();
+            suffix.resize(n, [0.0; 3]);
+            let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
+            for q in (ts.start..=2 * r).rev() {
+                let zq = at(q);
+                s0 += zq;
+                si += weight(q) * zq;
+                szz += zq * zq;
+                if ts.contains(&q) {
+                    suffix[q] = [s0, si, szz];
+                }
+            }
+            // Prefixes: values q = 2r + 1 up to 2r + t.
+            let (mut p0, mut pi, mut pzz) = (0.0, 0.0, 0.0);
+            let mut through = 2 * r;
+            for t in ts.clone() {
+                while through < 2 * r + t {
+                    through += 1;
+                    let zq = at(through);
+                    p0 += zq;
+                    pi += weight(through) * zq;
+                    pzz += zq * zq;
+                }
+                let [a0, ai, azz] = suffix[t];
+                let h0 = a0 + p0;
+                let x = bx + t - cols.start;
+                out_s0[x] = h0;
+                out_si[x] = (ai + pi) - (t as f64 - r as f64 - 1.0) * h0;
+                out_szz[x] = azz + pzz;
+            }
+        }
     }
 
     /// Turns the window sums of one row into normals, through `normal`
     /// (x, y and z planes): the fit's loop then stores whole vectors, and
-    /// the texel type's conversion is a loop of its own.
-    fn emit<T: FromNormal>(&self, v: &WindowSums, normal: &mut [Vec<f64>; 3], out: &mut [T]) {
+    /// the texel type's conversion is a loop of its own. The sums are in
+    /// units of z / `gain` (stored integers), or of z (`gain` 1).
+    fn emit<T: FromNormal>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3], out: &mut [T]) {
         // One loop per fit, so the per-texel work has no branch and vectorises.
         match self.fit {
-            Fit::Orthogonal => self.emit_with::<true>(v, normal),
-            Fit::Vertical => self.emit_with::<false>(v, normal),
+            Fit::Orthogonal => self.emit_with::<true>(v, gain, normal),
+            Fit::Vertical => self.emit_with::<false>(v, gain, normal),
         }
         let [nx, ny, nz] = normal;
         for (((texel, &x), &y), &z) in out.iter_mut().zip(nx.iter()).zip(ny.iter()).zip(nz.iter()) {
@@ -678,13 +853,24 @@ impl Plan {
         }
     }
 
-    fn emit_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, normal: &mut [Vec<f64>; 3]) {
-        let inv_n2 = 1.0 / (self.n * self.n) as f64;
+    /// Czz = (N²·Σz² − (Σz)²) / N² times the gain², from one column's
+    /// sums: for stored integers the numerator is exact (below 2^53 for
+    /// 8 bits, and for 16 bits up to N = 37; beyond, A dwarfs its
+    /// rounding), and it does not cancel as Σz² − (Σz)²/N² would.
+    #[inline(always)]
+    fn czz(n2: f64, czz_gain: f64, s0: f64, szz: f64) -> f64 {
+        ((n2 * szz - s0 * s0) * czz_gain).max(0.0)
+    }
+
+    fn emit_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3]) {
+        let n2 = (self.n * self.n) as f64;
+        let czz_gain = gain * gain / n2;
+        let (gx, gy) = (gain, self.sigma * gain);
         let [nx, ny, nz] = normal;
         let w = nx.len();
         let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
         let (ny, nz) = (&mut ny[..w], &mut nz[..w]);
-        let czz_at = |x: usize| (szz[x] - s0[x] * s0[x] * inv_n2).max(0.0);
+        let czz_at = |x: usize| Self::czz(n2, czz_gain, s0[x], szz[x]);
         for start in (0..w).step_by(EMIT_CHUNK) {
             let texels = start..(start + EMIT_CHUNK).min(w);
             // Only a patch whose heights spread more than its columns and
@@ -694,12 +880,12 @@ impl Plan {
             let steep = ORTHOGONAL && texels.clone().any(|x| czz_at(x) > self.a);
             if steep {
                 for x in texels {
-                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, si[x], self.sigma * sj[x], czz_at(x));
+                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz_at(x));
                     [nx[x], ny[x], nz[x]] = n;
                 }
             } else {
                 for x in texels {
-                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, si[x], self.sigma * sj[x], czz_at(x));
+                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, gx * si[x], gy * sj[x], czz_at(x));
                     [nx[x], ny[x], nz[x]] = n;
                 }
             }
@@ -709,20 +895,21 @@ impl Plan {
     /// The RMS distance of each texel's patch points from its fitted plane,
     /// in surface units, from the window sums of one row. A loop of its
     /// own, run only when asked for, so the normals' loop stays as it is.
-    fn emit_residual(&self, v: &WindowSums, out: &mut [f32]) {
+    fn emit_residual(&self, v: &WindowSums, gain: f64, out: &mut [f32]) {
         match self.fit {
-            Fit::Orthogonal => self.emit_residual_with::<true>(v, out),
-            Fit::Vertical => self.emit_residual_with::<false>(v, out),
+            Fit::Orthogonal => self.emit_residual_with::<true>(v, gain, out),
+            Fit::Vertical => self.emit_residual_with::<false>(v, gain, out),
         }
     }
 
-    fn emit_residual_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, out: &mut [f32]) {
-        let inv_n2 = 1.0 / (self.n * self.n) as f64;
+    fn emit_residual_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, out: &mut [f32]) {
+        let n2 = (self.n * self.n) as f64;
+        let (inv_n2, czz_gain) = (1.0 / n2, gain * gain / n2);
         let w = out.len();
         let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
         for x in 0..w {
-            let czz = (szz[x] - s0[x] * s0[x] * inv_n2).max(0.0);
-            let sum = squared_distance_sum::<ORTHOGONAL>(self.a, si[x], sj[x], czz);
+            let czz = Self::czz(n2, czz_gain, s0[x], szz[x]);
+            let sum = squared_distance_sum::<ORTHOGONAL>(self.a, gain * si[x], gain * sj[x], czz);
             out[x] = (sum * inv_n2).sqrt() as f32;
         }
     }
@@ -783,19 +970,72 @@ fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(a: f64, cx: f64, 
     if flat { [0.0, 0.0, 1.0] } else { n }
 }
 
+/// A source row as the fit reads it: heights, and the image column of the
+/// first (a window's rows start left of the image's edge, or inside it).
+struct RowRef<'a, H> {
+    values: &'a [H],
+    x0: isize,
+}
+
+impl<H> Clone for RowRef<'_, H> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<H> Copy for RowRef<'_, H> {}
+
+/// Source row v of the fit, for every v its patches reach: an image row,
+/// or (beyond the image's top and bottom) the row the y border gives.
+type SourceRows<'s, 'a, H> = dyn Fn(isize) -> RowRef<'a, H> + Sync + 's;
+
 /// One row's horizontal sums per column, as planes so the loops vectorise.
 struct RowSums {
     s0: Vec<f64>,
     si: Vec<f64>,
     szz: Vec<f64>,
-    /// Scratch: one segment's heights with their borders.
+    /// Scratch: the row's heights with their borders.
     padded: Vec<f64>,
+    /// Scratch: a block's suffix sums (floats).
+    suffix: Vec<[f64; 3]>,
+    /// Scratch: the squares of `padded` (floats).
+    squares: Vec<f64>,
 }
 
 impl RowSums {
     fn zeros(width: usize) -> Self {
         let z = vec![0.0; width];
-        RowSums { s0: z.clone(), si: z.clone(), szz: z, padded: Vec::new() }
+        RowSums { s0: z.clone(), si: z.clone(), szz: z, padded: Vec::new(), suffix: Vec::new(), squares: Vec::new() }
+    }
+}
+
+/// The horizontal sums of the last source rows read, by row: slot v mod
+/// the slots holds row v.
+struct RowCache {
+    rows: Vec<(isize, RowSums)>,
+}
+
+impl RowCache {
+    fn new(slots: usize, width: usize) -> Self {
+        RowCache { rows: (0..slots).map(|_| (isize::MIN, RowSums::zeros(width))).collect() }
+    }
+
+    /// Row v's sums, which [`Self::get`] made last.
+    fn held(&self, v: isize) -> &RowSums {
+        let (held, sums) = &self.rows[v.rem_euclid(self.rows.len() as isize) as usize];
+        debug_assert_eq!(*held, v);
+        sums
+    }
+
+    /// Row v's sums, made by `fill` unless held.
+    fn get(&mut self, v: isize, fill: &impl Fn(isize, &mut RowSums)) -> &RowSums {
+        let slot = v.rem_euclid(self.rows.len() as isize) as usize;
+        let (held, sums) = &mut self.rows[slot];
+        if *held != v {
+            fill(v, sums);
+            *held = v;
+        }
+        sums
     }
 }
 
@@ -811,6 +1051,62 @@ impl WindowSums {
     fn zeros(width: usize) -> Self {
         let z = vec![0.0; width];
         WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z }
+    }
+
+    fn clear(&mut self) {
+        for plane in [&mut self.s0, &mut self.si, &mut self.sj, &mut self.szz] {
+            plane.fill(0.0);
+        }
+    }
+
+    fn copy_from(&mut self, other: &WindowSums) {
+        self.s0.copy_from_slice(&other.s0);
+        self.si.copy_from_slice(&other.si);
+        self.sj.copy_from_slice(&other.sj);
+        self.szz.copy_from_slice(&other.szz);
+    }
+
+    /// The sums of a suffix and a prefix of rows, Σj·z moved by `shift`
+    /// texels' weight (the rows' weights were counted from another row).
+    fn combine(&mut self, a: &WindowSums, b: &WindowSums, shift: f64) {
+        let w = self.s0.len();
+        let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
+        let (a0, ai, aj, azz) = (&a.s0[..w], &a.si[..w], &a.sj[..w], &a.szz[..w]);
+        let (b0, bi, bj, bzz) = (&b.s0[..w], &b.si[..w], &b.sj[..w], &b.szz[..w]);
+        for x in 0..w {
+            s0[x] = a0[x] + b0[x];
+            si[x] = ai[x] + bi[x];
+            sj[x] = (aj[x] + bj[x]) - shift * s0[x];
+            szz[x] = azz[x] + bzz[x];
+        }
+    }
+
+    /// The sums of the patch's N rows, `rows[j]` at vertical offset
+    /// j − N/2, added in order.
+    fn sum_rows<const N: usize>(&mut self, rows: &[&RowSums; N]) {
+        let w = self.s0.len();
+        let r = N / 2;
+        let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
+        let h0: [&[f64]; N] = std::array::from_fn(|j| &rows[j].s0[..w]);
+        let hi: [&[f64]; N] = std::array::from_fn(|j| &rows[j].si[..w]);
+        let hzz: [&[f64]; N] = std::array::from_fn(|j| &rows[j].szz[..w]);
+        // A pass per row and plane, each a loop of two slices that
+        // vectorises (the sums stay in the core's first cache); every
+        // texel's additions keep the rows' order. Σjz pairs the rows at ±d,
+        // as the row sums pair the columns.
+        for (out, h) in [(&mut *s0, &h0), (&mut *si, &hi), (&mut *szz, &hzz)] {
+            out.iter_mut().zip(h[0]).zip(h[1]).for_each(|((a, p), q)| *a = p + q);
+        }
+        for j in 2..N {
+            s0.iter_mut().zip(h0[j]).for_each(|(a, b)| *a += b);
+            si.iter_mut().zip(hi[j]).for_each(|(a, b)| *a += b);
+            szz.iter_mut().zip(hzz[j]).for_each(|(a, b)| *a += b);
+        }
+        sj.iter_mut().zip(h0[r + 1]).zip(h0[r - 1]).for_each(|((a, p), m)| *a = p - m);
+        for d in 2..=r {
+            let k = d as f64;
+            sj.iter_mut().zip(h0[r + d]).zip(h0[r - d]).for_each(|((a, p), m)| *a += k * (p - m));
+        }
     }
 
     /// Adds the row sums `h` of the window's row at vertical offset `j`.
@@ -857,7 +1153,8 @@ mod tests {
         let mut plan = Plan::new(w, h, opts).unwrap();
         plan.block_rows = block_rows;
         let mut out = vec![[0.0f32; 3]; w * h];
-        plan.fit_rows(&|y: usize| &heights[y * w..][..w], 1.0, 0, &mut out, None);
+        let rows = |v: isize| RowRef { values: &heights[plan.borders.y.map(v, h) * w..][..w], x0: 0 };
+        plan.fit_rows(&rows, 1.0, (0, 0..w), &mut out, None);
         out
     }
 
@@ -925,10 +1222,10 @@ mod tests {
             v.szz[x] = czz + v.s0[x] * v.s0[x] / 9.0;
         }
         let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
-        plan.emit_with::<true>(&v, &mut normal);
+        plan.emit_with::<true>(&v, 1.0, &mut normal);
         let mut cancelling = 0;
         for x in 0..w {
-            let czz = (v.szz[x] - v.s0[x] * v.s0[x] * (1.0 / 9.0)).max(0.0);
+            let czz = ((9.0 * v.szz[x] - v.s0[x] * v.s0[x]) * (1.0 / 9.0)).max(0.0);
             assert_eq!(czz > plan.a, steep(x), "texel {x}: czz {czz}");
             let with_division = normal_from_sums::<true, true>(plan.a, v.si[x], plan.sigma * v.sj[x], czz);
             let got = [normal[0][x], normal[1][x], normal[2][x]];
