@@ -752,7 +752,7 @@ impl Plan {
         let mut cache = RowCache::new(2 * n, w);
         let row_sums = |v: isize, sums: &mut RowSums| self.blocked_row_sums(rows(v), gain, cols.clone(), sums);
         let mut suffix: Vec<WindowSums> = (0..n).map(|_| WindowSums::zeros(w)).collect();
-        let (mut running, mut prefix, mut v) = (WindowSums::zeros(w), WindowSums::zeros(w), WindowSums::zeros(w));
+        let (zero, mut prefix, mut v) = (WindowSums::zeros(w), WindowSums::zeros(w), WindowSums::zeros(w));
         let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
 
         for block in y0 / n..=(y_end - 1) / n {
@@ -761,24 +761,38 @@ impl Plan {
             // Weights j relative to o = top + r + 1, the next block's first
             // source row; output row t's own offsets are j − (t − r − 1).
             let o = top + r + 1;
-            // Suffixes: rows top + r down to top + t − r.
-            running.clear();
-            for u in (top + ts.start as isize - r..=top + r).rev() {
-                running.add(cache.get(u, &row_sums), (u - o) as f64);
-                let t = (u - top + r) as usize;
-                if ts.contains(&t) {
-                    suffix[t].copy_from(&running);
-                }
+            // Suffixes, in place: suffix[t] = suffix[t + 1] + row top + t − r
+            // (rows top + r down to top + t − r, the last alone).
+            for t in (ts.start..n).rev() {
+                let u = top + t as isize - r;
+                let h = cache.get(u, &row_sums);
+                let (lower, upper) = suffix.split_at_mut(t + 1);
+                let previous = upper.first().unwrap_or(&zero);
+                lower[t].set_sum(previous, h, (u - o) as f64);
             }
-            // Prefixes: rows top + r + 1 up to top + r + t.
+            // Prefixes: rows top + r + 1 up to top + r + t; the row that
+            // completes one goes in with the combination, in one pass.
             prefix.clear();
             let mut through = top + r;
             for t in ts.clone() {
-                while through < top + r + t as isize {
+                let shift = (t as isize - r - 1) as f64;
+                let wanted = top + r + t as isize;
+                while through + 1 < wanted {
                     through += 1;
                     prefix.add(cache.get(through, &row_sums), (through - o) as f64);
                 }
-                v.combine(&suffix[t], &prefix, (t as isize - r - 1) as f64);
+                if through < wanted {
+                    through += 1;
+                    prefix.add_then_combine(
+                        cache.get(through, &row_sums),
+                        (through - o) as f64,
+                        &suffix[t],
+                        shift,
+                        &mut v,
+                    );
+                } else {
+                    v.combine(&suffix[t], &prefix, shift);
+                }
                 let k = block * n + t - y0;
                 self.emit(&v, 1.0, &mut normal, out[k]);
                 if let Some(residual) = residual.as_mut() {
@@ -792,42 +806,51 @@ impl Plan {
     /// one source row, from block-aligned suffix and prefix sums (see
     /// [`Self::fit_strip_blocked`]).
     fn blocked_row_sums<H: Sample>(&self, src: RowRef<'_, H>, gain: f64, cols: Range<usize>, out: &mut RowSums) {
-        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, suffix, .. } = out;
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, suffix, prefix, .. } = out;
         let (n, r) = (self.n, self.r);
         self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), gain, padded);
         // Weights relative to the next block's first value (q = 2r + 1).
         let weight = |q: usize| q as f64 - (2 * r + 1) as f64;
+        suffix.resize(n, [0.0; 3]);
+        prefix.resize(n, [0.0; 3]);
         for block in cols.start / n..=(cols.end - 1) / n {
             let bx = block * n;
             let ts = cols.start.saturating_sub(bx)..(cols.end - bx).min(n);
             // Value q of the block (column bx − r + q) is padded[bx + q − cols.start].
             let z = &padded[bx + ts.start - cols.start..];
             let at = |q: usize| z[q - ts.start];
-            // Suffixes: values q = 2r down to t.
-            suffix.clear();
-            suffix.resize(n, [0.0; 3]);
-            let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
-            for q in (ts.start..=2 * r).rev() {
-                let zq = at(q);
-                s0 += zq;
-                si += weight(q) * zq;
-                szz += zq * zq;
-                if ts.contains(&q) {
-                    suffix[q] = [s0, si, szz];
-                }
-            }
-            // Prefixes: values q = 2r + 1 up to 2r + t.
+            // The suffixes (values q = 2r down to t) and the prefixes
+            // (values q = 2r + 1 up to 2r + t) in one loop while both run:
+            // six chains of additions side by side rather than three.
+            let (suffix_steps, prefix_steps) = (n - ts.start, ts.end.saturating_sub(1));
+            let (mut a0, mut ai, mut azz) = (0.0, 0.0, 0.0);
             let (mut p0, mut pi, mut pzz) = (0.0, 0.0, 0.0);
-            let mut through = 2 * r;
-            for t in ts.clone() {
-                while through < 2 * r + t {
-                    through += 1;
-                    let zq = at(through);
-                    p0 += zq;
-                    pi += weight(through) * zq;
-                    pzz += zq * zq;
-                }
-                let [a0, ai, azz] = suffix[t];
+            let mut suffix_step = |i: usize| {
+                let q = 2 * r - i;
+                let zq = at(q);
+                a0 += zq;
+                ai += weight(q) * zq;
+                azz += zq * zq;
+                suffix[q] = [a0, ai, azz];
+            };
+            let mut prefix_step = |i: usize| {
+                let q = 2 * r + 1 + i;
+                let zq = at(q);
+                p0 += zq;
+                pi += weight(q) * zq;
+                pzz += zq * zq;
+                prefix[i + 1] = [p0, pi, pzz];
+            };
+            let both = suffix_steps.min(prefix_steps);
+            for i in 0..both {
+                suffix_step(i);
+                prefix_step(i);
+            }
+            (both..suffix_steps).for_each(&mut suffix_step);
+            (both..prefix_steps).for_each(&mut prefix_step);
+            prefix[0] = [0.0; 3];
+            for t in ts {
+                let ([a0, ai, azz], [p0, pi, pzz]) = (suffix[t], prefix[t]);
                 let h0 = a0 + p0;
                 let x = bx + t - cols.start;
                 out_s0[x] = h0;
@@ -996,8 +1019,9 @@ struct RowSums {
     szz: Vec<f64>,
     /// Scratch: the row's heights with their borders.
     padded: Vec<f64>,
-    /// Scratch: a block's suffix sums (floats).
+    /// Scratch: a block's suffix and prefix sums (floats).
     suffix: Vec<[f64; 3]>,
+    prefix: Vec<[f64; 3]>,
     /// Scratch: the squares of `padded` (floats).
     squares: Vec<f64>,
 }
@@ -1005,7 +1029,15 @@ struct RowSums {
 impl RowSums {
     fn zeros(width: usize) -> Self {
         let z = vec![0.0; width];
-        RowSums { s0: z.clone(), si: z.clone(), szz: z, padded: Vec::new(), suffix: Vec::new(), squares: Vec::new() }
+        RowSums {
+            s0: z.clone(),
+            si: z.clone(),
+            szz: z,
+            padded: Vec::new(),
+            suffix: Vec::new(),
+            prefix: Vec::new(),
+            squares: Vec::new(),
+        }
     }
 }
 
@@ -1059,13 +1091,6 @@ impl WindowSums {
         }
     }
 
-    fn copy_from(&mut self, other: &WindowSums) {
-        self.s0.copy_from_slice(&other.s0);
-        self.si.copy_from_slice(&other.si);
-        self.sj.copy_from_slice(&other.sj);
-        self.szz.copy_from_slice(&other.szz);
-    }
-
     /// The sums of a suffix and a prefix of rows, Σj·z moved by `shift`
     /// texels' weight (the rows' weights were counted from another row).
     fn combine(&mut self, a: &WindowSums, b: &WindowSums, shift: f64) {
@@ -1106,6 +1131,40 @@ impl WindowSums {
         for d in 2..=r {
             let k = d as f64;
             sj.iter_mut().zip(h0[r + d]).zip(h0[r - d]).for_each(|((a, p), m)| *a += k * (p - m));
+        }
+    }
+
+    /// `previous` plus the row sums `h` at vertical offset `j`.
+    fn set_sum(&mut self, previous: &WindowSums, h: &RowSums, j: f64) {
+        let w = self.s0.len();
+        let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
+        let (p0, pi, pj, pzz) = (&previous.s0[..w], &previous.si[..w], &previous.sj[..w], &previous.szz[..w]);
+        let (h0, hi, hzz) = (&h.s0[..w], &h.si[..w], &h.szz[..w]);
+        for x in 0..w {
+            s0[x] = p0[x] + h0[x];
+            si[x] = pi[x] + hi[x];
+            sj[x] = pj[x] + j * h0[x];
+            szz[x] = pzz[x] + hzz[x];
+        }
+    }
+
+    /// Adds the row sums `h` (offset `j`) to these prefix sums, and writes
+    /// `out` = `suffix` + them, as [`Self::combine`] does, in one pass.
+    fn add_then_combine(&mut self, h: &RowSums, j: f64, suffix: &WindowSums, shift: f64, out: &mut WindowSums) {
+        let w = self.s0.len();
+        let (p0, pi, pj, pzz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
+        let (h0, hi, hzz) = (&h.s0[..w], &h.si[..w], &h.szz[..w]);
+        let (a0, ai, aj, azz) = (&suffix.s0[..w], &suffix.si[..w], &suffix.sj[..w], &suffix.szz[..w]);
+        let (o0, oi, oj, ozz) = (&mut out.s0[..w], &mut out.si[..w], &mut out.sj[..w], &mut out.szz[..w]);
+        for x in 0..w {
+            p0[x] += h0[x];
+            pi[x] += hi[x];
+            pj[x] += j * h0[x];
+            pzz[x] += hzz[x];
+            o0[x] = a0[x] + p0[x];
+            oi[x] = ai[x] + pi[x];
+            oj[x] = (aj[x] + pj[x]) - shift * o0[x];
+            ozz[x] = azz[x] + pzz[x];
         }
     }
 
