@@ -21,7 +21,8 @@ fn main() {
         let mut dct_planner = DctPlanner::<f64>::new();
         let dct1 = dct_planner.plan_dct1(n);
         let dst1 = dct_planner.plan_dst1(n - 2);
-        let (mut ext, mut spectrum, mut scratch) = (r2c.make_input_vec(), r2c.make_output_vec(), r2c.make_scratch_vec());
+        let (mut ext, mut spectrum, mut scratch) =
+            (r2c.make_input_vec(), r2c.make_output_vec(), r2c.make_scratch_vec());
         let mut row = vec![0.0; n];
         let mut dct_scratch = vec![0.0; dct1.get_scratch_len().max(dst1.get_scratch_len())];
         let (mut fft_even, mut fft_odd, mut dct_even, mut dct_odd) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
@@ -46,9 +47,8 @@ fn main() {
                 // rustdct's DCT-I is the even extension's FFT over 2 (its
                 // ends weighted a half): compare the bins.
                 if round == 0 {
-                    for (k, (&f, &d)) in even_fft.iter().zip(&row).enumerate() {
+                    for (&f, &d) in even_fft.iter().zip(&row) {
                         worst = worst.max((f - 2.0 * d).abs() / (1.0 + f.abs()));
-                        let _ = k;
                     }
                 }
 
