@@ -78,6 +78,14 @@ impl FromNormal for [f32; 3] {
     }
 }
 
+/// The normal itself, in f64.
+impl FromNormal for [f64; 3] {
+    #[inline(always)]
+    fn from_normal(n: [f64; 3]) -> Self {
+        n
+    }
+}
+
 /// 2⁵²: adding it to an x in [0, 2⁵²) leaves round(x) (to nearest, ties
 /// to even) in the low bits of the sum's mantissa.
 const ROUND_MAGIC: f64 = 4_503_599_627_370_496.0;
@@ -88,14 +96,6 @@ const ROUND_MAGIC: f64 = 4_503_599_627_370_496.0;
 // (n + 1) · (2^bits − 1) / 2 lies in [0, 2^bits − 1] for |n| ≤ 1; its ties
 // (x.5 exactly) fall only at n = 0, where nearest-even gives 128 and 32768,
 // as rounding half up does.
-/// The normal itself, in f64.
-impl FromNormal for [f64; 3] {
-    #[inline(always)]
-    fn from_normal(n: [f64; 3]) -> Self {
-        n
-    }
-}
-
 impl FromNormal for [u8; 3] {
     #[inline]
     fn from_normal(n: [f64; 3]) -> Self {
@@ -901,9 +901,6 @@ mod tests {
         out
     }
 
-    /// Blocks of a few rows, as a very wide image gets, and taller ones, as
-    /// a narrow image gets: the sums restart at other rows, the normals are
-    /// the same up to rounding.
     /// The patch moments of the sliding sums against the sums written out
     /// over each N×N patch, through the borders' index maps.
     #[test]
@@ -949,6 +946,9 @@ mod tests {
         }
     }
 
+    /// Blocks of a few rows, as a very wide image gets, and taller ones, as
+    /// a narrow image gets: the sums restart at other rows, the normals are
+    /// the same up to rounding.
     #[test]
     fn blocks_of_any_height_give_the_same_normals() {
         let (w, h) = (150, 70);

@@ -62,12 +62,15 @@ pub fn run(args: &HeightArgs) -> Result<usize, Failure> {
 impl Plan<'_> {
     fn one(&self, job: &Job, turn: &Turn) -> Result<Outcome, Failure> {
         let input = &job.input;
-        // The name's extension is the format's: the one of -o, else --format's, else exr.
+        // The name's extension is the format's (the library's rule: -o's,
+        // else --format's, else EXR; run() has refused a -o it cannot write).
         let named = match &self.destination {
             Destination::File(path) => Some(path.as_path()),
             _ => None,
         };
-        let ext = self.conversion.output_format(named).map_or("exr", |f| f.extension());
+        let format =
+            self.conversion.output_format(named).map_err(|e| Failure::file(named.unwrap_or(input.name()), e))?;
+        let ext = format.extension();
         let target = self.destination.path_in(input, &job.subfolder, &format!("{}{SUFFIX}.{ext}", input.stem()));
         if let Some(path) = &target {
             turn.claim(input, &[path])?;
