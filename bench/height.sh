@@ -48,3 +48,5 @@ row "--fit vertical" --fit vertical
 "$bin" convert "$h" -o "$work/n$size.exr" -s 8 --fit vertical --border mirror
 row "--fit vertical --border mirror" --fit vertical --border mirror
 row "--model generic (of the vertical, mirror map)" --model generic --border mirror
+"$bin" convert "$h" -o "$work/n$size.exr" -s 8 --border mirror
+row "--border mirror (orthogonal)" --border mirror

@@ -892,7 +892,7 @@ impl Job<'_> {
 
 /// Writes to a file atomically, or assembles the bytes in memory (EXR
 /// seeks while writing) and gives them to a writer.
-fn write_to(out: Output<'_>, encode: impl FnOnce(&mut dyn WriteSeek) -> Result<()>) -> Result<()> {
+pub(crate) fn write_to(out: Output<'_>, encode: impl FnOnce(&mut dyn WriteSeek) -> Result<()>) -> Result<()> {
     match out {
         // Into the file itself, which seeks as EXR needs: no copy of the
         // encoded image in memory.
@@ -906,7 +906,7 @@ fn write_to(out: Output<'_>, encode: impl FnOnce(&mut dyn WriteSeek) -> Result<(
 }
 
 /// A writer that seeks, as a trait object.
-trait WriteSeek: Write + Seek {}
+pub(crate) trait WriteSeek: Write + Seek {}
 impl<T: Write + Seek> WriteSeek for T {}
 
 /// Writes `bytes` and flushes.

@@ -86,6 +86,14 @@ impl FromNormal for [f32; 3] {
     }
 }
 
+/// The normal itself, in f64.
+impl FromNormal for [f64; 3] {
+    #[inline(always)]
+    fn from_normal(n: [f64; 3]) -> Self {
+        n
+    }
+}
+
 /// 2⁵²: adding it to an x in [0, 2⁵²) leaves round(x) (to nearest, ties
 /// to even) in the low bits of the sum's mantissa.
 const ROUND_MAGIC: f64 = 4_503_599_627_370_496.0;
@@ -358,6 +366,25 @@ impl BandFit {
     }
 }
 
+impl BandFit {
+    /// The patch moments of the band `rows` instead of its normals: per
+    /// texel [Cx, Cy, Czz] = [Σ i·z, Σ j·z, Σ (z − z̄)²] over its N×N patch
+    /// (z = the row value × the gain; j down, whatever the convention), by
+    /// the same sliding sums. The height inverse re-fits its heights with
+    /// these.
+    pub(crate) fn moments<'a>(
+        &mut self,
+        rows: Range<usize>,
+        row: &(dyn Fn(usize) -> &'a [f64] + Sync),
+        out: &mut [[f64; 3]],
+    ) -> Result<()> {
+        self.plan.moments = true;
+        let done = self.fit_band(rows, row, out);
+        self.plan.moments = false;
+        done
+    }
+}
+
 /// `width * height`, refusing zero sizes and overflow.
 pub(crate) fn checked_len(width: usize, height: usize) -> Result<usize> {
     if width == 0 || height == 0 {
@@ -423,6 +450,9 @@ struct Plan {
     borders: Borders,
     height: usize,
     block_rows: usize,
+    /// Emit each texel's patch moments [Cx, Cy, Czz] instead of its normal
+    /// (the height inverse's re-fit, [`BandFit::moments`]).
+    moments: bool,
 }
 
 impl Plan {
@@ -447,6 +477,7 @@ impl Plan {
             borders: opts.borders,
             height,
             block_rows,
+            moments: false,
         })
     }
 
@@ -865,6 +896,16 @@ impl Plan {
     /// the texel type's conversion is a loop of its own. The sums are in
     /// units of z / `gain` (stored integers), or of z (`gain` 1).
     fn emit<T: FromNormal>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3], out: &mut [T]) {
+        if self.moments {
+            let n2 = (self.n * self.n) as f64;
+            let czz_gain = gain * gain / n2;
+            let w = out.len();
+            let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+            for (x, texel) in out.iter_mut().enumerate() {
+                *texel = T::from_normal([gain * si[x], gain * sj[x], Self::czz(n2, czz_gain, s0[x], szz[x])]);
+            }
+            return;
+        }
         // One loop per fit, so the per-texel work has no branch and vectorises.
         match self.fit {
             Fit::Orthogonal => self.emit_with::<true>(v, gain, normal),
@@ -1215,6 +1256,51 @@ mod tests {
         let rows = |v: isize| RowRef { values: &heights[plan.borders.y.map(v, h) * w..][..w], x0: 0 };
         plan.fit_rows(&rows, 1.0, (0, 0..w), &mut out, None);
         out
+    }
+
+    /// The patch moments of the sliding sums against the sums written out
+    /// over each N×N patch, through the borders' index maps.
+    #[test]
+    fn moments_are_the_patch_sums() {
+        let (w, h) = (37, 23);
+        let z: Vec<f64> = (0..w * h).map(|k| ((k * 7919) % 1009) as f64 * 0.013 + (k % w) as f64 * 0.5).collect();
+        for (n, bx, by) in
+            [(3, Border::Wrap, Border::Mirror), (5, Border::Mirror, Border::Clamp), (7, Border::Clamp, Border::Wrap)]
+        {
+            let opts = Options::new()
+                .with_patch(n)
+                .with_fit(Fit::Vertical)
+                .with_borders(Borders { x: bx, y: by })
+                .with_strength(crate::Strength::Scale(1.0));
+            let mut fit = BandFit::new(w, h, &opts).unwrap().with_unit(1.0);
+            let mut got = Vec::new();
+            for rows in fit.bands().collect::<Vec<_>>() {
+                let mut band = vec![[0.0; 3]; rows.len() * w];
+                fit.moments(rows, &|y| &z[y * w..][..w], &mut band).unwrap();
+                got.extend(band);
+            }
+            let r = (n / 2) as isize;
+            for y in 0..h {
+                for x in 0..w {
+                    let mut values = Vec::new();
+                    let (mut cx, mut cy) = (0.0, 0.0);
+                    for j in -r..=r {
+                        for i in -r..=r {
+                            let v = z[by.map(y as isize + j, h) * w + bx.map(x as isize + i, w)];
+                            cx += i as f64 * v;
+                            cy += j as f64 * v;
+                            values.push(v);
+                        }
+                    }
+                    let mean = values.iter().sum::<f64>() / values.len() as f64;
+                    let czz: f64 = values.iter().map(|v| (v - mean) * (v - mean)).sum();
+                    let [gx, gy, gzz] = got[y * w + x];
+                    let scale = 1.0 + czz;
+                    assert!((gx - cx).abs() < 1e-9 * scale && (gy - cy).abs() < 1e-9 * scale, "{n} {x},{y}");
+                    assert!((gzz - czz).abs() < 1e-9 * scale, "{n} {x},{y}: {gzz} against {czz}");
+                }
+            }
+        }
     }
 
     /// Blocks of a few rows, as a very wide image gets, and taller ones, as

@@ -1,16 +1,18 @@
 //! `normalfit height` as users run it: `convert -s S` then `height -s S`
 //! gives the heights back; the PNG output's range note re-creates the
 //! normals; auto convention and 8-bit precision are said; bad input is one
-//! line naming the file, exit 2, and no output; help, man page and
-//! completions cover the command.
+//! line naming the file, exit 2, and no output; a folder of normal maps
+//! is a batch (one bad file does not stop the others); standard input to
+//! standard output as a filter; help, man page and completions cover every
+//! option of the command.
 
 mod common;
 
 use std::fs;
 use std::path::Path;
-use std::process::Output;
+use std::process::{Output, Stdio};
 
-use common::cli::{run, s};
+use common::cli::{bin, listing, run, s, summary_counts};
 use normalfit::io::{ReadOptions, read_path};
 
 fn ok(out: &Output) -> String {
@@ -140,6 +142,90 @@ fn the_output_is_never_the_input() {
 }
 
 #[test]
+fn a_folder_is_a_batch_and_one_bad_file_does_not_stop_the_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let maps = dir.path().join("maps");
+    fs::create_dir_all(maps.join("sub")).unwrap();
+    let hmap = dir.path().join("h.png");
+    write_heights(&hmap, 32, 24);
+    for (name, scale) in [("a.exr", "4"), ("sub/c.exr", "4")] {
+        ok(&run(&["convert", s(&hmap), "-o", s(&maps.join(name)), "-s", scale, "--fit", "vertical"]));
+    }
+    fs::write(maps.join("b.png"), b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    let out = dir.path().join("heights");
+    let r = run(&["height", s(&maps), "-r", "-o", s(&out), "-s", "4", "--fit", "vertical", "--jobs", "2"]);
+    assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
+    let err = String::from_utf8_lossy(&r.stderr).into_owned();
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "one error line and the summary: {err}");
+    assert!(lines[0].starts_with(&format!("normalfit: {}: ", maps.join("b.png").display())), "{err}");
+    assert_eq!(summary_counts(lines[1]).map(|c| (c.1, c.2, c.3)), Some((2, 0, 1)), "{err}");
+    assert_eq!(listing(&out), ["a_height.exr", "sub"]);
+    assert_eq!(listing(&out.join("sub")), ["c_height.exr"]);
+    // Each is what the file alone gives, and gives the heights back.
+    let alone = dir.path().join("alone.exr");
+    ok(&run(&["height", s(&maps.join("a.exr")), "-o", s(&alone), "-s", "4", "--fit", "vertical"]));
+    assert_eq!(fs::read(&alone).unwrap(), fs::read(out.join("a_height.exr")).unwrap());
+    let original = write_heights(&hmap, 32, 24);
+    let e = relative_error(&original, &plane(&out.join("sub").join("c_height.exr"), "Y"));
+    assert!(e < 1e-4, "{e:e}");
+    // Beside the inputs, as PNG; the outputs are not inputs the next time,
+    // and --overwrite never skips them.
+    let r = run(&["height", s(&maps), "-s", "4", "--fit", "vertical", "--format", "png", "-q"]);
+    assert_eq!(r.status.code(), Some(2));
+    assert_eq!(listing(&maps), ["a.exr", "a_height.png", "b.png", "sub"]);
+    let r = run(&["height", s(&maps), "-s", "4", "--fit", "vertical", "--format", "png", "--overwrite", "never"]);
+    let err = String::from_utf8_lossy(&r.stderr).into_owned();
+    let last = err.lines().last().unwrap_or_default();
+    assert_eq!(summary_counts(last).map(|c| (c.1, c.2, c.3)), Some((0, 1, 1)), "{err}");
+}
+
+#[test]
+fn standard_input_to_standard_output_is_a_filter() {
+    let dir = tempfile::tempdir().unwrap();
+    let (hmap, nmap, file_out) = (dir.path().join("h.png"), dir.path().join("n.png"), dir.path().join("f.exr"));
+    write_heights(&hmap, 24, 16);
+    ok(&run(&["convert", s(&hmap), "-o", s(&nmap), "--bits", "16", "-s", "3"]));
+    ok(&run(&["height", s(&nmap), "-o", s(&file_out), "-s", "3"]));
+    let piped = bin()
+        .args(["height", "-", "-s", "3", "-q"])
+        .stdin(fs::File::open(&nmap).unwrap())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    assert!(piped.status.success(), "{}", String::from_utf8_lossy(&piped.stderr));
+    assert_eq!(piped.stdout, fs::read(&file_out).unwrap(), "standard input goes to standard output, as EXR");
+    let png = bin()
+        .args(["height", "-", "-o", "-", "--format", "png", "-s", "3"])
+        .stdin(fs::File::open(&nmap).unwrap())
+        .output()
+        .unwrap();
+    assert!(png.status.success());
+    assert_eq!(&png.stdout[..4], b"\x89PNG");
+    let err = String::from_utf8_lossy(&png.stderr);
+    assert!(err.contains("<standard output>: heights") && err.contains("re-creates the normals"), "{err}");
+    // Bad input: one line naming standard input, exit 2, nothing written.
+    let bad = bin()
+        .args(["height", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .and_then(|mut child| {
+            use std::io::Write;
+            child.stdin.take().unwrap().write_all(b"junk")?;
+            child.wait_with_output()
+        })
+        .unwrap();
+    let line = error_line(&bad);
+    assert!(line.starts_with("normalfit: <standard input>: "), "{line}");
+    assert!(bad.stdout.is_empty());
+    let line = error_line(&run(&["height", "-", "-", "-o", "x.exr"]));
+    assert!(line.contains("standard input"), "{line}");
+}
+
+#[test]
 fn help_man_page_and_completions_cover_height() {
     let help = run(&["height", "--help"]);
     let text = String::from_utf8_lossy(&help.stdout);
@@ -150,4 +236,80 @@ fn help_man_page_and_completions_cover_height() {
     assert!(man.contains("NORMALFIT HEIGHT") && man.contains("Frankot"), "{}", &man[..man.len().min(400)]);
     let bash = String::from_utf8_lossy(&run(&["completions", "bash"]).stdout).into_owned();
     assert!(bash.contains("normalfit__subcmd__height") && bash.contains("generic"), "bash completions lack height");
+}
+
+/// The long options `normalfit height --help` lists.
+fn height_options() -> Vec<String> {
+    let help = run(&["height", "--help"]);
+    assert!(help.status.success());
+    let text = String::from_utf8_lossy(&help.stdout).into_owned();
+    let mut options: Vec<String> = text
+        .lines()
+        .filter_map(|l| l.trim_start().split([' ', ',']).find(|w| w.starts_with("--")).map(str::to_owned))
+        .filter(|o| o != "--help")
+        .collect();
+    options.dedup();
+    options
+}
+
+#[test]
+fn help_man_page_and_completions_cover_every_option_of_height() {
+    let options = height_options();
+    // The options the command reads, each listed by --help.
+    for wanted in [
+        "--output",
+        "--format",
+        "--model",
+        "--signed",
+        "--patch",
+        "--scale",
+        "--relief",
+        "--invert",
+        "--fit",
+        "--border",
+        "--convention",
+        "--max-texels",
+        "--layer",
+        "--recursive",
+        "--jobs",
+        "--overwrite",
+        "--quiet",
+    ] {
+        assert!(options.iter().any(|o| o == wanted), "--help lacks {wanted}: {options:?}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let pages = dir.path().join("man1");
+    ok(&run(&["man", "--out", s(&pages)]));
+    let page = fs::read_to_string(pages.join("normalfit-height.1")).unwrap();
+    let page = page.replace("\\-", "-");
+    let bash = String::from_utf8_lossy(&run(&["completions", "bash"]).stdout).into_owned();
+    let height_block = bash.split("normalfit__subcmd__height)").nth(1).unwrap_or_else(|| panic!("no height in bash"));
+    let height_block = height_block.split("\n        normalfit__").next().unwrap();
+    for option in &options {
+        assert!(page.contains(option.as_str()), "the man page lacks {option}");
+        assert!(height_block.contains(option.as_str()), "bash completion of height lacks {option}");
+    }
+    let fish = String::from_utf8_lossy(&run(&["completions", "fish"]).stdout).into_owned();
+    let zsh = String::from_utf8_lossy(&run(&["completions", "zsh"]).stdout).into_owned();
+    let fish: Vec<&str> = fish.lines().filter(|l| l.contains("__fish_normalfit_using_subcommand height\"")).collect();
+    for option in &options {
+        let name = option.trim_start_matches("--");
+        let named = |l: &&str| l.split(' ').collect::<Vec<_>>().windows(2).any(|w| w == ["-l", name]);
+        assert!(fish.iter().any(named), "fish completion of height lacks {option}");
+        let zsh = zsh.split("(height)").nth(1).and_then(|b| b.split(";;").next()).unwrap_or_default();
+        assert!(zsh.contains(&format!("{option}=[")) || zsh.contains(&format!("{option}[")), "zsh lacks {option}");
+    }
+    let mut models: Vec<String> = {
+        let script = dir.path().join("normalfit.bash");
+        fs::write(&script, &bash).unwrap();
+        let program = format!(
+            "source '{}'; COMP_WORDS=(normalfit height --model ''); COMP_CWORD=3; _normalfit normalfit '' --model; \
+             printf '%s\\n' \"${{COMPREPLY[@]}}\"",
+            script.display()
+        );
+        let out = std::process::Command::new("bash").args(["--norc", "-c", &program]).output().unwrap();
+        String::from_utf8_lossy(&out.stdout).lines().map(str::to_owned).collect()
+    };
+    models.sort();
+    assert!(models.iter().any(|m| m == "exact") && models.iter().any(|m| m == "generic"), "{models:?}");
 }

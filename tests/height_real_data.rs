@@ -3,7 +3,8 @@
 //! absent data is a failure):
 //!
 //! * their own height maps through the forward fit and back: the round
-//!   trip's error, raw and up to the alternating heights no fit sees;
+//!   trip's error, raw and against the original with its null-space part
+//!   (the heights no fit sees) taken out, computed here independently;
 //! * their own normal maps (baked by their authors, not fitted) integrated
 //!   by the exact model and by the generic one (Frankot–Chellappa),
 //!   compared with their own height maps: correlation and RMS after the
@@ -81,29 +82,80 @@ fn demean(v: &[f64]) -> Vec<f64> {
     v.iter().map(|x| x - m).collect()
 }
 
-/// (largest error, RMS error) over the range, up to a constant; and the
-/// largest once the alternating heights no fit sees are removed (the
-/// difference's least-squares fit by (−1)^x, (−1)^y, (−1)^(x+y)).
-fn round_trip_errors(original: &[f64], back: &[f64], w: usize) -> (f64, f64, f64) {
-    let want = demean(original);
-    let (lo, hi) = want.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
-    let diff: Vec<f64> = want.iter().zip(back).map(|(a, b)| a - b).collect();
+/// The heights no fit of `n` with `border` on both axes sees, taken out
+/// of `original`: on the period the border makes (the image for wrap; its
+/// even extension, 2(w − 1) × 2(h − 1), for mirror), the 2-D DFT's modes
+/// where the fit's response Dx, Dy is 0 (the constant, the alternating
+/// heights of S(π) = 0, the box's zeros) are the null space; their part of
+/// `original` is subtracted. Written here from the closed form of the
+/// response and a plain 2-D FFT (rows, then columns), not the library's
+/// solver.
+fn without_null_space(original: &[f64], w: usize, h: usize, n: usize, border: Border) -> Vec<f64> {
+    use rustfft::FftPlanner;
+    use rustfft::num_complex::Complex;
+    let mirror = border == Border::Mirror;
+    let period = |len: usize| if mirror && len > 2 { 2 * (len - 1) } else { len };
+    let (pw, ph) = (period(w), period(h));
+    // Index k of the period → the texel it holds.
+    let fold = |k: usize, len: usize, p: usize| if k < len { k } else { p - k };
+    let mut data: Vec<Complex<f64>> =
+        (0..pw * ph).map(|k| Complex::new(original[fold(k / pw, h, ph) * w + fold(k % pw, w, pw)], 0.0)).collect();
+    let mut planner = FftPlanner::<f64>::new();
+    let transform = |data: &mut Vec<Complex<f64>>, inverse: bool, planner: &mut FftPlanner<f64>| {
+        let (row, col) = if inverse {
+            (planner.plan_fft_inverse(pw), planner.plan_fft_inverse(ph))
+        } else {
+            (planner.plan_fft_forward(pw), planner.plan_fft_forward(ph))
+        };
+        for r in data.chunks_mut(pw) {
+            row.process(r);
+        }
+        let mut column = vec![Complex::new(0.0, 0.0); ph];
+        for x in 0..pw {
+            for y in 0..ph {
+                column[y] = data[y * pw + x];
+            }
+            col.process(&mut column);
+            for y in 0..ph {
+                data[y * pw + x] = column[y];
+            }
+        }
+    };
+    transform(&mut data, false, &mut planner);
+    let r = n / 2;
+    let a = (n * r * (r + 1) * (2 * r + 1)) as f64 / 3.0;
+    let ramp_and_box = |k: usize, p: usize| {
+        let omega = std::f64::consts::TAU * k as f64 / p as f64;
+        let ramp: f64 = (1..=r).map(|m| 2.0 * m as f64 * (m as f64 * omega).sin()).sum();
+        let boxed: f64 = 1.0 + (1..=r).map(|m| 2.0 * (m as f64 * omega).cos()).sum::<f64>();
+        (ramp, boxed)
+    };
+    for ky in 0..ph {
+        let (sy, by) = ramp_and_box(ky, ph);
+        for kx in 0..pw {
+            let (sx, bx) = ramp_and_box(kx, pw);
+            let (ux, uy) = (sx * by / a, bx * sy / a);
+            // Seen by the fit: not part of the null space.
+            if ux * ux + uy * uy > 1e-20 {
+                data[ky * pw + kx] = Complex::new(0.0, 0.0);
+            }
+        }
+    }
+    transform(&mut data, true, &mut planner);
+    let norm = (pw * ph) as f64;
+    (0..w * h).map(|k| original[k] - data[(k / w) * pw + k % w].re / norm).collect()
+}
+
+/// (largest error, RMS error) of `back` against `want`, over the range of
+/// `original`, up to a constant.
+fn errors(original: &[f64], want: &[f64], back: &[f64]) -> (f64, f64) {
+    let (lo, hi) = original.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+    let want = demean(want);
+    let back = demean(back);
+    let diff: Vec<f64> = want.iter().zip(&back).map(|(a, b)| a - b).collect();
     let max = diff.iter().fold(0.0f64, |m, d| m.max(d.abs()));
     let rms = (diff.iter().map(|d| d * d).sum::<f64>() / diff.len() as f64).sqrt();
-    let sign = |k: usize| if k.is_multiple_of(2) { 1.0 } else { -1.0 };
-    // Even sizes: the three patterns are orthogonal to each other and to 1.
-    let pattern = |which: usize, k: usize| match which {
-        0 => sign(k % w),
-        1 => sign(k / w),
-        _ => sign(k % w) * sign(k / w),
-    };
-    let mut rest = diff.clone();
-    for which in 0..3 {
-        let c = rest.iter().enumerate().map(|(k, d)| d * pattern(which, k)).sum::<f64>() / rest.len() as f64;
-        rest.iter_mut().enumerate().for_each(|(k, d)| *d -= c * pattern(which, k));
-    }
-    let visible = rest.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-    (max / (hi - lo), rms / (hi - lo), visible / (hi - lo))
+    (max / (hi - lo), rms / (hi - lo))
 }
 
 /// The gain of the round trips: a height range of 4 texel widths, a
@@ -113,8 +165,11 @@ const GAIN: f64 = 4.0;
 #[test]
 #[ignore = "needs ../shared/data"]
 fn real_height_maps_come_back_through_the_fit() {
-    println!("| set | N | fit | border | gain S | max error | RMS error | max, alternating removed | solves |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| set | N | fit | border | gain S | max error | RMS error | max, null space removed | RMS, null space removed | solves |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    let mut missed = Vec::new();
     for (name, height_path, _) in sets() {
         let (w, h, original) = height_map(&height_path);
         for (n, fit) in [(3, Fit::Vertical), (3, Fit::Orthogonal), (5, Fit::Vertical), (5, Fit::Orthogonal)] {
@@ -126,20 +181,27 @@ fn real_height_maps_come_back_through_the_fit() {
                     .with_strength(Strength::Scale(GAIN));
                 let n32 = normals(&original, w, h, &opts).unwrap();
                 let back = heights(&n32, w, h, &HeightOptions::from_fit(&opts)).unwrap();
-                let (max, rms, visible) = round_trip_errors(&original, &back.values, w);
+                let (max, rms) = errors(&original, &original, &back.values);
+                let seen = without_null_space(&original, w, h, n, border);
+                let (visible, visible_rms) = errors(&original, &seen, &back.values);
                 println!(
-                    "| {name} | {n} | {fit} | {border} | {:.1} | {max:.2e} | {rms:.2e} | {visible:.2e} | {}{} |",
+                    "| {name} | {n} | {fit} | {border} | {:.1} | {max:.2e} | {rms:.2e} | {visible:.2e} | {visible_rms:.2e} | {}{} |",
                     GAIN,
                     back.report.iterations,
                     if back.report.converged { "" } else { " (not settled)" }
                 );
                 assert!(back.values.iter().all(|v| v.is_finite()));
-                if fit == Fit::Vertical && border == Border::Wrap {
-                    assert!(visible < 1e-4, "{name} N {n} {border}: {visible:e}");
+                // The vertical fit's inverse is a single exact solve: within
+                // 1e-4 of the range once the null space is taken out. (The
+                // orthogonal fit's iteration is printed, not held: it does
+                // not settle on every map, docs/height.md.)
+                if fit == Fit::Vertical && visible >= 1e-4 {
+                    missed.push(format!("{name} N {n} {border}: {visible:e}"));
                 }
             }
         }
     }
+    assert!(missed.is_empty(), "{missed:?}");
 }
 
 #[test]

@@ -848,7 +848,7 @@ fn height<'py>(
         SampleKind::F64 => height_typed::<f64>(normals, &opts, |c| c, pool),
     }?;
     let array = PyArray1::from_vec(py, values).reshape([h, w])?.into_any();
-    Ok((array, HeightInfo::from_report(&report, Vec::new(), None)))
+    Ok((array, HeightInfo::from_report(&report, Vec::new(), None, None)))
 }
 
 /// The height options from the keyword arguments, checked by the library.
@@ -891,12 +891,20 @@ struct HeightInfo {
     range: (f64, f64),
     /// A PNG output: the heights 0 and 1 stand for.
     png_range: Option<(f64, f64)>,
+    /// A PNG output: the gain S·(hi − lo) with which `convert` of the PNG
+    /// makes the normals again.
+    png_scale: Option<f64>,
     /// Warnings, one line each.
     warnings: Vec<String>,
 }
 
 impl HeightInfo {
-    fn from_report(r: &normalfit::height::HeightReport, warnings: Vec<String>, png_range: Option<(f64, f64)>) -> Self {
+    fn from_report(
+        r: &normalfit::height::HeightReport,
+        warnings: Vec<String>,
+        png_range: Option<(f64, f64)>,
+        png_scale: Option<f64>,
+    ) -> Self {
         HeightInfo {
             convention: r.convention.name(),
             curl: r.curl.map(|[a, b]| (a, b)),
@@ -906,6 +914,7 @@ impl HeightInfo {
             quantisation_error: r.quantisation_error,
             range: r.range,
             png_range,
+            png_scale,
             warnings,
         }
     }
@@ -960,7 +969,7 @@ fn height_file(
         _ => file_error(&dst, e.error, true),
     })?;
     let warnings = summary.warnings.iter().map(ToString::to_string).collect();
-    Ok(HeightInfo::from_report(&summary.report, warnings, summary.png_range))
+    Ok(HeightInfo::from_report(&summary.report, warnings, summary.png_range, summary.png_scale))
 }
 
 /// The native half of the `normalfit` package.

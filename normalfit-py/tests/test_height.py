@@ -115,8 +115,20 @@ def test_height_file_matches_the_command_line(tmp_path: Path) -> None:
     info = normalfit.height_file(nmap, ours, scale=4.0)
     subprocess.run([str(binary), "height", str(nmap), "-o", str(theirs), "-s", "4"], check=True)
     assert ours.read_bytes() == theirs.read_bytes()
-    assert info.warnings == [] and info.png_range is None
+    assert info.warnings == [] and info.png_range is None and info.png_scale is None
     as_png = normalfit.height_file(nmap, tmp_path / "h2.png", scale=4.0)
     assert as_png.png_range is not None and as_png.png_range[0] < as_png.png_range[1]
+    # The gain that re-creates the normals from the PNG: S times the span,
+    # and the command line prints the same figure.
+    lo, hi = as_png.png_range
+    assert as_png.png_scale == pytest.approx(4.0 * (hi - lo), rel=1e-12)
+    printed = subprocess.run(
+        [str(binary), "height", str(nmap), "-o", str(tmp_path / "h3.png"), "-s", "4"],
+        check=True, capture_output=True, text=True,
+    )
+    assert f"convert -s {as_png.png_scale:.6f}" in printed.stdout + printed.stderr
+    # The same gain given relative to the width (48 columns) gives the same figure.
+    by_relief = normalfit.height_file(nmap, tmp_path / "h4.png", relief=4.0 / 48)
+    assert by_relief.png_scale == pytest.approx(as_png.png_scale, rel=1e-9)
     with pytest.raises(OSError, match="missing.exr"):
         normalfit.height_file(tmp_path / "missing.exr", tmp_path / "x.exr")

@@ -269,17 +269,22 @@ pub struct ShadeArgs {
 #[derive(Args, Debug)]
 #[command(allow_negative_numbers = true)]
 pub struct HeightArgs {
-    /// The normal map (the formats read, from the library's registry): R, G
+    /// Normal maps (the formats read, from the library's registry): R, G
     /// and B hold (n + 1)/2, or n for a float map with --signed.
-    #[arg(value_name = "INPUT")]
-    pub input: PathBuf,
+    #[arg(required = true, value_name = "INPUT", help = inputs_help("Normal maps to turn into heights"))]
+    pub inputs: Vec<PathBuf>,
 
-    /// Output file: .exr (float heights, the default) or .png (16-bit,
-    /// normalised to [0, 1]). Default: `<stem>_height.exr` beside the input.
+    /// Output file (.exr: float heights, the default; .png: 16-bit,
+    /// normalised to [0, 1]), or folder for many inputs (or folders of
+    /// them, whose layout it keeps); `-` writes standard output. Default:
+    /// `<stem>_height.exr` beside each input (standard output for standard
+    /// input). Files named `*_height.*` are skipped when folders are
+    /// searched.
     #[arg(short, long, value_name = "OUTPUT")]
     pub output: Option<PathBuf>,
 
-    /// Output format when the output's name does not say.
+    /// Output format when the output's name does not say (standard output,
+    /// names made from the inputs'). Default: exr.
     #[arg(long, value_parser = named::<OutputFormat>(OutputFormat::ALL))]
     pub format: Option<OutputFormat>,
 
@@ -324,12 +329,13 @@ pub struct HeightArgs {
     #[arg(long, default_value_t = ConventionChoice::OpenGl, value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
     pub convention: ConventionChoice,
 
-    /// No notes or warnings: errors only.
-    #[arg(short, long)]
-    pub quiet: bool,
-
     #[command(flatten)]
     pub read: ReadArgs,
+
+    // The groups with a help heading come last: a heading would otherwise
+    // cover the options after it.
+    #[command(flatten)]
+    pub batch: BatchArgs,
 }
 
 #[derive(Args, Debug)]

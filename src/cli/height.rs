@@ -1,23 +1,38 @@
-//! `normalfit height`: a normal map back to heights. The work is the
-//! library's ([`normalfit::height::file::HeightConversion`]); here are the
-//! output's default name and the messages.
+//! `normalfit height`: normal maps back to heights. The work is the
+//! library's ([`normalfit::height::file::HeightConversion`]: reading,
+//! solving, writing whole or not at all, never over the input); here are
+//! the batch (files, folders, standard input and output, as `convert`),
+//! the outputs' names and the messages.
 
-use std::path::PathBuf;
+use std::path::Path;
 
 use normalfit::Border;
-use normalfit::convert::Place;
+use normalfit::convert::{self, Output, Place};
 use normalfit::height::HeightOptions;
-use normalfit::height::file::HeightConversion;
+use normalfit::height::file::{HeightConversion, HeightSummary};
 
 use super::args::HeightArgs;
-use super::input::check_extension;
+use super::batch::{Batch, Job, Outcome, Turn, Words};
+use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
+use super::output::Destination;
 use super::report::{Failure, print_line, warn};
 
 /// The stem ending of height maps: `<stem>_height.exr`.
 const SUFFIX: &str = "_height";
 
-/// Converts the one input; prints the notes and warnings.
-pub fn run(args: &HeightArgs) -> Result<(), Failure> {
+/// How messages name standard output.
+const STDOUT: &str = "<standard output>";
+
+/// What `height` does with every input, decided once from the arguments.
+struct Plan<'a> {
+    conversion: HeightConversion,
+    destination: Destination,
+    args: &'a HeightArgs,
+}
+
+/// Turns every input (files, the images of folders, standard input) into
+/// heights; returns the failures (already reported).
+pub fn run(args: &HeightArgs) -> Result<usize, Failure> {
     let options = HeightOptions::new()
         .with_patch(args.patch)
         .with_fit(args.fit)
@@ -27,53 +42,112 @@ pub fn run(args: &HeightArgs) -> Result<(), Failure> {
         .with_invert(args.invert)
         .with_model(args.model);
     options.validate().map_err(|e| Failure::usage(e.to_string()))?;
-    let input = &args.input;
-    if input.as_os_str() == "-" {
-        return Err(Failure::usage("height reads a file: name the normal map (standard input is not read)"));
-    }
-    if input.is_dir() {
-        return Err(Failure::file(input, "is a folder, not an image"));
-    }
-    check_extension(input)?;
-    let output = args.output.clone().unwrap_or_else(|| {
-        let stem = input.file_stem().map_or_else(|| "image".into(), |s| s.to_string_lossy().into_owned());
-        let ext = args.format.map_or("exr", |f| f.extension());
-        input.with_file_name(format!("{stem}{SUFFIX}.{ext}"))
-    });
+    stdin_at_most_once(&args.inputs)?;
+    let words = Words { done: "converted", purpose: "to turn into heights" };
+    let batch = Batch::gather(&args.inputs, &args.batch, SUFFIX, words);
+    let destination = Destination::for_batch(args.output.as_deref(), batch.many())?;
     let conversion = HeightConversion::new()
         .with_options(options)
         .with_read(args.read.options())
         .with_signed(args.signed)
         .with_format(args.format);
-    let summary = conversion.convert_file(input, &output).map_err(|e| {
-        let at: &PathBuf = if e.place == Place::Input { input } else { &output };
-        Failure::file(at, e.error)
-    })?;
-    if args.quiet {
-        return Ok(());
+    if let Destination::File(path) = &destination {
+        // A name the library cannot write is a usage error, before any work.
+        conversion.output_format(Some(path)).map_err(|e| Failure::file(path, e))?;
     }
-    let name = input.display();
-    let report = &summary.report;
-    if let Some([gl, dx]) = report.curl {
-        print_line(&format!(
-            "normalfit: {name}: convention {} (auto: relative curl {gl:.4} as opengl, {dx:.4} as directx)",
-            report.convention
-        ));
+    let plan = Plan { conversion, destination, args };
+    Ok(batch.run(|job, turn| plan.one(job, turn)))
+}
+
+impl Plan<'_> {
+    fn one(&self, job: &Job, turn: &Turn) -> Result<Outcome, Failure> {
+        let input = &job.input;
+        // The name's extension is the format's (the library's rule: -o's,
+        // else --format's, else EXR; run() has refused a -o it cannot write).
+        let named = match &self.destination {
+            Destination::File(path) => Some(path.as_path()),
+            _ => None,
+        };
+        let format =
+            self.conversion.output_format(named).map_err(|e| Failure::file(named.unwrap_or(input.name()), e))?;
+        let ext = format.extension();
+        let target = self.destination.path_in(input, &job.subfolder, &format!("{}{SUFFIX}.{ext}", input.stem()));
+        if let Some(path) = &target {
+            turn.claim(input, &[path])?;
+        }
+        if !turn.wanted(target.as_deref(), input) {
+            return Ok(Outcome::Skipped);
+        }
+        let bytes;
+        let source = match input {
+            Input::File(path) => {
+                if path.is_dir() {
+                    return Err(Failure::file(path, "is a folder, not an image"));
+                }
+                check_extension(path)?;
+                convert::Input::Path(path)
+            }
+            Input::Stdin => {
+                bytes = read_stdin()?;
+                convert::Input::Bytes(&bytes)
+            }
+        };
+        let in_subfolder = !job.subfolder.as_os_str().is_empty();
+        let mut stdout;
+        let output = match &target {
+            Some(path) => Output::File { path, create_folder: in_subfolder },
+            None => {
+                stdout = std::io::stdout().lock();
+                Output::Writer(&mut stdout)
+            }
+        };
+        let out_name = target.as_deref().unwrap_or(Path::new(STDOUT));
+        let summary = match self.conversion.convert(source, output) {
+            Ok(summary) => summary,
+            Err(e) if target.is_none() && e.place == Place::Output && pipe_closed(&e.error) => {
+                return Ok(Outcome::PipeClosed);
+            }
+            Err(e) => {
+                let at = if e.place == Place::Input { input.name() } else { out_name };
+                return Err(Failure::file(at, e.error));
+            }
+        };
+        if !self.args.batch.quiet {
+            turn.in_order(|| self.notes(input, out_name, &summary));
+        }
+        Ok(Outcome::Done)
     }
-    for w in &summary.warnings {
-        warn(&name, w);
+
+    /// The convention chosen, the warnings, and a PNG's range with the
+    /// command that makes the normals again.
+    fn notes(&self, input: &Input, output: &Path, summary: &HeightSummary) {
+        let name = input.name().display();
+        let report = &summary.report;
+        if let Some([gl, dx]) = report.curl {
+            print_line(&format!(
+                "normalfit: {name}: convention {} (auto: relative curl {gl:.4} as opengl, {dx:.4} as directx)",
+                report.convention
+            ));
+        }
+        for w in &summary.warnings {
+            warn(&name, w);
+        }
+        if let (Some((lo, hi)), Some(gain)) = (summary.png_range, summary.png_scale) {
+            let args = self.args;
+            let border = |b: Border| b.name();
+            print_line(&format!(
+                "normalfit: {}: heights {lo:.6} to {hi:.6} stored as 0 to 1; `normalfit convert -s {gain:.6} -n {} --fit {} --border {},{}` re-creates the normals",
+                output.display(),
+                args.patch,
+                args.fit,
+                border(args.border.x),
+                border(args.border.y),
+            ));
+        }
     }
-    if let (Some((lo, hi)), Some(gain)) = (summary.png_range, summary.png_scale) {
-        let borders = args.border;
-        let border = |b: Border| b.name();
-        print_line(&format!(
-            "normalfit: {}: heights {lo:.6} to {hi:.6} stored as 0 to 1; `normalfit convert -s {gain:.6} -n {} --fit {} --border {},{}` re-creates the normals",
-            output.display(),
-            args.patch,
-            args.fit,
-            border(borders.x),
-            border(borders.y),
-        ));
-    }
-    Ok(())
+}
+
+/// Whether the error is a write into a pipe whose reader has gone.
+fn pipe_closed(e: &normalfit::Error) -> bool {
+    matches!(e, normalfit::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
 }

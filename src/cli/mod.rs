@@ -48,7 +48,7 @@ pub fn main() -> ExitCode {
         Command::Convert(args) => convert::run(args).map(all_written),
         Command::Tiling(args) => tiling::run(args),
         Command::Shade(args) => shade::run(args).map(all_written),
-        Command::Height(args) => height::run(&args).map(|()| exit::OK),
+        Command::Height(args) => height::run(&args).map(all_written),
         Command::Completions(args) => completions::run(&args).map(|()| exit::OK),
         Command::Man(args) => man::run(&args).map(|()| exit::OK),
     };

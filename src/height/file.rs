@@ -21,7 +21,7 @@
 use std::fmt;
 use std::path::Path;
 
-use crate::convert::{ConvertError, Place};
+use crate::convert::{ConvertError, Input, Output, Place};
 use crate::error::{Error, Result};
 use crate::io::{self, ExrDepth, ExrOptions, InputFormat, OutputFormat, PngDepth, PngOptions, ReadOptions, SampleType};
 use crate::samples::{Samples, try_vec, with_slice};
@@ -150,16 +150,46 @@ impl HeightConversion {
     /// output's name, memory, encoding and writing, and an output that is
     /// the input.
     pub fn convert_file(&self, input: &Path, output: &Path) -> Result<HeightSummary, ConvertError> {
+        self.convert(Input::Path(input), Output::file(output))
+    }
+
+    /// The output format for a file at `path` (`None`: a writer): its
+    /// extension's, else [`HeightConversion::format`], else EXR.
+    ///
+    /// Errors: an extension that names no format written.
+    pub fn output_format(&self, path: Option<&Path>) -> Result<OutputFormat> {
+        let named = path.map(OutputFormat::from_path).transpose()?.flatten();
+        Ok(named.or(self.format).unwrap_or(OutputFormat::Exr))
+    }
+
+    /// Reads the normal map `input` (a file, or an encoded image in
+    /// memory: standard input) and writes its heights to `output` (a file,
+    /// written atomically and never over the input, its folder made if
+    /// asked; or any writer, given the whole encoded image at once, so a
+    /// failure writes nothing).
+    ///
+    /// Errors: as [`HeightConversion::convert_file`].
+    pub fn convert(&self, input: Input<'_>, output: Output<'_>) -> Result<HeightSummary, ConvertError> {
         let fail_in = |error| ConvertError { place: Place::Input, error };
         let fail_out = |error| ConvertError { place: Place::Output, error };
-        let format = OutputFormat::from_path(output).map_err(fail_out)?.or(self.format).unwrap_or(OutputFormat::Exr);
+        let path = match &output {
+            Output::File { path, .. } => Some(*path),
+            _ => None,
+        };
+        let format = self.output_format(path).map_err(fail_out)?;
         self.options.validate().map_err(fail_in)?;
-        if crate::convert::same_file(input, output) {
+        if let (Input::Path(input), Output::File { path, .. }) = (&input, &output)
+            && crate::convert::same_file(input, path)
+        {
             return Err(fail_out(Error::InvalidOption(
                 "the output is the input (or a link to it): normalfit never writes over an input".into(),
             )));
         }
-        let raster = io::read_path(input, &self.read).map_err(fail_in)?;
+        let raster = match input {
+            Input::Path(path) => io::read_path(path, &self.read),
+            Input::Bytes(bytes) => io::decode(bytes, &self.read),
+        }
+        .map_err(fail_in)?;
         let (w, h) = (raster.width, raster.height);
         let (input_format, sample) = (raster.format.clone(), raster.sample);
         let planes = match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
@@ -198,12 +228,20 @@ impl HeightConversion {
         let png_range = (format == OutputFormat::Png).then_some((lo, hi));
         let png_scale = png_range.map(|(lo, hi)| options.scale_for_width(w) * (hi - lo));
         let values = found.values;
+        if let Output::File { path, create_folder: true } = output
+            && let Some(parent) = path.parent()
+            && !parent.as_os_str().is_empty()
+        {
+            std::fs::create_dir_all(parent).map_err(|e| {
+                fail_out(Error::Io(std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}"))))
+            })?;
+        }
         let result = match format {
             OutputFormat::Exr => {
                 let mut stored: Vec<f32> = try_vec(values.len()).map_err(fail_out)?;
                 stored.extend(values.iter().map(|&v| v as f32));
                 drop(values);
-                io::write_file_atomically(output, |file| {
+                crate::convert::write_to(output, |file| {
                     io::encode_gray(&stored, w, h, &ExrOptions::new(ExrDepth::Float).into(), file)
                 })
             }
@@ -213,7 +251,7 @@ impl HeightConversion {
                 let unit = if span > 0.0 { 65535.0 / span } else { 0.0 };
                 stored.extend(values.iter().map(|&v| ((v - lo) * unit).round().clamp(0.0, 65535.0) as u16));
                 drop(values);
-                io::write_file_atomically(output, |file| {
+                crate::convert::write_to(output, |file| {
                     io::encode_gray(&stored, w, h, &PngOptions::new(PngDepth::Sixteen).into(), file)
                 })
             }

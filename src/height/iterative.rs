@@ -53,7 +53,7 @@ pub(crate) fn exact(
     // The heights whose re-fitted normals are closest to the given ones so
     // far (the sum of squared differences of unit normals, which steep
     // texels cannot dominate), kept as f32: the vertical solution first.
-    let (_, first) = patch.update_ratios(z, slopes, &mut rho, &mut direction, 1.0);
+    let (_, first) = patch.update_ratios(z, slopes, &mut rho, &mut direction, 1.0)?;
     let mut kept: Vec<f32> = try_vec(len)?;
     kept.extend(z.iter().map(|&z| z as f32));
     let mut best = first;
@@ -71,7 +71,7 @@ pub(crate) fn exact(
             }
         };
         vertical(&weighted, z)?;
-        let (change, mismatch) = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping);
+        let (change, mismatch) = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping)?;
         if mismatch < best {
             best = mismatch;
             kept.iter_mut().zip(z.iter()).for_each(|(k, &z)| *k = z as f32);
@@ -147,7 +147,8 @@ impl Lists {
 /// The patch sums of the fit, with the borders' maps.
 struct Patch {
     w: usize,
-    n2: f64,
+    patch: usize,
+    borders: crate::Borders,
     a: f64,
     box_x: Lists,
     ramp_x: Lists,
@@ -161,7 +162,8 @@ impl Patch {
         let (bx, by) = (opts.borders.x, opts.borders.y);
         Patch {
             w,
-            n2: (opts.patch * opts.patch) as f64,
+            patch: opts.patch,
+            borders: opts.borders,
             a: (opts.patch * r * (r + 1) * (2 * r + 1)) as f64 / 3.0,
             box_x: Lists::correlation(w, bx, r, |_| 1.0),
             ramp_x: Lists::correlation(w, bx, r, |i| i as f64),
@@ -202,6 +204,10 @@ impl Patch {
     /// change of a ratio asked for, |new − old|, and how far `z`'s
     /// orthogonal fit is from the slopes asked for: Σ |n(o) − n(g)|², the
     /// unit normals of the fitted slopes o and of the given g.
+    ///
+    /// The patch sums are the forward fit's own sliding sums
+    /// ([`crate::fit::BandFit`], O(1) per texel whatever N), a band of rows
+    /// at a time, so only a band's sums are held.
     fn update_ratios(
         &self,
         z: &[f64],
@@ -209,70 +215,104 @@ impl Patch {
         rho: &mut [f64],
         direction: &mut [i8],
         damping: f64,
-    ) -> (f64, f64) {
+    ) -> Result<(f64, f64)> {
         let w = self.w;
-        let rows: Vec<(f64, f64)> = rho
-            .par_chunks_mut(w)
-            .zip(direction.par_chunks_mut(w))
-            .enumerate()
-            .map(|(y, (out, dir))| {
-                let mut rows = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
-                let [boxed, ramped, squares] = &mut rows;
-                self.box_y.column(z, w, y, boxed, |v| v);
-                self.ramp_y.column(z, w, y, ramped, |v| v);
-                self.box_y.column(z, w, y, squares, |v| v * v);
-                let (mut s0, mut si, mut sj, mut szz) = (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-                self.box_x.row(boxed, &mut s0);
-                self.ramp_x.row(boxed, &mut si);
-                self.box_x.row(ramped, &mut sj);
-                self.box_x.row(squares, &mut szz);
-                let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
-                slopes(y, &mut gx, &mut gy);
-                let a = self.a;
-                let (mut largest, mut mismatch) = (0.0f64, 0.0);
-                let unit = |p: f64, q: f64| {
-                    let inv = 1.0 / (1.0 + p * p + q * q).sqrt();
-                    [-p * inv, -q * inv, inv]
-                };
-                for x in 0..w {
-                    let czz = (szz[x] - s0[x] * s0[x] / self.n2).max(0.0);
-                    let tilt2 = si[x] * si[x] + sj[x] * sj[x];
-                    let current = {
-                        let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
-                        let d = 0.5 * (a - czz);
-                        let q = (d * d + tilt2).sqrt();
-                        let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
-                        if flat { 1.0 } else { a_minus_lambda / a }
-                    };
-                    let fitted = unit(si[x] / (current * a), sj[x] / (current * a));
-                    let given = unit(gx[x], gy[x]);
-                    mismatch += (0..3).map(|c| (fitted[c] - given[c]).powi(2)).sum::<f64>();
-                    let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
-                    let rough = ((czz - tilt2 / a) / a).max(0.0);
-                    let c = 1.0 - rough;
-                    let b = (1.0 - g * g) / g;
-                    let disc = b * b + 4.0 * c;
-                    let wanted = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
-                        let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
-                        root / g
-                    } else if g <= 1e-12 && c > 0.0 {
-                        // The limit g → 0 of s/g.
-                        c
-                    } else {
-                        current
-                    };
-                    let change = wanted - out[x];
-                    let now = if change > 0.0 { 1 } else { -1 };
-                    let step = if now == -dir[x] { 0.5 * damping } else { damping };
-                    dir[x] = now;
-                    out[x] += step * change;
-                    largest = largest.max(change.abs());
-                }
-                (largest, mismatch)
-            })
-            .collect();
-        rows.iter().fold((0.0f64, 0.0), |(m, e), &(c, r)| (m.max(c), e + r))
+        let h = z.len() / w;
+        let mut fit = self.moments_fit(h)?;
+        let bands: Vec<std::ops::Range<usize>> = fit.bands().collect();
+        let widest = bands.iter().map(|b| b.len()).max().unwrap_or(0);
+        let mut moments: Vec<[f64; 3]> = try_vec(widest * w)?;
+        moments.resize(widest * w, [0.0; 3]);
+        let (mut largest, mut mismatch) = (0.0f64, 0.0);
+        let source = |y: usize| &z[y * w..][..w];
+        for rows in bands {
+            let band = &mut moments[..rows.len() * w];
+            fit.moments(rows.clone(), &source, band)?;
+            let (band_rho, band_dir) =
+                (&mut rho[rows.start * w..rows.end * w], &mut direction[rows.start * w..rows.end * w]);
+            let per_row: Vec<(f64, f64)> = band_rho
+                .par_chunks_mut(w)
+                .zip(band_dir.par_chunks_mut(w))
+                .zip(band.par_chunks(w))
+                .enumerate()
+                .map(|(k, ((out, dir), m))| {
+                    let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
+                    slopes(rows.start + k, &mut gx, &mut gy);
+                    ratio_row(self.a, m, &gx, &gy, out, dir, damping)
+                })
+                .collect();
+            for (c, e) in per_row {
+                largest = largest.max(c);
+                mismatch += e;
+            }
+        }
+        Ok((largest, mismatch))
     }
+
+    /// The forward fit's sliding sums for heights in texel units.
+    fn moments_fit(&self, h: usize) -> Result<crate::fit::BandFit> {
+        let opts = crate::Options::new()
+            .with_patch(self.patch)
+            .with_fit(Fit::Vertical)
+            .with_borders(self.borders)
+            .with_strength(crate::Strength::Scale(1.0));
+        Ok(crate::fit::BandFit::new(self.w, h, &opts)?.with_unit(1.0))
+    }
+}
+
+/// One row of [`Patch::update_ratios`]: the patch moments `m` ([Cx, Cy,
+/// Czz]) of the current heights, the slopes asked for, the ratios and
+/// their last directions to update; returns the largest change asked for
+/// and the row's mismatch of unit normals.
+fn ratio_row(
+    a: f64,
+    m: &[[f64; 3]],
+    gx: &[f64],
+    gy: &[f64],
+    out: &mut [f64],
+    dir: &mut [i8],
+    damping: f64,
+) -> (f64, f64) {
+    let (mut largest, mut mismatch) = (0.0f64, 0.0);
+    let unit = |p: f64, q: f64| {
+        let inv = 1.0 / (1.0 + p * p + q * q).sqrt();
+        [-p * inv, -q * inv, inv]
+    };
+    for x in 0..out.len() {
+        let [si, sj, czz] = m[x];
+        let tilt2 = si * si + sj * sj;
+        let current = {
+            let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
+            let d = 0.5 * (a - czz);
+            let q = (d * d + tilt2).sqrt();
+            let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
+            if flat { 1.0 } else { a_minus_lambda / a }
+        };
+        let fitted = unit(si / (current * a), sj / (current * a));
+        let given = unit(gx[x], gy[x]);
+        mismatch += (0..3).map(|c| (fitted[c] - given[c]).powi(2)).sum::<f64>();
+        let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
+        let rough = ((czz - tilt2 / a) / a).max(0.0);
+        let c = 1.0 - rough;
+        let b = (1.0 - g * g) / g;
+        let disc = b * b + 4.0 * c;
+        let wanted = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
+            let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
+            root / g
+        } else if g <= 1e-12 && c > 0.0 {
+            // The limit g → 0 of s/g.
+            c
+        } else {
+            current
+        };
+        let change = wanted - out[x];
+        let now = if change > 0.0 { 1 } else { -1 };
+        let step = if now == -dir[x] { 0.5 * damping } else { damping };
+        dir[x] = now;
+        out[x] += step * change;
+        largest = largest.max(change.abs());
+    }
+    (largest, mismatch)
 }
 
 /// The conjugate gradients' iterations at most.

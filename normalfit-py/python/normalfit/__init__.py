@@ -299,7 +299,9 @@ def height_file(
     """``normalfit height SRC -o DST`` with these options: a normal map
     file to heights, an EXR of float heights (channel Y) or, for a .png
     dst (or format="png"), a 16-bit gray PNG normalised to [0, 1] whose
-    range is the result's png_range. signed: a float map holds n itself.
+    range is the result's png_range; its png_scale is the gain with which
+    ``normalfit convert`` of that PNG makes the normals again (the gain
+    times the range's span). signed: a float map holds n itself.
     The output appears whole or not at all and never replaces src.
 
     Returns a HeightInfo (with warnings, one line each). Raises ValueError
