@@ -24,6 +24,7 @@ use std::sync::Mutex;
 use std::path::{Path, PathBuf};
 
 use normalfit::convert::{BorderChoices, Conversion, Place};
+use normalfit::fit::{Halo, Window};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
 use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
@@ -277,6 +278,9 @@ struct Call<'a, 'py> {
     out: Option<&'a Bound<'py, PyAny>>,
     residual: bool,
     pool: Option<Borrowed>,
+    /// The heights are this window of a larger image and its halo (and the
+    /// output the window's); `None`: the heights are the whole image.
+    window: Option<Window>,
 }
 
 /// `normals` for heights of sample type `H` into texels of `[E; 3]`.
@@ -288,10 +292,12 @@ where
 {
     let py = heights.py();
     let (h, w) = (heights.shape()[0], heights.shape()[1]);
+    // The texels computed: the window's, or the whole image's.
+    let (ow, oh) = call.window.map_or((w, h), |win| win.size);
     let source = heights.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
-    let out = output::<E>(py, call.out, h, w)?;
+    let out = output::<E>(py, call.out, oh, ow)?;
     let residual =
-        if call.residual { Some(empty(py, &[h, w], dtype::<f32>(py))?.cast_into::<PyArray2<f32>>()?) } else { None };
+        if call.residual { Some(empty(py, &[oh, ow], dtype::<f32>(py))?.cast_into::<PyArray2<f32>>()?) } else { None };
     // Read in place when the memory is already the rows, one after another.
     let in_place = if heights.is_c_contiguous() { source.as_slice().ok() } else { None };
     let view = source.as_array();
@@ -307,7 +313,8 @@ where
         Some(r) => Some(r.as_slice_mut().map_err(|e| PyValueError::new_err(format!("residual: {e}")))?),
         None => None,
     };
-    let (choices, pool) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()));
+    let (choices, pool, window) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()), call.window);
+    let opts = call.opts;
     py.detach(|| -> Result<(), Error> {
         let copy;
         let heights: &[H] = match in_place {
@@ -317,11 +324,18 @@ where
                 &copy
             }
         };
-        // `auto` settled by the library's tiling check, as a conversion does.
-        let opts = call.opts.clone().with_borders(choices.settle(heights, w, h)?);
+        let Some(window) = window else {
+            // `auto` settled by the library's tiling check, as a conversion does.
+            let opts = opts.clone().with_borders(choices.settle(heights, w, h)?);
+            return on_pool(pool, || match residual_flat {
+                Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
+                None => normalfit::normals_into(heights, w, h, &opts, texels),
+            });
+        };
+        let opts = opts.clone().with_borders(window_borders(choices)?);
         on_pool(pool, || match residual_flat {
-            Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
-            None => normalfit::normals_into(heights, w, h, &opts, texels),
+            Some(r) => normalfit::fit::window_normals_and_residual_into(heights, &window, &opts, texels, r),
+            None => normalfit::fit::window_normals_into(heights, &window, &opts, texels),
         })
     })
     .map_err(to_py_err)?;
@@ -368,13 +382,23 @@ fn normals<'py>(
     let kind = sample_kind(heights, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let output = output_kind(py, dtype)?;
-    let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)? };
+    let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)?, window: None };
+    fit_call(heights, kind, output, &call)
+}
+
+/// [`fit_typed`] for the heights' sample type and the output's.
+fn fit_call<'py>(
+    heights: &Bound<'py, PyUntypedArray>,
+    kind: SampleKind,
+    output: OutputKind,
+    call: &Call<'_, 'py>,
+) -> PyResult<Bound<'py, PyAny>> {
     macro_rules! typed {
         ($h:ty) => {
             match output {
-                OutputKind::F32 => fit_typed::<$h, f32>(heights, &call),
-                OutputKind::U8 => fit_typed::<$h, u8>(heights, &call),
-                OutputKind::U16 => fit_typed::<$h, u16>(heights, &call),
+                OutputKind::F32 => fit_typed::<$h, f32>(heights, call),
+                OutputKind::U8 => fit_typed::<$h, u8>(heights, call),
+                OutputKind::U16 => fit_typed::<$h, u16>(heights, call),
             }
         };
     }
@@ -384,6 +408,66 @@ fn normals<'py>(
         SampleKind::F32 => typed!(f32),
         SampleKind::F64 => typed!(f64),
     }
+}
+
+/// The borders of a window: fixed modes, since `auto` is the tiling check
+/// of the whole image, which a window does not hold.
+fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
+    if choices.any_auto() {
+        return Err(Error::InvalidOption(
+            "border auto needs the whole image's tiling check, which a window does not hold: settle it first \
+             (normalfit.dask.check_tiling(array).suggested_borders) and pass the modes"
+                .into(),
+        ));
+    }
+    choices.fixed()
+}
+
+/// `window_normals` with every argument given: the normals of a window of
+/// an image, from the window's heights and the halo held around it (the
+/// library's `fit::window_normals_into`; `normalfit.dask` calls it on each
+/// chunk). `heights` is the window and its halo; `image` the whole image's
+/// (width, height), `origin` the window's first (column, row), `halo`
+/// (left, right, top, bottom). The options are `normals`'s (no `out`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads))]
+fn window_normals<'py>(
+    py: Python<'py>,
+    heights: &Bound<'py, PyAny>,
+    image: (usize, usize),
+    origin: (usize, usize),
+    halo: (usize, usize, usize, usize),
+    patch: &Bound<'py, PyAny>,
+    fit: &str,
+    border: &Bound<'py, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    dtype: &Bound<'py, PyAny>,
+    residual: bool,
+    threads: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let heights = as_array(heights, "heights", &[2])?;
+    let kind = sample_kind(heights, "heights")?;
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let output = output_kind(py, dtype)?;
+    let (left, right, top, bottom) = halo;
+    let (held_h, held_w) = (heights.shape()[0], heights.shape()[1]);
+    let size = (
+        held_w.checked_sub(left + right).filter(|&w| w > 0),
+        held_h.checked_sub(top + bottom).filter(|&h| h > 0),
+    );
+    let (Some(w), Some(h)) = size else {
+        return Err(PyValueError::new_err(format!(
+            "heights of {held_h} rows and {held_w} columns hold no window inside a halo of {left} left, {right} \
+             right, {top} top, {bottom} bottom"
+        )));
+    };
+    let window = Window { image, origin, size: (w, h), halo: Halo { left, right, top, bottom } };
+    let call = Call { opts: &opts, borders, out: None, residual, pool: pool(threads)?, window: Some(window) };
+    fit_call(heights, kind, output, &call)
 }
 
 /// What the output texels are.
@@ -532,6 +616,89 @@ fn check_tiling(py: Python<'_>, image: &Bound<'_, PyAny>, threshold: f64, kind: 
         })
         .map_err(to_py_err)?;
     tiling_report_value(py, &report, width, height)
+}
+
+/// The tiling check of a height map fed a block of rows at a time, top to
+/// bottom: the library's `tiling::HeightSeams`, which `border="auto"`
+/// settles borders with. `normalfit.dask.check_tiling` feeds it a Dask
+/// array's rows, one row of chunks at a time, so the client holds O(W)
+/// of the check and one row of chunks, never the array.
+#[pyclass(module = "normalfit", name = "_HeightSeams")]
+struct PyHeightSeams {
+    seams: Mutex<Option<tiling::HeightSeams>>,
+    width: usize,
+    height: usize,
+}
+
+#[pymethods]
+impl PyHeightSeams {
+    #[new]
+    fn new(width: usize, height: usize) -> PyResult<Self> {
+        let seams = tiling::HeightSeams::new(width, height).map_err(to_py_err)?;
+        Ok(PyHeightSeams { seams: Mutex::new(Some(seams)), width, height })
+    }
+
+    /// Adds the next rows: a 2-D (rows, width) array of uint8, uint16,
+    /// float32 or float64 heights (integers divided by 255 or 65535).
+    fn push(&self, py: Python<'_>, rows: &Bound<'_, PyAny>) -> PyResult<()> {
+        let array = as_array(rows, "rows", &[2])?;
+        if array.shape()[1] != self.width {
+            return Err(PyValueError::new_err(format!(
+                "rows must have {} columns, got {}",
+                self.width,
+                array.shape()[1]
+            )));
+        }
+        fn typed<H: Stored>(
+            array: &Bound<'_, PyUntypedArray>,
+            seams: &mut tiling::HeightSeams,
+        ) -> PyResult<()> {
+            let source = array.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
+            let view = source.as_array();
+            array
+                .py()
+                .detach(|| {
+                    let rows = row_order(&view)?;
+                    seams.push_heights(&rows)
+                })
+                .map_err(to_py_err)
+        }
+        let _ = py;
+        let mut guard = self.seams.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let Some(seams) = guard.as_mut() else {
+            return Err(PyValueError::new_err("the tiling check is finished already"));
+        };
+        match sample_kind(array, "rows")? {
+            SampleKind::U8 => typed::<u8>(array, seams),
+            SampleKind::U16 => typed::<u16>(array, seams),
+            SampleKind::F32 => typed::<f32>(array, seams),
+            SampleKind::F64 => typed::<f64>(array, seams),
+        }
+    }
+
+    /// The rows pushed so far.
+    #[getter]
+    fn rows(&self) -> usize {
+        self.seams.lock().unwrap_or_else(std::sync::PoisonError::into_inner).as_ref().map_or(self.height, |s| s.rows())
+    }
+
+    /// The report, judged as a height map with this threshold; once only.
+    fn finish(&self, py: Python<'_>, threshold: f64) -> PyResult<TilingReport> {
+        let opts = tiling_options(threshold, "height")?;
+        let seams = self.seams.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take();
+        let Some(seams) = seams else {
+            return Err(PyValueError::new_err("the tiling check is finished already"));
+        };
+        if seams.rows() != self.height {
+            return Err(PyValueError::new_err(format!(
+                "the tiling check has {} of its {} rows",
+                seams.rows(),
+                self.height
+            )));
+        }
+        let report = py.detach(|| seams.finish(&opts));
+        tiling_report_value(py, &report, self.width, self.height)
+    }
 }
 
 /// The tiling check's options, checked by the library as the command line's
@@ -976,6 +1143,7 @@ fn height_file(
 #[pymodule]
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals, m)?)?;
+    m.add_function(wrap_pyfunction!(window_normals, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling_file, m)?)?;
     m.add_function(wrap_pyfunction!(convert, m)?)?;
@@ -987,6 +1155,7 @@ fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<ConversionSummary>()?;
     m.add_class::<AxisReport>()?;
     m.add_class::<TilingReport>()?;
+    m.add_class::<PyHeightSeams>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
