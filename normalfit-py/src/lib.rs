@@ -23,7 +23,7 @@ use std::sync::Mutex;
 
 use std::path::{Path, PathBuf};
 
-use normalfit::convert::{BorderChoices, Conversion, Place};
+use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
 use normalfit::fit::{Halo, Window};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
@@ -468,6 +468,19 @@ fn window_normals<'py>(
     let window = Window { image, origin, size: (w, h), halo: Halo { left, right, top, bottom } };
     let call = Call { opts: &opts, borders, out: None, residual, pool: pool(threads)?, window: Some(window) };
     fit_call(heights, kind, output, &call)
+}
+
+/// `border=` as the library parses it: the (x, y) modes' names, `"auto"`
+/// for an axis left to the tiling check. `normalfit.dask` picks each
+/// axis's Dask boundary from them.
+#[pyfunction]
+fn border_names(border: &Bound<'_, PyAny>) -> PyResult<(&'static str, &'static str)> {
+    let choices = parse_borders(border)?;
+    let name = |c: BorderChoice| match c {
+        BorderChoice::Fixed(b) => Border::name(b),
+        BorderChoice::Auto => "auto",
+    };
+    Ok((name(choices.x), name(choices.y)))
 }
 
 /// What the output texels are.
@@ -1144,6 +1157,7 @@ fn height_file(
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals, m)?)?;
     m.add_function(wrap_pyfunction!(window_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(border_names, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling_file, m)?)?;
     m.add_function(wrap_pyfunction!(convert, m)?)?;

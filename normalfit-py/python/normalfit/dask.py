@@ -1,0 +1,360 @@
+"""normalfit on Dask arrays: normal maps of rasters larger than one
+machine's memory, equal to the whole image's, bit for bit.
+
+Each chunk's normals are computed by the library's window fit
+(``normalfit::fit::window_normals_into``) from the chunk and a halo of
+r = patch // 2 texels that ``dask.array.map_overlap`` gathers around it.
+Every texel's sums come from its own patch alone, so the result is exactly
+``normalfit.normals`` of the whole array, whatever the chunking.
+
+>>> import dask.array as da, numpy as np, normalfit, normalfit.dask
+>>> heights = da.random.default_rng(1).random((512, 768), chunks=(100, 300)).astype(np.float32)
+>>> n = normalfit.dask.normals(heights, patch=5, border=("wrap", "mirror"), dtype=np.uint16)
+>>> n.shape, n.chunks[2]
+((512, 768, 3), (3,))
+>>> bool((n.compute() == normalfit.normals(heights.compute(), patch=5, border=("wrap", "mirror"), dtype=np.uint16)).all())
+True
+
+Requires the ``dask`` extra (``dask[array]``; ``distributed`` for a
+cluster, ``zarr`` for :func:`read_zarr` and :func:`to_zarr`). See
+docs/dask.md for the border mapping, threads, errors and figures.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import uuid
+from pathlib import Path
+from typing import Any
+
+import dask
+import dask.array as da
+import numpy as np
+
+from . import _normalfit
+from ._normalfit import TilingReport
+
+__all__ = ["check_tiling", "normals", "read_zarr", "to_zarr"]
+
+
+def _chunk_error(e: BaseException, what: str) -> BaseException:
+    """``e`` with ``what`` (the chunk) before its message, as the same
+    exception type when it takes one message (ValueError, TypeError,
+    MemoryError, OSError, ...), else a RuntimeError; both pickle, so a
+    worker's failure reaches the client as it is."""
+    message = f"{what}: {e}"
+    try:
+        new = type(e)(message)
+    except Exception:  # a type whose constructor wants other arguments
+        new = RuntimeError(message)
+    return new
+
+
+def _where(block_info: Any) -> tuple[tuple[int, int], tuple[int, int], tuple[int, int]]:
+    """The block index and the (start, stop) rows and columns of the chunk
+    that ``block_info`` (Dask's, of the output) describes."""
+    out = block_info[None]
+    (i, j) = out["chunk-location"][:2]
+    (rows, cols) = out["array-location"][:2]
+    return (i, j), (rows[0], rows[1]), (cols[0], cols[1])
+
+
+def _describe(index: tuple[int, int], rows: tuple[int, int], cols: tuple[int, int]) -> str:
+    return f"chunk {index} (rows {rows[0]} to {rows[1] - 1}, columns {cols[0]} to {cols[1] - 1})"
+
+
+def _merged(chunks: tuple[int, ...], depth: int) -> tuple[int, ...]:
+    """Chunks of at least ``depth`` texels (what ``map_overlap`` needs of
+    each neighbour), made by joining neighbours; unchanged when every chunk
+    already has ``depth``."""
+    if all(c >= depth for c in chunks):
+        return chunks
+    merged: list[int] = []
+    run = 0
+    for c in chunks:
+        run += c
+        if run >= depth:
+            merged.append(run)
+            run = 0
+    if run:
+        if merged:
+            merged[-1] += run
+        else:
+            merged.append(run)
+    return tuple(merged)
+
+
+def _fit_block(
+    held: np.ndarray,
+    *,
+    image: tuple[int, int],
+    depth_hw: tuple[int, int],
+    periodic: tuple[bool, bool],
+    options: dict[str, Any],
+    block_info: Any = None,
+) -> np.ndarray:
+    """One chunk's normals from the chunk and the halo ``map_overlap``
+    gathered: ``depth_hw`` (rows, columns) on every side that has it."""
+    index, rows, cols = _where(block_info)
+    try:
+        (w, h) = image
+        halo = []
+        for (start, stop), n, d, wrap in ((cols, w, depth_hw[1], periodic[1]), (rows, h, depth_hw[0], periodic[0])):
+            halo.append((d if wrap or start > 0 else 0, d if wrap or stop < n else 0))
+        (left, right), (top, bottom) = halo
+        expected = (rows[1] - rows[0] + top + bottom, cols[1] - cols[0] + left + right)
+        if held.shape != expected:
+            raise ValueError(f"the chunk and its halo hold {held.shape} texels, expected {expected}")
+        result = _normalfit.window_normals(
+            held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
+            options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
+            options["dtype"], options["residual"], options["threads"],
+        )
+    except Exception as e:
+        raise _chunk_error(e, _describe(index, rows, cols)) from e
+    if options["residual"]:
+        n, res = result
+        packed = np.empty(n.shape[:2] + (4,), np.float64)
+        packed[..., :3] = n
+        packed[..., 3] = res
+        return packed
+    return result  # type: ignore[no-any-return]
+
+
+def normals(
+    array: Any,
+    *,
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: str | tuple[str, str] = "wrap",
+    convention: str = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    dtype: Any = np.float32,
+    residual: bool = False,
+    threads: int | None = 1,
+) -> Any:
+    """The normal map of a 2-D Dask array of heights, lazily: a (rows,
+    columns, 3) Dask array chunked like ``array`` (one chunk of 3 on the
+    last axis), equal bit for bit to ``normalfit.normals`` of the whole
+    computed array with the same options.
+
+    array: a 2-D dask.array (or anything ``dask.array.asarray`` takes) of
+        uint8, uint16, float32 or float64, in normalfit.normals's units.
+    patch, fit, convention, scale, relief, invert, dtype: as for
+        normalfit.normals (dtype float32 unit vectors, or uint8 / uint16
+        encoded RGB).
+    border: "wrap", "clamp" or "mirror", for both axes or as an (x, y)
+        pair (or "x,y"). Wrap becomes Dask's ``periodic`` boundary; clamp
+        and mirror take ``boundary="none"``: the halo stops at the image's
+        edge and the library maps the reads beyond it (Dask's ``reflect``
+        repeats the edge texel, the contract's mirror does not). "auto" is
+        refused (ValueError): it needs the whole array's tiling check; run
+        ``check_tiling(array)`` and pass its ``suggested_borders`` (the
+        borders normalfit.normals(border="auto") picks, exactly).
+    residual: also return the fit's residual: the result is then
+        (normals, residual), lazy arrays of one graph (compute them
+        together, ``dask.compute(n, r)``, to run it once).
+    threads: threads of the library's pool in each task. Default 1: Dask
+        already runs one task per worker thread, so a worker uses the
+        threads it was given and no more. None: every core (rayon's global
+        pool), for a single-threaded scheduler.
+
+    Chunks smaller than the halo: ``map_overlap`` needs each chunk to hold
+    r texels; an axis with a smaller chunk is rechunked by joining
+    neighbours for the fit, and the result rechunked back to the input's
+    chunks. An axis in one chunk takes no halo (the library maps every
+    border's reads into the chunk).
+
+    The options are checked now (ValueError, TypeError as for
+    normalfit.normals). A chunk that fails when computed (a NaN height, a
+    wrong dtype) raises, from its task, the library's exception with the
+    chunk's block index and rows and columns before its message.
+    """
+    array = da.asarray(array)
+    if array.ndim != 2:
+        raise TypeError(f"array must be a 2-D dask array of heights, got {array.ndim}-D")
+    (h, w) = (int(array.shape[0]), int(array.shape[1]))
+    bx, by = _normalfit.border_names(border)
+    # Checked now, by the library, on a 2 x 2 image of the array's dtype:
+    # every option, the dtype, and border auto's refusal.
+    probe = np.zeros((2, 2), array.dtype)
+    _normalfit.window_normals(
+        probe, (2, 2), (0, 0), (0, 0, 0, 0), patch, fit, border, convention, scale, relief, invert, dtype, False,
+        threads,
+    )
+    out_dtype = np.dtype(dtype)
+    r = int(patch) // 2
+    chunks = tuple(_merged(c, r) for c in array.chunks)
+    work = array if chunks == array.chunks else array.rechunk(chunks)
+    depth = tuple(0 if len(c) == 1 else r for c in chunks)
+    periodic = (by == "wrap" and depth[0] > 0, bx == "wrap" and depth[1] > 0)
+    options = dict(
+        patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
+        dtype=out_dtype, residual=residual, threads=threads,
+    )
+    packed_dtype = np.dtype(np.float64) if residual else out_dtype
+    result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)
+    if chunks != array.chunks:
+        result = result.rechunk(array.chunks + ((4 if residual else 3),))
+    if residual:
+        return result[..., :3].astype(out_dtype), result[..., 3].astype(np.float32)
+    return result
+
+
+def _map(
+    work: Any,
+    depth: tuple[int, int],
+    periodic: tuple[bool, bool],
+    chunks: tuple[tuple[int, ...], ...],
+    image: tuple[int, int],
+    options: dict[str, Any],
+    dtype: np.dtype[Any],
+) -> Any:
+    last = 4 if options["residual"] else 3
+    return da.map_overlap(
+        _fit_block,
+        work,
+        depth={0: depth[0], 1: depth[1]},
+        boundary={0: "periodic" if periodic[0] else "none", 1: "periodic" if periodic[1] else "none"},
+        trim=False,
+        allow_rechunk=False,
+        new_axis=2,
+        chunks=(chunks[0], chunks[1], (last,)),
+        dtype=dtype,
+        meta=np.empty((0, 0, 0), dtype),
+        name="normalfit-normals-" + dask.base.tokenize(work, depth, periodic, image, sorted(options.items())),
+        image=image,
+        depth_hw=depth,
+        periodic=periodic,
+        options=options,
+    )
+
+
+def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> TilingReport:
+    """Whether a 2-D Dask array of heights tiles: the report of
+    ``normalfit.check_tiling`` on the whole computed array, and the
+    ``suggested_borders`` that ``normalfit.normals(border="auto")`` picks.
+
+    The check compares the seam with the distribution of every interior
+    pair of neighbouring columns (rows), summed over whole lines, so it
+    reads every texel: edge strips alone cannot give its report. It runs
+    the library's streaming check (``tiling::HeightSeams``, what
+    ``border="auto"`` uses) on the client, computing one row of chunks at a
+    time (the next one while the current is measured): the client holds
+    the check's O(width + height) profiles and two rows of chunks, never
+    the array. Each chunk is computed once.
+
+    array: a 2-D dask.array of uint8, uint16, float32 or float64 heights.
+    threshold: as for normalfit.check_tiling. kind: "auto" or "height"
+    (a 2-D array is a height map; "normal" is refused).
+    """
+    array = da.asarray(array)
+    if array.ndim != 2:
+        raise TypeError(f"array must be a 2-D dask array of heights, got {array.ndim}-D")
+    if kind not in ("auto", "height"):
+        raise ValueError(f"invalid option: kind of a 2-D array of heights must be auto or height, got {kind!r}")
+    (h, w) = (int(array.shape[0]), int(array.shape[1]))
+    seams = _normalfit._HeightSeams(w, h)
+    rows = [array.blocks[i, :] for i in range(array.numblocks[0])]
+    # The next row of chunks is computed (in a thread, on the scheduler in
+    # use) while the library measures the current one.
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:
+        pending = pool.submit(_computed, rows[0]) if rows else None
+        for i in range(len(rows)):
+            assert pending is not None
+            block = pending.result()
+            pending = pool.submit(_computed, rows[i + 1]) if i + 1 < len(rows) else None
+            seams.push(block)
+    return seams.finish(threshold)
+
+
+def _computed(rows: Any) -> np.ndarray:
+    block: np.ndarray = rows.compute()
+    return block
+
+
+def read_zarr(path: str | os.PathLike[str], *, component: str | None = None, chunks: Any = None) -> Any:
+    """A 2-D Zarr array as a Dask array whose every chunk, when read, names
+    itself in any error: a chunk that cannot be read (a corrupt or
+    unreadable chunk file) raises the read's exception type with the
+    chunk's block index, rows and columns and the store's path before the
+    message. chunks: Dask chunks (default: the Zarr array's)."""
+    import zarr
+
+    store = os.fspath(path)
+    z = zarr.open_array(store, mode="r", path=component) if component else zarr.open_array(store, mode="r")
+    if z.ndim != 2:
+        raise TypeError(f"{store}: a 2-D array of heights is needed, got {z.ndim}-D")
+    normalized = da.core.normalize_chunks(chunks if chunks is not None else z.chunks, z.shape, dtype=z.dtype)
+    return da.map_blocks(
+        _read_block,
+        chunks=normalized,
+        dtype=z.dtype,
+        meta=np.empty((0, 0), z.dtype),
+        name="normalfit-read-" + dask.base.tokenize(store, component, normalized),
+        store=store,
+        component=component,
+    )
+
+
+def _read_block(*, store: str, component: str | None, block_info: Any = None) -> np.ndarray:
+    index, rows, cols = _where(block_info)
+    try:
+        import zarr
+
+        z = zarr.open_array(store, mode="r", path=component) if component else zarr.open_array(store, mode="r")
+        block: np.ndarray = np.asarray(z[rows[0]:rows[1], cols[0]:cols[1]])
+        return block
+    except Exception as e:
+        raise _chunk_error(e, f"{store}: {_describe(index, rows, cols)}") from e
+
+
+def to_zarr(array: Any, path: str | os.PathLike[str], *, overwrite: bool = False, **kwargs: Any) -> Path:
+    """Computes ``array`` into a Zarr store at ``path``, whole or not at
+    all: the chunks are written to a temporary store beside ``path``
+    (``.<name>.tmp-<random>``, same folder, so same file system), which is
+    renamed into place only once every chunk is written. On any failure
+    (a chunk's exception, an interrupt) the temporary store is removed and
+    ``path`` is untouched.
+
+    overwrite: replace an existing ``path`` (moved aside, the new store
+        renamed in, the old one removed); else an existing ``path`` is a
+        FileExistsError before anything is computed.
+    kwargs: passed to ``dask.array.to_zarr`` (e.g. ``compute`` is always
+        True here; ``zarr_format``, codecs, ...).
+
+    Returns ``path`` as a Path.
+    """
+    target = Path(path)
+    if target.exists() and not overwrite:
+        raise FileExistsError(f"{target}: exists (pass overwrite=True to replace it)")
+    if kwargs.pop("compute", True) is not True:
+        raise ValueError("to_zarr computes: the rename into place needs every chunk written")
+    tmp = target.parent / f".{target.name}.tmp-{uuid.uuid4().hex}"
+    try:
+        da.to_zarr(array, os.fspath(tmp), compute=True, **kwargs)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if target.exists():
+        old = target.parent / f".{target.name}.old-{uuid.uuid4().hex}"
+        os.rename(target, old)
+        try:
+            os.rename(tmp, target)
+        except BaseException:
+            os.rename(old, target)
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        try:
+            os.rename(tmp, target)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+    return target
