@@ -1,7 +1,7 @@
 """The native module: every argument positional (normalfit's functions name them)."""
 
 import os
-from typing import Any
+from typing import Any, final
 
 from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionSummary, HeightInfo as HeightInfo, TilingReport as TilingReport
 
@@ -109,3 +109,27 @@ def height_file(
     max_texels: int | None,
     layer: str | None,
 ) -> HeightInfo: ...
+def window_normals(
+    heights: Any,
+    image: tuple[int, int],
+    origin: tuple[int, int],
+    halo: tuple[int, int, int, int],
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    dtype: Any,
+    residual: bool,
+    threads: Any | None,
+) -> Any: ...
+def border_names(border: Any) -> tuple[str, str]: ...
+@final
+class _HeightSeams:
+    def __new__(cls, width: int, height: int) -> _HeightSeams: ...
+    def push(self, rows: Any) -> None: ...
+    @property
+    def rows(self) -> int: ...
+    def finish(self, threshold: float) -> TilingReport: ...

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import time
 import uuid
 from pathlib import Path
 from typing import Any
@@ -314,6 +315,34 @@ def _read_block(*, store: str, component: str | None, block_info: Any = None) ->
         raise _chunk_error(e, f"{store}: {_describe(index, rows, cols)}") from e
 
 
+def _store(writes: Any) -> None:
+    """Runs the writes; when one fails, returns (raising) only once no
+    other write of them still runs, so that removing the store after it
+    is final. On a distributed Client: the writes are cancelled and their
+    tasks waited for (up to a minute). On Dask's local schedulers, the
+    failure is raised as they raise it."""
+    try:
+        from distributed import default_client
+
+        client = default_client()
+    except (ImportError, ValueError):
+        dask.compute(writes)
+        return
+    future = client.compute(writes)
+    try:
+        future.result()
+    except BaseException:
+        keys = {str(k) for k in writes.__dask_graph__().keys()}
+        client.cancel(future)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            running = client.processing()
+            if not any(str(k) in keys for tasks in running.values() for k in tasks):
+                break
+            time.sleep(0.05)
+        raise
+
+
 def to_zarr(array: Any, path: str | os.PathLike[str], *, overwrite: bool = False, **kwargs: Any) -> Path:
     """Computes ``array`` into a Zarr store at ``path``, whole or not at
     all: the chunks are written to a temporary store beside ``path``
@@ -337,7 +366,7 @@ def to_zarr(array: Any, path: str | os.PathLike[str], *, overwrite: bool = False
         raise ValueError("to_zarr computes: the rename into place needs every chunk written")
     tmp = target.parent / f".{target.name}.tmp-{uuid.uuid4().hex}"
     try:
-        da.to_zarr(array, os.fspath(tmp), compute=True, **kwargs)
+        _store(da.to_zarr(array, os.fspath(tmp), compute=False, **kwargs))
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

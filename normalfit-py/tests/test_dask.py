@@ -1,0 +1,260 @@
+"""normalfit.dask: lazy normals of Dask arrays equal to normalfit.normals of
+the whole array, bit for bit, on a two-process LocalCluster; the tiling
+check; threads per task; chunks that fail; the Zarr writer that leaves
+nothing half-written.
+
+Every result is compared at run time with normalfit.normals (or
+normalfit.check_tiling) on the whole computed array, never with recorded
+numbers."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import threading
+import time
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+import pytest
+
+da = pytest.importorskip("dask.array", reason="dask is not installed (pip install 'normalfit[dask]')")
+distributed = pytest.importorskip("distributed", reason="distributed is not installed (pip install 'normalfit[dask]')")
+import dask  # noqa: E402
+
+import normalfit  # noqa: E402
+import normalfit.dask as nd  # noqa: E402
+
+MODES = ("wrap", "clamp", "mirror")
+IN_DTYPES = (np.uint8, np.uint16, np.float32, np.float64)
+OUT_DTYPES = (np.float32, np.uint8, np.uint16)
+
+
+@pytest.fixture(scope="module")
+def client() -> Iterator[Any]:
+    """One cluster for the module: two worker processes of one thread."""
+    with distributed.LocalCluster(
+        n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None, memory_limit="2GiB"
+    ) as cluster, distributed.Client(cluster) as c:
+        yield c
+
+
+def heights(shape: tuple[int, int], dtype: Any, seed: int = 0) -> np.ndarray:
+    """Heights with slopes and detail on both axes (not a constant, whose
+    normals any wrong read would also give)."""
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    y, x = np.mgrid[0:h, 0:w]
+    smooth = 0.5 + 0.3 * np.sin(x * 0.7) * np.cos(y * 0.45) + 0.1 * rng.random(shape)
+    if dtype == np.uint8:
+        return (smooth * 255).astype(np.uint8)
+    if dtype == np.uint16:
+        return (smooth * 65535).astype(np.uint16)
+    return (smooth * 3.0 - 1.0).astype(dtype)
+
+
+SHAPE = (12, 15)
+CHUNKINGS: list[Any] = [
+    (5, 4),  # even, with a short last chunk
+    ((1, 6, 2, 3), (3, 1, 8, 1, 2)),  # uneven, some smaller than any halo
+    (1, 1),  # one texel each
+    (2, 2),  # smaller than N = 5 and 7's halo
+    (12, 15),  # one chunk
+    ((12,), (1, 13, 1)),  # one chunk down, thin edges across
+]
+
+
+@pytest.mark.parametrize("bx,by", list(itertools.product(MODES, MODES)))
+def test_equals_the_whole_image_for_every_border_pair(client: Any, bx: str, by: str) -> None:
+    """Every chunking with N = 3, 5, 7; the fits and every pair of input
+    and output dtypes cycled through the cases; against normalfit.normals."""
+    cases = []
+    kinds = itertools.cycle(itertools.product(IN_DTYPES, OUT_DTYPES))
+    fits = itertools.cycle(("orthogonal", "vertical"))
+    for chunks, patch in itertools.product(CHUNKINGS, (3, 5, 7)):
+        in_dtype, out_dtype = next(kinds)
+        fit = next(fits)
+        whole = heights(SHAPE, in_dtype, seed=patch)
+        opts = dict(patch=patch, fit=fit, border=(bx, by), dtype=out_dtype, scale=2.5)
+        lazy = nd.normals(da.from_array(whole, chunks=chunks), **opts)
+        assert lazy.chunks[:2] == da.from_array(whole, chunks=chunks).chunks and lazy.chunks[2] == (3,)
+        assert lazy.dtype == np.dtype(out_dtype)
+        cases.append((lazy, normalfit.normals(whole, **opts), (chunks, fit, patch, in_dtype, out_dtype)))
+    computed = dask.compute(*[c[0] for c in cases])
+    for got, (_, want, what) in zip(computed, cases):
+        assert got.dtype == want.dtype and np.array_equal(got, want), what
+
+
+@pytest.mark.parametrize("in_dtype", IN_DTYPES)
+@pytest.mark.parametrize("out_dtype", OUT_DTYPES)
+def test_every_dtype_pair_with_relief_and_options(client: Any, in_dtype: Any, out_dtype: Any) -> None:
+    """Relief takes the whole image's width, not a chunk's; convention and
+    invert pass through."""
+    whole = heights((40, 57), in_dtype, seed=3)
+    opts = dict(patch=9, relief=0.02, convention="directx", invert=True, border="mirror,wrap", dtype=out_dtype)
+    lazy = nd.normals(da.from_array(whole, chunks=(11, 16)), **opts)
+    assert np.array_equal(lazy.compute(), normalfit.normals(whole, **opts))
+
+
+def test_residual_is_a_pair_of_lazy_arrays(client: Any) -> None:
+    whole = heights((30, 26), np.float32)
+    n, r = nd.normals(da.from_array(whole, chunks=(4, 9)), patch=5, border=("clamp", "wrap"), residual=True,
+                      dtype=np.uint16)
+    got_n, got_r = dask.compute(n, r)
+    want_n, want_r = normalfit.normals(whole, patch=5, border=("clamp", "wrap"), residual=True, dtype=np.uint16)
+    assert got_n.dtype == np.uint16 and got_r.dtype == np.float32
+    assert np.array_equal(got_n, want_n) and np.array_equal(got_r, want_r)
+
+
+def test_a_patch_wider_than_the_image(client: Any) -> None:
+    """N = 15 on a 6 x 5 image: indices keep mapping by the border's rule."""
+    whole = heights((5, 6), np.float64)
+    for border in MODES:
+        for chunks in ((1, 1), (2, 3), (5, 6)):
+            got = nd.normals(da.from_array(whole, chunks=chunks), patch=15, border=border).compute()
+            assert np.array_equal(got, normalfit.normals(whole, patch=15, border=border)), (border, chunks)
+
+
+def test_options_are_checked_when_the_graph_is_made() -> None:
+    array = da.zeros((8, 8), chunks=4, dtype=np.float32)
+    with pytest.raises(ValueError, match="auto"):
+        nd.normals(array, border="auto")
+    with pytest.raises(ValueError, match="auto"):
+        nd.normals(array, border=("wrap", "auto"))
+    with pytest.raises(ValueError, match="patch"):
+        nd.normals(array, patch=4)
+    with pytest.raises(ValueError, match="dtype"):
+        nd.normals(array, dtype=np.int32)
+    with pytest.raises(TypeError, match="int16"):
+        nd.normals(da.zeros((8, 8), chunks=4, dtype=np.int16))
+    with pytest.raises(TypeError, match="2-D"):
+        nd.normals(da.zeros((8, 8, 3), chunks=4, dtype=np.float32))
+
+
+@pytest.mark.parametrize("seamless", [True, False])
+def test_check_tiling_equals_the_whole_array_check(client: Any, seamless: bool) -> None:
+    """The report of normalfit.check_tiling on the whole array, and the
+    borders normalfit.normals(border="auto") then uses."""
+    rng = np.random.default_rng(7)
+    if seamless:
+        whole = rng.random((96, 130), dtype=np.float32)  # noise tiles
+    else:
+        whole = np.tile(np.linspace(0, 1, 130, dtype=np.float32), (96, 1)) + 0.01 * rng.random((96, 130),
+                                                                                                 dtype=np.float32)
+    array = da.from_array(whole, chunks=(17, 40))
+    got = nd.check_tiling(array)
+    want = normalfit.check_tiling(whole)
+    for field in ("kind", "seamless", "width", "height", "suggested_borders"):
+        assert getattr(got, field) == getattr(want, field), field
+    assert (got.x.score, got.x.seamless, got.y.score, got.y.seamless) == (
+        want.x.score, want.x.seamless, want.y.score, want.y.seamless)
+    assert got.seamless == seamless
+    # Its borders, passed on, are what border="auto" gives.
+    auto = normalfit.normals(whole, patch=5, border="auto")
+    assert np.array_equal(nd.normals(array, patch=5, border=got.suggested_borders).compute(), auto)
+
+
+def test_check_tiling_computes_each_chunk_once_a_row_of_chunks_at_a_time() -> None:
+    """The check reads every texel (its reference is the interior pairs of
+    whole lines): each chunk is made once, never the array at once."""
+    whole = heights((40, 30), np.uint16)
+    made: list[tuple[int, int]] = []
+    lock = threading.Lock()
+
+    def chunk(block: np.ndarray, block_info: Any = None) -> np.ndarray:
+        with lock:
+            made.append(tuple(block_info[None]["chunk-location"]))
+        return block
+
+    array = da.from_array(whole, chunks=(7, 12)).map_blocks(chunk, dtype=whole.dtype)
+    with dask.config.set(scheduler="synchronous"):
+        got = nd.check_tiling(array, threshold=2.0)
+    assert sorted(made) == sorted(itertools.product(range(6), range(3)))
+    want = normalfit.check_tiling(whole, threshold=2.0)
+    assert (got.x.score, got.y.score) == (want.x.score, want.y.score)
+    with pytest.raises(ValueError, match="kind"):
+        nd.check_tiling(array, kind="normal")
+
+
+def test_a_task_uses_one_thread_by_default(client: Any) -> None:
+    """A task runs the library on a pool of 1 thread unless threads= says
+    otherwise: on a worker, the process's CPU time over a task's wall time
+    stays near 1 (2 if it took both cores of an idle machine), and the
+    only pool thread in the process is normalfit-0 (test_threads.py names
+    pool threads the same way)."""
+
+    def run(threads: int | None) -> tuple[float, list[str]]:
+        whole = heights((1536, 1536), np.float32)
+        array = da.from_array(whole, chunks=(768, 1536))
+        lazy = nd.normals(array, patch=9) if threads is None else nd.normals(array, patch=9, threads=threads)
+        cpu, wall = time.process_time(), time.perf_counter()
+        lazy.compute(scheduler="synchronous")
+        ratio = (time.process_time() - cpu) / (time.perf_counter() - wall)
+        names = [(t / "comm").read_text().strip() for t in Path("/proc/self/task").iterdir()]
+        return ratio, sorted(n for n in names if n.startswith("normalfit-"))
+
+    if not Path("/proc/self/task").is_dir():
+        pytest.skip("counts threads through Linux's /proc")
+    ratio, pool = client.submit(run, None, pure=False).result()
+    print(f"\ndefault threads: CPU / wall {ratio:.2f}, pool threads {pool}")
+    assert ratio < 1.3 and pool == ["normalfit-0"]
+    # The control: threads=2 does start a second thread (the pools are
+    # named normalfit-<i>, i from 0).
+    ratio2, pool2 = client.submit(run, 2, pure=False).result()
+    print(f"threads=2: CPU / wall {ratio2:.2f}, pool threads {pool2}")
+    assert "normalfit-1" in pool2
+
+
+def test_a_failing_chunk_names_itself(client: Any) -> None:
+    whole = heights((30, 40), np.float32)
+    whole[17, 25] = np.nan  # in chunk (1, 2) of chunks (10, 10)
+    lazy = nd.normals(da.from_array(whole, chunks=10), patch=5)
+    with pytest.raises(ValueError, match=r"chunk \(1, 2\) \(rows 10 to 19, columns 20 to 29\): .*x 25, y 17"):
+        lazy.compute()
+
+
+zarr = pytest.importorskip("zarr", reason="zarr is not installed (pip install 'normalfit[dask]')")
+
+
+def test_read_zarr_names_the_chunk_that_cannot_be_read(client: Any, tmp_path: Path) -> None:
+    whole = heights((24, 24), np.float32)
+    store = tmp_path / "heights.zarr"
+    da.from_array(whole, chunks=8).to_zarr(os.fspath(store))
+    array = nd.read_zarr(store)
+    assert array.chunks == ((8, 8, 8), (8, 8, 8))
+    assert np.array_equal(nd.normals(array, patch=3).compute(), normalfit.normals(whole, patch=3))
+    # Corrupt one chunk's file: chunk (2, 1).
+    files = [p for p in store.rglob("*") if p.is_file() and p.parent.name == "2" and p.name == "1"]
+    assert files, sorted(str(p.relative_to(store)) for p in store.rglob("*"))
+    files[0].write_bytes(b"not a compressed chunk")
+    with pytest.raises(Exception, match=r"heights\.zarr: chunk \(2, 1\) \(rows 16 to 23, columns 8 to 15\)"):
+        nd.normals(array, patch=3).compute()
+
+
+def test_to_zarr_writes_whole_or_not_at_all(client: Any, tmp_path: Path) -> None:
+    whole = heights((32, 48), np.uint16)
+    target = tmp_path / "normals.zarr"
+    good = nd.normals(da.from_array(whole, chunks=(8, 16)), patch=5, dtype=np.uint16)
+    assert nd.to_zarr(good, target) == target
+    assert np.array_equal(np.asarray(zarr.open_array(os.fspath(target), mode="r")[...]),
+                          normalfit.normals(whole, patch=5, dtype=np.uint16))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["normals.zarr"]
+    with pytest.raises(FileExistsError):
+        nd.to_zarr(good, target)
+    # A chunk that fails: nothing new appears, the old store stays whole.
+    bad = whole.astype(np.float32)
+    bad[20, 24] = np.inf  # in chunk (2, 1) and no other's halo
+    failing = nd.normals(da.from_array(bad, chunks=(8, 16)), patch=5, dtype=np.uint16)
+    with pytest.raises(ValueError, match=r"chunk \(2, 1\)"):
+        nd.to_zarr(failing, target, overwrite=True)
+    with pytest.raises(ValueError, match=r"chunk \(2, 1\)"):
+        nd.to_zarr(failing, tmp_path / "other.zarr")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["normals.zarr"]
+    assert np.array_equal(np.asarray(zarr.open_array(os.fspath(target), mode="r")[...]),
+                          normalfit.normals(whole, patch=5, dtype=np.uint16))
+    # Replaced on success.
+    nd.to_zarr(nd.normals(da.from_array(whole, chunks=16), patch=3, dtype=np.uint16), target, overwrite=True)
+    assert np.array_equal(np.asarray(zarr.open_array(os.fspath(target), mode="r")[...]),
+                          normalfit.normals(whole, patch=3, dtype=np.uint16))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["normals.zarr"]
