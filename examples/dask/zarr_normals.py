@@ -87,7 +87,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--dir", type=Path, required=True, help="where the Zarr stores go (about 5 GiB at 32768²)")
     parser.add_argument("--size", type=int, default=32768, help="side of the square raster (default 32768)")
-    parser.add_argument("--chunk", type=int, default=4096, help="side of a chunk (default 4096)")
+    parser.add_argument("--chunk", type=int, default=2048, help="side of a chunk (default 2048)")
     parser.add_argument("--patch", type=int, default=3, help="N (default 3)")
     parser.add_argument("--bits", type=int, choices=(8, 16), default=8, help="encoded normals' depth (default 8)")
     parser.add_argument("--memory-limit", default="1GiB", help="per worker (default 1GiB)")

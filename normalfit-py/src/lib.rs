@@ -455,10 +455,8 @@ fn window_normals<'py>(
     let output = output_kind(py, dtype)?;
     let (left, right, top, bottom) = halo;
     let (held_h, held_w) = (heights.shape()[0], heights.shape()[1]);
-    let size = (
-        held_w.checked_sub(left + right).filter(|&w| w > 0),
-        held_h.checked_sub(top + bottom).filter(|&h| h > 0),
-    );
+    let size =
+        (held_w.checked_sub(left + right).filter(|&w| w > 0), held_h.checked_sub(top + bottom).filter(|&h| h > 0));
     let (Some(w), Some(h)) = size else {
         return Err(PyValueError::new_err(format!(
             "heights of {held_h} rows and {held_w} columns hold no window inside a halo of {left} left, {right} \
@@ -662,10 +660,7 @@ impl PyHeightSeams {
                 array.shape()[1]
             )));
         }
-        fn typed<H: Stored>(
-            array: &Bound<'_, PyUntypedArray>,
-            seams: &mut tiling::HeightSeams,
-        ) -> PyResult<()> {
+        fn typed<H: Stored>(array: &Bound<'_, PyUntypedArray>, seams: &mut tiling::HeightSeams) -> PyResult<()> {
             let source = array.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
             let view = source.as_array();
             array

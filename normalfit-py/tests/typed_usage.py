@@ -3,6 +3,8 @@ by test_stubs.py; not a test module itself)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import numpy.typing as npt
 
@@ -25,3 +27,12 @@ from_file: normalfit.TilingReport = normalfit.check_tiling("in.png", channel="r"
 back, info = normalfit.height(unit, scale=2.0, fit="vertical", convention="auto", model="exact")
 range_: tuple[float, float] = info.range
 written: normalfit.HeightInfo = normalfit.height_file("out.png", "height.exr", border=("wrap", "mirror"))
+
+import dask.array as da  # noqa: E402
+import normalfit.dask  # noqa: E402
+
+lazy_heights = da.zeros((64, 64), chunks=16, dtype=np.float32)
+lazy = normalfit.dask.normals(lazy_heights, patch=5, border=("wrap", "mirror"), dtype=np.uint16)
+lazy_n, lazy_r = normalfit.dask.normals(lazy_heights, residual=True, threads=1)
+lazy_report: normalfit.TilingReport = normalfit.dask.check_tiling(lazy_heights, threshold=2.0)
+stored: Path = normalfit.dask.to_zarr(lazy, "normals.zarr", overwrite=True)

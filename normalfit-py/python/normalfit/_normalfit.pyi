@@ -7,6 +7,8 @@ from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionS
 
 __all__ = [
     "normals",
+    "window_normals",
+    "border_names",
     "check_tiling",
     "check_tiling_file",
     "convert",
@@ -18,6 +20,7 @@ __all__ = [
     "HeightInfo",
     "AxisReport",
     "TilingReport",
+    "_HeightSeams",
     "__version__",
 ]
 
