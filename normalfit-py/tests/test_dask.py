@@ -214,10 +214,13 @@ def test_a_failing_chunk_names_itself(client: Any) -> None:
         lazy.compute()
 
 
-zarr = pytest.importorskip("zarr", reason="zarr is not installed (pip install 'normalfit[dask]')")
+@pytest.fixture
+def zarr() -> Any:
+    """zarr, or the test is skipped (the other tests need only dask)."""
+    return pytest.importorskip("zarr", reason="zarr is not installed (pip install 'normalfit[dask]')")
 
 
-def test_read_zarr_names_the_chunk_that_cannot_be_read(client: Any, tmp_path: Path) -> None:
+def test_read_zarr_names_the_chunk_that_cannot_be_read(client: Any, zarr: Any, tmp_path: Path) -> None:
     whole = heights((24, 24), np.float32)
     store = tmp_path / "heights.zarr"
     da.from_array(whole, chunks=8).to_zarr(os.fspath(store))
@@ -232,7 +235,7 @@ def test_read_zarr_names_the_chunk_that_cannot_be_read(client: Any, tmp_path: Pa
         nd.normals(array, patch=3).compute()
 
 
-def test_to_zarr_writes_whole_or_not_at_all(client: Any, tmp_path: Path) -> None:
+def test_to_zarr_writes_whole_or_not_at_all(client: Any, zarr: Any, tmp_path: Path) -> None:
     whole = heights((32, 48), np.uint16)
     target = tmp_path / "normals.zarr"
     good = nd.normals(da.from_array(whole, chunks=(8, 16)), patch=5, dtype=np.uint16)
