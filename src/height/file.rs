@@ -277,12 +277,13 @@ impl HeightConversion {
 }
 
 /// Bytes a conversion holds per texel besides the decoded image: the
-/// solve's two planes of row spectra (16 bytes a texel for a wrapped x,
-/// 32 for a mirrored or clamped one), the heights (8), the orthogonal
+/// solve's row spectra ([`super::solve::Solver::memory`]: 8 bytes a texel
+/// for the exact model with a wrapped or mirrored x, 16 clamped; the
+/// generic model's two complex planes 16 or 32), the heights (8), the orthogonal
 /// fit's ratios and kept heights (24), the conjugate gradients' vectors
 /// (48, clamp with N ≥ 5), the output's samples (4).
 fn per_texel(options: &HeightOptions, width: usize) -> u64 {
-    let spectra = super::solve::Solver::memory(width, 1, options.borders);
+    let spectra = super::solve::Solver::memory(width, 1, options.borders, options.model);
     let clamp = options.borders.x == crate::Border::Clamp || options.borders.y == crate::Border::Clamp;
     let iterative = if clamp && options.patch > 3 { 48 } else { 0 };
     let orthogonal = if options.fit == crate::Fit::Orthogonal { 24 } else { 0 };

@@ -274,45 +274,67 @@ fn ratio_row(
     damping: f64,
 ) -> (f64, f64) {
     let (mut largest, mut mismatch) = (0.0f64, 0.0);
+    // Blocks of texels computed without branches (both sides of every
+    // choice, then a select), which the compiler can vectorise; the sums
+    // then run over the block in texel order, as one loop would.
+    const BLOCK: usize = 8;
+    let (mut terms, mut changes) = ([0.0f64; BLOCK], [0.0f64; BLOCK]);
+    let mut start = 0;
+    while start < out.len() {
+        let k = BLOCK.min(out.len() - start);
+        let (m, gx, gy) = (&m[start..][..k], &gx[start..][..k], &gy[start..][..k]);
+        let (o, d) = (&mut out[start..][..k], &mut dir[start..][..k]);
+        for l in 0..k {
+            let (term, change) = ratio_texel(a, m[l], gx[l], gy[l], &mut o[l], &mut d[l], damping);
+            terms[l] = term;
+            changes[l] = change;
+        }
+        for l in 0..k {
+            mismatch += terms[l];
+            largest = largest.max(changes[l]);
+        }
+        start += k;
+    }
+    (largest, mismatch)
+}
+
+/// One texel of [`ratio_row`]: its mismatch of unit normals and the
+/// change of its ratio asked for, |new − old|.
+#[inline(always)]
+fn ratio_texel(a: f64, m: [f64; 3], gx: f64, gy: f64, out: &mut f64, dir: &mut i8, damping: f64) -> (f64, f64) {
     let unit = |p: f64, q: f64| {
         let inv = 1.0 / (1.0 + p * p + q * q).sqrt();
         [-p * inv, -q * inv, inv]
     };
-    for x in 0..out.len() {
-        let [si, sj, czz] = m[x];
-        let tilt2 = si * si + sj * sj;
-        let current = {
-            let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
-            let d = 0.5 * (a - czz);
-            let q = (d * d + tilt2).sqrt();
-            let a_minus_lambda = if d >= 0.0 { d + q } else { tilt2 / (q - d) };
-            if flat { 1.0 } else { a_minus_lambda / a }
-        };
-        let fitted = unit(si / (current * a), sj / (current * a));
-        let given = unit(gx[x], gy[x]);
-        mismatch += (0..3).map(|c| (fitted[c] - given[c]).powi(2)).sum::<f64>();
-        let g = (gx[x] * gx[x] + gy[x] * gy[x]).sqrt();
-        let rough = ((czz - tilt2 / a) / a).max(0.0);
-        let c = 1.0 - rough;
-        let b = (1.0 - g * g) / g;
-        let disc = b * b + 4.0 * c;
-        let wanted = if g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite() {
-            let root = if b > 0.0 { 2.0 * c / (b + disc.sqrt()) } else { 0.5 * (disc.sqrt() - b) };
-            root / g
-        } else if g <= 1e-12 && c > 0.0 {
-            // The limit g → 0 of s/g.
-            c
-        } else {
-            current
-        };
-        let change = wanted - out[x];
-        let now = if change > 0.0 { 1 } else { -1 };
-        let step = if now == -dir[x] { 0.5 * damping } else { damping };
-        dir[x] = now;
-        out[x] += step * change;
-        largest = largest.max(change.abs());
-    }
-    (largest, mismatch)
+    let [si, sj, czz] = m;
+    let tilt2 = si * si + sj * sj;
+    let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
+    let d = 0.5 * (a - czz);
+    let q = (d * d + tilt2).sqrt();
+    let (above, below) = (d + q, tilt2 / (q - d));
+    let a_minus_lambda = if d >= 0.0 { above } else { below };
+    let current = if flat { 1.0 } else { a_minus_lambda / a };
+    let fitted = unit(si / (current * a), sj / (current * a));
+    let given = unit(gx, gy);
+    let term = (fitted[0] - given[0]).powi(2) + (fitted[1] - given[1]).powi(2) + (fitted[2] - given[2]).powi(2);
+    let g = (gx * gx + gy * gy).sqrt();
+    let rough = ((czz - tilt2 / a) / a).max(0.0);
+    let c = 1.0 - rough;
+    let b = (1.0 - g * g) / g;
+    let disc = b * b + 4.0 * c;
+    let root_disc = disc.sqrt();
+    let (positive, other) = (2.0 * c / (b + root_disc), 0.5 * (root_disc - b));
+    let root = if b > 0.0 { positive } else { other };
+    let solvable = g > 1e-12 && c > 0.0 && disc >= 0.0 && b.is_finite();
+    // g → 0: the limit of s/g is c.
+    let fallback = if g <= 1e-12 && c > 0.0 { c } else { current };
+    let wanted = if solvable { root / g } else { fallback };
+    let change = wanted - *out;
+    let now: i8 = if change > 0.0 { 1 } else { -1 };
+    let step = if now == -*dir { 0.5 * damping } else { damping };
+    *dir = now;
+    *out += step * change;
+    (term, change.abs())
 }
 
 /// The conjugate gradients' iterations at most.

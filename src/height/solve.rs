@@ -37,6 +37,14 @@
 //! the minimiser over the period is unique up to the null space, and the
 //! extension's symmetry maps it to itself, so it has that symmetry.
 //!
+//! The exact model's patch responses are short correlations, so its
+//! right-hand side Dxᵀgx + Dyᵀgy is formed on the texels (on the period's
+//! extension) before any transform: one real 2-D transform of it, one
+//! division per frequency by ux² + uy² + λ, one inverse, and a single plane
+//! of row spectra (real for a mirrored x, whose rows are even). The
+//! generic model's derivative iω is not short: it transforms both slopes
+//! and combines them per frequency (two planes).
+//!
 //! Rows are transformed in parallel blocks; the column pass works on
 //! blocks of columns, each a set of disjoint slices of every row, so it
 //! runs in place. Each 1-D transform is the same whatever the thread count:
@@ -67,6 +75,9 @@ const NULL: f64 = 1e-20;
 
 /// Rows per task in the row passes.
 const ROWS_PER_TASK: usize = 8;
+/// Rows per task in the right-hand side's pass (which reads r rows more
+/// on either side of its block).
+const RHS_ROWS_PER_TASK: usize = 32;
 /// Columns per task in the column pass.
 const COLUMNS_PER_TASK: usize = 8;
 
@@ -127,6 +138,22 @@ impl Axis {
                     dst[p - 1 - j] = sign(src[j]);
                 }
             }
+        }
+    }
+
+    /// The texel that index `k` of the period (any integer) reads, and the
+    /// sign the extension gives it: 1 for an even sequence; for an odd one
+    /// −1 where reflected and 0 on the texels the reflection fixes.
+    pub fn map(&self, k: isize, odd: bool) -> (usize, f64) {
+        let (n, p) = (self.n, self.period);
+        let k = k.rem_euclid(p as isize) as usize;
+        let reflected = if odd { -1.0 } else { 1.0 };
+        match self.ext {
+            Extension::Periodic => (k, 1.0),
+            Extension::Whole if k < n => (k, if odd && (k == 0 || k == n - 1) { 0.0 } else { 1.0 }),
+            Extension::Whole => (p - k, reflected),
+            Extension::Half if k < n => (k, 1.0),
+            Extension::Half => (p - 1 - k, reflected),
         }
     }
 
@@ -191,10 +218,16 @@ pub(crate) struct Solver {
     by: Vec<f64>,
     /// Σ i² of the patch (1 for the generic model).
     a: f64,
+    /// The patch's radius; `None` for the generic model, whose derivative
+    /// is no short correlation.
+    radius: Option<usize>,
     r2c: Arc<dyn RealToComplex<f64>>,
     c2r: Arc<dyn ComplexToReal<f64>>,
     forward: Arc<dyn Fft<f64>>,
     inverse: Arc<dyn Fft<f64>>,
+    /// The columns' real transforms, for a plane of real spectra.
+    column_r2c: Arc<dyn RealToComplex<f64>>,
+    column_c2r: Arc<dyn ComplexToReal<f64>>,
 }
 
 impl Solver {
@@ -233,27 +266,288 @@ impl Solver {
             sy,
             by,
             a,
+            radius: (model == Model::Exact).then_some(r),
             r2c: real.plan_fft_forward(x.period),
             c2r: real.plan_fft_inverse(x.period),
             forward: complex.plan_fft_forward(y.period),
             inverse: complex.plan_fft_inverse(y.period),
+            column_r2c: real.plan_fft_forward(y.period),
+            column_c2r: real.plan_fft_inverse(y.period),
         }
     }
 
-    /// Bytes the solve holds besides its output: two planes of row spectra.
-    pub fn memory(w: usize, h: usize, borders: Borders) -> u64 {
-        let kx = match borders.x {
-            Border::Wrap => w / 2 + 1,
-            Border::Mirror => w,
-            Border::Clamp => w + 1,
-        } as u64;
-        2 * kx * h as u64 * size_of::<C>() as u64
+    /// Bytes the solve holds besides its output: the exact model one plane
+    /// of row spectra (real for a mirrored x: 8 bytes a texel for wrap and
+    /// mirror, 16 for clamp), the generic model two complex ones.
+    pub fn memory(w: usize, h: usize, borders: Borders, model: Model) -> u64 {
+        let (kx, planes, bytes) = match (borders.x, model) {
+            (Border::Wrap, Model::Exact) => (w / 2 + 1, 1, size_of::<C>()),
+            (Border::Mirror, Model::Exact) if w > 2 => (w, 1, size_of::<f64>()),
+            (Border::Mirror, Model::Exact) => (w, 1, size_of::<C>()),
+            (Border::Clamp, Model::Exact) => (w + 1, 1, size_of::<C>()),
+            (Border::Wrap, Model::Generic) => (w / 2 + 1, 2, size_of::<C>()),
+            (Border::Mirror, Model::Generic) => (w, 2, size_of::<C>()),
+            (Border::Clamp, Model::Generic) => (w + 1, 2, size_of::<C>()),
+        };
+        (planes * kx * bytes) as u64 * h as u64
     }
 
     /// The heights z (texel units, mean not fixed) whose vertical-fit
     /// slopes are closest to the slopes `slopes(y, gx, gy)` fills for row
     /// y (gx = ∂z/∂x, gy = ∂z/∂y, y down), into `out` (w × h).
     pub fn solve(&self, slopes: SlopeRows<'_>, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
+        match self.radius {
+            Some(r) if self.x.ext == Extension::Whole => self.solve_real(slopes, r, lambda, out),
+            Some(r) => self.solve_complex(slopes, r, lambda, out),
+            None => self.solve_two_planes(slopes, lambda, out),
+        }
+    }
+
+    /// The right-hand side of the normal equations, Dxᵀgx + Dyᵀgy, for the
+    /// rows `rows` into `dst` (rows of w), on the period: with gx odd along
+    /// x and even along y, gy the reverse, Dxᵀ = −(ramp_x ⊗ box_y)/A and
+    /// Dyᵀ = −(box_x ⊗ ramp_y)/A (the ramp is odd, the box even). The rows
+    /// within r of the block are read again: every value is the same sum
+    /// in the same order whatever the blocks.
+    fn right_hand_side(&self, slopes: SlopeRows<'_>, r: usize, rows: std::ops::Range<usize>, dst: &mut [f64]) {
+        let w = self.w;
+        let ri = r as isize;
+        let window = rows.len() + 2 * r;
+        // ramp_x(gx) and box_x(gy) of the window's rows of the period.
+        let (mut u, mut v) = (vec![0.0; window * w], vec![0.0; window * w]);
+        let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
+        let (mut px, mut py) = (vec![0.0; w + 2 * r], vec![0.0; w + 2 * r]);
+        let pads: Vec<(usize, f64)> = (-ri..w as isize + ri).map(|k| self.x.map(k, true)).collect();
+        for (t, (ur, vr)) in u.chunks_mut(w).zip(v.chunks_mut(w)).enumerate() {
+            let (source, _) = self.y.map(rows.start as isize + t as isize - ri, false);
+            slopes(source, &mut gx, &mut gy);
+            for ((a, b), &(k, sign)) in px.iter_mut().zip(py.iter_mut()).zip(&pads) {
+                *a = sign * gx[k];
+                *b = gy[k];
+            }
+            for (x, (uo, vo)) in ur.iter_mut().zip(vr.iter_mut()).enumerate() {
+                let c = x + r;
+                let (mut ramp, mut boxed) = (0.0, py[c]);
+                for m in 1..=r {
+                    ramp += m as f64 * (px[c + m] - px[c - m]);
+                    boxed += py[c + m] + py[c - m];
+                }
+                *uo = ramp;
+                *vo = boxed;
+            }
+        }
+        let scale = -1.0 / self.a;
+        for (k, row) in dst.chunks_mut(w).enumerate() {
+            let y = rows.start + k;
+            row.copy_from_slice(&u[(k + r) * w..][..w]);
+            for j in -ri..=ri {
+                let (_, sign) = self.y.map(y as isize + j, true);
+                let weight = j as f64 * sign;
+                let t = (k as isize + ri + j) as usize;
+                let (ut, vt) = (&u[t * w..][..w], &v[t * w..][..w]);
+                if j != 0 {
+                    row.iter_mut().zip(ut).for_each(|(o, &a)| *o += a);
+                }
+                if weight != 0.0 {
+                    row.iter_mut().zip(vt).for_each(|(o, &b)| *o += weight * b);
+                }
+            }
+            row.iter_mut().for_each(|o| *o *= scale);
+        }
+    }
+
+    /// 1/(ux² + uy² + λ) at column kxi, frequency ky (0 on the null
+    /// modes), and its term of the noise gain's sum.
+    #[inline]
+    fn inverse_response(&self, kxi: usize, ky: usize, lambda: f64) -> (f64, f64) {
+        let ux = self.sx[kxi] * self.by[ky] / self.a;
+        let uy = self.bx[kxi] * self.sy[ky] / self.a;
+        let den = ux * ux + uy * uy;
+        if den <= NULL {
+            (0.0, 0.0)
+        } else {
+            let scale = 1.0 / (den + lambda);
+            (scale, den * scale * scale)
+        }
+    }
+
+    /// The weight of row-spectrum column kxi in sums over the period: both
+    /// halves of a real row's spectrum but its first and (even period)
+    /// last coefficient.
+    fn column_weight(&self, kxi: usize) -> f64 {
+        if kxi != 0 && 2 * kxi != self.x.period { 2.0 } else { 1.0 }
+    }
+
+    /// The exact model for an x of any extension: the right-hand side's
+    /// rows → real FFT, one plane of complex spectra; columns: FFT, divided
+    /// by the response, inverse FFT; rows: inverse real FFT.
+    fn solve_complex(&self, slopes: SlopeRows<'_>, r: usize, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
+        let (w, h, kx) = (self.w, self.h, self.kx);
+        let len = kx * h;
+        let mut a: Vec<C> = try_vec(len)?;
+        a.resize(len, C::default());
+        let chunk = kx * RHS_ROWS_PER_TASK;
+        a.par_chunks_mut(chunk).enumerate().for_each(|(block, spectra)| {
+            let y0 = block * RHS_ROWS_PER_TASK;
+            let rows = spectra.len() / kx;
+            let mut rhs = vec![0.0; rows * w];
+            self.right_hand_side(slopes, r, y0..y0 + rows, &mut rhs);
+            let mut ext = self.r2c.make_input_vec();
+            let mut scratch = self.r2c.make_scratch_vec();
+            for (row, spectrum) in rhs.chunks(w).zip(spectra.chunks_mut(kx)) {
+                self.x.extend(row, &mut ext, false);
+                let _ = self.r2c.process_with_scratch(&mut ext, spectrum, &mut scratch);
+            }
+        });
+        let blocks = column_blocks(&mut a, kx, COLUMNS_PER_TASK);
+        let partial: Vec<f64> = blocks
+            .into_par_iter()
+            .enumerate()
+            .map(|(block, mut rows)| {
+                let p = self.y.period;
+                let mut col = vec![C::default(); h];
+                let mut ext = vec![C::default(); p];
+                let scratch_len = self.forward.get_inplace_scratch_len().max(self.inverse.get_inplace_scratch_len());
+                let mut scratch = vec![C::default(); scratch_len];
+                let width = rows.first().map_or(0, |r| r.len());
+                let mut noise = 0.0;
+                for c in 0..width {
+                    let kxi = block * COLUMNS_PER_TASK + c;
+                    for (y, row) in rows.iter().enumerate() {
+                        col[y] = row[c];
+                    }
+                    self.y.extend(&col, &mut ext, false);
+                    self.forward.process_with_scratch(&mut ext, &mut scratch);
+                    let mut column_noise = 0.0;
+                    for (ky, e) in ext.iter_mut().enumerate() {
+                        let (scale, n) = self.inverse_response(kxi, ky, lambda);
+                        *e *= scale;
+                        column_noise += n;
+                    }
+                    noise += self.column_weight(kxi) * column_noise;
+                    self.inverse.process_with_scratch(&mut ext, &mut scratch);
+                    for (y, row) in rows.iter_mut().enumerate() {
+                        row[c] = ext[y];
+                    }
+                }
+                noise
+            })
+            .collect();
+        self.inverse_rows(&mut a, out);
+        Ok(self.stats(&partial))
+    }
+
+    /// The exact model for a mirrored x: the right-hand side is even along
+    /// x, so its rows' spectra are real (the type-I cosine transform), one
+    /// plane of f64, and the columns real FFTs.
+    fn solve_real(&self, slopes: SlopeRows<'_>, r: usize, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
+        let (w, h, kx) = (self.w, self.h, self.kx);
+        let len = kx * h;
+        let mut a: Vec<f64> = try_vec(len)?;
+        a.resize(len, 0.0);
+        let chunk = kx * RHS_ROWS_PER_TASK;
+        a.par_chunks_mut(chunk).enumerate().for_each(|(block, spectra)| {
+            let y0 = block * RHS_ROWS_PER_TASK;
+            let rows = spectra.len() / kx;
+            let mut rhs = vec![0.0; rows * w];
+            self.right_hand_side(slopes, r, y0..y0 + rows, &mut rhs);
+            let mut ext = self.r2c.make_input_vec();
+            let mut spectrum = self.r2c.make_output_vec();
+            let mut scratch = self.r2c.make_scratch_vec();
+            for (row, real) in rhs.chunks(w).zip(spectra.chunks_mut(kx)) {
+                self.x.extend(row, &mut ext, false);
+                let _ = self.r2c.process_with_scratch(&mut ext, &mut spectrum, &mut scratch);
+                real.iter_mut().zip(&spectrum).for_each(|(o, s)| *o = s.re);
+            }
+        });
+        let blocks = column_blocks(&mut a, kx, COLUMNS_PER_TASK);
+        let partial: Vec<f64> = blocks
+            .into_par_iter()
+            .enumerate()
+            .map(|(block, mut rows)| {
+                let p = self.y.period;
+                let mut col = vec![0.0; h];
+                let mut ext = self.column_r2c.make_input_vec();
+                let mut spectrum = self.column_r2c.make_output_vec();
+                let scratch_len = self.column_r2c.get_scratch_len().max(self.column_c2r.get_scratch_len());
+                let mut scratch = vec![C::default(); scratch_len];
+                let width = rows.first().map_or(0, |r| r.len());
+                let mut noise = 0.0;
+                for c in 0..width {
+                    let kxi = block * COLUMNS_PER_TASK + c;
+                    for (y, row) in rows.iter().enumerate() {
+                        col[y] = row[c];
+                    }
+                    self.y.extend(&col, &mut ext, false);
+                    let _ = self.column_r2c.process_with_scratch(&mut ext, &mut spectrum, &mut scratch);
+                    let mut column_noise = 0.0;
+                    for ky in 0..p {
+                        let (scale, n) = self.inverse_response(kxi, ky, lambda);
+                        if let Some(e) = spectrum.get_mut(ky) {
+                            *e *= scale;
+                        }
+                        column_noise += n;
+                    }
+                    noise += self.column_weight(kxi) * column_noise;
+                    spectrum[0].im = 0.0;
+                    if p.is_multiple_of(2) {
+                        spectrum[p / 2].im = 0.0;
+                    }
+                    let _ = self.column_c2r.process_with_scratch(&mut spectrum, &mut ext, &mut scratch);
+                    for (y, row) in rows.iter_mut().enumerate() {
+                        row[c] = ext[y];
+                    }
+                }
+                noise
+            })
+            .collect();
+        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
+        out.par_chunks_mut(w * ROWS_PER_TASK).zip(a.par_chunks(chunk_rows(kx))).for_each(|(out_rows, reals)| {
+            let mut spectrum = self.c2r.make_input_vec();
+            let mut ext = self.c2r.make_output_vec();
+            let mut scratch = self.c2r.make_scratch_vec();
+            for (row, real) in out_rows.chunks_mut(w).zip(reals.chunks(kx)) {
+                spectrum.iter_mut().zip(real).for_each(|(s, &v)| *s = C::new(v, 0.0));
+                let _ = self.c2r.process_with_scratch(&mut spectrum, &mut ext, &mut scratch);
+                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
+                    *o = e * norm;
+                }
+            }
+        });
+        Ok(self.stats(&partial))
+    }
+
+    /// The last pass: inverse real FFT of each row of spectra, the first w
+    /// values of the period, normalised, into `out`.
+    fn inverse_rows(&self, a: &mut [C], out: &mut [f64]) {
+        let (w, kx) = (self.w, self.kx);
+        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
+        out.par_chunks_mut(w * ROWS_PER_TASK).zip(a.par_chunks_mut(chunk_rows(kx))).for_each(|(out_rows, spectra)| {
+            let mut ext = self.c2r.make_output_vec();
+            let mut scratch = self.c2r.make_scratch_vec();
+            for (row, spectrum) in out_rows.chunks_mut(w).zip(spectra.chunks_mut(kx)) {
+                spectrum[0].im = 0.0;
+                if self.x.period.is_multiple_of(2) {
+                    spectrum[kx - 1].im = 0.0;
+                }
+                let _ = self.c2r.process_with_scratch(spectrum, &mut ext, &mut scratch);
+                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
+                    *o = e * norm;
+                }
+            }
+        });
+    }
+
+    /// The noise gain from the columns' sums.
+    fn stats(&self, partial: &[f64]) -> SolveStats {
+        let periods = self.x.period as f64 * self.y.period as f64;
+        SolveStats { noise_gain: (partial.iter().sum::<f64>() / periods).sqrt() }
+    }
+
+    /// The generic model: each slope's rows and columns transformed, the
+    /// two planes combined per frequency (its derivative is no short
+    /// correlation to apply before the transforms).
+    fn solve_two_planes(&self, slopes: SlopeRows<'_>, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let len = kx * h;
         let mut a: Vec<C> = try_vec(len)?;
@@ -331,26 +625,14 @@ impl Solver {
             })
             .collect();
         drop(b);
-
-        // Rows: inverse real FFT, the first w values of the period.
-        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
-        out.par_chunks_mut(w * ROWS_PER_TASK).zip(a.par_chunks_mut(chunk)).for_each(|(out_rows, spectra)| {
-            let mut ext = self.c2r.make_output_vec();
-            let mut scratch = self.c2r.make_scratch_vec();
-            for (row, spectrum) in out_rows.chunks_mut(w).zip(spectra.chunks_mut(kx)) {
-                spectrum[0].im = 0.0;
-                if self.x.period.is_multiple_of(2) {
-                    spectrum[kx - 1].im = 0.0;
-                }
-                let _ = self.c2r.process_with_scratch(spectrum, &mut ext, &mut scratch);
-                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
-                    *o = e * norm;
-                }
-            }
-        });
-        let periods = self.x.period as f64 * self.y.period as f64;
-        Ok(SolveStats { noise_gain: (partial.iter().sum::<f64>() / periods).sqrt() })
+        self.inverse_rows(&mut a, out);
+        Ok(self.stats(&partial))
     }
+}
+
+/// Elements of a block of `ROWS_PER_TASK` rows of `row_len`.
+fn chunk_rows(row_len: usize) -> usize {
+    row_len * ROWS_PER_TASK
 }
 
 /// `data` (rows of `row_len`) cut into blocks of `block` columns: for each
