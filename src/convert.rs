@@ -139,7 +139,7 @@ impl BorderChoices {
         }
         let mut seams = HeightSeams::new(width, height)?;
         seams.push_heights(heights)?;
-        Ok(self.resolve(Some(&seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)))))
+        Ok(self.resolve(Some(&seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?)))
     }
 
     /// The warning about a wrap asked for on an axis that does not tile
@@ -752,7 +752,7 @@ impl Job<'_> {
             true => match self.seam_check(width, height)? {
                 Some(mut seams) => {
                     seams.push_samples(&heights).map_err(&in_failure)?;
-                    Some(seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)))
+                    Some(seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)).map_err(&in_failure)?)
                 }
                 None => None,
             },
@@ -827,7 +827,7 @@ impl Job<'_> {
                         }
                     })
                     .map_err(&in_failure)?;
-                (seams.map(|s| s.finish(&check_opts)), Some(tail))
+                (seams.map(|s| s.finish(&check_opts)).transpose().map_err(&in_failure)?, Some(tail))
             }
             None => (None, None),
         };
@@ -884,7 +884,7 @@ impl Job<'_> {
         result.map_err(ConvertError::at(place))?;
         // A failed write stopped the rows part way: no seams to judge.
         if let Some(seams) = seams {
-            self.judge(seams.finish(&check_opts));
+            self.judge(seams.finish(&check_opts).map_err(ConvertError::at(Place::Input))?);
         }
         Ok(())
     }
