@@ -182,10 +182,10 @@ fn layout(len: u64, raw: &RawOptions) -> Result<(u64, u64, u8)> {
             let wanted: Vec<String> = depths
                 .iter()
                 .rev()
-                .map(|&b| format!("{} at {b} bits", texels.saturating_mul(u64::from(b / 8))))
+                .map(|&b| format!("{} bytes at {b} bits", texels.saturating_mul(u64::from(b / 8))))
                 .collect();
             Err(Error::Decode(format!(
-                "RAW heightmap of {len} bytes does not hold {w}×{h} {which} samples ({} bytes)",
+                "RAW heightmap of {len} bytes does not hold {w}×{h} {which} samples (that takes {})",
                 wanted.join(" or ")
             )))
         }
@@ -234,9 +234,12 @@ mod tests {
         assert_eq!(layout(16, &sized).unwrap(), (4, 2, 16));
         assert_eq!(layout(8, &sized).unwrap(), (4, 2, 8));
         let e = layout(9, &sized).unwrap_err().to_string();
-        assert!(e.contains("does not hold 4×2 8- or 16-bit samples (8 at 8 bits or 16 at 16 bits)"), "{e}");
+        assert!(
+            e.contains("does not hold 4×2 8- or 16-bit samples (that takes 8 bytes at 8 bits or 16 bytes at 16 bits)"),
+            "{e}"
+        );
         let e = layout(8, &sized.with_bits(16)).unwrap_err().to_string();
-        assert!(e.contains("(16 at 16 bits)"), "{e}");
+        assert!(e.contains("(that takes 16 bytes at 16 bits)"), "{e}");
     }
 
     #[test]

@@ -207,25 +207,30 @@ fn decode_band(
     let too_big = || Error::Limits(format!("{texels} texels of {bands} samples of {size} bytes do not fit in memory"));
     let plane = texels.checked_mul(size).ok_or_else(too_big)?;
     let len = plane.checked_mul(bands).ok_or_else(too_big)?;
-    let mut decoder = decoder.with_limits(tiff_limits(opts, kind, bands));
-    let buffer = decoder.image_buffer_layout().map_err(from_tiff_error)?;
-    let planar = buffer.planes > 1;
-    let expected_planes = if planar { bands } else { 1 };
-    if buffer.planes != expected_planes || buffer.complete_len != len {
-        return Err(Error::Decode(format!(
-            "tiff layout of {} bytes in {} planes does not match {width} × {height} texels of {bands} {kind:?} samples",
-            buffer.complete_len, buffer.planes
-        )));
-    }
-    memory::check_memory("decoding", (len as u64).saturating_add(8 * texels as u64))?;
-    let mut buf = try_vec::<u8>(len)?;
-    buf.resize(len, 0);
-    decoder.read_image_bytes(&mut buf).map_err(from_tiff_error)?;
-    // Planar: the band's plane, one sample after another; chunky: every
-    // `bands`-th sample from the band's own.
-    let (samples, stride) =
-        if planar { (&buf[index * plane..][..plane], size) } else { (&buf[index * size..], size * bands) };
-    let data = tiff_samples(samples, kind, texels, stride)?;
+    let planar =
+        bands > 1 && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
+    let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
+    let data = if planar {
+        // Only the band's own strips or tiles are read.
+        memory::check_memory("decoding", (plane as u64).saturating_add(8 * texels as u64))?;
+        let buf = read_planar_band(&mut decoder, index, bands, (width, height), size)?;
+        tiff_samples(&buf, kind, texels, size)?
+    } else {
+        let buffer = decoder.image_buffer_layout().map_err(from_tiff_error)?;
+        if buffer.planes != 1 || buffer.complete_len != len {
+            return Err(Error::Decode(format!(
+                "tiff layout of {} bytes in {} planes does not match {width} × {height} texels of {bands} {kind:?} \
+                 samples",
+                buffer.complete_len, buffer.planes
+            )));
+        }
+        memory::check_memory("decoding", (len as u64).saturating_add(8 * texels as u64))?;
+        let mut buf = try_vec::<u8>(len)?;
+        buf.resize(len, 0);
+        decoder.read_image_bytes(&mut buf).map_err(from_tiff_error)?;
+        // Every `bands`-th sample from the band's own.
+        tiff_samples(&buf[index * size..], kind, texels, size * bands)?
+    };
     Ok(Raster {
         width: to_usize(width.into())?,
         height: to_usize(height.into())?,
@@ -234,6 +239,71 @@ fn decode_band(
         planes: vec![Plane { name: "Y".into(), data }],
         georef: None,
     })
+}
+
+/// The samples of band `index` (0-based) of a planar TIFF, row-major,
+/// native-endian: its strips or tiles one by one, each copied to its place
+/// without the padding of the edge tiles.
+///
+/// Chunk by chunk, not `read_image_bytes`: besides reading one band of
+/// several, `tiff` 0.11 takes the padding of a tile of the second and later
+/// planes from its index across all planes, so a bottom-edge tile there
+/// counts as whole and the whole-image read overruns its buffer (an
+/// assertion, a panic). Each chunk's buffer here is as large as `tiff`
+/// says that chunk is, and only the rows and columns inside the image
+/// are copied, so the same mistake reads the tile's stored padding rows
+/// and drops them.
+fn read_planar_band(
+    decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>,
+    index: usize,
+    bands: usize,
+    (width, height): (u32, u32),
+    size: usize,
+) -> Result<Vec<u8>> {
+    let (w, h) = (to_usize(width.into())?, to_usize(height.into())?);
+    let total = match decoder.get_chunk_type() {
+        tiff::decoder::ChunkType::Tile => decoder.tile_count(),
+        tiff::decoder::ChunkType::Strip => decoder.strip_count(),
+    }
+    .map_err(from_tiff_error)?;
+    let total = to_usize(total.into())?;
+    // Already validated by `tiff` when the layout was read, so no panic.
+    let (cw, ch) = decoder.chunk_dimensions();
+    let (cw, ch) = (to_usize(cw.into())?.max(1), to_usize(ch.into())?.max(1));
+    let (across, down) = (w.div_ceil(cw), h.div_ceil(ch));
+    let per_plane = across * down;
+    if total != per_plane * bands {
+        return Err(Error::Decode(format!(
+            "tiff has {total} strips or tiles, {bands} bands of {per_plane} each were expected"
+        )));
+    }
+    let mut out = try_vec::<u8>(w * h * size)?;
+    out.resize(w * h * size, 0);
+    let mut chunk = Vec::new();
+    for k in 0..per_plane {
+        let id = u32::try_from(index * per_plane + k).map_err(|_| Error::Limits("too many tiff chunks".into()))?;
+        let layout = decoder.image_chunk_buffer_layout(id).map_err(from_tiff_error)?;
+        chunk.clear();
+        chunk
+            .try_reserve_exact(layout.len)
+            .map_err(|_| Error::Limits(format!("{} bytes for a tiff chunk", layout.len)))?;
+        chunk.resize(layout.len, 0);
+        decoder.read_chunk_bytes(id, &mut chunk).map_err(from_tiff_error)?;
+        let (x0, y0) = ((k % across) * cw, (k / across) * ch);
+        let (cols, rows) = (cw.min(w - x0), ch.min(h - y0));
+        let stride = layout.row_stride.map_or(0, std::num::NonZeroUsize::get);
+        if stride < cols * size || layout.len < stride * (rows - 1) + cols * size {
+            return Err(Error::Decode(format!(
+                "tiff chunk {id} of {} bytes cannot hold its {cols} × {rows} texels",
+                layout.len
+            )));
+        }
+        for r in 0..rows {
+            let from = &chunk[r * stride..][..cols * size];
+            out[((y0 + r) * w + x0) * size..][..cols * size].copy_from_slice(from);
+        }
+    }
+    Ok(out)
 }
 
 /// "s" for counts other than one.
