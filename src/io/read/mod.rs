@@ -3,7 +3,10 @@
 //! Rules this module keeps, and why:
 //! * The decoder is chosen from the content, never the file name: a `.png`
 //!   that is really a JPEG still reads, and a renamed file cannot pick a
-//!   decoder that then misreads it. The formats, their signatures, names
+//!   decoder that then misreads it. The one exception is RAW heightmaps
+//!   (`raw.rs`), bare samples with no content to know them by: they are
+//!   known by their extension (`.raw`, `.r16`, `.r8`) or by the caller's
+//!   [`ReadOptions::raw`]. The formats, their signatures, names
 //!   and decoders are listed once, in [`formats`]; OpenEXR goes to the
 //!   `exr` crate (a file with subsampled channels, which it refuses, to
 //!   `exr/subsampled.rs`), gray TIFF with samples `image` refuses (float,
@@ -28,6 +31,12 @@
 //!   normals at high gains (see [`crate::samples`]). NaN and infinities are
 //!   kept in the planes; only [`Raster::heights`] rejects them, because only
 //!   the channel that becomes the height matters.
+//!
+//! * Terrain (docs/terrain.md): a TIFF's band of any sample type
+//!   ([`ReadOptions::band`]) and its GeoTIFF georeferencing
+//!   ([`Raster::georef`], `georef.rs`); heights packed in RGB tiles,
+//!   unpacked to metres after the tile is decoded
+//!   ([`ReadOptions::decode`], `packed.rs`).
 //!
 //! Where things are: this file holds the types every format shares and
 //! [`decode`]; `channel.rs` the channel rule (SPEC §1); [`formats`] the

@@ -211,7 +211,9 @@ fn decode_band(
         bands > 1 && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
     let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
     let data = if planar {
-        // Only the band's own strips or tiles are read.
+        // Only the band's own strips or tiles are read. The whole image's
+        // layout is asked for first: `tiff` checks the chunk geometry there.
+        decoder.image_buffer_layout().map_err(from_tiff_error)?;
         memory::check_memory("decoding", (plane as u64).saturating_add(8 * texels as u64))?;
         let buf = read_planar_band(&mut decoder, index, bands, (width, height), size)?;
         tiff_samples(&buf, kind, texels, size)?
@@ -267,7 +269,7 @@ fn read_planar_band(
     }
     .map_err(from_tiff_error)?;
     let total = to_usize(total.into())?;
-    // Already validated by `tiff` when the layout was read, so no panic.
+    // Checked by `tiff` when the image's layout was read (see the caller).
     let (cw, ch) = decoder.chunk_dimensions();
     let (cw, ch) = (to_usize(cw.into())?.max(1), to_usize(ch.into())?.max(1));
     let (across, down) = (w.div_ceil(cw), h.div_ceil(ch));
