@@ -448,7 +448,10 @@ fn every_extension_names_one_format_in_any_case() {
 
 #[test]
 fn help_and_errors_name_the_registered_formats() {
-    assert_eq!(formats::names(), "PNG, OpenEXR, TIFF, JPEG, TGA, BMP, WebP, GIF, Radiance HDR, PNM, QOI, RAW heightmap");
+    assert_eq!(
+        formats::names(),
+        "PNG, OpenEXR, TIFF, JPEG, TGA, BMP, WebP, GIF, Radiance HDR, PNM, QOI, RAW heightmap"
+    );
     let e = decode(b"just some text, not an image\n", &ReadOptions::default()).unwrap_err();
     assert!(matches!(&e, Error::Decode(m) if m.ends_with(&format!("normalfit reads {}", formats::names()))), "{e}");
     // A format `image` knows by its signature but normalfit does not read.

@@ -30,10 +30,11 @@ fn heights(quarters: bool) -> Vec<f64> {
 }
 
 /// An ASCII grid (GDAL's AAIGrid, with its `dx`/`dy` extension for
-/// unequal spacing) of `values`, x from 500000, top at 4500000.
-fn write_grid(path: &Path, values: &[f64], (dx, dy): (f64, f64)) {
+/// unequal spacing) of `values`, x from 500000, top at 4500000, with
+/// `nodata` marking missing texels.
+fn write_grid(path: &Path, values: &[f64], (dx, dy): (f64, f64), nodata: f64) {
     let mut text = format!(
-        "ncols {W}\nnrows {H}\nxllcorner 500000\nyllcorner {}\ndx {dx}\ndy {dy}\nNODATA_value {NODATA}\n",
+        "ncols {W}\nnrows {H}\nxllcorner 500000\nyllcorner {}\ndx {dx}\ndy {dy}\nNODATA_value {nodata}\n",
         4_500_000.0 - H as f64 * dy
     );
     for row in values.chunks(W) {
@@ -62,13 +63,7 @@ fn gdalinfo(path: &Path) -> (Vec<f64>, Option<f64>, Option<u64>) {
 #[ignore = "needs gdal-bin (gdal_translate, gdalinfo); CI installs it"]
 fn geotiffs_written_by_gdal_read_as_gdal_wrote_them() {
     let dir = tempfile::tempdir().unwrap();
-    let types = [
-        ("Int16", false),
-        ("UInt16", false),
-        ("Int32", false),
-        ("Float32", true),
-        ("Float64", true),
-    ];
+    let types = [("Int16", false), ("UInt16", false), ("Int32", false), ("Float32", true), ("Float64", true)];
     let layouts: [&[&str]; 5] = [
         &[],
         &["-co", "TILED=YES", "-co", "BLOCKXSIZE=16", "-co", "BLOCKYSIZE=16"],
@@ -78,12 +73,14 @@ fn geotiffs_written_by_gdal_read_as_gdal_wrote_them() {
     ];
     for (ty, quarters) in types {
         let mut values = heights(quarters);
+        // No negatives in uint16: heights from 0, and nodata 65535 (GDAL
+        // would clamp a -9999 to 0).
+        let nodata = if ty == "UInt16" { 65535.0 } else { NODATA };
         if ty == "UInt16" {
-            // No negatives in uint16; nodata 65535 instead.
-            values = values.iter().map(|&v| if v == NODATA { NODATA } else { v + 1000.0 }).collect();
+            values = values.iter().map(|&v| if v == NODATA { nodata } else { v + 1000.0 }).collect();
         }
         let grid = dir.path().join(format!("{ty}.asc"));
-        write_grid(&grid, &values, (30.0, 20.0));
+        write_grid(&grid, &values, (30.0, 20.0), nodata);
         for (k, layout) in layouts.iter().enumerate() {
             // Floating-point predictor for floats, where GDAL allows it.
             let mut options: Vec<&str> = layout.to_vec();
@@ -91,8 +88,8 @@ fn geotiffs_written_by_gdal_read_as_gdal_wrote_them() {
                 *options.iter_mut().find(|o| **o == "PREDICTOR=2").unwrap() = "PREDICTOR=3";
             }
             let tif = dir.path().join(format!("{ty}_{k}.tif"));
-            let nodata = if ty == "UInt16" { "65535" } else { "-9999" };
-            let mut args = vec!["-ot", ty, "-a_srs", "EPSG:32633", "-a_nodata", nodata];
+            let nodata = nodata.to_string();
+            let mut args = vec!["-ot", ty, "-a_srs", "EPSG:32633", "-a_nodata", &nodata];
             args.extend(&options);
             args.extend([grid.to_str().unwrap(), tif.to_str().unwrap()]);
             gdal(&args);
@@ -109,7 +106,6 @@ fn geotiffs_written_by_gdal_read_as_gdal_wrote_them() {
             assert_eq!(g.model, Some(ModelType::Projected), "{what}");
             let stored = raster.into_stored_heights(None).unwrap();
             for (i, &want) in values.iter().enumerate() {
-                let want = if want == NODATA { gdal_nodata.unwrap() } else { want };
                 assert_eq!(stored.height(i), Some(want), "{what} texel {i}");
             }
         }
@@ -122,7 +118,7 @@ fn gdal_multi_band_files_give_each_band_and_geographic_rasters_their_degrees() {
     let dir = tempfile::tempdir().unwrap();
     let values = heights(false);
     let grid = dir.path().join("g.asc");
-    write_grid(&grid, &values, (30.0, 30.0));
+    write_grid(&grid, &values, (30.0, 30.0), NODATA);
     // Three bands: the grid, the grid scaled by 2, by -1 (a VRT would do;
     // gdal_translate's -scale per band keeps it one command).
     for interleave in ["PIXEL", "BAND"] {
@@ -130,17 +126,44 @@ fn gdal_multi_band_files_give_each_band_and_geographic_rasters_their_degrees() {
             let tif = dir.path().join(format!("m_{interleave}_{tiled}.tif"));
             let t = tif.to_str().unwrap();
             gdal(&[
-                "-ot", "Int32", "-a_srs", "EPSG:32633", "-b", "1", "-b", "1", "-b", "1",
-                "-scale_2", "0", "1", "0", "2", "-scale_3", "0", "1", "0", "-1",
-                "-co", &format!("INTERLEAVE={interleave}"), "-co", &format!("TILED={tiled}"),
-                "-co", "BLOCKXSIZE=16", "-co", "BLOCKYSIZE=16",
-                grid.to_str().unwrap(), t,
+                "-ot",
+                "Int32",
+                "-a_srs",
+                "EPSG:32633",
+                "-b",
+                "1",
+                "-b",
+                "1",
+                "-b",
+                "1",
+                "-scale_2",
+                "0",
+                "1",
+                "0",
+                "2",
+                "-scale_3",
+                "0",
+                "1",
+                "0",
+                "-1",
+                "-co",
+                &format!("INTERLEAVE={interleave}"),
+                "-co",
+                &format!("TILED={tiled}"),
+                "-co",
+                "BLOCKXSIZE=16",
+                "-co",
+                "BLOCKYSIZE=16",
+                grid.to_str().unwrap(),
+                t,
             ]);
             for (band, factor) in [(1u32, 1.0), (2, 2.0), (3, -1.0)] {
                 let r = read_path(&tif, &ReadOptions::default().with_band(band)).unwrap();
                 let stored = r.into_stored_heights(None).unwrap();
                 for (i, &v) in values.iter().enumerate() {
-                    assert_eq!(stored.height(i), Some(v * factor), "{interleave} tiled {tiled} band {band} texel {i}");
+                    // GDAL's scaling leaves nodata texels nodata.
+                    let v = if v == NODATA { NODATA } else { v * factor };
+                    assert_eq!(stored.height(i), Some(v), "{interleave} tiled {tiled} band {band} texel {i}");
                 }
             }
             let e = read_path(&tif, &ReadOptions::default().with_band(4)).unwrap_err();
@@ -152,15 +175,26 @@ fn gdal_multi_band_files_give_each_band_and_geographic_rasters_their_degrees() {
     let arc = 1.0 / 3600.0;
     let (east, south) = (10.0 + W as f64 * 2.0 * arc, 46.0 - H as f64 * arc);
     gdal(&[
-        "-ot", "Float32", "-a_srs", "EPSG:4326", "-a_ullr", "10", "46", &east.to_string(), &south.to_string(),
-        grid.to_str().unwrap(), geo.to_str().unwrap(),
+        "-ot",
+        "Float32",
+        "-a_srs",
+        "EPSG:4326",
+        "-a_ullr",
+        "10",
+        "46",
+        &east.to_string(),
+        &south.to_string(),
+        grid.to_str().unwrap(),
+        geo.to_str().unwrap(),
     ]);
     let (transform, _, epsg) = gdalinfo(&geo);
     let g = read_path(&geo, &ReadOptions::default()).unwrap().georef.unwrap();
     assert_eq!(g.model, Some(ModelType::Geographic));
     assert_eq!(g.epsg.map(u64::from), epsg);
     assert_eq!(g.epsg, Some(4326));
-    assert_eq!(g.pixel_size(), Some((transform[1], transform[5])));
+    // gdalinfo prints 16 significant digits.
+    let (px, py) = g.pixel_size().unwrap();
+    assert!((px / transform[1] - 1.0).abs() < 1e-12 && (py / transform[5] - 1.0).abs() < 1e-12, "{px} {py}");
     let (dx, dy) = g.spacing_metres(0.0).unwrap();
     let (per_east, per_north) = normalfit::io::metres_per_degree(46.0 - 0.5 * arc);
     assert!((dx - 2.0 * arc * per_east).abs() < 1e-6 && (dy - arc * per_north).abs() < 1e-6, "{dx} {dy}");
