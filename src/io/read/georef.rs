@@ -326,10 +326,8 @@ pub(crate) fn apply_key_directory(georef: &mut Georef, directory: &[u16]) -> Res
             // A projected raster's code is its projected system's; the
             // geographic system it is based on (its datum) is also given,
             // in either order, and must not replace it.
-            keys::GEOGRAPHIC_TYPE => {
-                if georef.model != Some(ModelType::Projected) && !projected_code {
-                    georef.epsg = code(value).or(georef.epsg);
-                }
+            keys::GEOGRAPHIC_TYPE if georef.model != Some(ModelType::Projected) && !projected_code => {
+                georef.epsg = code(value).or(georef.epsg);
             }
             keys::PROJECTED_CS_TYPE => {
                 if let Some(c) = code(value) {

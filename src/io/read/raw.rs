@@ -192,7 +192,7 @@ fn layout(len: u64, raw: &RawOptions) -> Result<(u64, u64, u8)> {
         None => {
             for &bits in depths {
                 let bytes = u64::from(bits / 8);
-                if len % bytes == 0 {
+                if len.is_multiple_of(bytes) {
                     let side = len / bytes;
                     let n = side.isqrt();
                     if n * n == side {

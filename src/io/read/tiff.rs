@@ -152,11 +152,11 @@ impl TiffLayout {
     /// here, so those files keep its channels: luma of an RGB TIFF, alpha).
     fn image_reads(&self) -> bool {
         use tiff::ColorType as C;
-        match (self.color, self.format) {
-            (C::Gray(1 | 8 | 16) | C::GrayA(8 | 16) | C::RGB(8 | 16) | C::RGBA(8 | 16), SampleFormat::Uint) => true,
-            (C::RGB(32) | C::RGBA(32), SampleFormat::IEEEFP) => true,
-            _ => false,
-        }
+        matches!(
+            (self.color, self.format),
+            (C::Gray(1 | 8 | 16) | C::GrayA(8 | 16) | C::RGB(8 | 16) | C::RGBA(8 | 16), SampleFormat::Uint)
+                | (C::RGB(32) | C::RGBA(32), SampleFormat::IEEEFP)
+        )
     }
 }
 
