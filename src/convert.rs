@@ -503,7 +503,7 @@ impl Conversion {
             Input::Bytes(bytes) => (None, io::decode(bytes, &self.read).map_err(&fail)?),
         };
         let (format, sample) = (raster.format.clone(), raster.sample);
-        Ok(self.opened(path, Source::Whole(raster), format, sample))
+        Ok(self.opened(path, Source::Whole(Box::new(raster)), format, sample))
     }
 
     fn opened(&self, path: Option<&Path>, source: Source, format: InputFormat, sample: SampleType) -> Opened {
@@ -569,7 +569,9 @@ enum Source {
     Png(Box<PngRows>, PathBuf),
     /// A scan-line EXR file that streams, and its path.
     Exr(Box<ExrRows>, PathBuf),
-    Whole(Raster),
+    /// A decoded image, boxed for the same reason in reverse: a GeoTIFF's
+    /// georeferencing makes a raster several times a decoder's box.
+    Whole(Box<Raster>),
 }
 
 /// An input opened for conversion: its format and samples are known, its
@@ -654,7 +656,7 @@ impl Opened {
             },
         };
         match (source, normals) {
-            (Source::Whole(raster), normals) => job.whole(raster, normals, residual)?,
+            (Source::Whole(raster), normals) => job.whole(*raster, normals, residual)?,
             (_, None) => {
                 let problem = "nothing to write: no output given";
                 return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
