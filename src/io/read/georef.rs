@@ -11,9 +11,12 @@
 //! spacing is taken in its linear unit, a geographic one's converted to
 //! metres on the WGS84 ellipsoid ([`metres_per_degree`]).
 
+#[cfg(feature = "tiff")]
 use crate::error::{Error, Result};
 
-/// The GeoTIFF and GDAL tag numbers read here.
+/// The GeoTIFF and GDAL tag numbers read here (by the TIFF reader, a
+/// feature of its own).
+#[cfg(feature = "tiff")]
 pub(crate) mod tags {
     pub const MODEL_PIXEL_SCALE: u16 = 33550;
     pub const MODEL_TIEPOINT: u16 = 33922;
@@ -23,6 +26,7 @@ pub(crate) mod tags {
 }
 
 /// The GeoKeys read from the key directory (GeoTIFF 1.1, §7).
+#[cfg(feature = "tiff")]
 mod keys {
     pub const GT_MODEL_TYPE: u16 = 1024;
     pub const GT_RASTER_TYPE: u16 = 1025;
@@ -287,6 +291,7 @@ pub fn metres_per_degree(latitude: f64) -> (f64, f64) {
 /// read here are SHORT values stored inline (location 0); those kept in
 /// GeoDoubleParams or GeoAsciiParams (ellipsoid parameters, citations) are
 /// not needed to place texels.
+#[cfg(feature = "tiff")]
 pub(crate) fn apply_key_directory(georef: &mut Georef, directory: &[u16]) -> Result<()> {
     let bad = |why: &str| Error::Decode(format!("GeoKeyDirectory tag: {why}"));
     let [version, _, _, count, ..] = *directory else {
@@ -347,6 +352,7 @@ pub(crate) fn apply_key_directory(georef: &mut Georef, directory: &[u16]) -> Res
 
 /// GDAL_NODATA's text as a number: GDAL writes it with `%.18g` or as
 /// "nan", "inf", "-inf"; spaces around it are allowed.
+#[cfg(feature = "tiff")]
 pub(crate) fn parse_nodata(text: &str) -> Result<f64> {
     let trimmed = text.trim_matches(|c: char| c.is_whitespace() || c == '\0');
     trimmed.parse::<f64>().map_err(|_| {
@@ -355,6 +361,7 @@ pub(crate) fn parse_nodata(text: &str) -> Result<f64> {
 }
 
 /// Checks the lengths of the model tags and copies them into `georef`.
+#[cfg(feature = "tiff")]
 pub(crate) fn apply_model_tags(
     georef: &mut Georef,
     scale: Option<Vec<f64>>,
