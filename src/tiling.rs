@@ -744,7 +744,7 @@ impl HeightSeams {
     /// Errors: as [`push_samples`](Self::push_samples).
     pub fn push_heights<H: crate::Sample>(&mut self, heights: &[H]) -> Result<()> {
         let w = self.width;
-        let count = self.whole_rows(heights.len(), w, self.height - self.x.rows)?;
+        let count = whole_rows(heights.len(), w, self.height - self.x.rows)?;
         let mut row = try_vec(w)?;
         row.resize(w, 0.0f32);
         for rows in heights.chunks_exact(w.max(1)).take(count) {
@@ -763,7 +763,7 @@ impl HeightSeams {
     /// pushed then).
     pub fn push_edge_columns<H: crate::Sample>(&mut self, texels: &[H]) -> Result<()> {
         let n = self.cols.kept();
-        let count = self.whole_rows(texels.len(), n, self.height - self.x.rows)?;
+        let count = whole_rows(texels.len(), n, self.height - self.x.rows)?;
         let mut row = std::mem::take(&mut self.kept);
         row.resize(n, 0.0);
         for part in texels.chunks_exact(n.max(1)).take(count) {
@@ -788,12 +788,7 @@ impl HeightSeams {
                 false => Err(Error::BufferSize { expected: 0, actual: heights.len() }),
             };
         };
-        let left = y.height - y.rows;
-        let count = match heights.len() {
-            len if w > 0 && len.is_multiple_of(w) && len / w <= left => len / w,
-            0 => 0,
-            len => return Err(Error::BufferSize { expected: left * w, actual: len }),
-        };
+        let count = whole_rows(heights.len(), w, y.height - y.rows)?;
         let mut row = try_vec(w)?;
         row.resize(w, 0.0f32);
         for rows in heights.chunks_exact(w.max(1)).take(count) {
@@ -802,17 +797,6 @@ impl HeightSeams {
         }
         self.y_rows += count;
         Ok(())
-    }
-
-    /// How many rows of `per_row` values `len` values make, refused when
-    /// not whole or more than `left`.
-    fn whole_rows(&self, len: usize, per_row: usize, left: usize) -> Result<usize> {
-        // Rows of no values: none, unless values came.
-        let count = len.checked_div(per_row).unwrap_or(if len == 0 { 0 } else { usize::MAX });
-        if (per_row > 0 && !len.is_multiple_of(per_row)) || count > left {
-            return Err(Error::BufferSize { expected: left * per_row, actual: len });
-        }
-        Ok(count)
     }
 
     /// Fails unless `n` more rows may come.
@@ -851,6 +835,17 @@ impl HeightSeams {
         };
         Ok(report(&x, &y, ImageKind::Height, opts))
     }
+}
+
+/// How many rows of `per_row` values `len` values make, refused when not
+/// whole or more than `left`.
+fn whole_rows(len: usize, per_row: usize, left: usize) -> Result<usize> {
+    // Rows of no values: none, unless values came.
+    let count = len.checked_div(per_row).unwrap_or(if len == 0 { 0 } else { usize::MAX });
+    if (per_row > 0 && !len.is_multiple_of(per_row)) || count > left {
+        return Err(Error::BufferSize { expected: left * per_row, actual: len });
+    }
+    Ok(count)
 }
 
 /// Converts a row of samples into the contract's f32 units.
