@@ -22,7 +22,7 @@
 //! and sy down a column (per row for a geographic raster: the patch takes
 //! its centre row's). Lengths are then counted in x spacings: z / sx, and
 //! the rows ρ = sy / sx apart. Where ρ = 1 the formulas above run as they
-//! are (on z / sx); otherwise [`unequal_normal`]: the vertical fit
+//! are (on z / sx); otherwise `unequal_normal`: the vertical fit
 //! n ∝ (−Cx, −Cy/ρ, A), the orthogonal fit the smallest eigenvector of
 //! [[A, 0, Cx], [0, ρ²A, ρCy], [Cx, ρCy, Czz]] (docs/spec.md). The sums,
 //! and so the cost per texel, do not change; only the last step does.
