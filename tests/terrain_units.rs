@@ -539,3 +539,61 @@ fn slope_and_aspect_follow_the_compass() {
     let flat = slope_aspect([0.0, 0.0, 1.0], Convention::OpenGl);
     assert_eq!((flat.slope, flat.aspect), (0.0, None));
 }
+
+/// The program: `--units map` of a file without georeferencing is refused
+/// in one line naming it, exit 2, no output; `--pixel-size X,Y` fits a
+/// 16-bit PNG's stored values on that spacing, so a plane of stored
+/// values comes out with its slope and aspect; a bad pixel size is a
+/// usage error.
+#[cfg(feature = "cli")]
+#[test]
+fn the_program_refuses_map_units_without_a_spacing_and_takes_a_pixel_size() {
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_normalfit");
+    let (w, h) = (9u32, 7u32);
+    // Stored values: 1000 + 3·x − 2·y (metres, say), on 10 × 4 m pixels:
+    // a slope of 0.3 east and 0.5 north.
+    let png = dir.path().join("dem.png");
+    let pixels: Vec<u16> = (0..w * h).map(|k| (1000 + 3 * (k % w) - 2 * (k / w)) as u16).collect();
+    image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, pixels).unwrap().save(&png).unwrap();
+
+    let refused = dir.path().join("refused.exr");
+    let o = Command::new(bin)
+        .args(["convert", png.to_str().unwrap(), "--units", "map", "-o"])
+        .arg(&refused)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("dem.png") && err.contains("no georeferencing") && err.contains("pixel size"), "{err}");
+    assert!(!refused.exists());
+
+    let out = dir.path().join("n.exr");
+    let args = ["--pixel-size", "10,4", "--border", "clamp", "--fit", "orthogonal", "--signed", "-o"];
+    let o = Command::new(bin).arg("convert").arg(&png).args(args).arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let raster = normalfit::io::read_path(&out, &normalfit::io::ReadOptions::default()).unwrap();
+    let plane = |name: &str| raster.plane(name).unwrap().data.clone();
+    let (r, g, b) = (plane("R"), plane("G"), plane("B"));
+    let k = 3 * w as usize + 4;
+    let n = [r.height(k).unwrap(), g.height(k).unwrap(), b.height(k).unwrap()];
+    let got = slope_aspect(n, Convention::OpenGl);
+    let slope = 0.3f64.hypot(0.5).atan().to_degrees();
+    let aspect = (-0.3f64).atan2(-0.5).to_degrees() + 360.0;
+    assert!((got.slope - slope).abs() < 1e-4, "{got:?} against {slope}");
+    assert!((got.aspect.unwrap() - aspect).abs() < 1e-4, "{got:?} against {aspect}");
+
+    for bad in ["0", "1,-2", "x", "1,2,3"] {
+        let o = Command::new(bin)
+            .arg("convert")
+            .arg(&png)
+            .args(["--pixel-size", bad, "-o"])
+            .arg(&refused)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+        assert!(String::from_utf8_lossy(&o.stderr).contains("pixel size"), "{bad}");
+    }
+}
