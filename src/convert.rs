@@ -56,6 +56,7 @@ use crate::io::{
 use crate::pipeline::{self, ExrRows, PngRows, RowSource};
 use crate::samples::try_vec;
 use crate::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport};
+use crate::units::MapSpacing;
 use crate::{Border, Borders, FromNormal, Options, Samples};
 
 /// One axis's border mode: as given, or chosen by the tiling check.
@@ -374,6 +375,12 @@ pub struct Conversion {
     pub layout: Layout,
     /// Whether a residual map is made (the image is then read whole).
     pub residual: bool,
+    /// Fit in real-world units ([`crate::Units::Map`]), the spacing from
+    /// the file or given; `None`: the contract's units. The image is then
+    /// read whole, and its heights taken as stored
+    /// ([`Raster::into_stored_heights`]). The fit's own
+    /// [`Options::units`] are replaced by what this gives.
+    pub map_units: Option<MapSpacing>,
 }
 
 impl Default for Conversion {
@@ -390,6 +397,7 @@ impl Default for Conversion {
             compression: PngCompression::Fast,
             layout: Layout::Rgb,
             residual: false,
+            map_units: None,
         }
     }
 }
@@ -465,6 +473,14 @@ impl Conversion {
         self
     }
 
+    /// Fitting in map units, the spacing from the file
+    /// ([`MapSpacing::FromFile`]) or given; `None` for the contract's.
+    #[must_use]
+    pub fn with_map_units(mut self, map_units: Option<MapSpacing>) -> Conversion {
+        self.map_units = map_units;
+        self
+    }
+
     /// Making the residual map too (read whole).
     #[must_use]
     pub fn with_residual(mut self, residual: bool) -> Conversion {
@@ -479,7 +495,9 @@ impl Conversion {
     /// ([`io::read_path`], [`io::decode`]).
     pub fn open(&self, input: Input<'_>) -> Result<Opened, ConvertError> {
         let fail = ConvertError::at(Place::Input);
-        if let (Input::Path(path), false) = (input, self.residual) {
+        // Map units read the image whole: its georeferencing and stored
+        // values come with the raster.
+        if let (Input::Path(path), false, None) = (input, self.residual, self.map_units) {
             if let Some(rows) = PngRows::open(path, &self.read, self.channel.clone()).map_err(&fail)? {
                 let bits = if rows.more_than_8_bits() { 16 } else { 8 };
                 return Ok(self.opened(
@@ -749,7 +767,15 @@ impl Job<'_> {
         (self.summary.width, self.summary.height) = (width, height);
         let conversion = self.conversion;
         let in_failure = ConvertError::at(Place::Input);
-        let heights = raster.into_heights(conversion.channel.clone()).map_err(&in_failure)?;
+        let units = match &conversion.map_units {
+            Some(map) => Some(map.units(raster.georef.as_ref(), height).map_err(&in_failure)?),
+            None => None,
+        };
+        let heights = match units {
+            Some(_) => raster.into_stored_heights(conversion.channel.clone()),
+            None => raster.into_heights(conversion.channel.clone()),
+        }
+        .map_err(&in_failure)?;
         let report = match conversion.borders.needs_check() {
             true => match self.seam_check(width, height)? {
                 Some(mut seams) => {
@@ -763,7 +789,10 @@ impl Job<'_> {
         if let Some(report) = report {
             self.judge(report);
         }
-        let fit = self.fit_options();
+        let mut fit = self.fit_options();
+        if let Some(units) = units {
+            fit = fit.with_units(units);
+        }
         // Named by the first output to be written.
         let first = if normals.is_some() { Place::Output } else { Place::Residual };
         let to_writer = matches!(normals, Some(Output::Writer(_)));

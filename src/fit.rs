@@ -18,6 +18,15 @@
 //!   written so that it does not cancel);
 //! * a patch with Cx² + Cy² ≤ 1e-20 · (A + Czz)² is flat: n = (0, 0, 1).
 //!
+//! In map units ([`Units::Map`]) texel centres are sx apart along a row
+//! and sy down a column (per row for a geographic raster: the patch takes
+//! its centre row's). Lengths are then counted in x spacings: z / sx, and
+//! the rows ρ = sy / sx apart. Where ρ = 1 the formulas above run as they
+//! are (on z / sx); otherwise `unequal_normal`: the vertical fit
+//! n ∝ (−Cx, −Cy/ρ, A), the orthogonal fit the smallest eigenvector of
+//! [[A, 0, Cx], [0, ρ²A, ρCy], [Cx, ρCy, Czz]] (docs/spec.md). The sums,
+//! and so the cost per texel, do not change; only the last step does.
+//!
 //! # How the sums are found
 //!
 //! The four patch sums Σz, Σiz, Σjz, Σz² are separable: each is a sum
@@ -62,7 +71,7 @@ use std::ops::Range;
 use crate::par::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::options::{Borders, Fit, Options};
+use crate::options::{Borders, Fit, Options, Spacing, Units};
 use crate::samples::Sample;
 
 mod window;
@@ -453,6 +462,9 @@ struct Plan {
     /// Emit each texel's patch moments [Cx, Cy, Czz] instead of its normal
     /// (the height inverse's re-fit, [`BandFit::moments`]).
     moments: bool,
+    /// Map units ([`Units::Map`]): the texel spacing, and heights taken as
+    /// the values given whatever their type. `None`: the contract's units.
+    spacing: Option<Spacing>,
 }
 
 impl Plan {
@@ -466,6 +478,13 @@ impl Plan {
         // (down to one) for a very wide one (see the module docs).
         let block_rows = tile.max(MIN_BLOCK_TEXELS.div_ceil(width)).min((MAX_BLOCK_TEXELS / width).max(1));
         let rf = r as f64;
+        let spacing = match &opts.units {
+            Units::Texels => None,
+            Units::Map(spacing) => {
+                spacing.validate(Some(height))?;
+                Some(spacing.clone())
+            }
+        };
         Ok(Plan {
             width,
             n,
@@ -478,6 +497,7 @@ impl Plan {
             height,
             block_rows,
             moments: false,
+            spacing,
         })
     }
 
@@ -540,6 +560,8 @@ impl Plan {
             rest = tail;
             rest_residual = residual_tail;
         }
+        // Map units take every value as it is given (a DEM's metres).
+        let unit = if self.spacing.is_some() { 1.0 } else { unit };
         // The product of S and the unit, once: every path that fits these
         // samples forms the same gain, and so the same bits.
         let gain = self.scale * unit;
@@ -644,9 +666,9 @@ impl Plan {
                 v.slide(&ring[p_out % n], &entering, rf, r1);
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
-            self.emit(&v, gain, &mut normal, out_row);
+            self.emit(&v, gain, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, gain, residual[k]);
+                self.emit_residual(&v, gain, y0 + k, residual[k]);
             }
         }
     }
@@ -714,9 +736,9 @@ impl Plan {
             }
             let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
             v.sum_rows(&patch_rows);
-            self.emit(&v, 1.0, &mut normal, out_row);
+            self.emit(&v, 1.0, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, 1.0, residual[k]);
+                self.emit_residual(&v, 1.0, y0 + k, residual[k]);
             }
         }
     }
@@ -825,9 +847,9 @@ impl Plan {
                     v.combine(&suffix[t], &prefix, shift);
                 }
                 let k = block * n + t - y0;
-                self.emit(&v, 1.0, &mut normal, out[k]);
+                self.emit(&v, 1.0, y0 + k, &mut normal, out[k]);
                 if let Some(residual) = residual.as_mut() {
-                    self.emit_residual(&v, 1.0, residual[k]);
+                    self.emit_residual(&v, 1.0, y0 + k, residual[k]);
                 }
             }
         }
@@ -894,8 +916,9 @@ impl Plan {
     /// Turns the window sums of one row into normals, through `normal`
     /// (x, y and z planes): the fit's loop then stores whole vectors, and
     /// the texel type's conversion is a loop of its own. The sums are in
-    /// units of z / `gain` (stored integers), or of z (`gain` 1).
-    fn emit<T: FromNormal>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3], out: &mut [T]) {
+    /// units of z / `gain` (stored integers), or of z (`gain` 1); `y` is
+    /// the image row, whose spacing map units fit with.
+    fn emit<T: FromNormal>(&self, v: &WindowSums, gain: f64, y: usize, normal: &mut [Vec<f64>; 3], out: &mut [T]) {
         if self.moments {
             let n2 = (self.n * self.n) as f64;
             let czz_gain = gain * gain / n2;
@@ -906,10 +929,16 @@ impl Plan {
             }
             return;
         }
+        // Lengths in units of the x spacing: z / sx, and ρ = sy / sx the
+        // rows' spacing. In texel units, and for square pixels, ρ = 1 and
+        // the contract's square-grid formulas run (sx = 1: the same bits).
+        let ([sx, _], rho) = self.spacing_at(y);
+        let gain = gain / sx;
         // One loop per fit, so the per-texel work has no branch and vectorises.
         match self.fit {
-            Fit::Orthogonal => self.emit_with::<true>(v, gain, normal),
-            Fit::Vertical => self.emit_with::<false>(v, gain, normal),
+            Fit::Orthogonal if rho == 1.0 => self.emit_with::<true>(v, gain, normal),
+            Fit::Vertical if rho == 1.0 => self.emit_with::<false>(v, gain, normal),
+            fit => self.emit_unequal(v, gain, rho, fit == Fit::Orthogonal, normal),
         }
         let [nx, ny, nz] = normal;
         for (((texel, &x), &y), &z) in out.iter_mut().zip(nx.iter()).zip(ny.iter()).zip(nz.iter()) {
@@ -924,6 +953,37 @@ impl Plan {
     #[inline(always)]
     fn czz(n2: f64, czz_gain: f64, s0: f64, szz: f64) -> f64 {
         ((n2 * szz - s0 * s0) * czz_gain).max(0.0)
+    }
+
+    /// The spacing `[sx, sy]` of image row `y` and ρ = sy / sx: `[1, 1]`
+    /// and 1 in texel units.
+    #[inline]
+    fn spacing_at(&self, y: usize) -> ([f64; 2], f64) {
+        match &self.spacing {
+            None => ([1.0, 1.0], 1.0),
+            Some(spacing) => {
+                let [sx, sy] = spacing.at(y);
+                ([sx, sy], sy / sx)
+            }
+        }
+    }
+
+    /// [`Self::emit_with`] for texels of unequal spacing (ρ ≠ 1), lengths
+    /// in units of the x spacing: the vertical fit by its closed form, the
+    /// orthogonal one by the scatter matrix's smallest eigenvector
+    /// ([`unequal_normal`]).
+    fn emit_unequal(&self, v: &WindowSums, gain: f64, rho: f64, orthogonal: bool, normal: &mut [Vec<f64>; 3]) {
+        let n2 = (self.n * self.n) as f64;
+        let czz_gain = gain * gain / n2;
+        let (gx, gy) = (gain, self.sigma * gain);
+        let [nx, ny, nz] = normal;
+        let w = nx.len();
+        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+        let (ny, nz) = (&mut ny[..w], &mut nz[..w]);
+        for x in 0..w {
+            let czz = Self::czz(n2, czz_gain, s0[x], szz[x]);
+            [nx[x], ny[x], nz[x]] = unequal_normal(orthogonal, self.a, rho, gx * si[x], gy * sj[x], czz);
+        }
     }
 
     fn emit_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3]) {
@@ -959,14 +1019,41 @@ impl Plan {
     /// The RMS distance of each texel's patch points from its fitted plane,
     /// in surface units, from the window sums of one row. A loop of its
     /// own, run only when asked for, so the normals' loop stays as it is.
-    fn emit_residual(&self, v: &WindowSums, gain: f64, out: &mut [f32]) {
+    /// In map units, the distances are in the heights' unit (the fit's
+    /// lengths in x spacings, times sx).
+    fn emit_residual(&self, v: &WindowSums, gain: f64, y: usize, out: &mut [f32]) {
+        let ([sx, _], rho) = self.spacing_at(y);
+        let gain = gain / sx;
         match self.fit {
-            Fit::Orthogonal => self.emit_residual_with::<true>(v, gain, out),
-            Fit::Vertical => self.emit_residual_with::<false>(v, gain, out),
+            // The vertical fit's residual does not depend on ρ: ordinary
+            // least squares leaves the same residual however its regressors
+            // are scaled.
+            Fit::Orthogonal if rho != 1.0 => self.emit_residual_unequal(v, gain, rho, sx, out),
+            Fit::Orthogonal => self.emit_residual_with::<true>(v, gain, sx, out),
+            Fit::Vertical => self.emit_residual_with::<false>(v, gain, sx, out),
         }
     }
 
-    fn emit_residual_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, out: &mut [f32]) {
+    /// The orthogonal fit's residual for texels of unequal spacing: the
+    /// smallest eigenvalue of the scatter matrix.
+    fn emit_residual_unequal(&self, v: &WindowSums, gain: f64, rho: f64, sx: f64, out: &mut [f32]) {
+        let n2 = (self.n * self.n) as f64;
+        let (inv_n2, czz_gain) = (1.0 / n2, gain * gain / n2);
+        let w = out.len();
+        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+        for x in 0..w {
+            let czz = Self::czz(n2, czz_gain, s0[x], szz[x]);
+            let (cx, cy) = (gain * si[x], gain * sj[x]);
+            let sum = if is_flat(self.a, cx, cy, czz) {
+                czz
+            } else {
+                smallest_eigen(self.a, rho * rho * self.a, cx, rho * cy, czz).0.max(0.0)
+            };
+            out[x] = ((sum * inv_n2).sqrt() * sx) as f32;
+        }
+    }
+
+    fn emit_residual_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, sx: f64, out: &mut [f32]) {
         let n2 = (self.n * self.n) as f64;
         let (inv_n2, czz_gain) = (1.0 / n2, gain * gain / n2);
         let w = out.len();
@@ -974,7 +1061,7 @@ impl Plan {
         for x in 0..w {
             let czz = Self::czz(n2, czz_gain, s0[x], szz[x]);
             let sum = squared_distance_sum::<ORTHOGONAL>(self.a, gain * si[x], gain * sj[x], czz);
-            out[x] = (sum * inv_n2).sqrt() as f32;
+            out[x] = ((sum * inv_n2).sqrt() * sx) as f32;
         }
     }
 }
@@ -1004,6 +1091,104 @@ fn squared_distance_sum<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: f64, czz: f
     };
     let tilted = (a * czz - tilt2).max(0.0) / largest;
     if flat { czz } else { tilted }
+}
+
+/// Whether a patch has no tilt, up to rounding: Cx² + Cy² ≤ 1e-20 ·
+/// (A + Czz)², the contract's rule (lengths in x spacings).
+#[inline(always)]
+fn is_flat(a: f64, cx: f64, cy: f64, czz: f64) -> bool {
+    cx * cx + cy * cy <= 1e-20 * (a + czz) * (a + czz)
+}
+
+/// The unit normal of a patch whose rows are ρ x-spacings apart (ρ ≠ 1),
+/// lengths in x spacings, from its sums (A, Cx, Cy as on the square grid,
+/// Czz; see the module docs). The points are (i, ρ·σ·j, z), so the scatter
+/// matrix is
+///
+/// ```text
+/// [[A, 0, Cx], [0, ρ²A, ρCy], [Cx, ρCy, Czz]]
+/// ```
+///
+/// * vertical: ordinary least squares, z = gx·u + gy·v with gx = Cx / A,
+///   gy = ρCy / (ρ²A): n ∝ (−Cx, −Cy/ρ, A);
+/// * orthogonal: the eigenvector of the smallest eigenvalue
+///   ([`smallest_eigen`]), n_z ≥ 0. The spacing is in the moments: the
+///   plane minimises perpendicular distances in real-world lengths, which
+///   no scaling of the square-grid normal gives.
+/// * a patch flat by [`is_flat`]: (0, 0, 1).
+fn unequal_normal(orthogonal: bool, a: f64, rho: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
+    if is_flat(a, cx, cy, czz) {
+        return [0.0, 0.0, 1.0];
+    }
+    let n = if orthogonal { smallest_eigen(a, rho * rho * a, cx, rho * cy, czz).1 } else { [-cx, -cy / rho, a] };
+    let inv = 1.0 / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    n.map(|c| c * inv)
+}
+
+/// The smallest eigenvalue λ of the scatter matrix M = [[a1, 0, b1],
+/// [0, a2, b2], [b1, b2, c]] (a1, a2 > 0, M positive semi-definite), and
+/// an eigenvector of it (not normalised) with a non-negative z (with z = 0
+/// up to rounding: a non-negative y, then x).
+///
+/// λ is the smallest root of p(λ) = det(M − λI) =
+/// (a1 − λ)(a2 − λ)(c − λ) − b1²(a2 − λ) − b2²(a1 − λ). Left of that root
+/// p is positive, decreasing and convex (p'' changes sign only at the mean
+/// eigenvalue), so Newton's steps from any point left of it rise to it
+/// without overshooting. The start is the closed form of the square grid
+/// with both a's replaced by m = min(a1, a2): M minus that matrix is
+/// diag(a1 − m, a2 − m, 0) ⪰ 0, so its smallest eigenvalue is a lower
+/// bound, and close to λ when the spacings are close. The eigenvector is
+/// the longest cross product of two rows of M − λI (the first two rows'
+/// is (−b1(a2 − λ), −b2(a1 − λ), (a1 − λ)(a2 − λ)), the normal of the
+/// square grid's formula when a1 = a2; the others take over when λ meets
+/// a1 or a2, a patch whose flattest direction is horizontal).
+fn smallest_eigen(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, [f64; 3]) {
+    let m = a1.min(a2);
+    let tilt2 = b1 * b1 + b2 * b2;
+    let d = 0.5 * (m - c);
+    let largest = 0.5 * (m + c) + (d * d + tilt2).sqrt();
+    let mut lambda = ((m * c - tilt2) / largest).max(0.0);
+    let scale = a1 + a2 + c;
+    for _ in 0..200 {
+        let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
+        let p = p1 * p2 * p3 - b1 * b1 * p2 - b2 * b2 * p1;
+        let slope = b1 * b1 + b2 * b2 - (p2 * p3 + p1 * p3 + p1 * p2);
+        if p <= 0.0 || slope >= 0.0 {
+            break;
+        }
+        let next = lambda - p / slope;
+        if next <= lambda {
+            break;
+        }
+        let step = next - lambda;
+        lambda = next;
+        if step <= 1e-17 * scale {
+            break;
+        }
+    }
+    let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
+    let candidates =
+        [[-b1 * p2, -b2 * p1, p1 * p2], [-b1 * b2, b1 * b1 - p1 * p3, p1 * b2], [p2 * p3 - b2 * b2, b1 * b2, -p2 * b1]];
+    let length2 = |v: &[f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    let mut best = candidates[0];
+    for v in &candidates[1..] {
+        if length2(v) > length2(&best) {
+            best = *v;
+        }
+    }
+    // n_z ≥ 0; a vertical plane (n_z = 0 up to rounding, 1e-12 of the
+    // vector: a cliff whose heights spread more than the narrower axis's
+    // texels) takes n_y ≥ 0, then n_x ≥ 0.
+    let tiny = 1e-12 * best[0].abs().max(best[1].abs()).max(best[2].abs());
+    let flip = match best {
+        [_, _, z] if z.abs() > tiny => z < 0.0,
+        [_, y, _] if y.abs() > tiny => y < 0.0,
+        [x, _, _] => x < 0.0,
+    };
+    if flip {
+        best = best.map(|c| -c);
+    }
+    (lambda, best)
 }
 
 /// The fitted plane's unit normal from the patch sums (see the module

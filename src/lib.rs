@@ -24,6 +24,9 @@
 //!   output format and depth, streaming or whole, memory checks, `auto`
 //!   borders, atomic writes ([`convert::Conversion`]).
 //! * [`tiling`]: a seam score and a verdict per axis ([`tiling::check`]).
+//! * [`units`]: fits in real-world units ([`Units::Map`]): the texel
+//!   spacing of a GeoTIFF, and slope and aspect in degrees as GIS tools
+//!   give them.
 //! * [`shade`]: normals lit by a directional light as a gray picture
 //!   ([`shade::shade`]), repeated 2×2 so seams show ([`shade::tile_2x2`]).
 //!
@@ -202,10 +205,11 @@ pub mod pipeline;
 pub mod samples;
 pub mod shade;
 pub mod tiling;
+pub mod units;
 
 pub use error::{Error, Result};
 pub use fit::{FromNormal, normals, normals_and_residual_into, normals_into};
-pub use options::{Border, Borders, Convention, Fit, Options, Strength};
+pub use options::{Border, Borders, Convention, Fit, Options, Spacing, Strength, Units};
 pub use samples::{Sample, Samples};
 
 /// The README's Rust code, compiled and run by `cargo test` as doc tests,

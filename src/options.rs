@@ -1,6 +1,8 @@
 //! What a conversion is asked to do: the plane fit's parameters, each with
 //! its default from the contract (`SPEC.md`, sections 1 and 2).
 
+use std::sync::Arc;
+
 use crate::error::Error;
 
 /// Which plane the fit finds.
@@ -194,6 +196,112 @@ impl Default for Strength {
     }
 }
 
+/// What units the heights and the texel grid are in.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub enum Units {
+    /// The contract's units (SPEC §1): integers are value / (2^bits − 1),
+    /// texel centres one texel width apart, z = S · h in texel widths.
+    /// The default.
+    #[default]
+    Texels,
+    /// Real-world units (docs/terrain.md): heights as given (the stored
+    /// values, a DEM's metres: an integer sample counts its own value, not
+    /// value / (2^bits − 1)), texel centres [`Spacing`] apart in the same
+    /// unit, z = S · h. With S = 1 a texel's slope is the terrain's true
+    /// slope (rise over run); S is then a vertical exaggeration.
+    Map(Spacing),
+}
+
+/// The distance between neighbouring texel centres, in the heights' unit,
+/// for [`Units::Map`]: `x` along a row (column to column), `y` down a
+/// column (row to row). A pixel need not be square.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum Spacing {
+    /// The same spacing for every row: a projected map.
+    Uniform {
+        /// Column to column.
+        x: f64,
+        /// Row to row.
+        y: f64,
+    },
+    /// One `[x, y]` per image row: a geographic raster, whose metres per
+    /// degree of longitude shrink towards the poles. A texel's patch is
+    /// fitted with the spacing of its centre row (the rows above and below
+    /// it are taken at that spacing too, as GIS tools' 3×3 kernels do).
+    Rows(Arc<[[f64; 2]]>),
+}
+
+impl Spacing {
+    /// The same spacing on both axes.
+    #[must_use]
+    pub fn square(size: f64) -> Spacing {
+        Spacing::Uniform { x: size, y: size }
+    }
+
+    /// The spacing `[x, y]` of image row `row` (which must be a row of a
+    /// [`Spacing::Rows`]).
+    #[must_use]
+    pub fn at(&self, row: usize) -> [f64; 2] {
+        match self {
+            Spacing::Uniform { x, y } => [*x, *y],
+            Spacing::Rows(rows) => rows[row],
+        }
+    }
+
+    /// Checks every spacing: finite, positive, within [`MAX_SPACING_RATIO`]
+    /// of each other across an axis pair (a ratio beyond it is a unit mix-up,
+    /// and leaves nothing of one axis in the fit), and, per row, as many
+    /// rows as the image's `height` when it is known.
+    pub fn validate(&self, height: Option<usize>) -> Result<(), Error> {
+        let rows: &[[f64; 2]] = match self {
+            Spacing::Uniform { x, y } => &[[*x, *y]],
+            Spacing::Rows(rows) => rows,
+        };
+        if let (Spacing::Rows(rows), Some(h)) = (self, height)
+            && rows.len() != h
+        {
+            return Err(Error::InvalidOption(format!("spacing given for {} rows, the image has {h}", rows.len())));
+        }
+        if rows.is_empty() {
+            return Err(Error::InvalidOption("spacing given for no rows".into()));
+        }
+        for (row, &[x, y]) in rows.iter().enumerate() {
+            let at = if rows.len() > 1 { format!(" (row {row})") } else { String::new() };
+            if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0) {
+                return Err(Error::InvalidOption(format!(
+                    "texel spacing must be finite and positive, got {x} × {y}{at}"
+                )));
+            }
+            let ratio = x.max(y) / x.min(y);
+            if !(ratio <= MAX_SPACING_RATIO && x.min(y) >= 1e-30 && x.max(y) <= 1e30) {
+                return Err(Error::InvalidOption(format!(
+                    "texel spacing {x} × {y}{at} is out of range: each side within 1e-30 to 1e30, \
+                     one at most {MAX_SPACING_RATIO:e} times the other"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The largest ratio of a texel's two spacings accepted.
+pub const MAX_SPACING_RATIO: f64 = 1e6;
+
+named_values!(UnitsName, "units", { Texels => "texels", Map => "map" });
+
+/// The names of [`Units`] as front ends spell them (`--units texels|map`):
+/// the spacing of `map` comes from the file or from the caller.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum UnitsName {
+    /// [`Units::Texels`]. The default.
+    #[default]
+    Texels,
+    /// [`Units::Map`].
+    Map,
+}
+
 /// Everything the plane fit needs besides the heights.
 ///
 /// ```
@@ -220,6 +328,9 @@ pub struct Options {
     pub strength: Strength,
     /// Negate the gain: heights are depths. Default: false.
     pub invert: bool,
+    /// Heights and texel spacing in the contract's units, or in a map's.
+    /// Default: [`Units::Texels`].
+    pub units: Units,
 }
 
 impl Default for Options {
@@ -240,6 +351,7 @@ impl Options {
             convention: Convention::OpenGl,
             strength: Strength::Scale(1.0),
             invert: false,
+            units: Units::Texels,
         }
     }
 
@@ -280,6 +392,13 @@ impl Options {
         self
     }
 
+    /// Sets the units (real-world units: [`Units::Map`]).
+    #[must_use]
+    pub fn with_units(mut self, units: Units) -> Self {
+        self.units = units;
+        self
+    }
+
     /// The gain S for an image `width` texels wide, sign included.
     #[must_use]
     pub fn scale_for_width(&self, width: usize) -> f64 {
@@ -306,6 +425,9 @@ impl Options {
             return Err(Error::InvalidOption(format!(
                 "{name} must be a finite number of magnitude at most {MAX_GAIN:e}, got {value}"
             )));
+        }
+        if let Units::Map(spacing) = &self.units {
+            spacing.validate(None)?;
         }
         Ok(())
     }

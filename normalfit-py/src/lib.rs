@@ -28,8 +28,10 @@ use normalfit::fit::{Halo, Window};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
 use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
+use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
+use normalfit::units::MapSpacing;
 use normalfit::{Border, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
 use normalfit::{inspect, normal_map};
 use numpy::ndarray::ArrayView2;
@@ -883,7 +885,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -905,8 +907,11 @@ fn convert(
     residual: bool,
     max_texels: Option<u64>,
     layer: Option<String>,
+    units: &str,
+    pixel_size: Option<(f64, f64)>,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let map_units = MapSpacing::choose(parse_named::<UnitsName>(units)?, pixel_size.map(|(x, y)| [x, y]));
     let format = format.map(parse_named::<OutputFormat>).transpose()?;
     let compression = parse_named::<PngCompression>(compression)?;
     let layout = Layout::from_parts(parse_named(channels)?, parse_named(alpha)?).map_err(to_py_err)?;
@@ -919,7 +924,8 @@ fn convert(
         .with_signed(signed)
         .with_compression(compression)
         .with_layout(layout)
-        .with_residual(residual);
+        .with_residual(residual)
+        .with_map_units(map_units);
     conversion.bits = bits;
     let summary = py.detach(|| conversion.convert_file(&src, &dst)).map_err(|e| match e.place {
         Place::Input => file_error(&src, e.error, false),

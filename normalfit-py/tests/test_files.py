@@ -58,6 +58,29 @@ def test_convert_with_residual(tmp_path: Path, cli: Path) -> None:
     assert (tmp_path / "n.png").read_bytes() == (tmp_path / "c.png").read_bytes()
 
 
+def test_convert_in_map_units(tmp_path: Path, cli: Path) -> None:
+    """units= and pixel_size= give the command line's --units and
+    --pixel-size bytes; map units of a file without georeferencing are
+    refused, naming it."""
+    dem = ROOT / "samples" / "dem" / "jacksboro_fault_dem.tif"
+    for src, kwargs, args in [
+        (dem, {"units": "map", "border": "clamp"}, ["--units", "map", "--border", "clamp"]),
+        (ROCK, {"pixel_size": (2.0, 3.0), "fit": "vertical"}, ["--pixel-size", "2,3", "--fit", "vertical"]),
+        (ROCK, {"pixel_size": 0.5}, ["--pixel-size", "0.5"]),
+    ]:
+        ours, theirs = tmp_path / "ours.exr", tmp_path / "theirs.exr"
+        summary = normalfit.convert(src, ours, **kwargs)  # type: ignore[arg-type]
+        run_cli(cli, "convert", src, "-o", theirs, *args)
+        assert ours.read_bytes() == theirs.read_bytes(), kwargs
+        assert not summary.streamed, "map units read the image whole"
+    with pytest.raises(OSError, match=r"rock\.png: unsupported: map units need the texel spacing"):
+        normalfit.convert(ROCK, tmp_path / "o.png", units="map")
+    with pytest.raises(ValueError, match="texel spacing must be finite and positive"):
+        normalfit.convert(ROCK, tmp_path / "o.png", pixel_size=(1.0, -2.0))
+    with pytest.raises(ValueError, match="unknown units 'metres'"):
+        normalfit.convert(ROCK, tmp_path / "o.png", units="metres")
+
+
 def test_convert_errors(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError) as missing:
         normalfit.convert(tmp_path / "missing.png", tmp_path / "o.png")

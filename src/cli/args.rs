@@ -12,7 +12,7 @@ use normalfit::height::{ConventionChoice, Model};
 use normalfit::io::{
     Alpha, ByteOrder, Channel, OutputChannels, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
-use normalfit::options::MAX_PATCH;
+use normalfit::options::{MAX_PATCH, UnitsName};
 use normalfit::shade::Light;
 use normalfit::tiling::KindChoice;
 use normalfit::{Borders, Convention, Fit};
@@ -147,6 +147,9 @@ pub struct ConvertArgs {
 
     #[command(flatten)]
     pub terrain: TerrainArgs,
+
+    #[command(flatten)]
+    pub units: UnitsArgs,
 
     /// Appended to each input's stem to name its output. Files whose stem
     /// already ends in it (or in `_residual`) are taken for outputs and
@@ -460,6 +463,31 @@ impl TerrainArgs {
     }
 }
 
+/// Fits in real-world units (docs/terrain.md): `convert` only. The rules
+/// are the library's ([`normalfit::units::MapSpacing`]).
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Terrain")]
+pub struct UnitsArgs {
+    /// Units of the fit: texels (heights in [0, 1] for integer files, texels
+    /// one unit apart: the gain S) or map (heights as stored, a DEM's
+    /// metres, texels as far apart as the GeoTIFF's pixel size says, in
+    /// metres at each row's latitude for degrees: a texel's slope is the
+    /// terrain's, times S).
+    #[arg(long, default_value_t = UnitsName::Texels, value_parser = named::<UnitsName>(UnitsName::ALL))]
+    pub units: UnitsName,
+
+    /// Map units with this pixel size, X or X,Y (column to column, row to
+    /// row) in the heights' unit, for files without georeferencing (PNG,
+    /// RAW) or to override it. Implies --units map.
+    #[arg(long, value_name = "X[,Y]", value_parser = parse_pixel_size)]
+    pub pixel_size: Option<[f64; 2]>,
+}
+
+/// `--pixel-size X[,Y]`, as the library parses it.
+fn parse_pixel_size(s: &str) -> Result<[f64; 2], String> {
+    normalfit::units::parse_pixel_size(s).map_err(|e| library_message(&e))
+}
+
 /// `--size WxH`, as the library parses and checks it.
 fn parse_raw_size(s: &str) -> Result<(usize, usize), String> {
     normalfit::io::parse_size(s).map_err(|e| library_message(&e))
@@ -582,6 +610,7 @@ macro_rules! named_value {
 
 named_value!(
     Fit,
+    UnitsName,
     Convention,
     OutputFormat,
     PngCompression,

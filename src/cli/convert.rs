@@ -76,7 +76,8 @@ impl Plan {
             .with_signed(args.signed)
             .with_compression(args.compression)
             .with_layout(layout)
-            .with_residual(residual.is_some());
+            .with_residual(residual.is_some())
+            .with_map_units(normalfit::units::MapSpacing::choose(args.units.units, args.units.pixel_size));
         conversion.bits = args.bits;
         Ok(Plan { conversion, destination, residual, suffix: args.suffix.clone(), quiet: args.batch.quiet })
     }

@@ -156,6 +156,8 @@ def convert(
     residual: bool = False,
     max_texels: int | None = None,
     layer: str | None = None,
+    units: str = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -170,7 +172,10 @@ def convert(
     signed: EXR holds n, not (n + 1)/2; compression: "fast" or "small";
     alpha: "none", "height" or "one"; channels: "rgb" or "rg"; residual:
     also write <dst stem>_residual.<ext>; max_texels, layer: as the
-    command line's --max-texels and --layer.
+    command line's --max-texels and --layer; units: "texels" or "map"
+    (heights as stored, texels as far apart as a GeoTIFF says: slopes in
+    real-world units, docs/terrain.md); pixel_size: map units with this
+    spacing, x or (x, y) in the heights' unit (--pixel-size).
 
     Returns a ConversionSummary (width, height, input_format, borders as
     used, streamed, tiling, warnings). Raises ValueError for a bad option,
@@ -178,8 +183,17 @@ def convert(
     """
     return _normalfit.convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
-        compression, alpha, channels, residual, max_texels, layer,
+        compression, alpha, channels, residual, max_texels, layer, units,
+        None if pixel_size is None else _pair(pixel_size),
     )
+
+
+def _pair(size: float | tuple[float, float]) -> tuple[float, float]:
+    """A pixel size as (x, y): one number is both."""
+    if isinstance(size, tuple):
+        x, y = size
+        return (float(x), float(y))
+    return (float(size), float(size))
 
 
 def decode_normals(

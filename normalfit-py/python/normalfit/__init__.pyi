@@ -120,6 +120,8 @@ def convert(
     residual: bool = False,
     max_texels: int | None = None,
     layer: str | None = None,
+    units: Literal["texels", "map"] = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None

@@ -64,6 +64,8 @@ def convert(
     residual: bool,
     max_texels: int | None,
     layer: str | None,
+    units: str,
+    pixel_size: tuple[float, float] | None,
 ) -> ConversionSummary: ...
 def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
 def lit_view(

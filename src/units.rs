@@ -1,0 +1,205 @@
+//! Real-world units (docs/terrain.md): the texel spacing of a georeferenced
+//! raster for a fit in map units ([`Units::Map`]), and the slope and aspect
+//! of a normal in the GIS tools' conventions.
+//!
+//! A fit in map units takes the heights as they are stored (a DEM's
+//! metres) and the texel centres as far apart as the ground says, so the
+//! normal's slope is the terrain's: arctan of rise over run. Where the
+//! spacing comes from:
+//!
+//! * a projected GeoTIFF: its pixel size ([`Georef::spacing_metres`]), the
+//!   same for every row, x and y apart (a pixel is not always square);
+//! * a geographic GeoTIFF (degrees): converted to metres at each row's
+//!   latitude, so one spacing per row ([`Spacing::Rows`]); a texel's patch
+//!   takes its centre row's;
+//! * a caller's pixel size ([`MapSpacing::Given`]), for files without
+//!   georeferencing (a PNG, a RAW heightmap).
+//!
+//! A GeoTIFF that states its heights' unit (VerticalUnitsGeoKey: feet, say)
+//! gets its spacing in that unit, so rise and run are measured alike.
+
+use std::sync::Arc;
+
+use crate::error::{Error, Result};
+use crate::io::Georef;
+use crate::io::read::georef::{ModelType, linear_unit_metres};
+use crate::options::{Convention, Spacing, Units};
+
+/// Where a fit in map units takes its texel spacing from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum MapSpacing {
+    /// The file's georeferencing (a GeoTIFF's pixel size or transform); a
+    /// file without it is an error.
+    FromFile,
+    /// This spacing, in the heights' unit: `x` column to column, `y` row
+    /// to row. The file's georeferencing, if any, is not read.
+    Given {
+        /// Column to column.
+        x: f64,
+        /// Row to row.
+        y: f64,
+    },
+}
+
+impl MapSpacing {
+    /// The map units a front end asks for: `--units map` (`map`) and
+    /// `--pixel-size X[,Y]` (`pixel_size`, which implies map units): the
+    /// given size, else the file's; `None` for the contract's units.
+    #[must_use]
+    pub fn choose(units: crate::options::UnitsName, pixel_size: Option<[f64; 2]>) -> Option<MapSpacing> {
+        match (units, pixel_size) {
+            (_, Some([x, y])) => Some(MapSpacing::Given { x, y }),
+            (crate::options::UnitsName::Map, None) => Some(MapSpacing::FromFile),
+            (crate::options::UnitsName::Texels, None) => None,
+        }
+    }
+
+    /// The units of a fit of a `height`-row raster with georeferencing
+    /// `georef` (if any), in map units.
+    ///
+    /// Errors: those of [`map_spacing`] for [`MapSpacing::FromFile`];
+    /// [`Error::InvalidOption`] for a given spacing that is not finite and
+    /// positive.
+    pub fn units(&self, georef: Option<&Georef>, height: usize) -> Result<Units> {
+        let spacing = match *self {
+            MapSpacing::Given { x, y } => Spacing::Uniform { x, y },
+            MapSpacing::FromFile => map_spacing(georef, height)?,
+        };
+        spacing.validate(Some(height))?;
+        Ok(Units::Map(spacing))
+    }
+}
+
+/// A pixel size as front ends take it: `X` (square) or `X,Y` (x column to
+/// column, y row to row), each finite and positive.
+///
+/// Errors: [`Error::InvalidOption`] naming the text.
+pub fn parse_pixel_size(text: &str) -> Result<[f64; 2]> {
+    let number = |t: &str| t.trim().parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0);
+    let parsed = match text.split_once(',') {
+        None => number(text).map(|v| [v, v]),
+        Some((x, y)) => number(x).zip(number(y)).map(|(x, y)| [x, y]),
+    };
+    parsed.ok_or_else(|| {
+        Error::InvalidOption(format!(
+            "pixel size '{}' is not X or X,Y with finite positive numbers (10, or 30,20)",
+            crate::error::one_line(text)
+        ))
+    })
+}
+
+/// The texel spacing of a georeferenced raster of `height` rows, in its
+/// heights' unit (metres unless VerticalUnitsGeoKey says otherwise):
+///
+/// * projected: the pixel size times the linear unit, one for every row;
+/// * geographic: the pixel size in degrees turned into metres at each
+///   row's latitude ([`Georef::spacing_metres`]), one per row;
+/// * no model type given (a TIFF with a pixel scale and no GeoKeys): the
+///   pixel size as it is, in the model's unit.
+///
+/// Errors ([`Error::Unsupported`], one line each): no georeferencing, or no
+/// transform in it; a rotated or sheared raster (its rows do not run east);
+/// a geocentric or unknown model; a linear, angular or vertical unit whose
+/// EPSG code is not known.
+pub fn map_spacing(georef: Option<&Georef>, height: usize) -> Result<Spacing> {
+    let unsupported = |why: String| Error::Unsupported(why);
+    let no_spacing = || {
+        unsupported(
+            "map units need the texel spacing, and the file has no georeferencing (GeoTIFF ModelPixelScale or \
+             ModelTransformation tags): give the pixel size"
+                .into(),
+        )
+    };
+    let georef = georef.ok_or_else(no_spacing)?;
+    let affine = georef.affine().ok_or_else(no_spacing)?;
+    if affine.b != 0.0 || affine.d != 0.0 {
+        return Err(unsupported(
+            "the raster is rotated or sheared (its transform has terms b or d): map units take rasters whose rows \
+             run along x; give the pixel size to fit it anyway"
+                .into(),
+        ));
+    }
+    // Metres per height unit: the spacing is given in the heights' unit.
+    let vertical = match georef.vertical_unit {
+        None => 1.0,
+        Some(code) => linear_unit_metres(code).ok_or_else(|| {
+            unsupported(format!("the heights' unit (EPSG {code}, VerticalUnitsGeoKey) is not a known length"))
+        })?,
+    };
+    let in_height_units = |[x, y]: [f64; 2]| [x / vertical, y / vertical];
+    match georef.model {
+        None => {
+            let (x, y) = georef.spacing().ok_or_else(no_spacing)?;
+            Ok(Spacing::Uniform { x, y })
+        }
+        Some(ModelType::Projected) => {
+            let (x, y) = georef.spacing_metres(0.0).ok_or_else(|| {
+                let code = georef.linear_unit.map_or("none".into(), |c| c.to_string());
+                unsupported(format!("the map's linear unit (EPSG {code}, ProjLinearUnitsGeoKey) is not known"))
+            })?;
+            let [x, y] = in_height_units([x, y]);
+            Ok(Spacing::Uniform { x, y })
+        }
+        Some(ModelType::Geographic) => {
+            let mut rows = Vec::new();
+            rows.try_reserve_exact(height).map_err(|_| Error::Limits(format!("{height} rows of spacing")))?;
+            for row in 0..height {
+                let (x, y) = georef.spacing_metres(row as f64).ok_or_else(|| {
+                    let code = georef.angular_unit.map_or("none".into(), |c| c.to_string());
+                    unsupported(format!("the map's angular unit (EPSG {code}, GeogAngularUnitsGeoKey) is not known"))
+                })?;
+                rows.push(in_height_units([x, y]));
+            }
+            Ok(Spacing::Rows(Arc::from(rows)))
+        }
+        Some(other) => Err(unsupported(format!(
+            "map units take projected or geographic rasters, this one's model is {other:?} (GTModelTypeGeoKey)"
+        ))),
+    }
+}
+
+/// A surface's slope and aspect at a texel, as GIS tools give them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlopeAspect {
+    /// The angle between the surface and the horizontal, in degrees
+    /// (0 flat, 90 vertical): arctan of rise over run for a fit in map
+    /// units ([`Units::Map`]).
+    pub slope: f64,
+    /// The compass direction the slope faces (downhill), in degrees
+    /// clockwise from north (0 north, 90 east, 180 south, 270 west), as
+    /// `gdaldem aspect` gives it; `None` where the surface is flat (GDAL
+    /// writes −9999 there by default).
+    pub aspect: Option<f64>,
+}
+
+/// The slope and aspect of unit normal `n` from a fit in `convention`, for a
+/// raster whose rows run east and whose row 0 is north (a north-up raster,
+/// as GeoTIFFs almost always are). The normal's +x is east; its +y is
+/// north in OpenGL's convention and south in DirectX's.
+///
+/// ```
+/// use normalfit::Convention;
+/// use normalfit::units::slope_aspect;
+/// // A surface falling to the east at 45°: its normal leans east.
+/// let n = [0.5f64.sqrt(), 0.0, 0.5f64.sqrt()];
+/// let s = slope_aspect(n, Convention::OpenGl);
+/// assert!((s.slope - 45.0).abs() < 1e-12 && (s.aspect.unwrap() - 90.0).abs() < 1e-12);
+/// assert_eq!(slope_aspect([0.0, 0.0, 1.0], Convention::OpenGl).aspect, None);
+/// ```
+#[must_use]
+pub fn slope_aspect(n: [f64; 3], convention: Convention) -> SlopeAspect {
+    let [east, y, up] = n;
+    let north = match convention {
+        Convention::OpenGl => y,
+        Convention::DirectX => -y,
+    };
+    let horizontal = east.hypot(north);
+    let slope = horizontal.atan2(up).to_degrees();
+    // The normal leans downhill: its horizontal part is the aspect.
+    let aspect = (horizontal > 0.0).then(|| {
+        let a = east.atan2(north).to_degrees();
+        if a < 0.0 { a + 360.0 } else { a }
+    });
+    SlopeAspect { slope, aspect }
+}
