@@ -82,6 +82,9 @@ struct Linear {
     mean: Vec<f64>,
 }
 
+/// A row's residual and linearisation to fill: r, u, A·C, m, mean.
+type RowStore<'a> = (&'a mut [[f64; 2]], &'a mut [[f64; 2]], &'a mut [[f64; 2]], &'a mut [f64], &'a mut [f64]);
+
 struct Problem<'a> {
     patch: &'a Patch,
     solver: &'a Solver,
@@ -222,36 +225,35 @@ impl Problem<'_> {
     /// linearisation there.
     fn linearise(&self, z: &[f64], store: Option<(&mut Linear, &mut [[f64; 2]])>) -> f64 {
         let (w, a) = (self.w, self.patch.a);
-        let row_cost =
-            |y: usize, mut out: Option<(&mut [[f64; 2]], &mut [[f64; 2]], &mut [[f64; 2]], &mut [f64], &mut [f64])>| {
-                let (mut vx, mut vy, mut gx, mut gy) = (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-                let (mut tmp, mut pz, mut pzz) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-                self.patch.slopes(z, y, &mut vx, &mut vy);
-                (self.slopes)(y, &mut gx, &mut gy);
-                self.boxed(z, None, y, &mut tmp, &mut pz);
-                self.boxed(z, Some(z), y, &mut tmp, &mut pzz);
-                let mut sum = 0.0;
-                for x in 0..w {
-                    let mean_x = pz[x] / self.n2;
-                    let czz = (pzz[x] - pz[x] * mean_x).max(0.0);
-                    let c = [a * vx[x], a * vy[x]];
-                    let t = c[0] * c[0] + c[1] * c[1];
-                    let d = 0.5 * (a - czz);
-                    let q = (d * d + t).sqrt();
-                    let mm = if d >= 0.0 { d + q } else { t / (q - d) };
-                    let g = [gx[x], gy[x]];
-                    let rx = [vx[x] - g[0] * mm / a, vy[x] - g[1] * mm / a];
-                    if let Some((r, u, ac, m, mean)) = out.as_mut() {
-                        r[x] = rx;
-                        u[x] = if q > 0.0 { [g[0] / (a * q), g[1] / (a * q)] } else { [0.0; 2] };
-                        ac[x] = c;
-                        m[x] = mm;
-                        mean[x] = mean_x;
-                    }
-                    sum += self.weight(x, y) * (rx[0] * rx[0] + rx[1] * rx[1]);
+        let row_cost = |y: usize, mut out: Option<RowStore<'_>>| {
+            let (mut vx, mut vy, mut gx, mut gy) = (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
+            let (mut tmp, mut pz, mut pzz) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
+            self.patch.slopes(z, y, &mut vx, &mut vy);
+            (self.slopes)(y, &mut gx, &mut gy);
+            self.boxed(z, None, y, &mut tmp, &mut pz);
+            self.boxed(z, Some(z), y, &mut tmp, &mut pzz);
+            let mut sum = 0.0;
+            for x in 0..w {
+                let mean_x = pz[x] / self.n2;
+                let czz = (pzz[x] - pz[x] * mean_x).max(0.0);
+                let c = [a * vx[x], a * vy[x]];
+                let t = c[0] * c[0] + c[1] * c[1];
+                let d = 0.5 * (a - czz);
+                let q = (d * d + t).sqrt();
+                let mm = if d >= 0.0 { d + q } else { t / (q - d) };
+                let g = [gx[x], gy[x]];
+                let rx = [vx[x] - g[0] * mm / a, vy[x] - g[1] * mm / a];
+                if let Some((r, u, ac, m, mean)) = out.as_mut() {
+                    r[x] = rx;
+                    u[x] = if q > 0.0 { [g[0] / (a * q), g[1] / (a * q)] } else { [0.0; 2] };
+                    ac[x] = c;
+                    m[x] = mm;
+                    mean[x] = mean_x;
                 }
-                sum
-            };
+                sum += self.weight(x, y) * (rx[0] * rx[0] + rx[1] * rx[1]);
+            }
+            sum
+        };
         let rows: Vec<f64> = match store {
             Some((lin, r)) => r
                 .par_chunks_mut(w)
@@ -394,6 +396,7 @@ impl Problem<'_> {
 
     /// Preconditioned conjugate gradients for (H + μ(M + ε)) step = rhs
     /// from step = 0, in the W inner product; returns the solves run.
+    #[allow(clippy::too_many_arguments)]
     fn conjugate_gradients(
         &self,
         z: &[f64],
@@ -412,12 +415,13 @@ impl Problem<'_> {
         let mut ry = self.dot(res, y);
         let target = tolerance * ry;
         for _ in 0..CG_ITERATIONS {
-            if !(ry > target) {
+            // Also stops on a NaN.
+            if ry.partial_cmp(&target) != Some(std::cmp::Ordering::Greater) {
                 break;
             }
             self.apply(z, lin, mu, dir, op, planes);
             let curvature = self.dot(dir, op);
-            if !(curvature > 0.0) {
+            if curvature.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 break;
             }
             let alpha = ry / curvature;
