@@ -189,7 +189,7 @@ pub(super) struct Patch {
 }
 
 impl Patch {
-    fn new(w: usize, h: usize, opts: &HeightOptions) -> Patch {
+    pub(super) fn new(w: usize, h: usize, opts: &HeightOptions) -> Patch {
         let r = opts.patch / 2;
         let (bx, by) = (opts.borders.x, opts.borders.y);
         Patch {
