@@ -167,7 +167,7 @@ fn bench_seams(c: &mut Criterion) {
         b.iter(|| {
             let mut seams = HeightSeams::new(n, n).unwrap();
             heights.chunks_exact(n).for_each(|row| seams.push_row(black_box(row)).unwrap());
-            black_box(seams.finish(&opts))
+            black_box(seams.finish(&opts).unwrap())
         })
     });
     g.bench_function("whole", |b| b.iter(|| black_box(check(&[black_box(heights)], n, n, &opts).unwrap())));

@@ -17,7 +17,8 @@
 //!   either way, with keystone, zoom 0.5 to 2, uneven light or none, grain
 //!   and sensor noise, 8-bit, gray or RGB.
 //!
-//! `--per N` draws N images of each kind per size (default 8); `--dump DIR`
+//! `--per N` draws N images of each kind per size (default 8); `--sizes
+//! 1024x1024,2048x1024` other sizes than these; `--dump DIR`
 //! writes each wrongly judged image, shifted by half so both seams cross
 //! its middle, as an 8-bit PNG.
 
@@ -96,7 +97,18 @@ fn main() {
     let per = arg("--per").and_then(|s| s.parse().ok()).unwrap_or(8);
     let dump = arg("--dump");
     let opts = TilingOptions::default();
-    let sizes = [(64, 64), (96, 96), (128, 128), (256, 256), (512, 512), (512, 256), (256, 512)];
+    let default = [(64, 64), (96, 96), (128, 128), (256, 256), (512, 512), (512, 256), (256, 512)];
+    // `--sizes 1024x1024,2048x1024`: other sizes than the threshold's.
+    let sizes: Vec<(usize, usize)> = match arg("--sizes") {
+        Some(list) => list
+            .split(',')
+            .map(|s| {
+                let (w, h) = s.split_once('x').expect("--sizes WxH,WxH");
+                (w.parse().expect("a width"), h.parse().expect("a height"))
+            })
+            .collect(),
+        None => default.to_vec(),
+    };
     let groups = ["noise", "structured texture", "noise crop", "structured photo"];
     let mut rng = Rng(2024);
     // Per group: (tileable max, non-tiling min) over the sizes, and a count.

@@ -139,7 +139,7 @@ impl BorderChoices {
         }
         let mut seams = HeightSeams::new(width, height)?;
         seams.push_heights(heights)?;
-        Ok(self.resolve(Some(&seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)))))
+        Ok(self.resolve(Some(&seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?)))
     }
 
     /// The warning about a wrap asked for on an axis that does not tile
@@ -503,7 +503,7 @@ impl Conversion {
             Input::Bytes(bytes) => (None, io::decode(bytes, &self.read).map_err(&fail)?),
         };
         let (format, sample) = (raster.format.clone(), raster.sample);
-        Ok(self.opened(path, Source::Whole(raster), format, sample))
+        Ok(self.opened(path, Source::Whole(Box::new(raster)), format, sample))
     }
 
     fn opened(&self, path: Option<&Path>, source: Source, format: InputFormat, sample: SampleType) -> Opened {
@@ -569,7 +569,9 @@ enum Source {
     Png(Box<PngRows>, PathBuf),
     /// A scan-line EXR file that streams, and its path.
     Exr(Box<ExrRows>, PathBuf),
-    Whole(Raster),
+    /// A decoded image, boxed for the same reason in reverse: a GeoTIFF's
+    /// georeferencing makes a raster several times a decoder's box.
+    Whole(Box<Raster>),
 }
 
 /// An input opened for conversion: its format and samples are known, its
@@ -654,7 +656,7 @@ impl Opened {
             },
         };
         match (source, normals) {
-            (Source::Whole(raster), normals) => job.whole(raster, normals, residual)?,
+            (Source::Whole(raster), normals) => job.whole(*raster, normals, residual)?,
             (_, None) => {
                 let problem = "nothing to write: no output given";
                 return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
@@ -752,7 +754,7 @@ impl Job<'_> {
             true => match self.seam_check(width, height)? {
                 Some(mut seams) => {
                     seams.push_samples(&heights).map_err(&in_failure)?;
-                    Some(seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)))
+                    Some(seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)).map_err(&in_failure)?)
                 }
                 None => None,
             },
@@ -827,7 +829,7 @@ impl Job<'_> {
                         }
                     })
                     .map_err(&in_failure)?;
-                (seams.map(|s| s.finish(&check_opts)), Some(tail))
+                (seams.map(|s| s.finish(&check_opts)).transpose().map_err(&in_failure)?, Some(tail))
             }
             None => (None, None),
         };
@@ -884,7 +886,7 @@ impl Job<'_> {
         result.map_err(ConvertError::at(place))?;
         // A failed write stopped the rows part way: no seams to judge.
         if let Some(seams) = seams {
-            self.judge(seams.finish(&check_opts));
+            self.judge(seams.finish(&check_opts).map_err(ConvertError::at(Place::Input))?);
         }
         Ok(())
     }

@@ -51,10 +51,30 @@
 //! the wrap (a triangle wave |x − W/2|) fails, as a crease the eye would
 //! catch at the repeat.
 //!
-//! ε = 10⁻³ × the mean |Δ| of neighbouring texels over both axes (plus
-//! 10⁻³⁰) keeps rounding and quantisation noise from making a ratio: an
-//! axis whose pairs are all zero (a constant image, the y axis of a ramp
-//! along x) scores exactly 1.
+//! ## The reference lies near the seam
+//!
+//! On an axis longer than 512 lines, the interior pairs are those within
+//! its first and its last [`EDGE_LINES`] = 256 lines: the seam is compared
+//! with what lies on either side of it once the texture repeats, and the
+//! check reads those strips and nothing else, 2 × 256 columns of every row
+//! and 2 × 256 whole rows at any size. A caller holding a large raster in
+//! pieces (a Dask array, the tiles of a file) then reads only its edges
+//! ([`HeightSeams::push_edge_columns`], [`HeightSeams::push_edge_rows`]),
+//! and the whole-image check measures a quarter of a 4096² image. Up to
+//! 512 lines along an axis, every size the threshold was chosen on
+//! ([below](#default-threshold-15)), every pair is interior. The kept
+//! lines, in order, make an image whose wrap is the seam; the pair across
+//! the cut (value pair 255, creases 254 to 256 of the kept lines) joins
+//! lines that are not neighbours and is judged by nothing. Scale is the
+//! limit: a structure that recurs less than about 3 times within 256 lines
+//! (bricks 100 texels tall or more) gives the strips fewer pairs like it
+//! than the rank asks for, so a seam on such a line scores higher than on
+//! the whole image (figures in `docs/tiling.md`).
+//!
+//! ε = 10⁻³ × the mean |Δ| of neighbouring texels over both axes (over
+//! the pairs judged and the seams; plus 10⁻³⁰) keeps rounding and
+//! quantisation noise from making a ratio: an axis whose pairs are all
+//! zero (a constant image, the y axis of a ramp along x) scores exactly 1.
 //!
 //! Why sums over whole lines: a seam spans the whole line, structure inside
 //! a photo rarely does; a per-line sum also averages the noise of stochastic
@@ -128,13 +148,16 @@
 //! # Default threshold: 1.5
 //!
 //! Figures from `cargo run --release --example tiling_table` (score x / y;
-//! in brackets, the measure at level 0 alone, as it was before the levels):
+//! in brackets, the measure at level 0 alone, as it was before the levels;
+//! the 1024² sets against the pairs within 256 lines of the seam, which
+//! moved them by at most 0.26: Bricks061 0.70 / 0.29 and its normal maps
+//! 1.06 / 0.59 against the whole image, denim 0.24 / 0.77):
 //!
 //! | image | x | y | must |
 //! |---|---|---|---|
-//! | ambientCG Bricks061 height (JPEG, 1024², y wrap in a mortar line) | 0.70 | 0.29 | tile |
-//! | its NormalGL / NormalDX maps | 1.06 / 1.05 (0.92) | 0.59 | tile |
-//! | Poly Haven denim height (16-bit) / normal map | 0.24 / 0.28 | 0.77 / 0.84 (0.81) | tile |
+//! | ambientCG Bricks061 height (JPEG, 1024², y wrap in a mortar line) | 0.65 | 0.28 | tile |
+//! | its NormalGL / NormalDX maps | 0.99 / 0.99 | 0.58 | tile |
+//! | Poly Haven denim height (16-bit) / normal map | 0.50 / 0.33 | 0.80 / 0.89 | tile |
 //! | MaterialX bricks_02 height (half EXR, y wrap beside a mortar edge) | 0.32 | 0.54 | tile |
 //! | its normal map, EXR / PNG | 0.41 / 0.42 | 0.55 / 0.55 | tile |
 //! | scikit-image camera (gray photo) | 3.92 (3.30) | 10.21 (5.12) | fail |
@@ -237,6 +260,13 @@ const LEVELS: usize = 6;
 /// A level is judged only when the seam holds at least this many of its
 /// runs: fewer, and its per-line sums are too few draws to rank well.
 const MIN_RUNS: usize = 8;
+
+/// Lines of an axis read at each of its ends when the axis is longer than
+/// twice this: the seam is compared with the pairs within them (see the
+/// [module docs](self#the-reference-lies-near-the-seam)). 256 keeps every
+/// image up to 512 texels along an axis whole, the sizes the threshold was
+/// chosen on.
+pub const EDGE_LINES: usize = 256;
 
 /// ε relative to the mean neighbour difference: above f32 rounding and
 /// 16-bit quantisation noise, far below any visible seam.
@@ -499,13 +529,27 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
     if len == 0 {
         return Ok(Profiles::empty_report(kind, opts));
     }
-    crate::io::check_memory("the tiling check", Profiles::bytes_needed(width, height))?;
-    Ok(Profiles::measure(planes, width, height, kind).report(kind, opts))
+    let (cols, rows) = (Cut::of(width), Cut::of(height));
+    let all_rows = Cut::whole(height);
+    if cols.is_whole() {
+        // Every column is read: one pass over the image gives the x
+        // profiles, and the y ones of every row, of which the kept are used.
+        crate::io::check_memory("the tiling check", Profiles::bytes_needed(width, height))?;
+        let p = Profiles::measure(planes, cols, all_rows, kind);
+        return Ok(report(&p.x_axis(height, cols), &p.y_axis(width, all_rows, rows), kind, opts));
+    }
+    // The kept columns of every row for x, the kept rows whole for y.
+    let bytes = Profiles::bytes_needed(cols.kept(), height) + Profiles::bytes_needed(width, rows.kept());
+    crate::io::check_memory("the tiling check", bytes)?;
+    let x = Profiles::measure(planes, cols, all_rows, kind).x_axis(height, cols);
+    let y = Profiles::measure(planes, Cut::whole(width), rows, kind).y_axis(width, rows, rows);
+    Ok(report(&x, &y, kind, opts))
 }
 
 /// The tiling check of a height map fed one row at a time, top to bottom:
 /// [`check`] for an image too large to hold, such as one streamed from a
-/// decoder.
+/// decoder, or held in pieces (a chunked array) of which only the edges
+/// need be read.
 ///
 /// Gives the report of
 /// `check(&[&heights], width, height, &opts.with_kind(KindChoice::Height))`:
@@ -513,31 +557,44 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 /// [`ImageKind::Height`] whatever `opts.kind` says. For a colour image, push
 /// rows of its luma (0.2126 R + 0.7152 G + 0.0722 B, as `check` takes it).
 ///
+/// Two ways to feed it:
+/// * whole rows, top to bottom: [`push_row`](Self::push_row),
+///   [`push_heights`](Self::push_heights), [`push_samples`](Self::push_samples);
+/// * only the lines the check reads (see the
+///   [module docs](self#the-reference-lies-near-the-seam)): every row's
+///   [`edge_columns`](Self::edge_columns), top to bottom, through
+///   [`push_edge_columns`](Self::push_edge_columns), and the
+///   [`edge_rows`](Self::edge_rows) whole, in order, through
+///   [`push_edge_rows`](Self::push_edge_rows) (in any interleaving with
+///   the columns). On an image more than 512 texels wide and tall, that is
+///   the 256 columns and 256 rows at each edge: a caller holding the image
+///   in pieces reads those strips and nothing else.
+///
 /// Memory is O(W + H), never the image: at each of the 6 levels of the
 /// [module docs](self#levels-the-seam-smoothed-along-itself), the x
-/// profiles (4 W values) and the y profiles (2 H); the first 2 rows and
-/// the last 4 with their runs along x (about 2 W each; the pairs that
-/// cross the y wrap, value H−1 → 0 and crease H−2, H−1, 0, 1, need rows
-/// H−2, H−1, 0 and 1); one run of rows in progress per level (W each);
-/// and the rows pushed but not yet measured, up to 32 (fewer when 32 rows
-/// would take more than 4 MiB). Every 32nd
-/// [`push_row`](Self::push_row) measures the rows that wait, O(W) work a
-/// row on the caller's thread, in branch-free loops over slices that
-/// vectorise, 1024 columns at a time; [`finish`](Self::finish) measures
-/// the rest, adds the pairs across the wrap and selects the references,
-/// O(W + H).
+/// profiles (4 values a kept column) and the y profiles (2 a kept row);
+/// the first 2 rows and the last 4 with their runs along x (about 2 W
+/// each; the pairs that cross the y wrap, value H−1 → 0 and crease H−2,
+/// H−1, 0, 1, need rows H−2, H−1, 0 and 1); one run of rows in progress per
+/// level (W each); and the rows pushed but not yet measured, up to 32
+/// (fewer when 32 rows would take more than 4 MiB). Every 32nd row measures
+/// the rows that wait, O(W) work a row on the caller's thread, in
+/// branch-free loops over slices that vectorise, 1024 columns at a time;
+/// [`finish`](Self::finish) measures the rest, adds the pairs across the
+/// wrap and selects the references, O(W + H).
 ///
 /// # Same as check
 ///
 /// The per-line sums are computed by the same kernels as in `check`, in the
 /// same order, at every level (the runs of rows and of texels are added in
-/// the same order too): the y sums and the x sums of each block of 32 rows (kept in
-/// f32 by `check`, and so here) are bit for bit the same; only the f64
-/// total over the blocks is added in another order (`check` adds them per
-/// thread). Those f64 sums of f32 values are exact unless the block sums
-/// span about 2²⁹ in size, so the scores are in practice identical (they
-/// were in every test) and at worst about 10⁻¹⁵ apart relative; verdicts
-/// can then differ only for a score that close to the threshold.
+/// the same order too): the y sums and the x sums of each block of 32 rows
+/// (kept in f32 by `check`, and so here) are bit for bit the same; only the
+/// f64 total over the blocks is added in another order (`check` adds them
+/// per thread). Those f64 sums of f32 values are exact unless the block
+/// sums span about 2²⁹ in size, so the scores are in practice identical
+/// (they were in every test) and at worst about 10⁻¹⁵ apart relative;
+/// verdicts can then differ only for a score that close to the threshold.
+/// The two ways of feeding give the same bits.
 ///
 /// ```
 /// use normalfit::tiling::{check, HeightSeams, KindChoice, TilingOptions};
@@ -549,7 +606,7 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 ///     seams.push_row(row)?;
 /// }
 /// let opts = TilingOptions::new();
-/// let report = seams.finish(&opts);
+/// let report = seams.finish(&opts)?;
 /// assert!(!report.x.seamless && report.y.seamless);
 /// let whole = check(&[&ramp], w, h, &opts.with_kind(KindChoice::Height))?;
 /// assert!((report.x.score / whole.x.score - 1.0).abs() < 1e-12);
@@ -557,6 +614,253 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 /// ```
 #[derive(Clone, Debug)]
 pub struct HeightSeams {
+    width: usize,
+    height: usize,
+    /// The columns and rows the check reads.
+    cols: Cut,
+    rows: Cut,
+    /// The x profiles, fed the kept columns of every row. When every
+    /// column is kept, it is fed whole rows and gives the y profiles too.
+    x: RowSeams,
+    /// The y profiles, fed the kept rows whole: when some columns are not
+    /// kept.
+    y: Option<RowSeams>,
+    /// Rows fed to `y`.
+    y_rows: usize,
+    /// A row's kept columns, converted.
+    kept: Vec<f32>,
+}
+
+impl HeightSeams {
+    /// A check of a `width` × `height` height map, no rows in yet.
+    ///
+    /// Refused when the check's memory ([`bytes_needed`](Self::bytes_needed))
+    /// is more than the process may still take (under `ulimit -v` and the
+    /// like), instead of aborting on a failed allocation: an image 2^24
+    /// texels wide or tall needs 1.6 to 3.7 GB for it.
+    ///
+    /// Errors: [`Error::Limits`] saying how much is needed,
+    /// [`Error::InvalidOption`] when `width * height` overflows.
+    pub fn new(width: usize, height: usize) -> Result<Self> {
+        image_len(width, height)?;
+        crate::io::check_memory("the tiling check", Self::bytes_needed(width, height))?;
+        let (cols, rows) = (Cut::of(width), Cut::of(height));
+        let y = (!cols.is_whole()).then(|| RowSeams::new(width, rows.kept()));
+        Ok(HeightSeams {
+            width,
+            height,
+            cols,
+            rows,
+            x: RowSeams::new(cols.kept(), height),
+            y,
+            y_rows: 0,
+            kept: Vec::with_capacity(cols.kept()),
+        })
+    }
+
+    /// The bytes a check of a `width` × `height` image holds (its profiles,
+    /// row buffers and pending rows, at every level): about 350 a column
+    /// and 96 a row.
+    #[must_use]
+    pub fn bytes_needed(width: usize, height: usize) -> u64 {
+        let (cols, rows) = (Cut::of(width), Cut::of(height));
+        let y = if cols.is_whole() { 0 } else { RowSeams::bytes_needed(width, rows.kept()) };
+        RowSeams::bytes_needed(cols.kept(), height) + y + 4 * cols.kept() as u64
+    }
+
+    /// The columns of every row that the check reads, as two ranges (the
+    /// second empty when the first is the whole row): what
+    /// [`push_edge_columns`](Self::push_edge_columns) takes, in this order.
+    #[must_use]
+    pub fn edge_columns(&self) -> [std::ops::Range<usize>; 2] {
+        self.cols.ranges()
+    }
+
+    /// The rows that [`push_edge_rows`](Self::push_edge_rows) takes whole,
+    /// as two ranges: the first and last 256 rows of a tall image, all
+    /// rows of a short one, none when [`edge_columns`](Self::edge_columns)
+    /// is every column (the whole rows pushed as columns serve the y axis
+    /// too).
+    #[must_use]
+    pub fn edge_rows(&self) -> [std::ops::Range<usize>; 2] {
+        if self.y.is_some() { self.rows.ranges() } else { [0..0, 0..0] }
+    }
+
+    /// The rows pushed so far: whole rows, or rows of edge columns.
+    #[must_use]
+    pub fn rows(&self) -> usize {
+        self.x.rows
+    }
+
+    /// Adds the next row, `width` heights. Non-finite values count as 0, as
+    /// in [`check`].
+    ///
+    /// Errors: [`Error::BufferSize`] when `row.len() != width`,
+    /// [`Error::InvalidOption`] when all `height` rows are in already, or
+    /// rows came through [`push_edge_rows`](Self::push_edge_rows) too; the
+    /// check is unchanged then.
+    pub fn push_row(&mut self, row: &[f32]) -> Result<()> {
+        let w = self.width;
+        if row.len() != w {
+            return Err(Error::BufferSize { expected: w, actual: row.len() });
+        }
+        self.check_room(1)?;
+        let y = self.x.rows;
+        let is_kept = |y: usize| self.rows.ranges().iter().any(|r| r.contains(&y));
+        if self.y.is_some() && is_kept(y) && self.rows.line(self.y_rows) != y {
+            return Err(Error::InvalidOption("the tiling check was given edge rows and whole rows both".into()));
+        }
+        if let Some(seams) = self.y.as_mut().filter(|_| is_kept(y)) {
+            seams.push_row(row);
+            self.y_rows += 1;
+        }
+        if self.cols.is_whole() {
+            self.x.push_row(row);
+        } else {
+            self.kept.clear();
+            for part in self.cols.ranges() {
+                self.kept.extend_from_slice(&row[part]);
+            }
+            self.x.push_row(&self.kept);
+        }
+        Ok(())
+    }
+
+    /// Pushes every row of `heights`, an image of this check's width held
+    /// whole in the samples' own type, converting one row at a time (no
+    /// `f32` copy of the image).
+    ///
+    /// Errors: [`Error::BufferSize`] when `heights` is not whole rows of
+    /// this width, or holds more rows than are still to come (nothing is
+    /// pushed then).
+    pub fn push_samples(&mut self, heights: &Samples) -> Result<()> {
+        crate::samples::with_slice!(heights, s => self.push_heights(s))
+    }
+
+    /// Pushes every row of `heights`, whole rows of this check's width in
+    /// any [`Sample`](crate::Sample) type (a caller's array, such as the
+    /// Python package's), converting one row at a time.
+    ///
+    /// Errors: as [`push_samples`](Self::push_samples).
+    pub fn push_heights<H: crate::Sample>(&mut self, heights: &[H]) -> Result<()> {
+        let w = self.width;
+        let count = whole_rows(heights.len(), w, self.height - self.x.rows)?;
+        let mut row = try_vec(w)?;
+        row.resize(w, 0.0f32);
+        for rows in heights.chunks_exact(w.max(1)).take(count) {
+            convert_row(rows, &mut row);
+            self.push_row(&row)?;
+        }
+        Ok(())
+    }
+
+    /// Pushes the [`edge_columns`](Self::edge_columns) of the next rows:
+    /// rows of that many values (the first range's columns, then the
+    /// second's), top to bottom, in any [`Sample`](crate::Sample) type.
+    ///
+    /// Errors: [`Error::BufferSize`] when `texels` is not whole rows of
+    /// edge columns, or holds more rows than are still to come (nothing is
+    /// pushed then).
+    pub fn push_edge_columns<H: crate::Sample>(&mut self, texels: &[H]) -> Result<()> {
+        let n = self.cols.kept();
+        let count = whole_rows(texels.len(), n, self.height - self.x.rows)?;
+        let mut row = std::mem::take(&mut self.kept);
+        row.resize(n, 0.0);
+        for part in texels.chunks_exact(n.max(1)).take(count) {
+            convert_row(part, &mut row);
+            self.x.push_row(&row);
+        }
+        self.kept = row;
+        Ok(())
+    }
+
+    /// Pushes the next of the [`edge_rows`](Self::edge_rows), whole rows of
+    /// this check's width in order, in any [`Sample`](crate::Sample) type.
+    ///
+    /// Errors: [`Error::BufferSize`] when `heights` is not whole rows, or
+    /// holds more than the edge rows still to come (nothing is pushed
+    /// then).
+    pub fn push_edge_rows<H: crate::Sample>(&mut self, heights: &[H]) -> Result<()> {
+        let w = self.width;
+        let Some(y) = self.y.as_mut() else {
+            return match heights.is_empty() {
+                true => Ok(()),
+                false => Err(Error::BufferSize { expected: 0, actual: heights.len() }),
+            };
+        };
+        let count = whole_rows(heights.len(), w, y.height - y.rows)?;
+        let mut row = try_vec(w)?;
+        row.resize(w, 0.0f32);
+        for rows in heights.chunks_exact(w.max(1)).take(count) {
+            convert_row(rows, &mut row);
+            y.push_row(&row);
+        }
+        self.y_rows += count;
+        Ok(())
+    }
+
+    /// Fails unless `n` more rows may come.
+    fn check_room(&self, n: usize) -> Result<()> {
+        if self.x.rows + n > self.height {
+            return Err(Error::InvalidOption(format!("all {} rows of the tiling check are in already", self.height)));
+        }
+        Ok(())
+    }
+
+    /// The report, judged as [`ImageKind::Height`] under `opts.threshold`,
+    /// once every row (or every row's edge columns, and the edge rows) is
+    /// in. An image of height or width 0: score 1 on both axes, as `check`
+    /// of an empty image.
+    ///
+    /// Errors: [`Error::InvalidOption`] saying how many rows are in, when
+    /// some are missing (a stream cut short is not the image).
+    pub fn finish(self, opts: &TilingOptions) -> Result<TilingReport> {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
+            return Ok(Profiles::empty_report(ImageKind::Height, opts));
+        }
+        let y_needed = self.y.as_ref().map_or(0, |y| y.height);
+        if self.x.rows < h || self.y_rows < y_needed {
+            let got = if self.x.rows < h { self.x.rows } else { self.y_rows };
+            let of = if self.x.rows < h { h } else { y_needed };
+            let what = if self.x.rows < h { "rows" } else { "edge rows" };
+            return Err(Error::InvalidOption(format!("the tiling check has {got} of its {of} {what}")));
+        }
+        let all_rows = Cut::whole(h);
+        let px = self.x.profiles().expect("texels, so profiles");
+        let x = px.x_axis(h, self.cols);
+        let y = match self.y {
+            Some(y) => y.profiles().expect("texels, so profiles").y_axis(w, self.rows, self.rows),
+            None => px.y_axis(w, all_rows, self.rows),
+        };
+        Ok(report(&x, &y, ImageKind::Height, opts))
+    }
+}
+
+/// How many rows of `per_row` values `len` values make, refused when not
+/// whole or more than `left`.
+fn whole_rows(len: usize, per_row: usize, left: usize) -> Result<usize> {
+    // Rows of no values: none, unless values came.
+    let count = len.checked_div(per_row).unwrap_or(if len == 0 { 0 } else { usize::MAX });
+    if (per_row > 0 && !len.is_multiple_of(per_row)) || count > left {
+        return Err(Error::BufferSize { expected: left * per_row, actual: len });
+    }
+    Ok(count)
+}
+
+/// Converts a row of samples into the contract's f32 units.
+fn convert_row<H: crate::Sample>(from: &[H], to: &mut [f32]) {
+    for (o, &v) in to.iter_mut().zip(from) {
+        *o = crate::samples::contract(v) as f32;
+    }
+}
+
+/// The profiles of a height map fed one row at a time, top to bottom, in
+/// memory O(W + H): the engine of [`HeightSeams`], which feeds it the
+/// lines the check reads (see [`HeightSeams`] for the memory and the order
+/// of the sums).
+#[derive(Clone, Debug)]
+struct RowSeams {
     width: usize,
     height: usize,
     /// Rows pushed so far, the pending ones included.
@@ -600,21 +904,12 @@ pub struct HeightSeams {
     cy: Vec<f64>,
 }
 
-impl HeightSeams {
-    /// A check of a `width` × `height` height map, no rows in yet.
-    ///
-    /// Refused when the check's memory ([`bytes_needed`](Self::bytes_needed))
-    /// is more than the process may still take (under `ulimit -v` and the
-    /// like), instead of aborting on a failed allocation: an image 2^24
-    /// texels wide or tall needs 1.6 to 3.7 GB for it.
-    ///
-    /// Errors: [`Error::Limits`] saying how much is needed,
-    /// [`Error::InvalidOption`] when `width * height` overflows.
-    pub fn new(width: usize, height: usize) -> Result<Self> {
-        image_len(width, height)?;
-        crate::io::check_memory("the tiling check", Self::bytes_needed(width, height))?;
+impl RowSeams {
+    /// The profiles of a `width` × `height` image, no rows in yet (the
+    /// caller has checked the memory, [`bytes_needed`](Self::bytes_needed)).
+    fn new(width: usize, height: usize) -> Self {
         let block_rows = pending_rows_for(width, height);
-        Ok(HeightSeams {
+        RowSeams {
             width,
             height,
             rows: 0,
@@ -634,14 +929,13 @@ impl HeightSeams {
             cx: vec![0.0; LEVELS * width],
             vy: vec![0.0; LEVELS * height],
             cy: vec![0.0; LEVELS * height],
-        })
+        }
     }
 
     /// The bytes a check of a `width` × `height` image holds (its profiles,
     /// row buffers and pending rows, at every level): about 350 a column
     /// and 96 a row.
-    #[must_use]
-    pub fn bytes_needed(width: usize, height: usize) -> u64 {
+    fn bytes_needed(width: usize, height: usize) -> u64 {
         let (w, h, levels) = (width as u64, height as u64, LEVELS as u64);
         // One row at every level: ⌈W / 2^l⌉ values each.
         let row_levels: u64 = (0..LEVELS).map(|l| w.div_ceil(1 << l)).sum();
@@ -651,64 +945,15 @@ impl HeightSeams {
         runs + x_sums + pending + 2 * levels * h * 8
     }
 
-    /// Pushes every row of `heights`, an image of this check's width held
-    /// whole in the samples' own type, converting one row at a time (no
-    /// `f32` copy of the image).
-    ///
-    /// Errors: [`Error::BufferSize`] when `heights` is not whole rows of
-    /// this width, or holds more rows than are still to come (nothing is
-    /// pushed then).
-    pub fn push_samples(&mut self, heights: &Samples) -> Result<()> {
-        crate::samples::with_slice!(heights, s => self.push_heights(s))
-    }
-
-    /// Pushes every row of `heights`, whole rows of this check's width in
-    /// any [`Sample`](crate::Sample) type (a caller's array, such as the
-    /// Python package's), converting one row at a time.
-    ///
-    /// Errors: as [`push_samples`](Self::push_samples).
-    pub fn push_heights<H: crate::Sample>(&mut self, heights: &[H]) -> Result<()> {
+    /// Adds the next row, `width` heights (the caller has checked its
+    /// length and that rows are still to come). Non-finite values count as
+    /// 0, as in [`check`].
+    fn push_row(&mut self, row: &[f32]) {
         let w = self.width;
-        let rows_left = self.height - self.rows;
-        let fits =
-            if w == 0 { heights.is_empty() } else { heights.len().is_multiple_of(w) && heights.len() / w <= rows_left };
-        if !fits {
-            return Err(Error::BufferSize { expected: rows_left * w, actual: heights.len() });
-        }
-        let mut row = try_vec(w)?;
-        row.resize(w, 0.0f32);
-        for rows in heights.chunks_exact(w.max(1)) {
-            for (o, &v) in row.iter_mut().zip(rows) {
-                *o = crate::samples::contract(v) as f32;
-            }
-            self.push_row(&row)?;
-        }
-        Ok(())
-    }
-
-    /// The rows pushed so far.
-    #[must_use]
-    pub fn rows(&self) -> usize {
-        self.rows
-    }
-
-    /// Adds the next row, `width` heights. Non-finite values count as 0, as
-    /// in [`check`].
-    ///
-    /// Errors: [`Error::BufferSize`] when `row.len() != width`,
-    /// [`Error::InvalidOption`] when all `height` rows are in already; the
-    /// check is unchanged then.
-    pub fn push_row(&mut self, row: &[f32]) -> Result<()> {
-        let w = self.width;
-        if row.len() != w {
-            return Err(Error::BufferSize { expected: w, actual: row.len() });
-        }
-        if self.rows >= self.height {
-            return Err(Error::InvalidOption(format!("all {} rows of the tiling check are in already", self.height)));
-        }
+        debug_assert!(row.len() == w && self.rows < self.height);
         self.rows += 1;
         if w == 0 {
-            return Ok(());
+            return;
         }
         for (o, &v) in self.pending[self.pending_rows * w..][..w].iter_mut().zip(row) {
             *o = judged(v);
@@ -717,7 +962,6 @@ impl HeightSeams {
         if self.pending_rows == self.block_rows {
             self.measure_pending(false);
         }
-        Ok(())
     }
 
     /// Measures the pending rows, [`TILE_COLS`] columns at a time: each
@@ -796,19 +1040,12 @@ impl HeightSeams {
         self.pending_rows = 0;
     }
 
-    /// The report, judged as [`ImageKind::Height`] under `opts.threshold`.
-    ///
-    /// Once all `height` rows are in, that of the whole image. With rows
-    /// missing, that of the image made of the rows pushed (its last row
-    /// wraps to its first): what [`check`] says of that many rows, so a
-    /// caller can judge a truncated stream, and should compare
-    /// [`rows`](Self::rows) with the height when that matters. No rows, or
-    /// width 0: score 1 on both axes, as `check` of an empty image.
-    #[must_use]
-    pub fn finish(mut self, opts: &TilingOptions) -> TilingReport {
+    /// The profiles of the image of the rows pushed (its last row wraps
+    /// to its first), or none for an image without texels.
+    fn profiles(mut self) -> Option<Profiles> {
         let (w, h) = (self.width, self.rows);
         if w == 0 || h == 0 {
-            return Profiles::empty_report(ImageKind::Height, opts);
+            return None;
         }
         // The pending rows, and the runs of rows cut short by the last row.
         self.measure_pending(true);
@@ -826,11 +1063,11 @@ impl HeightSeams {
             vy[(h - 1) * LEVELS + level] = y_value(row(h - 1), row(h));
             cy[(h - 1) * LEVELS + level] = y_crease(row(2 * h - 2), row(h - 1), row(h), row(h + 1));
         }
-        Profiles { vx: self.vx, cx: self.cx, vy, cy }.report(ImageKind::Height, opts)
+        Some(Profiles { vx: self.vx, cx: self.cx, vy, cy })
     }
 }
 
-/// [`HeightSeams::measure_pending`] for [`pulp::Arch::dispatch`]: the
+/// [`RowSeams::measure_pending`] for [`pulp::Arch::dispatch`]: the
 /// kernels built for the widest vectors the processor has (AVX2 on most
 /// x86-64 of the last decade; baseline x86-64 has only SSE2's 4 lanes),
 /// chosen at run time. The kernels add, subtract and take absolute values
@@ -838,7 +1075,7 @@ impl HeightSeams {
 /// multiply with an add: the same bits on every processor
 /// (`tests::every_instruction_set_gives_the_same_bits`).
 struct MeasurePending<'a> {
-    seams: &'a mut HeightSeams,
+    seams: &'a mut RowSeams,
     last: bool,
 }
 
@@ -850,18 +1087,18 @@ impl pulp::WithSimd for MeasurePending<'_> {
     }
 }
 
-/// Columns of one pass of [`HeightSeams`] over its pending rows: a
+/// Columns of one pass of [`RowSeams`] over its pending rows: a
 /// multiple of 8 · 2^(LEVELS − 1), so that every pass starts on whole runs
 /// at every level and on lane 0 of the y sums. The pass's rows and sums,
 /// about 330 bytes a column with 32 pending rows, then stay in a core's
 /// cache (at 32768 columns, whole rows took 3 MB and did not).
 const TILE_COLS: usize = 1024;
 
-/// Bytes of pending rows [`HeightSeams`] holds at most (unless one row is
+/// Bytes of pending rows [`RowSeams`] holds at most (unless one row is
 /// longer).
 const PENDING_BYTES: usize = 4 << 20;
 
-/// Rows [`HeightSeams`] measures at once for an image `width` wide: as many
+/// Rows [`RowSeams`] measures at once for an image `width` wide: as many
 /// as [`CHUNK`] (more add nothing: the x sums are flushed every CHUNK rows
 /// anyway), fewer when they would take more than [`PENDING_BYTES`].
 fn pending_rows_for(width: usize, height: usize) -> usize {
@@ -958,39 +1195,64 @@ fn flush(total: &mut [f64], block: &mut [f32]) {
     }
 }
 
-/// The score of one axis: the largest of its levels' scores, from the
-/// level-major profiles `value` and `crease` (`LEVELS` profiles of `n`
-/// pairs, wrap last), for seams `line` texels long.
-fn axis_score(value: &[f64], crease: &[f64], n: usize, line: usize, with_crease: bool, eps: f64) -> f64 {
+/// The report from complete profiles of both axes (W, H ≥ 1): ε from the
+/// mean |Δ| of level 0 over the pairs judged, then [`axis_score`] per axis.
+fn report(x: &Axis, y: &Axis, kind: ImageKind, opts: &TilingOptions) -> TilingReport {
+    // ε from the mean |Δ| per texel over both axes (every pair's texels,
+    // the seam's included: 2·W·H differences when all lines are kept),
+    // times the line length each axis's profile sums over.
+    let total: f64 = x.own_pairs().map(|k| x.value[k]).chain(y.own_pairs().map(|k| y.value[k])).sum();
+    let count = x.own_pairs().count() * x.line + y.own_pairs().count() * y.line;
+    let mean = total / count as f64;
+    let eps_x = FLOOR_FRACTION * mean * x.line as f64 + 1e-30;
+    let eps_y = FLOOR_FRACTION * mean * y.line as f64 + 1e-30;
+    let crease = kind == ImageKind::Height;
+    TilingReport {
+        kind,
+        x: axis_report(axis_score(x, crease, eps_x), opts),
+        y: axis_report(axis_score(y, crease, eps_y), opts),
+    }
+}
+
+/// The score of one axis: the largest of its levels' scores.
+fn axis_score(axis: &Axis, with_crease: bool, eps: f64) -> f64 {
+    let n = axis.pairs;
     (0..LEVELS)
-        .filter(|&level| level == 0 || line >= MIN_RUNS << level)
+        .filter(|&level| level == 0 || axis.line >= MIN_RUNS << level)
         .map(|level| {
-            let (v, c) = (&value[level * n..][..n], &crease[level * n..][..n]);
-            level_score(v, c, with_crease, eps)
+            let (v, c) = (&axis.value[level * n..][..n], &axis.crease[level * n..][..n]);
+            level_score(v, c, axis.joint, with_crease, eps)
         })
         .fold(0.0, f64::max)
 }
 
-/// The score of one level from its value and crease profiles (wrap last).
-fn level_score(value: &[f64], crease: &[f64], with_crease: bool, eps: f64) -> f64 {
+/// The score of one level from its value and crease profiles (seam last):
+/// the seam against the interior pairs, those whose stencils neither
+/// cross the seam nor the `joint` of a cut.
+fn level_score(value: &[f64], crease: &[f64], joint: Option<usize>, with_crease: bool, eps: f64) -> f64 {
     let n = value.len();
     if n < 2 {
         return 1.0;
     }
-    let mut score = seam_ratio(value[n - 1], &value[..n - 1], eps);
+    // A value pair reads lines k, k + 1; a crease k − 1 … k + 2, so the
+    // creases k = joint − 1 … joint + 1 reach across the cut.
+    let apart = |k: usize, reach: usize| joint.is_none_or(|j| k + reach < j || k > j + reach);
+    let interior = |p: &[f64], ks: std::ops::Range<usize>, reach| -> Vec<f64> {
+        ks.filter(|&k| apart(k, reach)).map(|k| p[k]).collect()
+    };
+    let mut score = seam_ratio(value[n - 1], interior(value, 0..n - 1, 0), eps);
     if with_crease && n >= 4 {
-        score = score.max(seam_ratio(crease[n - 1], &crease[1..n - 2], eps));
+        score = score.max(seam_ratio(crease[n - 1], interior(crease, 1..n - 2, 1), eps));
     }
     score
 }
 
 /// (seam + ε) / (R + ε), R the k-th largest of `interior` (see module docs).
-fn seam_ratio(seam: f64, interior: &[f64], eps: f64) -> f64 {
+fn seam_ratio(seam: f64, mut interior: Vec<f64>, eps: f64) -> f64 {
     let n = interior.len();
     let k = MIN_RANK.max((n as f64 * RANK_FRACTION).ceil() as usize).min(n.div_ceil(2)).max(1);
-    let mut scratch = interior.to_vec();
     // The k-th largest is the (n − k)-th smallest: linear-time selection.
-    let (_, reference, _) = scratch.select_nth_unstable_by(n - k, f64::total_cmp);
+    let (_, reference, _) = interior.select_nth_unstable_by(n - k, f64::total_cmp);
     (seam + eps) / (*reference + eps)
 }
 
@@ -1003,25 +1265,118 @@ enum Signal<'a> {
 }
 
 impl Signal<'_> {
-    /// Writes row `y` into `out`, times [`JUDGE_SCALE`], non-finite values
+    /// Writes the kept columns `cols` of image row `y` into `out`
+    /// (`cols.kept()` values), times [`JUDGE_SCALE`], non-finite values
     /// as 0.
-    fn fill(&self, y: usize, out: &mut [f32]) {
-        let w = out.len();
-        match *self {
-            Signal::Plane(p) => {
-                for (o, &v) in out.iter_mut().zip(&p[y * w..][..w]) {
-                    *o = judged(v);
+    fn fill(&self, y: usize, cols: Cut, out: &mut [f32]) {
+        let w = cols.len;
+        let mut at = 0;
+        for part in cols.ranges() {
+            let out = &mut out[at..][..part.len()];
+            at += part.len();
+            let part = y * w + part.start..y * w + part.end;
+            match *self {
+                Signal::Plane(p) => {
+                    for (o, &v) in out.iter_mut().zip(&p[part]) {
+                        *o = judged(v);
+                    }
                 }
-            }
-            Signal::Luma(r, g, b) => {
-                let rows = r[y * w..][..w].iter().zip(&g[y * w..][..w]).zip(&b[y * w..][..w]);
-                // The weights carry the scale: w·S·r is S·(w·r) exactly.
-                let [wr, wg, wb] = [0.2126, 0.7152, 0.0722].map(|w: f32| w * JUDGE_SCALE);
-                for (o, ((&r, &g), &b)) in out.iter_mut().zip(rows) {
-                    *o = finite(wr * r + wg * g + wb * b);
+                Signal::Luma(r, g, b) => {
+                    let rows = r[part.clone()].iter().zip(&g[part.clone()]).zip(&b[part]);
+                    // The weights carry the scale: w·S·r is S·(w·r) exactly.
+                    let [wr, wg, wb] = [0.2126, 0.7152, 0.0722].map(|w: f32| w * JUDGE_SCALE);
+                    for (o, ((&r, &g), &b)) in out.iter_mut().zip(rows) {
+                        *o = finite(wr * r + wg * g + wb * b);
+                    }
                 }
             }
         }
+    }
+}
+
+/// The lines of one axis that the check reads: all of them, or, on an axis
+/// longer than 2 · [`EDGE_LINES`], the first and the last `EDGE_LINES`
+/// (the reference pairs lie within them; see the
+/// [module docs](self#the-reference-lies-near-the-seam)). Read in order,
+/// the kept lines make an image whose wrap is the image's own seam and
+/// whose pair across the cut, the *joint*, joins two lines that are not
+/// neighbours and is judged by nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Cut {
+    /// Lines of the axis.
+    len: usize,
+    /// Lines kept at each end: `len` when all are kept.
+    edge: usize,
+}
+
+impl Cut {
+    /// The lines a check of an axis `len` long reads.
+    fn of(len: usize) -> Cut {
+        Cut { len, edge: if len > 2 * EDGE_LINES { EDGE_LINES } else { len } }
+    }
+
+    /// Every line.
+    fn whole(len: usize) -> Cut {
+        Cut { len, edge: len }
+    }
+
+    fn is_whole(self) -> bool {
+        self.edge == self.len
+    }
+
+    /// How many lines are kept.
+    fn kept(self) -> usize {
+        if self.is_whole() { self.len } else { 2 * self.edge }
+    }
+
+    /// The image line of kept line `i`.
+    fn line(self, i: usize) -> usize {
+        if i < self.edge { i } else { i + self.len - 2 * self.edge }
+    }
+
+    /// The kept lines, first end then last.
+    fn ranges(self) -> [std::ops::Range<usize>; 2] {
+        if self.is_whole() { [0..self.len, self.len..self.len] } else { [0..self.edge, self.len - self.edge..self.len] }
+    }
+
+    /// The kept pair across the cut, which is no pair of the image.
+    fn joint(self) -> Option<usize> {
+        (!self.is_whole()).then(|| self.edge - 1)
+    }
+}
+
+/// The per-pair sums of one axis, level after level, over the kept lines
+/// of a [`Cut`]: pair i joins kept line i to i + 1, the last pair is the
+/// seam; `line` texels are summed along each line.
+struct Axis {
+    value: Vec<f64>,
+    crease: Vec<f64>,
+    /// Pairs per level.
+    pairs: usize,
+    line: usize,
+    /// The pair across the cut, judged by nothing.
+    joint: Option<usize>,
+}
+
+impl Axis {
+    /// The profile of every line of an axis (`pairs` per level) reduced to
+    /// the lines `cut` keeps.
+    fn kept(value: Vec<f64>, crease: Vec<f64>, line: usize, cut: Cut) -> Axis {
+        let pairs = value.len() / LEVELS;
+        if cut.is_whole() {
+            return Axis { value, crease, pairs, line, joint: None };
+        }
+        // The pairs between kept lines are the image's pairs of the same
+        // lines; those across the cut are taken from anywhere, unread.
+        let gather = |p: &[f64]| -> Vec<f64> {
+            (0..LEVELS).flat_map(|level| (0..cut.kept()).map(move |i| p[level * pairs + cut.line(i)])).collect()
+        };
+        Axis { value: gather(&value), crease: gather(&crease), pairs: cut.kept(), line, joint: cut.joint() }
+    }
+
+    /// The pairs that are the image's own (all but the joint).
+    fn own_pairs(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.pairs).filter(|&k| Some(k) != self.joint)
     }
 }
 
@@ -1044,26 +1399,32 @@ impl Profiles {
         TilingReport { kind, x: axis_report(1.0, opts), y: axis_report(1.0, opts) }
     }
 
-    /// The report from complete profiles (W, H ≥ 1): ε from the mean |Δ|
-    /// of level 0, then [`axis_score`] per axis.
-    fn report(&self, kind: ImageKind, opts: &TilingOptions) -> TilingReport {
-        let (width, height) = (self.vx.len() / LEVELS, self.vy.len() / LEVELS);
+    /// The x axis's profiles, measured over the columns `cols` keeps of
+    /// every row (lines `line` rows long).
+    fn x_axis(&self, line: usize, cols: Cut) -> Axis {
+        Axis {
+            value: self.vx.clone(),
+            crease: self.cx.clone(),
+            pairs: self.vx.len() / LEVELS,
+            line,
+            joint: cols.joint(),
+        }
+    }
+
+    /// The y axis's profiles, level after level, measured over the rows
+    /// `measured` keeps (lines `line` columns long), reduced to the rows
+    /// `kept` keeps (the same cut, or every row reduced).
+    fn y_axis(&self, line: usize, measured: Cut, kept: Cut) -> Axis {
         // The y profiles level after level, as the x ones are.
         let by_level = |p: &[f64]| -> Vec<f64> {
             (0..LEVELS).flat_map(|level| p.iter().skip(level).step_by(LEVELS).copied()).collect()
         };
-        let (vy, cy) = (by_level(&self.vy), by_level(&self.cy));
-        // ε from the mean |Δ| per texel over both axes (2·W·H differences),
-        // times the line length each axis's profile sums over.
-        let total: f64 = self.vx[..width].iter().chain(&vy[..height]).sum();
-        let mean = total / (2.0 * (width * height) as f64);
-        let eps_x = FLOOR_FRACTION * mean * height as f64 + 1e-30;
-        let eps_y = FLOOR_FRACTION * mean * width as f64 + 1e-30;
-        let crease = kind == ImageKind::Height;
-        TilingReport {
-            kind,
-            x: axis_report(axis_score(&self.vx, &self.cx, width, height, crease, eps_x), opts),
-            y: axis_report(axis_score(&vy, &cy, height, width, crease, eps_y), opts),
+        let (value, crease) = (by_level(&self.vy), by_level(&self.cy));
+        if measured == kept {
+            let pairs = value.len() / LEVELS;
+            Axis { value, crease, pairs, line, joint: kept.joint() }
+        } else {
+            Axis::kept(value, crease, line, kept)
         }
     }
 
@@ -1077,7 +1438,10 @@ impl Profiles {
         2 * levels * h * 8 + (crate::par::current_num_threads() as u64 + 1) * per_thread
     }
 
-    fn measure(planes: &[&[f32]], w: usize, h: usize, kind: ImageKind) -> Profiles {
+    /// The profiles of the image made of the columns `cols` keeps of the
+    /// rows `rows` keeps, in their order.
+    fn measure(planes: &[&[f32]], cols: Cut, rows: Cut, kind: ImageKind) -> Profiles {
+        let (w, h) = (cols.kept(), rows.kept());
         let signals: Vec<Signal> = match kind {
             ImageKind::Height if planes.len() >= 3 => {
                 vec![Signal::Luma(planes[0], planes[1], planes[2])]
@@ -1096,7 +1460,7 @@ impl Profiles {
             || (zeros(), zeros(), Block::new(w)),
             |(mut vx, mut cx, mut block), (c, (vy, cy))| {
                 for signal in &signals {
-                    block.measure(signal, c * CHUNK, vy.len() / LEVELS, h, crease);
+                    block.measure(signal, cols, rows, c * CHUNK, vy.len() / LEVELS, crease);
                     for (acc, s) in vy.iter_mut().zip(&block.vy) {
                         *acc += s;
                     }
@@ -1292,8 +1656,10 @@ impl Block {
     }
 
     /// The sums of rows y0 … y0 + n − 1 (x pairs) and of row pairs
-    /// y0 … y0 + n − 1 → next (y pairs), for an image of `h` rows.
-    fn measure(&mut self, signal: &Signal, y0: usize, n: usize, h: usize, crease: bool) {
+    /// y0 … y0 + n − 1 → next (y pairs) of the image made of the columns
+    /// `kept_cols` keeps of the rows `kept_rows` keeps.
+    fn measure(&mut self, signal: &Signal, kept_cols: Cut, kept_rows: Cut, y0: usize, n: usize, crease: bool) {
+        let h = kept_rows.kept();
         self.vx.fill(0.0);
         self.cx.fill(0.0);
         self.vy.clear();
@@ -1302,15 +1668,15 @@ impl Block {
         // as soon as it is made, while it and the three before it are in
         // cache: its x pairs (rows 1 … n), and the y pair whose stencil it
         // ends (pair i − 2, over rows i − 3 … i).
-        let cols = Cols::whole(self.vx.len() / LEVELS);
+        let whole = Cols::whole(self.vx.len() / LEVELS);
         self.edges.next = 0;
         for i in 0..n + 3 {
-            signal.fill((y0 + h - 1 + i) % h, self.rows.slot_mut(i % 4));
-            self.rows.coarsen(i % 4, &cols);
+            signal.fill(kept_rows.line((y0 + h - 1 + i) % h), kept_cols, self.rows.slot_mut(i % 4));
+            self.rows.coarsen(i % 4, &whole);
             let rows = &self.rows;
             if (1..=n).contains(&i) {
                 let mut sums = XSums { vx: &mut self.vx, cx: &mut self.cx, crease, edges: &mut self.edges };
-                self.stack.push(rows.row(0, i % 4), &cols, &mut sums);
+                self.stack.push(rows.row(0, i % 4), &whole, &mut sums);
             }
             if i >= 3 {
                 for level in 0..LEVELS {
@@ -1322,7 +1688,7 @@ impl Block {
             }
         }
         let mut sums = XSums { vx: &mut self.vx, cx: &mut self.cx, crease, edges: &mut self.edges };
-        self.stack.finish(&cols, &mut sums);
+        self.stack.finish(&whole, &mut sums);
     }
 }
 
@@ -1568,7 +1934,7 @@ mod tests {
         }
     }
 
-    /// The profiles of a [`HeightSeams`] fed `rows` (`w` wide), measured
+    /// The profiles of a [`RowSeams`] fed `rows` (`w` wide), measured
     /// `tile_cols` columns at a time.
     fn streamed_profiles(rows: &[f32], w: usize, h: usize, tile_cols: usize) -> Vec<Vec<u64>> {
         profiles_of(rows, w, h, tile_cols, true)
@@ -1576,11 +1942,11 @@ mod tests {
 
     /// The same, with the kernels built for the widest vectors or not.
     fn profiles_of(rows: &[f32], w: usize, h: usize, tile_cols: usize, widest: bool) -> Vec<Vec<u64>> {
-        let mut seams = HeightSeams::new(w, h).unwrap();
+        let mut seams = RowSeams::new(w, h);
         seams.tile_cols = tile_cols;
         seams.widest = widest;
         for row in rows.chunks_exact(w) {
-            seams.push_row(row).unwrap();
+            seams.push_row(row);
         }
         seams.measure_pending(true);
         [&seams.vx, &seams.cx, &seams.vy, &seams.cy].map(|p| p.iter().map(|v| v.to_bits()).collect()).to_vec()
@@ -1645,39 +2011,46 @@ mod tests {
     #[test]
     fn reference_rank_is_clamped_for_short_axes() {
         // Three interior pairs: the rank is the median-or-above (2nd largest).
-        assert_eq!(seam_ratio(2.0, &[1.0, 2.0, 4.0], 0.0), 1.0);
+        assert_eq!(seam_ratio(2.0, vec![1.0, 2.0, 4.0], 0.0), 1.0);
         // One pair: itself.
-        assert_eq!(seam_ratio(3.0, &[1.5], 0.0), 2.0);
+        assert_eq!(seam_ratio(3.0, vec![1.5], 0.0), 2.0);
         // Many: the 4th largest while 1 % is fewer than 4.
         let v: Vec<f64> = (1..=100).map(f64::from).collect();
-        assert_eq!(seam_ratio(97.0, &v, 0.0), 1.0);
+        assert_eq!(seam_ratio(97.0, v, 0.0), 1.0);
         let v: Vec<f64> = (1..=1000).map(f64::from).collect();
-        assert_eq!(seam_ratio(991.0, &v, 0.0), 1.0);
+        assert_eq!(seam_ratio(991.0, v, 0.0), 1.0);
     }
 
     #[test]
     fn a_level_counts_only_when_the_seam_holds_8_of_its_runs() {
+        let axis = |value: Vec<f64>, crease: &[f64], line| Axis {
+            pairs: value.len() / LEVELS,
+            value,
+            crease: crease.to_vec(),
+            line,
+            joint: None,
+        };
         // 8 pairs per level, all 1 but level 1's seam, 5 times larger.
         let n = 8;
         let mut value = vec![1.0; LEVELS * n];
         value[n + n - 1] = 5.0;
         let crease = vec![0.0; LEVELS * n];
         // Level 1 sums runs of 2: a seam of 15 texels holds 7, of 16 holds 8.
-        assert_eq!(axis_score(&value, &crease, n, 15, true, 0.0), 1.0);
-        assert_eq!(axis_score(&value, &crease, n, 16, true, 0.0), 5.0);
+        assert_eq!(axis_score(&axis(value.clone(), &crease, 15), true, 0.0), 1.0);
+        assert_eq!(axis_score(&axis(value, &crease, 16), true, 0.0), 5.0);
         // The crease counts at every level too (interior creases 1 … n − 3).
         let mut crease = vec![1.0; LEVELS * n];
         crease[5 * n + n - 1] = 3.0;
-        assert_eq!(axis_score(&vec![1.0; LEVELS * n], &crease, n, 256, true, 0.0), 3.0);
-        assert_eq!(axis_score(&vec![1.0; LEVELS * n], &crease, n, 255, true, 0.0), 1.0);
-        assert_eq!(axis_score(&vec![1.0; LEVELS * n], &crease, n, 256, false, 0.0), 1.0);
+        assert_eq!(axis_score(&axis(vec![1.0; LEVELS * n], &crease, 256), true, 0.0), 3.0);
+        assert_eq!(axis_score(&axis(vec![1.0; LEVELS * n], &crease, 255), true, 0.0), 1.0);
+        assert_eq!(axis_score(&axis(vec![1.0; LEVELS * n], &crease, 256), false, 0.0), 1.0);
     }
 
     #[test]
     fn profiles_match_the_formulas() {
         // 4×3 image, hand-checked sums.
         let h = [0.0, 1.0, 3.0, 6.0, 0.0, 1.0, 3.0, 6.0, 1.0, 1.0, 1.0, 1.0];
-        let p = Profiles::measure(&[&h], 4, 3, ImageKind::Height);
+        let p = Profiles::measure(&[&h], Cut::whole(4), Cut::whole(3), ImageKind::Height);
         let y_level = |p: &[f64], level: usize| -> Vec<f64> { p.iter().skip(level).step_by(LEVELS).copied().collect() };
         // x pairs: rows 0, 1 give |1|, |2|, |3|, |−6|; row 2 gives 0.
         assert_eq!(p.vx[..4], [2.0, 4.0, 6.0, 12.0]);

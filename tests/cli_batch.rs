@@ -146,6 +146,12 @@ fn a_folder_gives_every_extension_the_reader_takes() {
             let ext = if k % 2 == 1 { ext.to_uppercase() } else { ext.to_string() };
             let path = tex.join(format!("{stem}.{ext}"));
             match info.name {
+                // A 5 × 5 square at 8 bits, or at 16 (`.r16`, and `.raw`'s
+                // length says which).
+                "raw" => {
+                    let len = if ext.eq_ignore_ascii_case("r8") { 25 } else { 50 };
+                    fs::write(&path, vec![100u8; len]).unwrap();
+                }
                 "exr" => {
                     exr::prelude::write_rgb_file(&path, 6, 5, |x, y| (x as f32 * 0.1, y as f32 * 0.1, 0.5)).unwrap();
                 }

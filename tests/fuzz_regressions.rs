@@ -53,7 +53,7 @@ fn tiling_reports(raster: &Raster) -> [TilingReport; 3] {
     let whole = check(&[&heights], w, h, &opts).unwrap();
     let mut seams = HeightSeams::new(w, h).unwrap();
     heights.chunks_exact(w).for_each(|row| seams.push_row(row).unwrap());
-    [all, whole, seams.finish(&opts)]
+    [all, whole, seams.finish(&opts).unwrap()]
 }
 
 /// exr's B44 decoder computes in u16 arithmetic that wraps (as OpenEXR's
@@ -127,7 +127,7 @@ fn heights_near_f32_range_score_as_the_same_map_near_one() {
     assert_eq!((small.x.score, small.y.score), (large.x.score, large.y.score));
     let mut seams = HeightSeams::new(w, h).unwrap();
     huge.chunks_exact(w).for_each(|row| seams.push_row(row).unwrap());
-    let streamed = seams.finish(&opts);
+    let streamed = seams.finish(&opts).unwrap();
     assert_eq!((streamed.x.score, streamed.y.score), (large.x.score, large.y.score));
     // Colour: luma of three such planes, the largest weight's plane at −f32::MAX.
     let low = vec![-f32::MAX; w * h];

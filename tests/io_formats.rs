@@ -398,8 +398,19 @@ fn written_as(format: &InputFormat) -> Vec<u8> {
 
 #[test]
 fn every_registered_format_is_recognised_by_its_content_and_read_as_itself() {
-    assert_eq!(FORMATS.len(), 11);
+    assert_eq!(FORMATS.len(), 12);
     for info in FORMATS {
+        if info.format == InputFormat::Raw {
+            // Bare samples: nothing to recognise, named by the caller
+            // (tests/terrain_io.rs reads them).
+            assert!(!info.has_signature());
+            let raw = ReadOptions::default().with_raw(normalfit::io::RawOptions::default().with_size(4, 3));
+            let r = decode(&[7u8; 12], &raw).unwrap();
+            assert_eq!((r.format.clone(), r.width, r.height), (InputFormat::Raw, 4, 3));
+            assert_eq!(r.format.to_string(), info.name);
+            assert_eq!(InputFormat::sniff(&[7u8; 16]), None);
+            continue;
+        }
         let bytes = written_as(&info.format);
         // TGA has no signature: it is found by its header parsing, last.
         let sniffed = info.has_signature().then(|| info.format.clone());
@@ -437,7 +448,10 @@ fn every_extension_names_one_format_in_any_case() {
 
 #[test]
 fn help_and_errors_name_the_registered_formats() {
-    assert_eq!(formats::names(), "PNG, OpenEXR, TIFF, JPEG, TGA, BMP, WebP, GIF, Radiance HDR, PNM, QOI");
+    assert_eq!(
+        formats::names(),
+        "PNG, OpenEXR, TIFF, JPEG, TGA, BMP, WebP, GIF, Radiance HDR, PNM, QOI, RAW heightmap"
+    );
     let e = decode(b"just some text, not an image\n", &ReadOptions::default()).unwrap_err();
     assert!(matches!(&e, Error::Decode(m) if m.ends_with(&format!("normalfit reads {}", formats::names()))), "{e}");
     // A format `image` knows by its signature but normalfit does not read.

@@ -191,7 +191,7 @@ fn stream(v: &[f32], w: usize, h: usize, opts: &TilingOptions) -> TilingReport {
         seams.push_row(&v[y * w..][..w]).unwrap();
     }
     assert_eq!(seams.rows(), h);
-    seams.finish(opts)
+    seams.finish(opts).unwrap()
 }
 
 /// Asserts that streaming `v` gives `check`'s report as a height map under
@@ -365,33 +365,31 @@ fn streaming_non_finite_values_count_as_zero() {
 }
 
 #[test]
-fn streaming_with_rows_missing_judges_the_rows_pushed() {
+fn streaming_with_rows_missing_is_refused_with_the_count() {
     let (w, h) = (24, 70);
     let v = tiling_support::periodic_noise(w, h, 3, 2, 11);
-    for pushed in [1, 2, 3, 4, 5, 32, 33, 69] {
+    for pushed in [0, 1, 33, 69] {
         let mut seams = HeightSeams::new(w, h).unwrap();
         for row in v.chunks_exact(w).take(pushed) {
             seams.push_row(row).unwrap();
         }
         assert_eq!(seams.rows(), pushed);
-        let opts = TilingOptions::new().with_kind(KindChoice::Height);
-        let (r, whole) = (seams.finish(&opts), check(&[&v[..w * pushed]], w, pushed, &opts).unwrap());
-        let rel = |a: f64, b: f64| (a - b).abs() / a.abs().max(b.abs());
-        assert!(rel(r.x.score, whole.x.score) <= 1e-9 && rel(r.y.score, whole.y.score) <= 1e-9, "{pushed}");
-        assert_eq!((r.x.seamless, r.y.seamless), (whole.x.seamless, whole.y.seamless));
+        let err = seams.finish(&TilingOptions::new()).unwrap_err();
+        assert!(matches!(err, Error::InvalidOption(_)), "{err}");
+        assert_eq!(err.to_string(), format!("invalid option: the tiling check has {pushed} of its 70 rows"));
     }
 }
 
 #[test]
 fn streaming_empty_images_and_kind() {
-    let r = HeightSeams::new(0, 5).unwrap().finish(&TilingOptions::new());
+    let r = HeightSeams::new(0, 5).unwrap().finish(&TilingOptions::new()).unwrap();
     assert!(r.seamless() && (r.x.score, r.y.score) == (1.0, 1.0));
     let mut seams = HeightSeams::new(0, 3).unwrap();
     for _ in 0..3 {
         seams.push_row(&[]).unwrap();
     }
-    assert!(seams.finish(&TilingOptions::new()).seamless());
-    assert!(HeightSeams::new(5, 0).unwrap().finish(&TilingOptions::new()).seamless());
+    assert!(seams.finish(&TilingOptions::new()).unwrap().seamless());
+    assert!(HeightSeams::new(5, 0).unwrap().finish(&TilingOptions::new()).unwrap().seamless());
     // A forced Normal kind does not apply: the rows are heights.
     let v = vec![0.5f32; 16];
     let r = stream(&v, 4, 4, &TilingOptions::new().with_kind(KindChoice::Normal));
@@ -407,7 +405,7 @@ fn streaming_refuses_a_row_too_many_and_keeps_its_report() {
     assert!(err.to_string().contains("rows of the tiling check are in already"), "{err}");
     assert_eq!(seams.rows(), 1);
     let whole = check(&[&[0.0, 1.0]], 2, 1, &TilingOptions::new().with_kind(KindChoice::Height)).unwrap();
-    assert_eq!(seams.finish(&TilingOptions::new()), whole, "the refused row left no trace");
+    assert_eq!(seams.finish(&TilingOptions::new()).unwrap(), whole, "the refused row left no trace");
 }
 
 #[test]
@@ -443,7 +441,7 @@ fn heights_pushed_from_a_slice_report_as_their_samples_do() {
     from_samples.push_samples(&Samples::U16(values.clone())).unwrap();
     let heights = Samples::U16(values.clone()).to_f32().unwrap();
     let whole = check(&[&heights], w, h, &opts).unwrap();
-    let (a, b) = (from_slice.finish(&opts), from_samples.finish(&opts));
+    let (a, b) = (from_slice.finish(&opts).unwrap(), from_samples.finish(&opts).unwrap());
     assert_eq!(a, b);
     assert_eq!(a, whole);
     let mut seams = HeightSeams::new(w, h).unwrap();
@@ -489,4 +487,183 @@ fn reports_serialise_with_their_field_names() {
     }
     assert_eq!(json.as_object().map(|o| o.len()), Some(3), "kind, x and y: {json}");
     assert_eq!(serde_json::to_string(&ImageKind::Normal).unwrap(), r#""normal""#);
+}
+
+/// The scores of a height map written plainly from the module docs, in
+/// f64, sharing nothing with the library: per level l the texels summed in
+/// runs of 2^l along each line, the value and crease sums of every pair of
+/// neighbouring lines, the seam against the k-th largest of the interior
+/// pairs (those whose stencil lies within the first or the last 256 lines
+/// of an axis longer than 512, all of them otherwise), ε from the mean
+/// |Δ| over the pairs so judged and the seams.
+fn plain_scores(v: &[f32], w: usize, h: usize) -> (f64, f64) {
+    const EDGE: usize = 256;
+    let at = |x: usize, y: usize| f64::from(v[y * w + x]);
+    // Lines of the x axis are columns (h texels); of the y axis, rows.
+    let x_lines: Vec<Vec<f64>> = (0..w).map(|x| (0..h).map(|y| at(x, y)).collect()).collect();
+    let y_lines: Vec<Vec<f64>> = (0..h).map(|y| (0..w).map(|x| at(x, y)).collect()).collect();
+    // Whether lines a ..= b (no wrap) lie in one kept strip.
+    let kept = |n: usize, a: usize, b: usize| n <= 2 * EDGE || b < EDGE || a >= n - EDGE;
+    let judged_value = |n: usize, k: usize| k == n - 1 || kept(n, k, k + 1);
+    let mut total = 0.0;
+    let mut count = 0usize;
+    for (lines, n) in [(&x_lines, w), (&y_lines, h)] {
+        for k in (0..n).filter(|&k| judged_value(n, k)) {
+            let (a, b) = (&lines[k], &lines[(k + 1) % n]);
+            total += a.iter().zip(b).map(|(a, b)| (b - a).abs()).sum::<f64>();
+            count += a.len();
+        }
+    }
+    let mean = total / count as f64;
+    let score = |lines: &[Vec<f64>]| -> f64 {
+        let (n, len) = (lines.len(), lines[0].len());
+        let eps = 1e-3 * mean * len as f64 + 1e-30;
+        let ratio = |seam: f64, mut interior: Vec<f64>| -> f64 {
+            let k = 4.max((interior.len() as f64 * 0.01).ceil() as usize).min(interior.len().div_ceil(2)).max(1);
+            interior.sort_by(f64::total_cmp);
+            (seam + eps) / (interior[interior.len() - k] + eps)
+        };
+        let mut best = 0.0f64;
+        for level in 0..6 {
+            if level > 0 && len < 8 << level {
+                continue;
+            }
+            let runs: Vec<Vec<f64>> =
+                lines.iter().map(|line| line.chunks(1 << level).map(|run| run.iter().sum()).collect()).collect();
+            let line = |k: usize| &runs[k % n];
+            let value = |k: usize| line(k).iter().zip(line(k + 1)).map(|(a, b)| (b - a).abs()).sum::<f64>();
+            let crease = |k: usize| -> f64 {
+                let (a, b, c, d) = (line(k + n - 1), line(k), line(k + 1), line(k + 2));
+                (0..a.len()).map(|i| ((d[i] - c[i]) - (b[i] - a[i])).abs()).sum()
+            };
+            let values = (0..n - 1).filter(|&k| kept(n, k, k + 1)).map(value).collect();
+            best = best.max(ratio(value(n - 1), values));
+            if n >= 4 {
+                let creases = (1..n - 2).filter(|&k| kept(n, k - 1, k + 2)).map(crease).collect();
+                best = best.max(ratio(crease(n - 1), creases));
+            }
+        }
+        best
+    };
+    (score(&x_lines), score(&y_lines))
+}
+
+/// Heights with structure at every scale and a different character in the
+/// middle of the image than within 256 lines of its edges, so that a reference taken over
+/// the whole axis gives other scores than one near the seam.
+fn two_part_heights(w: usize, h: usize, seed: u64) -> Vec<f32> {
+    let mut rng = Rng(seed);
+    let noise = tiling_support::periodic_noise(w, h, 5, 2, seed);
+    (0..w * h)
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            // Strong stripes in the lines more than 256 from either edge
+            // only: interior pairs that only a whole-axis reference sees.
+            let middle = (x >= 256 && x + 256 < w) || (y >= 256 && y + 256 < h);
+            let stripes = if middle && (x / 5 + y / 7) % 2 == 0 { 3.0 } else { 0.0 };
+            noise[k] + stripes + 0.02 * rng.next() as f32 + x as f32 * 1e-3
+        })
+        .collect()
+}
+
+/// Sizes around the cut: axes of 512 (every line kept) and just above it,
+/// and long axes against short ones.
+const CUT_SIZES: [(usize, usize); 7] = [(512, 40), (513, 40), (514, 37), (40, 515), (600, 530), (1100, 33), (70, 1030)];
+
+#[test]
+fn scores_are_the_plain_formulas_with_the_reference_near_the_seam() {
+    for (w, h) in CUT_SIZES {
+        let v = two_part_heights(w, h, (w * 7 + h) as u64);
+        let r = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Height)).unwrap();
+        let (px, py) = plain_scores(&v, w, h);
+        let rel = |a: f64, b: f64| (a - b).abs() / b;
+        // The library sums in f32 blocks, the plain sums in f64.
+        assert!(rel(r.x.score, px) < 1e-4 && rel(r.y.score, py) < 1e-4, "{w}×{h}: {r:?} against {px}, {py}");
+    }
+}
+
+/// Every row's edge columns and the edge rows, pushed as a caller holding
+/// the image in pieces would.
+fn stream_edges(v: &[f32], w: usize, h: usize, opts: &TilingOptions, rows_first: bool) -> TilingReport {
+    let mut seams = HeightSeams::new(w, h).unwrap();
+    let cols = seams.edge_columns();
+    let rows = seams.edge_rows();
+    let push_rows = |seams: &mut HeightSeams| {
+        for r in rows.clone() {
+            // In two pieces each, as a row of chunks would bring them.
+            let mid = r.start + r.len() / 2;
+            seams.push_edge_rows(&v[r.start * w..mid * w]).unwrap();
+            seams.push_edge_rows(&v[mid * w..r.end * w]).unwrap();
+        }
+    };
+    if rows_first {
+        push_rows(&mut seams);
+    }
+    let kept: Vec<f64> = v
+        .chunks_exact(w)
+        .flat_map(|row| cols.iter().flat_map(|c| row[c.clone()].iter().map(|&t| f64::from(t))))
+        .collect();
+    seams.push_edge_columns(&kept).unwrap();
+    if !rows_first {
+        push_rows(&mut seams);
+    }
+    seams.finish(opts).unwrap()
+}
+
+#[test]
+fn the_edge_strips_alone_give_the_whole_images_report() {
+    let opts = TilingOptions::new().with_kind(KindChoice::Height);
+    for (w, h) in CUT_SIZES {
+        let v = two_part_heights(w, h, (w + h) as u64);
+        let whole_rows = stream(&v, w, h, &opts);
+        for rows_first in [false, true] {
+            assert_eq!(stream_edges(&v, w, h, &opts, rows_first), whole_rows, "{w}×{h}, edge rows first {rows_first}");
+        }
+        assert_stream_matches(&v, w, h, 1.5, "two-part heights");
+        // What the strips hold is what the check reads: the columns and
+        // rows (of a long axis) outside them change nothing.
+        let seams = HeightSeams::new(w, h).unwrap();
+        let (cols, rows) = (seams.edge_columns(), seams.edge_rows());
+        // Edge rows are none when the edge columns are whole rows.
+        let no_edge_rows = rows.iter().all(|r| r.is_empty());
+        let mut changed = v.clone();
+        for (k, t) in changed.iter_mut().enumerate() {
+            let (x, y) = (k % w, k / w);
+            let in_cols = cols.iter().any(|c| c.contains(&x));
+            let in_rows = no_edge_rows || rows.iter().any(|r| r.contains(&y));
+            if !in_cols && !in_rows {
+                *t = 1e3 * ((x * 31 + y * 17) % 13) as f32;
+            }
+        }
+        let report = check(&[&v], w, h, &opts).unwrap();
+        assert_eq!(check(&[&changed], w, h, &opts).unwrap(), report, "{w}×{h}: the middle was read");
+        assert_eq!(changed != v, w > 512 && h > 512, "{w}×{h}: texels outside the strips");
+        // Along an axis of 512 or less every line counts.
+        let count = |r: &[std::ops::Range<usize>; 2]| r.iter().map(|r| r.len()).sum::<usize>();
+        assert_eq!(count(&cols), w.min(512), "{w}×{h}");
+        assert_eq!(count(&rows), if w <= 512 { 0 } else { h.min(512) }, "{w}×{h}");
+    }
+}
+
+#[test]
+fn edge_rows_mixed_with_whole_rows_or_too_many_are_refused() {
+    let (w, h) = (600, 530);
+    let v = two_part_heights(w, h, 3);
+    let mut seams = HeightSeams::new(w, h).unwrap();
+    assert_eq!(seams.edge_columns(), [0..256, 344..600]);
+    assert_eq!(seams.edge_rows(), [0..256, 274..530]);
+    seams.push_edge_rows(&v[..w]).unwrap();
+    let err = seams.push_row(&v[w..2 * w]).unwrap_err();
+    assert!(err.to_string().contains("edge rows and whole rows"), "{err}");
+    let err = seams.push_edge_rows(&vec![0.0f32; 512 * w]).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { expected, actual } if expected == 511 * w && actual == 512 * w), "{err}");
+    let err = seams.push_edge_columns(&[0.0f32; 511]).unwrap_err();
+    assert!(matches!(err, Error::BufferSize { .. }), "{err}");
+    let err = seams.clone().finish(&TilingOptions::new()).unwrap_err();
+    assert_eq!(err.to_string(), "invalid option: the tiling check has 0 of its 530 rows");
+    // A narrow image: the edge columns are whole rows, which serve both
+    // axes; no edge rows are taken.
+    let seams = HeightSeams::new(300, 900).unwrap();
+    assert_eq!(seams.edge_columns(), [0..300, 300..300]);
+    assert_eq!(seams.edge_rows(), [0..0, 0..0]);
 }

@@ -631,14 +631,78 @@ fn check_tiling(py: Python<'_>, image: &Bound<'_, PyAny>, threshold: f64, kind: 
 
 /// The tiling check of a height map fed a block of rows at a time, top to
 /// bottom: the library's `tiling::HeightSeams`, which `border="auto"`
-/// settles borders with. `normalfit.dask.check_tiling` feeds it a Dask
-/// array's rows, one row of chunks at a time, so the client holds O(W)
-/// of the check and one row of chunks, never the array.
+/// settles borders with. Fed whole rows (`push`), or only the lines the
+/// check reads (`push_columns` with each row's `edge_columns`, `push_rows`
+/// with the `edge_rows`): `normalfit.dask.check_tiling` feeds it those
+/// strips of a Dask array, so that only the chunks at the edges are
+/// computed and the client holds O(W + H) of the check and one block of a
+/// strip, never the array.
 #[pyclass(module = "normalfit", name = "_HeightSeams")]
 struct PyHeightSeams {
     seams: Mutex<Option<tiling::HeightSeams>>,
     width: usize,
     height: usize,
+}
+
+/// Which of the check's ways of taking heights a push uses.
+#[derive(Clone, Copy)]
+enum SeamsPush {
+    Rows,
+    EdgeColumns,
+    EdgeRows,
+}
+
+impl PyHeightSeams {
+    /// Pushes a 2-D array of heights through `how`, the library checking
+    /// the counts; `columns` is the width its rows must have.
+    fn push_with(&self, rows: &Bound<'_, PyAny>, columns: usize, how: SeamsPush) -> PyResult<()> {
+        let array = as_array(rows, "rows", &[2])?;
+        if array.shape()[1] != columns {
+            return Err(PyValueError::new_err(format!("rows must have {columns} columns, got {}", array.shape()[1])));
+        }
+        fn typed<H: Stored>(
+            array: &Bound<'_, PyUntypedArray>,
+            seams: &mut tiling::HeightSeams,
+            how: SeamsPush,
+        ) -> PyResult<()> {
+            let source = array.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
+            let view = source.as_array();
+            array
+                .py()
+                .detach(|| {
+                    let rows = row_order(&view)?;
+                    match how {
+                        SeamsPush::Rows => seams.push_heights(&rows),
+                        SeamsPush::EdgeColumns => seams.push_edge_columns(&rows),
+                        SeamsPush::EdgeRows => seams.push_edge_rows(&rows),
+                    }
+                })
+                .map_err(to_py_err)
+        }
+        let mut guard = self.seams.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let Some(seams) = guard.as_mut() else {
+            return Err(PyValueError::new_err("the tiling check is finished already"));
+        };
+        match sample_kind(array, "rows")? {
+            SampleKind::U8 => typed::<u8>(array, seams, how),
+            SampleKind::U16 => typed::<u16>(array, seams, how),
+            SampleKind::F32 => typed::<f32>(array, seams, how),
+            SampleKind::F64 => typed::<f64>(array, seams, how),
+        }
+    }
+
+    /// A property of the check, while it is not finished.
+    fn with_seams<T>(&self, f: impl FnOnce(&tiling::HeightSeams) -> T) -> PyResult<T> {
+        let guard = self.seams.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        guard.as_ref().map(f).ok_or_else(|| PyValueError::new_err("the tiling check is finished already"))
+    }
+}
+
+/// Two ranges as ((start, stop), (start, stop)).
+type RangePair = ((usize, usize), (usize, usize));
+
+fn range_pair([a, b]: [std::ops::Range<usize>; 2]) -> RangePair {
+    ((a.start, a.end), (b.start, b.end))
 }
 
 #[pymethods]
@@ -649,42 +713,40 @@ impl PyHeightSeams {
         Ok(PyHeightSeams { seams: Mutex::new(Some(seams)), width, height })
     }
 
-    /// Adds the next rows: a 2-D (rows, width) array of uint8, uint16,
-    /// float32 or float64 heights (integers divided by 255 or 65535).
-    fn push(&self, py: Python<'_>, rows: &Bound<'_, PyAny>) -> PyResult<()> {
-        let array = as_array(rows, "rows", &[2])?;
-        if array.shape()[1] != self.width {
-            return Err(PyValueError::new_err(format!(
-                "rows must have {} columns, got {}",
-                self.width,
-                array.shape()[1]
-            )));
-        }
-        fn typed<H: Stored>(array: &Bound<'_, PyUntypedArray>, seams: &mut tiling::HeightSeams) -> PyResult<()> {
-            let source = array.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
-            let view = source.as_array();
-            array
-                .py()
-                .detach(|| {
-                    let rows = row_order(&view)?;
-                    seams.push_heights(&rows)
-                })
-                .map_err(to_py_err)
-        }
-        let _ = py;
-        let mut guard = self.seams.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        let Some(seams) = guard.as_mut() else {
-            return Err(PyValueError::new_err("the tiling check is finished already"));
-        };
-        match sample_kind(array, "rows")? {
-            SampleKind::U8 => typed::<u8>(array, seams),
-            SampleKind::U16 => typed::<u16>(array, seams),
-            SampleKind::F32 => typed::<f32>(array, seams),
-            SampleKind::F64 => typed::<f64>(array, seams),
-        }
+    /// Adds the next whole rows: a 2-D (rows, width) array of uint8,
+    /// uint16, float32 or float64 heights (integers divided by 255 or
+    /// 65535).
+    fn push(&self, rows: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.push_with(rows, self.width, SeamsPush::Rows)
     }
 
-    /// The rows pushed so far.
+    /// The columns of every row the check reads: ((start, stop), (start,
+    /// stop)), the second empty when the first is the whole row.
+    #[getter]
+    fn edge_columns(&self) -> PyResult<RangePair> {
+        self.with_seams(|s| range_pair(s.edge_columns()))
+    }
+
+    /// The rows `push_rows` takes, whole: ((start, stop), (start, stop)),
+    /// both empty when `edge_columns` is the whole row.
+    #[getter]
+    fn edge_rows(&self) -> PyResult<RangePair> {
+        self.with_seams(|s| range_pair(s.edge_rows()))
+    }
+
+    /// Adds the edge columns of the next rows: a 2-D array whose columns
+    /// are those of `edge_columns`, first range then second.
+    fn push_columns(&self, rows: &Bound<'_, PyAny>) -> PyResult<()> {
+        let columns = self.with_seams(|s| s.edge_columns().iter().map(|r| r.len()).sum())?;
+        self.push_with(rows, columns, SeamsPush::EdgeColumns)
+    }
+
+    /// Adds the next of the `edge_rows`, whole, in order.
+    fn push_rows(&self, rows: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.push_with(rows, self.width, SeamsPush::EdgeRows)
+    }
+
+    /// The rows pushed so far (whole, or as edge columns).
     #[getter]
     fn rows(&self) -> usize {
         self.seams.lock().unwrap_or_else(std::sync::PoisonError::into_inner).as_ref().map_or(self.height, |s| s.rows())
@@ -697,14 +759,7 @@ impl PyHeightSeams {
         let Some(seams) = seams else {
             return Err(PyValueError::new_err("the tiling check is finished already"));
         };
-        if seams.rows() != self.height {
-            return Err(PyValueError::new_err(format!(
-                "the tiling check has {} of its {} rows",
-                seams.rows(),
-                self.height
-            )));
-        }
-        let report = py.detach(|| seams.finish(&opts));
+        let report = py.detach(|| seams.finish(&opts)).map_err(to_py_err)?;
         tiling_report_value(py, &report, self.width, self.height)
     }
 }

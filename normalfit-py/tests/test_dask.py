@@ -22,6 +22,7 @@ import pytest
 da = pytest.importorskip("dask.array", reason="dask is not installed (pip install 'normalfit[dask]')")
 distributed = pytest.importorskip("distributed", reason="distributed is not installed (pip install 'normalfit[dask]')")
 import dask  # noqa: E402
+import dask.array as da  # noqa: E402
 
 import normalfit  # noqa: E402
 import normalfit.dask as nd  # noqa: E402
@@ -155,10 +156,8 @@ def test_check_tiling_equals_the_whole_array_check(client: Any, seamless: bool) 
     assert np.array_equal(nd.normals(array, patch=5, border=got.suggested_borders).compute(), auto)
 
 
-def test_check_tiling_computes_each_chunk_once_a_row_of_chunks_at_a_time() -> None:
-    """The check reads every texel (its reference is the interior pairs of
-    whole lines): each chunk is made once, never the array at once."""
-    whole = heights((40, 30), np.uint16)
+def counted(whole: np.ndarray, chunks: Any) -> tuple[Any, list[tuple[int, int]]]:
+    """A Dask array of `whole` that records each chunk it makes."""
     made: list[tuple[int, int]] = []
     lock = threading.Lock()
 
@@ -167,7 +166,14 @@ def test_check_tiling_computes_each_chunk_once_a_row_of_chunks_at_a_time() -> No
             made.append(tuple(block_info[None]["chunk-location"]))
         return block
 
-    array = da.from_array(whole, chunks=(7, 12)).map_blocks(chunk, dtype=whole.dtype)
+    return da.from_array(whole, chunks=chunks).map_blocks(chunk, dtype=whole.dtype), made
+
+
+def test_check_tiling_on_a_small_array_computes_each_chunk_once() -> None:
+    """An array no larger than 512 along an axis is read whole along it (the
+    check's reference is every pair then): each chunk is made once."""
+    whole = heights((40, 30), np.uint16)
+    array, made = counted(whole, (7, 12))
     with dask.config.set(scheduler="synchronous"):
         got = nd.check_tiling(array, threshold=2.0)
     assert sorted(made) == sorted(itertools.product(range(6), range(3)))
@@ -175,6 +181,55 @@ def test_check_tiling_computes_each_chunk_once_a_row_of_chunks_at_a_time() -> No
     assert (got.x.score, got.y.score) == (want.x.score, want.y.score)
     with pytest.raises(ValueError, match="kind"):
         nd.check_tiling(array, kind="normal")
+
+
+@pytest.mark.parametrize(
+    "shape, chunks",
+    [
+        ((1100, 1300), (100, 100)),  # both axes cut: the 256 lines at each edge
+        ((1100, 1300), (300, 250)),  # strips inside chunks
+        ((700, 300), (64, 100)),  # narrow: whole rows, y cut
+        ((300, 700), (64, 100)),  # short: every row, x cut
+        ((513, 514), (97, 55)),  # just above 512 on both axes
+    ],
+)
+def test_check_tiling_reads_only_the_edge_strips(shape: tuple[int, int], chunks: tuple[int, int]) -> None:
+    """Only the chunks that hold a texel of the first or last 256 columns or
+    rows of a long axis are made, each once, and the report is the
+    whole-array check's, bit for bit, for a map that tiles and one that
+    does not."""
+    (h, w) = shape
+    rng = np.random.default_rng(h * 7 + w)
+    for seamless in (True, False):
+        y, x = np.mgrid[0:h, 0:w]
+        whole = (np.sin(2 * np.pi * 3 * x / w) * np.cos(2 * np.pi * 2 * y / h)).astype(np.float32)
+        whole += 0.05 * rng.random(shape, dtype=np.float32)
+        if not seamless:
+            whole += (x / w).astype(np.float32)  # a ramp: a jump at the x seam
+        array, made = counted(whole, chunks)
+        with dask.config.set(scheduler="synchronous"):
+            got = nd.check_tiling(array)
+        want = normalfit.check_tiling(whole)
+        assert (got.x.score, got.y.score, got.seamless) == (want.x.score, want.y.score, want.seamless)
+        assert not got.x.seamless if not seamless else got.seamless
+        rows_at = np.cumsum((0, *array.chunks[0]))
+        cols_at = np.cumsum((0, *array.chunks[1]))
+
+        def near_edge(lo: int, hi: int, n: int) -> bool:
+            return n <= 512 or lo < 256 or hi > n - 256
+
+        needed = {
+            (i, j)
+            for i in range(len(rows_at) - 1)
+            for j in range(len(cols_at) - 1)
+            if (w <= 512 or near_edge(cols_at[j], cols_at[j + 1], w))
+            or (w > 512 and near_edge(rows_at[i], rows_at[i + 1], h))
+        }
+        assert len(made) == len(set(made)), "a chunk made twice"
+        assert set(made) == needed
+        if w > 1000 and h > 1000:
+            assert len(needed) < array.numblocks[0] * array.numblocks[1], "the middle chunks are left alone"
+        made.clear()
 
 
 def test_a_task_uses_one_thread_by_default(client: Any) -> None:

@@ -9,7 +9,9 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
 use normalfit::convert::BorderChoices;
 use normalfit::height::{ConventionChoice, Model};
-use normalfit::io::{Alpha, Channel, OutputChannels, OutputFormat, PngCompression, ReadOptions};
+use normalfit::io::{
+    Alpha, ByteOrder, Channel, OutputChannels, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
+};
 use normalfit::options::MAX_PATCH;
 use normalfit::shade::Light;
 use normalfit::tiling::KindChoice;
@@ -143,6 +145,9 @@ pub struct ConvertArgs {
     #[command(flatten)]
     pub channels: ChannelsArgs,
 
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+
     /// Appended to each input's stem to name its output. Files whose stem
     /// already ends in it (or in `_residual`) are taken for outputs and
     /// skipped when folders are searched.
@@ -259,6 +264,9 @@ pub struct ShadeArgs {
 
     // The groups with a help heading come last: a heading would otherwise
     // cover the options after it.
+    #[command(flatten)]
+    pub terrain: TerrainArgs,
+
     #[command(flatten)]
     pub batch: BatchArgs,
 
@@ -394,7 +402,67 @@ pub struct TilingArgs {
     pub read: ReadArgs,
 
     #[command(flatten)]
+    pub terrain: TerrainArgs,
+
+    #[command(flatten)]
     pub batch: BatchArgs,
+}
+
+/// How terrain inputs are read: a GeoTIFF's band, a RAW heightmap's
+/// layout, heights packed in RGB tiles (docs/terrain.md). Every rule is
+/// the library's ([`ReadOptions`]); these only carry the values.
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Terrain")]
+pub struct TerrainArgs {
+    /// TIFF: read band K (1-based, as GDAL counts) of a multi-band file,
+    /// whatever its sample type. Default: the colour channels of an RGB
+    /// TIFF, the first band of other multi-band files.
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..))]
+    pub band: Option<u32>,
+
+    /// RAW heightmaps (.raw, .r16, .r8): width and height. Default: a
+    /// square found from the file's length (n² bytes for 8 bits, 2·n² for
+    /// 16). Given, it also reads standard input and files whose extension
+    /// names no format as RAW.
+    #[arg(long, value_name = "WxH", value_parser = parse_raw_size)]
+    pub size: Option<(usize, usize)>,
+
+    /// RAW heightmaps: the byte order of 16-bit samples (little: Unity's
+    /// Windows order and Unreal's .r16; big: Unity's Mac order). Given, it
+    /// also reads standard input as RAW, as --size does.
+    #[arg(long, value_name = "ORDER", value_parser = named::<ByteOrder>(ByteOrder::ALL))]
+    pub byte_order: Option<ByteOrder>,
+
+    /// Heights packed in 8-bit RGB tiles (PNG or WebP), unpacked to float
+    /// metres: terrain-rgb (Mapbox: −10000 + (R·65536 + G·256 + B)·0.1) or
+    /// terrarium (R·256 + G + B/256 − 32768).
+    #[arg(long, value_name = "PACKING", value_parser = named::<PackedElevation>(PackedElevation::ALL))]
+    pub decode: Option<PackedElevation>,
+}
+
+impl TerrainArgs {
+    /// `opts` with these options applied.
+    pub fn apply(&self, mut opts: ReadOptions) -> ReadOptions {
+        if let Some(band) = self.band {
+            opts = opts.with_band(band);
+        }
+        if self.size.is_some() || self.byte_order.is_some() {
+            let mut raw = RawOptions::default().with_byte_order(self.byte_order.unwrap_or_default());
+            if let Some((w, h)) = self.size {
+                raw = raw.with_size(w, h);
+            }
+            opts = opts.with_raw(raw);
+        }
+        if let Some(packing) = self.decode {
+            opts = opts.with_decode(packing);
+        }
+        opts
+    }
+}
+
+/// `--size WxH`, as the library parses and checks it.
+fn parse_raw_size(s: &str) -> Result<(usize, usize), String> {
+    normalfit::io::parse_size(s).map_err(|e| library_message(&e))
 }
 
 /// How inputs are read: the size limit and, for OpenEXR, the layer.
@@ -512,7 +580,19 @@ macro_rules! named_value {
     };
 }
 
-named_value!(Fit, Convention, OutputFormat, PngCompression, Alpha, OutputChannels, KindChoice, Model, ConventionChoice);
+named_value!(
+    Fit,
+    Convention,
+    OutputFormat,
+    PngCompression,
+    Alpha,
+    OutputChannels,
+    KindChoice,
+    Model,
+    ConventionChoice,
+    ByteOrder,
+    PackedElevation
+);
 
 /// A library error's message without its kind ("invalid option: ").
 pub fn library_message(e: &normalfit::Error) -> String {

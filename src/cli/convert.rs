@@ -70,7 +70,7 @@ impl Plan {
         let mut conversion = Conversion::new()
             .with_fit(fit)
             .with_borders(args.fit.border)
-            .with_read(args.read.options())
+            .with_read(args.terrain.apply(args.read.options()))
             .with_channel(args.channel.clone())
             .with_format(args.format)
             .with_signed(args.signed)

@@ -23,6 +23,7 @@ const SUFFIX: &str = "_lit";
 /// What `shade` does with every input, decided once from the arguments.
 struct Plan {
     lit: LitOptions,
+    read: ReadOptions,
     destination: Destination,
     quiet: bool,
 }
@@ -49,7 +50,7 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
         .with_kind(args.kind)
         .with_channel(args.channel.clone())
         .with_signed(args.signed);
-    let plan = Plan { lit, destination, quiet: args.batch.quiet };
+    let plan = Plan { lit, read: args.terrain.apply(ReadOptions::default()), destination, quiet: args.batch.quiet };
     Ok(batch.run(|job, turn| plan.shade_one(job, turn)))
 }
 
@@ -64,7 +65,7 @@ impl Plan {
         if !turn.wanted(target.as_deref(), input) {
             return Ok(Outcome::Skipped);
         }
-        let raster = read_input(input, &ReadOptions::default())?;
+        let raster = read_input(input, &self.read)?;
         let view = lit_view(&raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
         if !self.quiet {
             view.warnings.iter().for_each(|w| fitting::warn(w, input));

@@ -31,7 +31,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
     let many = batch.many();
     let plan = Plan {
         opts,
-        read: args.read.options(),
+        read: args.terrain.apply(args.read.options()),
         channel: args.channel.clone(),
         json: args.json,
         plain: args.preview.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,

@@ -20,7 +20,10 @@ pub use crate::pipeline as stream;
 
 pub use encoding::{Encoding, ExrOptions, OutputFormat, PngDepth, PngOptions};
 pub use memory::check_memory;
-pub use read::{Channel, FormatInfo, InputFormat, Plane, Raster, ReadOptions, SampleType, decode, read_path};
+pub use read::{
+    Affine, ByteOrder, Channel, FormatInfo, Georef, InputFormat, ModelType, PackedElevation, Plane, Raster, RasterType,
+    RawOptions, ReadOptions, SampleType, decode, metres_per_degree, parse_size, read_path,
+};
 // The paths the streaming readers take these by.
 pub(crate) use read::exr::subsampled as exr_subsampled;
 pub(crate) use read::png::zlib as png_zlib;

@@ -107,6 +107,11 @@ impl ExrRows {
         channel: Option<&Channel>,
         first_row: usize,
     ) -> Result<Option<ExrRows>> {
+        // A band, a packing or a RAW layout is the whole-image reader's to
+        // apply (and to refuse for an EXR, with its message).
+        if !opts.may_stream(path) {
+            return Ok(None);
+        }
         let file = File::open(path)?;
         let file_len = file.metadata()?.len();
         let mut file = BufReader::with_capacity(1 << 16, file);

@@ -82,6 +82,11 @@ impl PngRows {
     /// up to IEND and the image data's checksum (zlib's Adler-32), as a
     /// whole-image decoder does.
     pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<PngRows>> {
+        // A band, a packing (Terrain-RGB tiles are PNGs) or a RAW layout is
+        // the whole-image reader's to apply, or to refuse.
+        if !opts.may_stream(path) {
+            return Ok(None);
+        }
         let mut file = BufReader::with_capacity(1 << 16, File::open(path)?);
         let start = std::io::BufRead::fill_buf(&mut file)?;
         if !start.starts_with(&PNG_SIGNATURE) {

@@ -3,3 +3,6 @@
 #[cfg(feature = "cli")]
 pub mod cli;
 pub mod reference;
+// GeoTIFFs of every layout, made with the `tiff` crate's encoder.
+#[cfg(feature = "tiff")]
+pub mod geotiff;

@@ -239,14 +239,16 @@ def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> T
     ``normalfit.check_tiling`` on the whole computed array, and the
     ``suggested_borders`` that ``normalfit.normals(border="auto")`` picks.
 
-    The check compares the seam with the distribution of every interior
-    pair of neighbouring columns (rows), summed over whole lines, so it
-    reads every texel: edge strips alone cannot give its report. It runs
-    the library's streaming check (``tiling::HeightSeams``, what
-    ``border="auto"`` uses) on the client, computing one row of chunks at a
-    time (the next one while the current is measured): the client holds
-    the check's O(width + height) profiles and two rows of chunks, never
-    the array. Each chunk is computed once.
+    Reads only the edge strips the check needs: the seams are compared
+    with the pairs of neighbouring lines near them (the first and last 256
+    columns and rows of an axis longer than 512; every line of a shorter
+    one; docs/tiling.md), so only the chunks those strips touch are
+    computed, each once, one row of chunks at a time (the next while the
+    library measures the current). The client holds the check's
+    O(width + height) profiles and two rows of the strips' chunks, never
+    the array. The library's streaming check (``tiling::HeightSeams``, what
+    ``border="auto"`` uses) measures them, with the same bits as the
+    whole-array check.
 
     array: a 2-D dask.array of uint8, uint16, float32 or float64 heights.
     threshold: as for normalfit.check_tiling. kind: "auto" or "height"
@@ -259,24 +261,43 @@ def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> T
         raise ValueError(f"invalid option: kind of a 2-D array of heights must be auto or height, got {kind!r}")
     (h, w) = (int(array.shape[0]), int(array.shape[1]))
     seams = _normalfit._HeightSeams(w, h)
-    rows = [array.blocks[i, :] for i in range(array.numblocks[0])]
-    # The next row of chunks is computed (in a thread, on the scheduler in
-    # use) while the library measures the current one.
+    # The library says which lines it reads: every row's edge columns
+    # (the whole row of a narrow array) and the edge rows whole (none when
+    # the columns are whole rows: they serve both axes).
+    columns = [array[:, a:b] for (a, b) in seams.edge_columns if b > a]
+    strip = da.concatenate(columns, axis=1) if len(columns) > 1 else (columns[0] if columns else None)
+    edge_rows = [(a, b) for (a, b) in seams.edge_rows if b > a]
+    # One step per row of chunks: the columns of its rows and the edge rows
+    # among them, computed together so that a chunk under both is made once.
+    bounds = np.cumsum((0, *array.chunks[0]))
+    steps = []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        cols = strip[lo:hi] if strip is not None else None
+        rows = [array[max(a, lo) : min(b, hi)] for (a, b) in edge_rows if max(a, lo) < min(b, hi)]
+        steps.append((cols, rows))
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(1) as pool:
-        pending = pool.submit(_computed, rows[0]) if rows else None
-        for i in range(len(rows)):
+        pending = pool.submit(_computed_step, steps[0]) if steps else None
+        for i in range(len(steps)):
             assert pending is not None
-            block = pending.result()
-            pending = pool.submit(_computed, rows[i + 1]) if i + 1 < len(rows) else None
-            seams.push(block)
+            cols, rows = pending.result()
+            pending = pool.submit(_computed_step, steps[i + 1]) if i + 1 < len(steps) else None
+            if cols is not None:
+                seams.push_columns(cols)
+            for part in rows:
+                seams.push_rows(part)
     return seams.finish(threshold)
 
 
-def _computed(rows: Any) -> np.ndarray:
-    block: np.ndarray = rows.compute()
-    return block
+def _computed_step(step: tuple[Any, list[Any]]) -> tuple[np.ndarray | None, list[np.ndarray]]:
+    """One step of check_tiling's strips, computed in one graph."""
+    cols, rows = step
+    parts = ([cols] if cols is not None else []) + rows
+    done = dask.compute(*parts) if parts else ()
+    if cols is not None:
+        return done[0], list(done[1:])
+    return None, list(done)
 
 
 def read_zarr(path: str | os.PathLike[str], *, component: str | None = None, chunks: Any = None) -> Any:

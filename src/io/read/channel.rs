@@ -116,6 +116,35 @@ impl Raster {
         Ok(heights)
     }
 
+    /// The heights as the file stored them, chosen as [`Raster::heights`]
+    /// chooses them, in f64: a DEM's int16 metres as metres, a 16-bit
+    /// PNG's or RAW's integers as integers, floats unchanged; luma of
+    /// stored values for a colour image. This is each height in contract
+    /// units times [`SampleType::stored_per_unit`](super::SampleType::stored_per_unit),
+    /// with integers made whole again (the signed and 32-bit ones were
+    /// divided in f64 when decoded; rounding the product undoes that
+    /// exactly, its error being under 2⁻²⁰). For fits in the file's own
+    /// units (docs/terrain.md).
+    ///
+    /// Errors: as [`Raster::heights`].
+    pub fn into_stored_heights(self, channel: Option<Channel>) -> Result<Samples> {
+        let scale = self.sample.stored_per_unit();
+        let whole = matches!(self.sample, super::SampleType::Int { bits } | super::SampleType::SignedInt { bits } if bits <= 32)
+            && !matches!(self.select(channel.as_ref())?, Source::Luma(_));
+        let heights = self.into_heights(channel)?;
+        if scale == 1.0 {
+            return Ok(heights);
+        }
+        let mut out = try_vec(heights.len())?;
+        let at = |i: usize| heights.height(i).unwrap_or(0.0) * scale;
+        if whole {
+            out.par_extend((0..heights.len()).into_par_iter().map(|i| at(i).round()));
+        } else {
+            out.par_extend((0..heights.len()).into_par_iter().map(at));
+        }
+        Ok(Samples::F64(out))
+    }
+
     /// The plane with exactly this name, if any.
     #[must_use]
     pub fn plane(&self, name: &str) -> Option<&Plane> {

@@ -50,6 +50,8 @@ pub enum InputFormat {
     Pnm,
     /// Quite OK Image format.
     Qoi,
+    /// A RAW heightmap: bare 8- or 16-bit samples, no header.
+    Raw,
 }
 
 /// One input format: how it is recognised, named and read.
@@ -90,6 +92,10 @@ enum Signature {
     /// when its header parses (TGA, whose header has enough fixed fields,
     /// image type and pixel depth, that text and most other data fail it).
     Probe(fn(&[u8]) -> bool),
+    /// Nothing: any bytes could be the format's (RAW heightmaps, bare
+    /// samples). It is never found from the content, only named: by a
+    /// file's extension or by the caller ([`ReadOptions::raw`]).
+    Named,
 }
 
 /// The decoder of a format.
@@ -247,6 +253,19 @@ pub static FORMATS: &[FormatInfo] = &[
         signature: Signature::Magic(&[&[(0, b"qoif")]]),
         decoder: image_decoder(ImageFormat::Qoi, cfg!(feature = "qoi")),
     },
+    FormatInfo {
+        format: InputFormat::Raw,
+        name: "raw",
+        title: "RAW heightmap",
+        // Unity's and World Machine's `.raw`, Unreal's `.r16`, and `.r8`
+        // for the 8-bit ones (the names Unity, L3DT and Gaea write).
+        extensions: &["raw", "r16", "r8"],
+        streams: false,
+        // No dependency: the samples are read as they are.
+        feature: None,
+        signature: Signature::Named,
+        decoder: Decoder::Own(super::raw::decode),
+    },
 ];
 
 impl FormatInfo {
@@ -261,7 +280,7 @@ impl FormatInfo {
     }
 
     /// Whether the format has a signature a file's first bytes can be
-    /// compared with (TGA has none).
+    /// compared with (TGA and RAW have none).
     #[must_use]
     pub fn has_signature(&self) -> bool {
         matches!(self.signature, Signature::Magic(_))
@@ -391,10 +410,10 @@ mod tests {
     /// until it is listed here (and, by the test below, in [`FORMATS`]).
     fn every_variant() -> Vec<InputFormat> {
         use InputFormat::*;
-        let all = vec![Png, Exr, Jpeg, Tiff, Tga, Bmp, WebP, Gif, Hdr, Pnm, Qoi];
+        let all = vec![Png, Exr, Jpeg, Tiff, Tga, Bmp, WebP, Gif, Hdr, Pnm, Qoi, Raw];
         for format in &all {
             match format {
-                Png | Exr | Jpeg | Tiff | Tga | Bmp | WebP | Gif | Hdr | Pnm | Qoi => {}
+                Png | Exr | Jpeg | Tiff | Tga | Bmp | WebP | Gif | Hdr | Pnm | Qoi | Raw => {}
             }
         }
         all
@@ -443,6 +462,7 @@ mod tests {
                     InputFormat::Hdr => ImageFormat::Hdr,
                     InputFormat::Pnm => ImageFormat::Pnm,
                     InputFormat::Qoi => ImageFormat::Qoi,
+                    InputFormat::Raw => unreachable!("RAW has no signature"),
                 };
                 if let Decoder::Image(format) = info.decoder {
                     assert_eq!(format, expected, "{}: the decoder is told its own format", info.name);

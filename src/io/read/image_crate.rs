@@ -35,7 +35,14 @@ pub(super) fn decode_with_image(
     buf.resize(len, 0);
     decoder.read_image(&mut buf).map_err(from_image_error)?;
     let planes = deinterleave(&buf, names, sample, texels)?;
-    Ok(Raster { width: to_usize(width.into())?, height: to_usize(height.into())?, format: ours, sample, planes })
+    Ok(Raster {
+        width: to_usize(width.into())?,
+        height: to_usize(height.into())?,
+        format: ours,
+        sample,
+        planes,
+        georef: None,
+    })
 }
 
 /// Whether the bytes are a TGA file: TGA has no signature, so bytes no

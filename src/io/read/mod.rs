@@ -3,7 +3,10 @@
 //! Rules this module keeps, and why:
 //! * The decoder is chosen from the content, never the file name: a `.png`
 //!   that is really a JPEG still reads, and a renamed file cannot pick a
-//!   decoder that then misreads it. The formats, their signatures, names
+//!   decoder that then misreads it. The one exception is RAW heightmaps
+//!   (`raw.rs`), bare samples with no content to know them by: they are
+//!   known by their extension (`.raw`, `.r16`, `.r8`) or by the caller's
+//!   [`ReadOptions::raw`]. The formats, their signatures, names
 //!   and decoders are listed once, in [`formats`]; OpenEXR goes to the
 //!   `exr` crate (a file with subsampled channels, which it refuses, to
 //!   `exr/subsampled.rs`), gray TIFF with samples `image` refuses (float,
@@ -29,6 +32,12 @@
 //!   kept in the planes; only [`Raster::heights`] rejects them, because only
 //!   the channel that becomes the height matters.
 //!
+//! * Terrain (docs/terrain.md): a TIFF's band of any sample type
+//!   ([`ReadOptions::band`]) and its GeoTIFF georeferencing
+//!   ([`Raster::georef`], `georef.rs`); heights packed in RGB tiles,
+//!   unpacked to metres after the tile is decoded
+//!   ([`ReadOptions::decode`], `packed.rs`).
+//!
 //! Where things are: this file holds the types every format shares and
 //! [`decode`]; `channel.rs` the channel rule (SPEC §1); [`formats`] the
 //! registry of formats; one file or folder per decoder (`png/`, `exr/`,
@@ -39,8 +48,11 @@
 mod channel;
 pub(crate) mod exr;
 pub mod formats;
+pub mod georef;
 mod image_crate;
+mod packed;
 pub(crate) mod png;
+mod raw;
 #[cfg(feature = "tiff")]
 mod tiff;
 
@@ -53,7 +65,10 @@ pub(crate) use self::channel::{Source, select_channel};
 // The paths the streaming readers (`io/stream`) take these by.
 pub(crate) use self::exr::{EXR_MAGIC, check_exr_meta, check_exr_windows, choose_exr_layer, exr_parts, from_exr_error};
 pub use self::formats::{FormatInfo, InputFormat};
+pub use self::georef::{Affine, Georef, ModelType, RasterType, metres_per_degree};
+pub use self::packed::PackedElevation;
 pub(crate) use self::png::{PNG_SIGNATURE, check_png_header, check_png_palette};
+pub use self::raw::{ByteOrder, RawOptions, parse_size};
 use crate::error::{Error, Result, one_line};
 use crate::samples::{Samples, try_vec};
 
@@ -69,9 +84,12 @@ pub enum SampleType {
         bits: u8,
     },
     /// Signed (two's complement) integers of `bits` bits per channel, from
-    /// a gray TIFF. Read as value / (2^bits − 1), the unsigned rule with the
-    /// same step per stored unit, so h ∈ [−0.5, 0.5]: a signed map and the
-    /// same map stored unsigned with an offset give the same normals.
+    /// a TIFF (a GeoTIFF elevation model's int16 or int32 metres). Read as
+    /// value / (2^bits − 1), the unsigned rule with the same step per
+    /// stored unit, so h ∈ [−0.5, 0.5]: a signed map and the same map
+    /// stored unsigned with an offset give the same normals, and a DEM's
+    /// int16 and uint16 copies too. The values as stored (metres, for a
+    /// DEM) are [`Raster::into_stored_heights`]; docs/terrain.md.
     SignedInt {
         /// Bits per channel.
         bits: u8,
@@ -82,6 +100,17 @@ pub enum SampleType {
 }
 
 impl SampleType {
+    /// The stored value of a height of 1 in contract units: 2^bits − 1 for
+    /// integers, signed or not (255, 65535, …), 1 for floats. A stored
+    /// value is its height times this: a DEM's metres, a RAW's integers.
+    #[must_use]
+    pub fn stored_per_unit(self) -> f64 {
+        match self {
+            SampleType::Int { bits } | SampleType::SignedInt { bits } => 2f64.powi(i32::from(bits)) - 1.0,
+            SampleType::Float => 1.0,
+        }
+    }
+
     /// Whether a channel holds more than 8 bits; floats count as more.
     ///
     /// SPEC §3 picks the default PNG output depth with it: 16 bits when the
@@ -124,6 +153,9 @@ pub struct Raster {
     /// channels (a luminance/chroma file's RY and BY) are left out: they
     /// have fewer samples than texels and are never heights.
     pub planes: Vec<Plane>,
+    /// A GeoTIFF's georeferencing (pixel size, model type, EPSG code,
+    /// nodata value); `None` for other formats and TIFFs without the tags.
+    pub georef: Option<Georef>,
 }
 
 /// Limits for a read of untrusted bytes, and which part of a file to read.
@@ -142,11 +174,27 @@ pub struct ReadOptions {
     /// first part of flat (not deep) samples, all its channels. Any other
     /// format has no layers: asking for one there is an error.
     pub layer: Option<String>,
+    /// TIFF: the band to read, 1-based as GDAL counts them, of a
+    /// multi-band file (chunky or planar), whatever its sample type; the
+    /// file is then read as that one gray band. `None` reads a file as its
+    /// colour type says (gray, RGB, …), and a file of several bands that
+    /// are not colours as its first band. Any other format has no bands:
+    /// asking for one there is an error.
+    pub band: Option<u32>,
+    /// RAW heightmaps: their layout. A file named `.raw`, `.r16` or `.r8`
+    /// is RAW whatever this holds (`None`: square, depth by extension or
+    /// length, little-endian). `Some` also makes RAW the bytes given to
+    /// [`decode`] and files whose extension names no format (`.bin`, none);
+    /// files named as another format are still read by their content.
+    pub raw: Option<RawOptions>,
+    /// Heights packed in an 8-bit RGB tile (PNG or WebP), unpacked to float
+    /// heights in metres; `None` reads the tile as a picture.
+    pub decode: Option<PackedElevation>,
 }
 
 impl Default for ReadOptions {
     fn default() -> Self {
-        ReadOptions { max_texels: 1 << 30, layer: None }
+        ReadOptions { max_texels: 1 << 30, layer: None, band: None, raw: None, decode: None }
     }
 }
 
@@ -159,14 +207,51 @@ impl ReadOptions {
     }
 
     /// Checks the options as a caller gave them: the texel limit must be
-    /// at least 1 (0 would refuse every image).
+    /// at least 1 (0 would refuse every image), a band at least 1 (bands
+    /// count from 1, as in GDAL), a RAW layout as
+    /// [`RawOptions::validate`] says.
     ///
-    /// Errors: [`Error::InvalidOption`] naming the limit.
+    /// Errors: [`Error::InvalidOption`] naming the value.
     pub fn validate(&self) -> Result<()> {
         if self.max_texels == 0 {
             return Err(Error::InvalidOption("max_texels must be at least 1, got 0".into()));
         }
+        if self.band == Some(0) {
+            return Err(Error::InvalidOption("bands count from 1, as in GDAL: got band 0".into()));
+        }
+        if let Some(raw) = &self.raw {
+            raw.validate()?;
+        }
         Ok(())
+    }
+
+    /// The same options reading TIFF band `band` (1-based).
+    #[must_use]
+    pub fn with_band(mut self, band: u32) -> Self {
+        self.band = Some(band);
+        self
+    }
+
+    /// The same options with a RAW layout (see [`ReadOptions::raw`]).
+    #[must_use]
+    pub fn with_raw(mut self, raw: RawOptions) -> Self {
+        self.raw = Some(raw);
+        self
+    }
+
+    /// The same options unpacking heights from RGB tiles.
+    #[must_use]
+    pub fn with_decode(mut self, packing: PackedElevation) -> Self {
+        self.decode = Some(packing);
+        self
+    }
+
+    /// Whether a file is read as rows streamed through the fit (PNG, EXR)
+    /// with these options: not when a band, a packing or a RAW layout
+    /// decides how it is read, which the streaming readers do not know.
+    #[must_use]
+    pub fn may_stream(&self, path: &Path) -> bool {
+        self.band.is_none() && self.decode.is_none() && raw_layout_for(path, self).is_none()
     }
 
     /// The same options reading the OpenEXR layer `name`.
@@ -177,30 +262,76 @@ impl ReadOptions {
     }
 }
 
-/// Decodes an image from its bytes, choosing the decoder from the content.
+/// Decodes an image from its bytes, choosing the decoder from the content
+/// (or RAW, which has none, when [`ReadOptions::raw`] is given).
 ///
 /// Errors: [`Error::Decode`] for empty, unknown, corrupt, truncated or
-/// zero-size data; [`Error::Limits`] when the header claims more than
-/// `opts.max_texels` texels; [`Error::Unsupported`] for a layout normalfit
-/// does not read, or a layer asked for in a format that has none.
+/// zero-size data, or a RAW length that does not fit its layout;
+/// [`Error::Limits`] when the header claims more than `opts.max_texels`
+/// texels; [`Error::Unsupported`] for a layout normalfit does not read, a
+/// layer or band asked for in a format that has none, a band the file does
+/// not have, a packing asked for in a file that is not an 8-bit RGB tile;
+/// [`Error::InvalidOption`] for options [`ReadOptions::validate`] refuses.
 pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    decode_as(bytes, opts.raw.as_ref(), opts)
+}
+
+/// Reads the file at `path` and [`decode`]s it: by its content, except a
+/// RAW heightmap, known by its extension (`.raw`, `.r16`, `.r8`) or, with
+/// [`ReadOptions::raw`], by an extension that names no format. Failing to
+/// read the file is [`Error::Io`].
+pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    let raw = raw_layout_for(path, opts);
+    let bytes = std::fs::read(path)?;
+    decode_as(&bytes, raw.as_ref(), opts)
+}
+
+/// The RAW layout `path` is read with, `None` when it is read by content.
+pub(crate) fn raw_layout_for(path: &Path, opts: &ReadOptions) -> Option<RawOptions> {
+    let extension = path.extension().and_then(|e| e.to_str());
+    match extension.and_then(InputFormat::from_extension) {
+        Some(InputFormat::Raw) => {
+            Some(opts.raw.clone().unwrap_or_default().with_extension_bits(extension.unwrap_or_default()))
+        }
+        Some(_) => None,
+        None => opts.raw.clone(),
+    }
+}
+
+/// Decodes `bytes` as RAW with `raw`, else by their content; then the
+/// packing, if any.
+fn decode_as(bytes: &[u8], raw: Option<&RawOptions>, opts: &ReadOptions) -> Result<Raster> {
+    opts.validate()?;
     if bytes.is_empty() {
         return Err(Error::Decode("file is empty".into()));
     }
-    let format = InputFormat::recognise(bytes)?;
+    let format = match raw {
+        Some(_) => InputFormat::Raw,
+        None => InputFormat::recognise(bytes)?,
+    };
     if let Some(layer) = &opts.layer
         && format != InputFormat::Exr
     {
         return Err(no_layers(&format, layer));
     }
-    format.info().decode(bytes, opts)
+    if let Some(band) = opts.band
+        && format != InputFormat::Tiff
+    {
+        return Err(no_bands(&format, band));
+    }
+    let raster = match raw {
+        Some(raw) => raw::decode_raw(bytes, raw, opts)?,
+        None => format.info().decode(bytes, opts)?,
+    };
+    match opts.decode {
+        Some(packing) => packed::unpack(raster, packing),
+        None => Ok(raster),
+    }
 }
 
-/// Reads the file at `path` and [`decode`]s it. Failing to read the file is
-/// [`Error::Io`].
-pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
-    let bytes = std::fs::read(path)?;
-    decode(&bytes, opts)
+/// The error for a band asked for in a format without bands.
+pub(crate) fn no_bands(format: &InputFormat, band: u32) -> Error {
+    Error::Unsupported(format!("band {band} asked for, but {format} files have no bands (only TIFF has)"))
 }
 
 /// The error for a layer asked for in a format without layers.

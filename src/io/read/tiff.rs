@@ -1,8 +1,12 @@
-//! TIFF. Gray TIFF that `image` refuses is read with the `tiff` crate:
-//! 32- and 64-bit float (what terrain generators and GIS tools export),
-//! half float, 32- and 64-bit unsigned and 8- to 64-bit signed integers.
-//! Every other TIFF (8- and 16-bit gray, RGB, float RGB, …) stays with
-//! `image`, which reads it.
+//! TIFF and GeoTIFF. Samples `image` refuses are read with the `tiff`
+//! crate: 32- and 64-bit float (what terrain generators and GIS tools
+//! export), half float, 32- and 64-bit unsigned and 8- to 64-bit signed
+//! integers, in one band or several (chunky or planar, striped or tiled):
+//! the first band, or the one [`ReadOptions::band`] asks for, which is
+//! read here whatever its type. Every other TIFF (8- and 16-bit gray, RGB,
+//! float RGB, …) without a band asked for stays with `image`, which reads
+//! it as it always has. The georeferencing tags are read from every TIFF
+//! ([`Georef`]).
 
 use std::io::Cursor;
 
@@ -10,24 +14,42 @@ use crate::par::prelude::*;
 use image::ImageFormat;
 use tiff::tags::{SampleFormat, Tag};
 
+use super::georef::{Georef, tags as georef_tags};
 use super::image_crate::decode_with_image;
 use super::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
 use crate::error::{Error, Result};
 use crate::io::memory;
 use crate::samples::{Samples, try_vec};
 
-/// Decodes a TIFF: the gray layouts `image` refuses here, the rest with
-/// `image`.
+/// Decodes a TIFF: its georeferencing always; its samples here when
+/// `image` does not read them or a band is asked for, else with `image`.
 pub(super) fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
-    match decode_tiff_gray(bytes, opts)? {
-        Some(raster) => Ok(raster),
-        None => decode_with_image(bytes, opts, ImageFormat::Tiff, InputFormat::Tiff),
-    }
+    // A header `tiff` cannot parse goes to `image`, which parses it with the
+    // same crate and reports the error as it always has.
+    let Ok(mut decoder) = tiff::decoder::Decoder::new(Cursor::new(bytes)) else {
+        return decode_with_image(bytes, opts, ImageFormat::Tiff, InputFormat::Tiff);
+    };
+    let georef = read_georef(&mut decoder)?;
+    let mut raster = match TiffLayout::of(&mut decoder)? {
+        Some(layout) if opts.band.is_some() || !layout.image_reads() => decode_band(decoder, layout, opts)?,
+        None if opts.band.is_some() => {
+            return Err(Error::Unsupported(format!(
+                "band {} asked for, but bands are read from gray, RGB(A) or multi-band TIFF only, not from {}",
+                opts.band.unwrap_or(1),
+                describe_colortype(&mut decoder)
+            )));
+        }
+        _ => decode_with_image(bytes, opts, ImageFormat::Tiff, InputFormat::Tiff)?,
+    };
+    raster.georef = (!georef.is_empty()).then_some(georef);
+    Ok(raster)
 }
 
-/// The gray sample layouts read here.
+/// The sample layouts decoded here.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum TiffGray {
+    U8,
+    U16,
     F16,
     F32,
     F64,
@@ -44,6 +66,8 @@ impl TiffGray {
     fn of(format: SampleFormat, bits: u8) -> Option<TiffGray> {
         use TiffGray::*;
         Some(match (format, bits) {
+            (SampleFormat::Uint, 8) => U8,
+            (SampleFormat::Uint, 16) => U16,
             (SampleFormat::IEEEFP, 16) => F16,
             (SampleFormat::IEEEFP, 32) => F32,
             (SampleFormat::IEEEFP, 64) => F64,
@@ -61,8 +85,8 @@ impl TiffGray {
     fn bytes(self) -> usize {
         use TiffGray::*;
         match self {
-            I8 => 1,
-            F16 | I16 => 2,
+            U8 | I8 => 1,
+            U16 | F16 | I16 => 2,
             F32 | U32 | I32 => 4,
             F64 | U64 | I64 => 8,
         }
@@ -75,71 +99,280 @@ impl TiffGray {
         let bits = (self.bytes() * 8) as u8;
         match self {
             F16 | F32 | F64 => SampleType::Float,
-            U32 | U64 => SampleType::Int { bits },
+            U8 | U16 | U32 | U64 => SampleType::Int { bits },
             I8 | I16 | I32 | I64 => SampleType::SignedInt { bits },
         }
     }
 }
 
-/// Decodes a gray TIFF whose samples `image` does not read. `Ok(None)`
-/// leaves the file to `image`: every other layout, and files whose header
-/// `tiff` cannot parse (`image` parses it with the same crate and reports
-/// the error as it always has).
-///
-/// Units (SPEC §1): floats as stored (a double beyond f32's range becomes
-/// ±inf, which [`Raster::heights`] rejects like any infinity); unsigned
-/// integers value / (2^bits − 1); signed integers value / (2^bits − 1) too
-/// (see [`SampleType::SignedInt`]). 64-bit integers are divided in f64, so
-/// they keep 53 bits before the f32 rounding.
-fn decode_tiff_gray(bytes: &[u8], opts: &ReadOptions) -> Result<Option<Raster>> {
-    let Ok(mut decoder) = tiff::decoder::Decoder::new(Cursor::new(bytes)) else { return Ok(None) };
-    let Ok(tiff::ColorType::Gray(bits)) = decoder.colortype() else { return Ok(None) };
-    let format = match decoder.find_tag_unsigned_vec::<u16>(Tag::SampleFormat) {
-        Ok(None) => SampleFormat::Uint,
-        Ok(Some(formats)) => match formats.first() {
-            Some(&f) => SampleFormat::from_u16_exhaustive(f),
-            None => return Ok(None),
-        },
-        Err(_) => return Ok(None),
-    };
-    let Some(kind) = TiffGray::of(format, bits) else { return Ok(None) };
+/// What a TIFF holds per texel, from its header: the colour type `tiff`
+/// makes of it, how many samples (bands) a texel has, their format and
+/// depth (one for all: `tiff` reads uniform samples only).
+#[derive(Clone, Copy, Debug)]
+struct TiffLayout {
+    color: tiff::ColorType,
+    bands: usize,
+    format: SampleFormat,
+    bits: u8,
+}
 
-    // From here on the file is ours: its errors are reported as such.
+impl TiffLayout {
+    /// The layout of a file whose bands can be read one by one: gray,
+    /// gray + alpha, RGB, RGBA, or multi-band (GDAL's several bands of
+    /// BlackIsZero). `None` for palette, CMYK, YCbCr, Lab and a colour type
+    /// `tiff` refuses: `image` reads or reports those.
+    fn of(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> Result<Option<TiffLayout>> {
+        use tiff::ColorType as C;
+        let Ok(color) = decoder.colortype() else { return Ok(None) };
+        let (bands, bits) = match color {
+            C::Gray(b) => (1, b),
+            C::GrayA(b) => (2, b),
+            C::RGB(b) => (3, b),
+            C::RGBA(b) => (4, b),
+            C::Multiband { bit_depth, num_samples } => (usize::from(num_samples), bit_depth),
+            _ => return Ok(None),
+        };
+        let format = match decoder.find_tag_unsigned_vec::<u16>(Tag::SampleFormat) {
+            Ok(None) => SampleFormat::Uint,
+            Ok(Some(formats)) => match formats.first() {
+                Some(&f) if formats.iter().all(|&g| g == f) => SampleFormat::from_u16_exhaustive(f),
+                Some(_) => {
+                    return Err(Error::Unsupported(format!(
+                        "bands of different sample formats ({formats:?}) are not read"
+                    )));
+                }
+                None => return Ok(None),
+            },
+            Err(_) => return Ok(None),
+        };
+        Ok(Some(TiffLayout { color, bands, format, bits }))
+    }
+
+    /// Whether `image` reads this layout (and did before bands were read
+    /// here, so those files keep its channels: luma of an RGB TIFF, alpha).
+    fn image_reads(&self) -> bool {
+        use tiff::ColorType as C;
+        matches!(
+            (self.color, self.format),
+            (C::Gray(1 | 8 | 16) | C::GrayA(8 | 16) | C::RGB(8 | 16) | C::RGBA(8 | 16), SampleFormat::Uint)
+                | (C::RGB(32) | C::RGBA(32), SampleFormat::IEEEFP)
+        )
+    }
+}
+
+/// How `tiff` names a colour type it reads no bands from, for the error.
+fn describe_colortype(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> String {
+    match decoder.colortype() {
+        Ok(color) => format!("{color:?}").to_lowercase(),
+        Err(e) => from_tiff_error(e).to_string(),
+    }
+}
+
+/// Decodes one band of a TIFF of any sample type read here: the band
+/// asked for ([`ReadOptions::band`], 1-based), else the first. Striped or
+/// tiled, chunky (bands interleaved per texel) or planar (one plane per
+/// band), every compression `tiff` reads.
+///
+/// Units (SPEC §1, and `docs/terrain.md`): floats as stored (a double
+/// beyond f32's range becomes ±inf, which [`Raster::heights`] rejects like
+/// any infinity); 8- and 16-bit unsigned integers kept as stored (height
+/// value / (2^bits − 1)); other unsigned integers value / (2^bits − 1) and
+/// signed integers value / (2^bits − 1) too (see
+/// [`SampleType::SignedInt`]), in f64, from which
+/// [`Raster::into_stored_heights`](super::Raster::into_stored_heights)
+/// gives the stored values back. 64-bit integers are divided in f64, so
+/// they keep 53 bits before the f32 rounding.
+fn decode_band(
+    mut decoder: tiff::decoder::Decoder<Cursor<&[u8]>>,
+    layout: TiffLayout,
+    opts: &ReadOptions,
+) -> Result<Raster> {
+    let Some(kind) = TiffGray::of(layout.format, layout.bits) else {
+        return Err(Error::Unsupported(format!(
+            "{}-bit {} samples are not read (8-, 16-, 32- and 64-bit integers, 16-, 32- and 64-bit floats are)",
+            layout.bits,
+            format_name(layout.format)
+        )));
+    };
+    let band = opts.band.unwrap_or(1);
+    let bands = layout.bands;
+    let index = usize::try_from(band).ok().and_then(|b| b.checked_sub(1)).filter(|&i| i < bands).ok_or_else(|| {
+        Error::Unsupported(format!("band {band} asked for, but the file has {bands} band{}", plural(bands)))
+    })?;
+
     let (width, height) = decoder.dimensions().map_err(from_tiff_error)?;
     check_size(u64::from(width), u64::from(height), opts)?;
     let texels = to_usize(u64::from(width) * u64::from(height))?;
-    let len = texels
-        .checked_mul(kind.bytes())
-        .ok_or_else(|| Error::Limits(format!("{texels} samples of {} bytes do not fit in memory", kind.bytes())))?;
-    let mut decoder = decoder.with_limits(tiff_limits(opts, kind));
-    let layout = decoder.image_buffer_layout().map_err(from_tiff_error)?;
-    if layout.planes != 1 || layout.complete_len != len {
-        return Err(Error::Decode(format!(
-            "tiff layout of {} bytes in {} planes does not match {width} × {height} {kind:?} samples",
-            layout.complete_len, layout.planes
-        )));
-    }
-    memory::check_memory("decoding", (len as u64).saturating_add(4 * texels as u64))?;
-    let mut buf = try_vec::<u8>(len)?;
-    buf.resize(len, 0);
-    decoder.read_image_bytes(&mut buf).map_err(from_tiff_error)?;
-    let data = tiff_samples(&buf, kind, texels)?;
-    Ok(Some(Raster {
+    let size = kind.bytes();
+    let too_big = || Error::Limits(format!("{texels} texels of {bands} samples of {size} bytes do not fit in memory"));
+    let plane = texels.checked_mul(size).ok_or_else(too_big)?;
+    let len = plane.checked_mul(bands).ok_or_else(too_big)?;
+    let planar =
+        bands > 1 && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
+    let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
+    let data = if planar {
+        // Only the band's own strips or tiles are read. The whole image's
+        // layout is asked for first: `tiff` checks the chunk geometry there.
+        decoder.image_buffer_layout().map_err(from_tiff_error)?;
+        memory::check_memory("decoding", (plane as u64).saturating_add(8 * texels as u64))?;
+        let buf = read_planar_band(&mut decoder, index, bands, (width, height), size)?;
+        tiff_samples(&buf, kind, texels, size)?
+    } else {
+        let buffer = decoder.image_buffer_layout().map_err(from_tiff_error)?;
+        if buffer.planes != 1 || buffer.complete_len != len {
+            return Err(Error::Decode(format!(
+                "tiff layout of {} bytes in {} planes does not match {width} × {height} texels of {bands} {kind:?} \
+                 samples",
+                buffer.complete_len, buffer.planes
+            )));
+        }
+        memory::check_memory("decoding", (len as u64).saturating_add(8 * texels as u64))?;
+        let mut buf = try_vec::<u8>(len)?;
+        buf.resize(len, 0);
+        decoder.read_image_bytes(&mut buf).map_err(from_tiff_error)?;
+        // Every `bands`-th sample from the band's own.
+        tiff_samples(&buf[index * size..], kind, texels, size * bands)?
+    };
+    Ok(Raster {
         width: to_usize(width.into())?,
         height: to_usize(height.into())?,
         format: InputFormat::Tiff,
         sample: kind.sample(),
         planes: vec![Plane { name: "Y".into(), data }],
-    }))
+        georef: None,
+    })
 }
 
-/// Limits handed to `tiff`: a decoded buffer may hold `max_texels` samples
-/// of this image's type and no more. The stored bytes of one strip or tile
+/// The samples of band `index` (0-based) of a planar TIFF, row-major,
+/// native-endian: its strips or tiles one by one, each copied to its place
+/// without the padding of the edge tiles.
+///
+/// Chunk by chunk, not `read_image_bytes`: besides reading one band of
+/// several, `tiff` 0.11 takes the padding of a tile of the second and later
+/// planes from its index across all planes, so a bottom-edge tile there
+/// counts as whole and the whole-image read overruns its buffer (an
+/// assertion, a panic). Each chunk's buffer here is as large as `tiff`
+/// says that chunk is, and only the rows and columns inside the image
+/// are copied, so the same mistake reads the tile's stored padding rows
+/// and drops them.
+fn read_planar_band(
+    decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>,
+    index: usize,
+    bands: usize,
+    (width, height): (u32, u32),
+    size: usize,
+) -> Result<Vec<u8>> {
+    let (w, h) = (to_usize(width.into())?, to_usize(height.into())?);
+    let total = match decoder.get_chunk_type() {
+        tiff::decoder::ChunkType::Tile => decoder.tile_count(),
+        tiff::decoder::ChunkType::Strip => decoder.strip_count(),
+    }
+    .map_err(from_tiff_error)?;
+    let total = to_usize(total.into())?;
+    // Checked by `tiff` when the image's layout was read (see the caller).
+    let (cw, ch) = decoder.chunk_dimensions();
+    let (cw, ch) = (to_usize(cw.into())?.max(1), to_usize(ch.into())?.max(1));
+    let (across, down) = (w.div_ceil(cw), h.div_ceil(ch));
+    let per_plane = across * down;
+    if total != per_plane * bands {
+        return Err(Error::Decode(format!(
+            "tiff has {total} strips or tiles, {bands} bands of {per_plane} each were expected"
+        )));
+    }
+    let mut out = try_vec::<u8>(w * h * size)?;
+    out.resize(w * h * size, 0);
+    let mut chunk = Vec::new();
+    for k in 0..per_plane {
+        let id = u32::try_from(index * per_plane + k).map_err(|_| Error::Limits("too many tiff chunks".into()))?;
+        let layout = decoder.image_chunk_buffer_layout(id).map_err(from_tiff_error)?;
+        chunk.clear();
+        chunk
+            .try_reserve_exact(layout.len)
+            .map_err(|_| Error::Limits(format!("{} bytes for a tiff chunk", layout.len)))?;
+        chunk.resize(layout.len, 0);
+        decoder.read_chunk_bytes(id, &mut chunk).map_err(from_tiff_error)?;
+        let (x0, y0) = ((k % across) * cw, (k / across) * ch);
+        let (cols, rows) = (cw.min(w - x0), ch.min(h - y0));
+        let stride = layout.row_stride.map_or(0, std::num::NonZeroUsize::get);
+        if stride < cols * size || layout.len < stride * (rows - 1) + cols * size {
+            return Err(Error::Decode(format!(
+                "tiff chunk {id} of {} bytes cannot hold its {cols} × {rows} texels",
+                layout.len
+            )));
+        }
+        for r in 0..rows {
+            let from = &chunk[r * stride..][..cols * size];
+            out[((y0 + r) * w + x0) * size..][..cols * size].copy_from_slice(from);
+        }
+    }
+    Ok(out)
+}
+
+/// "s" for counts other than one.
+fn plural(n: usize) -> &'static str {
+    if n == 1 { "" } else { "s" }
+}
+
+/// A TIFF sample format as messages name it.
+fn format_name(format: SampleFormat) -> String {
+    match format {
+        SampleFormat::Uint => "unsigned integer".into(),
+        SampleFormat::Int => "signed integer".into(),
+        SampleFormat::IEEEFP => "float".into(),
+        SampleFormat::Void => "untyped".into(),
+        other => format!("{other:?}").to_lowercase(),
+    }
+}
+
+/// The georeferencing tags of the first image, checked (a tag of the
+/// wrong length or a GDAL_NODATA that is not a number is an error: read
+/// wrong, it would silently misplace or misfit the terrain).
+fn read_georef(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> Result<Georef> {
+    let mut georef = Georef::default();
+    let doubles = |decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>, code: u16, name: &str| {
+        tag(decoder, code, name)?.map(|v| v.into_f64_vec().map_err(|e| tag_error(name, e))).transpose()
+    };
+    let scale = doubles(decoder, georef_tags::MODEL_PIXEL_SCALE, "ModelPixelScale")?;
+    let tiepoints = doubles(decoder, georef_tags::MODEL_TIEPOINT, "ModelTiepoint")?;
+    let transformation = doubles(decoder, georef_tags::MODEL_TRANSFORMATION, "ModelTransformation")?;
+    super::georef::apply_model_tags(&mut georef, scale, tiepoints, transformation)?;
+    if let Some(keys) = tag(decoder, georef_tags::GEO_KEY_DIRECTORY, "GeoKeyDirectory")? {
+        let keys = keys.into_u16_vec().map_err(|e| tag_error("GeoKeyDirectory", e))?;
+        super::georef::apply_key_directory(&mut georef, &keys)?;
+    }
+    if let Some(text) = tag(decoder, georef_tags::GDAL_NODATA, "GDAL_NODATA")? {
+        let text = text.into_string().map_err(|e| tag_error("GDAL_NODATA", e))?;
+        georef.nodata = Some(super::georef::parse_nodata(&text)?);
+    }
+    Ok(georef)
+}
+
+/// A tag's value, if present.
+fn tag(
+    decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>,
+    code: u16,
+    name: &str,
+) -> Result<Option<tiff::decoder::ifd::Value>> {
+    decoder.find_tag(Tag::from_u16_exhaustive(code)).map_err(|e| tag_error(name, e))
+}
+
+/// A tag that cannot be read, named.
+fn tag_error(name: &str, e: tiff::TiffError) -> Error {
+    let inner = from_tiff_error(e);
+    let text = match &inner {
+        Error::Decode(m) | Error::Unsupported(m) | Error::Limits(m) => m.clone(),
+        other => other.to_string(),
+    };
+    Error::Decode(format!("{name} tag: {text}"))
+}
+
+/// Limits handed to `tiff`: a decoded buffer may hold `max_texels` texels
+/// of this image's bands and type and no more. The stored bytes of one strip or tile
 /// are streamed from memory, not buffered, so their limit only refuses
 /// counts no honest file has: twice the decoded size (LZW, the worst
 /// expander, stays under 1.5×) plus 1 MiB.
-fn tiff_limits(opts: &ReadOptions, kind: TiffGray) -> tiff::decoder::Limits {
-    let decoded = u64::try_from(kind.bytes())
+fn tiff_limits(opts: &ReadOptions, kind: TiffGray, bands: usize) -> tiff::decoder::Limits {
+    let decoded = u64::try_from(kind.bytes() * bands)
         .ok()
         .and_then(|b| opts.max_texels.checked_mul(b))
         .and_then(|n| usize::try_from(n).ok())
@@ -150,12 +383,14 @@ fn tiff_limits(opts: &ReadOptions, kind: TiffGray) -> tiff::decoder::Limits {
     limits
 }
 
-/// Native-endian samples (as `tiff` leaves them) to samples the fit reads:
-/// floats as stored (half widened to `f32`), other integers as heights in
-/// contract units in f64.
-fn tiff_samples(buf: &[u8], kind: TiffGray, texels: usize) -> Result<Samples> {
+/// Native-endian samples (as `tiff` leaves them), one every `stride`
+/// bytes from the start of `buf`, to samples the fit reads: 8- and 16-bit
+/// unsigned integers as stored, floats as stored (half widened to `f32`),
+/// other integers as heights in contract units in f64.
+fn tiff_samples(buf: &[u8], kind: TiffGray, texels: usize, stride: usize) -> Result<Samples> {
     let size = kind.bytes();
-    if buf.len() != texels.saturating_mul(size) {
+    let needed = texels.checked_sub(1).map_or(0, |last| last.saturating_mul(stride).saturating_add(size));
+    if buf.len() < needed {
         return Err(Error::Decode(format!("decoder gave {} bytes for {texels} texels of {size} bytes", buf.len())));
     }
     fn ne<const N: usize>(p: &[u8]) -> [u8; N] {
@@ -164,10 +399,14 @@ fn tiff_samples(buf: &[u8], kind: TiffGray, texels: usize) -> Result<Samples> {
     // 2^32 − 1 and 2^64 − 1 (the latter rounds to 2^64 in f64).
     const U32_TOP: f64 = u32::MAX as f64;
     const U64_TOP: f64 = u64::MAX as f64;
-    let px = buf.par_chunks_exact(size);
+    // Every texel's sample starts a chunk of `stride` bytes (the last chunk
+    // may be shorter, but holds the sample).
+    let px = buf[..needed].par_chunks(stride);
     let f32s = |f: fn(&[u8]) -> f32| par_collect(texels, px.clone().map(f)).map(Samples::F32);
     let f64s = |f: fn(&[u8]) -> f64| par_collect(texels, px.clone().map(f)).map(Samples::F64);
     match kind {
+        TiffGray::U8 => par_collect(texels, px.clone().map(|p| p[0])).map(Samples::U8),
+        TiffGray::U16 => par_collect(texels, px.clone().map(|p| u16::from_ne_bytes(ne(p)))).map(Samples::U16),
         TiffGray::F16 => f32s(|p| exr::prelude::f16::from_bits(u16::from_ne_bytes(ne(p))).to_f32()),
         TiffGray::F32 => f32s(|p| f32::from_ne_bytes(ne(p))),
         TiffGray::F64 => f64s(|p| f64::from_ne_bytes(ne(p))),

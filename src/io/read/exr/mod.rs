@@ -48,7 +48,7 @@ pub(super) fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         .filter(|channel| choice.holds(&channel.name.to_string()))
         .map(|channel| exr_plane(channel, texels))
         .collect::<Result<Vec<_>>>()?;
-    Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
+    Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes, georef: None })
 }
 
 /// Decodes an EXR with subsampled channels, which the `exr` crate refuses
@@ -79,7 +79,7 @@ fn decode_exr_subsampled(
         }
     }
     let planes = planes.into_iter().map(|(name, data)| Plane { name, data: Samples::F64(data) }).collect();
-    Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes })
+    Ok(Raster { width, height, format: InputFormat::Exr, sample: SampleType::Float, planes, georef: None })
 }
 
 /// Which part of an OpenEXR file, and which of its channels, make the

@@ -117,6 +117,7 @@ fn decode_png(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         format: InputFormat::Png,
         sample,
         planes,
+        georef: None,
     })
 }
 
