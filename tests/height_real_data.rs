@@ -192,11 +192,18 @@ fn real_height_maps_come_back_through_the_fit() {
                 );
                 assert!(back.values.iter().all(|v| v.is_finite()));
                 // The vertical fit's inverse is a single exact solve: within
-                // 1e-4 of the range once the null space is taken out. (The
-                // orthogonal fit's iteration is printed, not held: it does
-                // not settle on every map, docs/height.md.)
-                if fit == Fit::Vertical && visible >= 1e-4 {
-                    missed.push(format!("{name} N {n} {border}: {visible:e}"));
+                // 1e-4 of the range once the null space is taken out. The
+                // orthogonal fit sees some of that null space (through the
+                // patches' roughness), and its Gauss–Newton steps bring it
+                // back where it does: within 1e-4 of the original itself,
+                // or of the original without its null space where the
+                // fixed point settled without them.
+                let held = if fit == Fit::Vertical { visible } else { visible.min(max) };
+                if held >= 1e-4 {
+                    missed.push(format!("{name} N {n} {fit} {border}: {held:e}"));
+                }
+                if fit == Fit::Orthogonal && !back.report.converged {
+                    missed.push(format!("{name} N {n} {fit} {border}: not settled"));
                 }
             }
         }

@@ -31,9 +31,14 @@
 //! The orthogonal fit's slopes are the vertical ones times A / (A − λ), λ
 //! depending on the heights: from the vertical solution, each step solves
 //! for the vertical slopes g · (A − λ(z)) / A, until those ratios stop
-//! changing ([`HeightOptions::tolerance`]); a step that makes them change
-//! more than the one before, three times running, stops the iteration with
-//! the best heights so far ([`HeightReport::converged`] false).
+//! changing ([`HeightOptions::tolerance`]); changes that keep growing stop
+//! the iteration with the best heights so far. Where it stopped so, or
+//! settled with the fit's equation still off by more than the input's
+//! precision (steep slopes, cliffs, or alternating heights that the
+//! orthogonal fit sees through the patches' roughness and the vertical
+//! fit does not), Gauss–Newton steps with the exact Jacobian finish it
+//! (`gauss_newton.rs`), preconditioned by the vertical fit's transform
+//! solve; [`HeightReport::converged`] says whether the heights settled.
 //!
 //! Heights come back as h = z / S, S the gain of [`HeightOptions::strength`]
 //! (with [`HeightOptions::invert`]), with mean 0 over the image: `convert
@@ -62,6 +67,7 @@
 //! derivative iω and no box, for normal maps that normalfit did not make
 //! (baked, scanned) or whose N is unknown.
 
+mod gauss_newton;
 mod iterative;
 mod solve;
 
@@ -323,7 +329,8 @@ pub struct HeightReport {
     pub curl: Option<[f64; 2]>,
     /// Texels with nz ≤ 0 or a non-finite component, taken as flat.
     pub bad_texels: usize,
-    /// Solves run (1 for the vertical fit's transforms).
+    /// Solves run (1 for the vertical fit's transforms; the orthogonal
+    /// fit's Gauss–Newton steps count one per inner iteration).
     pub iterations: usize,
     /// Whether the iteration (orthogonal fit, clamp with N ≥ 5) met its
     /// tolerance; always true for a single solve.

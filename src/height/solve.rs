@@ -68,6 +68,9 @@ type C = Complex<f64>;
 /// Fills row y's slopes (gx, gy).
 pub(crate) type SlopeRows<'a> = &'a (dyn Fn(usize, &mut [f64], &mut [f64]) + Sync);
 
+/// Fills the right-hand side's rows `rows` (w values each).
+type RhsRows<'a> = &'a (dyn Fn(std::ops::Range<usize>, &mut [f64]) + Sync);
+
 /// Below this, ux² + uy² is a zero of the response (a null mode), not a
 /// small one: rounding leaves the exact zeros at about 1e-32, while the
 /// lowest frequency of an image of 2^20 texels a side gives about 4e-11.
@@ -296,11 +299,36 @@ impl Solver {
     /// slopes are closest to the slopes `slopes(y, gx, gy)` fills for row
     /// y (gx = ∂z/∂x, gy = ∂z/∂y, y down), into `out` (w × h).
     pub fn solve(&self, slopes: SlopeRows<'_>, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
+        let fill = |rows: std::ops::Range<usize>, dst: &mut [f64]| {
+            if let Some(r) = self.radius {
+                self.right_hand_side(slopes, r, rows, dst);
+            }
+        };
         match self.radius {
-            Some(r) if self.x.ext == Extension::Whole => self.solve_real(slopes, r, lambda, out),
-            Some(r) => self.solve_complex(slopes, r, lambda, out),
+            Some(_) if self.x.ext == Extension::Whole => self.solve_real(&fill, lambda, None, out),
+            Some(_) => self.solve_complex(&fill, lambda, None, out),
             None => self.solve_two_planes(slopes, lambda, out),
         }
+    }
+
+    /// (DᵀD + λ + ε)⁻¹ b for a right-hand side `b` given on the texels
+    /// (w × h, as the least squares over the period see it), into `out`:
+    /// every frequency divided, the null modes by λ + ε alone. The
+    /// exact model's preconditioner for the orthogonal fit's Gauss–Newton
+    /// steps (`gauss_newton.rs`), whose operator does see some of the
+    /// vertical fit's null modes (through the patches' roughness).
+    ///
+    /// Errors: [`crate::Error::Limits`] when the plane's memory is not there.
+    pub fn inverse(&self, b: &[f64], lambda: f64, epsilon: f64, out: &mut [f64]) -> Result<()> {
+        let w = self.w;
+        let fill = |rows: std::ops::Range<usize>, dst: &mut [f64]| {
+            dst.copy_from_slice(&b[rows.start * w..rows.end * w]);
+        };
+        match self.radius {
+            Some(_) if self.x.ext == Extension::Whole => self.solve_real(&fill, lambda, Some(epsilon), out),
+            _ => self.solve_complex(&fill, lambda, Some(epsilon), out),
+        }
+        .map(|_| ())
     }
 
     /// The right-hand side of the normal equations, Dxᵀgx + Dyᵀgy, for the
@@ -359,11 +387,13 @@ impl Solver {
     /// 1/(ux² + uy² + λ) at column kxi, frequency ky (0 on the null
     /// modes), and its term of the noise gain's sum.
     #[inline]
-    fn inverse_response(&self, kxi: usize, ky: usize, lambda: f64) -> (f64, f64) {
+    fn inverse_response(&self, kxi: usize, ky: usize, lambda: f64, epsilon: Option<f64>) -> (f64, f64) {
         let ux = self.sx[kxi] * self.by[ky] / self.a;
         let uy = self.bx[kxi] * self.sy[ky] / self.a;
         let den = ux * ux + uy * uy;
-        if den <= NULL {
+        if let Some(e) = epsilon {
+            (1.0 / (den + lambda + e), 0.0)
+        } else if den <= NULL {
             (0.0, 0.0)
         } else {
             let scale = 1.0 / (den + lambda);
@@ -381,7 +411,13 @@ impl Solver {
     /// The exact model for an x of any extension: the right-hand side's
     /// rows → real FFT, one plane of complex spectra; columns: FFT, divided
     /// by the response, inverse FFT; rows: inverse real FFT.
-    fn solve_complex(&self, slopes: SlopeRows<'_>, r: usize, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
+    fn solve_complex(
+        &self,
+        fill: RhsRows<'_>,
+        lambda: f64,
+        epsilon: Option<f64>,
+        out: &mut [f64],
+    ) -> Result<SolveStats> {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let len = kx * h;
         let mut a: Vec<C> = try_vec(len)?;
@@ -391,7 +427,7 @@ impl Solver {
             let y0 = block * RHS_ROWS_PER_TASK;
             let rows = spectra.len() / kx;
             let mut rhs = vec![0.0; rows * w];
-            self.right_hand_side(slopes, r, y0..y0 + rows, &mut rhs);
+            fill(y0..y0 + rows, &mut rhs);
             let mut ext = self.r2c.make_input_vec();
             let mut scratch = self.r2c.make_scratch_vec();
             for (row, spectrum) in rhs.chunks(w).zip(spectra.chunks_mut(kx)) {
@@ -420,7 +456,7 @@ impl Solver {
                     self.forward.process_with_scratch(&mut ext, &mut scratch);
                     let mut column_noise = 0.0;
                     for (ky, e) in ext.iter_mut().enumerate() {
-                        let (scale, n) = self.inverse_response(kxi, ky, lambda);
+                        let (scale, n) = self.inverse_response(kxi, ky, lambda, epsilon);
                         *e *= scale;
                         column_noise += n;
                     }
@@ -440,7 +476,7 @@ impl Solver {
     /// The exact model for a mirrored x: the right-hand side is even along
     /// x, so its rows' spectra are real (the type-I cosine transform), one
     /// plane of f64, and the columns real FFTs.
-    fn solve_real(&self, slopes: SlopeRows<'_>, r: usize, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
+    fn solve_real(&self, fill: RhsRows<'_>, lambda: f64, epsilon: Option<f64>, out: &mut [f64]) -> Result<SolveStats> {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let len = kx * h;
         let mut a: Vec<f64> = try_vec(len)?;
@@ -450,7 +486,7 @@ impl Solver {
             let y0 = block * RHS_ROWS_PER_TASK;
             let rows = spectra.len() / kx;
             let mut rhs = vec![0.0; rows * w];
-            self.right_hand_side(slopes, r, y0..y0 + rows, &mut rhs);
+            fill(y0..y0 + rows, &mut rhs);
             let mut ext = self.r2c.make_input_vec();
             let mut spectrum = self.r2c.make_output_vec();
             let mut scratch = self.r2c.make_scratch_vec();
@@ -482,7 +518,7 @@ impl Solver {
                     let _ = self.column_r2c.process_with_scratch(&mut ext, &mut spectrum, &mut scratch);
                     let mut column_noise = 0.0;
                     for ky in 0..p {
-                        let (scale, n) = self.inverse_response(kxi, ky, lambda);
+                        let (scale, n) = self.inverse_response(kxi, ky, lambda, epsilon);
                         if let Some(e) = spectrum.get_mut(ky) {
                             *e *= scale;
                         }
