@@ -9,7 +9,8 @@
 //!
 //! * the output's [`Encoding`], from the output's name, the options and the
 //!   input ([`OutputFormat::choose`], [`Encoding::choose`]);
-//! * streaming or whole: PNG and scan-line EXR files stream through
+//! * streaming or whole: PNG, scan-line EXR and the TIFF bands the `tiff`
+//!   crate reads (GeoTIFF elevation) stream through
 //!   [`crate::pipeline`] (memory grows with the width, not the height),
 //!   unless a residual is asked for, which is made from the whole image;
 //!   both give the same bytes;
@@ -53,6 +54,8 @@ use crate::io::{
     self, Channel, Encoding, ExrDepth, ExrOptions, InputFormat, Layout, OutputFormat, PngCompression, PngDepth,
     PngOptions, Raster, ReadOptions, SampleType,
 };
+#[cfg(feature = "tiff")]
+use crate::pipeline::TiffRows;
 use crate::pipeline::{self, ExrRows, PngRows, RowSource};
 use crate::samples::try_vec;
 use crate::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport};
@@ -497,6 +500,16 @@ impl Conversion {
                     SampleType::Float,
                 ));
             }
+            #[cfg(feature = "tiff")]
+            if let Some(rows) = TiffRows::open(path, &self.read, self.channel.clone()).map_err(&fail)? {
+                let sample = rows.sample();
+                return Ok(self.opened(
+                    Some(path),
+                    Source::Tiff(Box::new(rows), path.to_path_buf()),
+                    InputFormat::Tiff,
+                    sample,
+                ));
+            }
         }
         let (path, raster) = match input {
             Input::Path(path) => (Some(path), io::read_path(path, &self.read).map_err(&fail)?),
@@ -569,6 +582,9 @@ enum Source {
     Png(Box<PngRows>, PathBuf),
     /// A scan-line EXR file that streams, and its path.
     Exr(Box<ExrRows>, PathBuf),
+    /// A TIFF band that streams, and its path.
+    #[cfg(feature = "tiff")]
+    Tiff(Box<TiffRows>, PathBuf),
     /// A decoded image, boxed for the same reason in reverse: a GeoTIFF's
     /// georeferencing makes a raster several times a decoder's box.
     Whole(Box<Raster>),
@@ -663,6 +679,8 @@ impl Opened {
             }
             (Source::Png(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
             (Source::Exr(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
+            #[cfg(feature = "tiff")]
+            (Source::Tiff(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
         }
         Ok(job.summary)
     }
@@ -1136,6 +1154,17 @@ impl Reopen for PngRows {
     fn last_rows(_: &Path, _: &ReadOptions, _: Option<Channel>, _: usize) -> Option<Result<Vec<f64>>> {
         // PNG cannot seek: its last rows come from a pass over the file.
         None
+    }
+}
+
+#[cfg(feature = "tiff")]
+impl Reopen for TiffRows {
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<Self>> {
+        TiffRows::open(path, opts, channel)
+    }
+
+    fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Option<Result<Vec<f64>>> {
+        Some(TiffRows::last_rows(path, opts, channel, rows))
     }
 }
 
