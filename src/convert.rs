@@ -348,6 +348,10 @@ pub struct Summary {
     pub tiling: Option<TilingReport>,
     /// The warnings, in order.
     pub warnings: Vec<Warning>,
+    /// The georeferencing files written beside a PNG normal map of a
+    /// GeoTIFF ([`io::sidecar`]): its world file, and its `.aux.xml` when
+    /// the GeoTIFF names an EPSG code.
+    pub sidecars: Vec<PathBuf>,
 }
 
 /// Every choice of a conversion. The defaults are the contract's: the
@@ -669,7 +673,19 @@ impl Opened {
                 streamed: false,
                 tiling: None,
                 warnings: Vec::new(),
+                sidecars: Vec::new(),
             },
+        };
+        let georef = match &source {
+            Source::Whole(raster) => raster.georef.clone(),
+            #[cfg(feature = "tiff")]
+            Source::Tiff(rows, _) => rows.georef().cloned(),
+            _ => None,
+        };
+        // Beside a PNG file: GDAL reads no EXR here, and a writer has no name.
+        let sidecar_of = match (&normals, encoding) {
+            (Some(Output::File { path, .. }), Encoding::Png(_)) => georef.map(|g| (path.to_path_buf(), g)),
+            _ => None,
         };
         match (source, normals) {
             (Source::Whole(raster), normals) => job.whole(*raster, normals, residual)?,
@@ -681,6 +697,10 @@ impl Opened {
             (Source::Exr(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
             #[cfg(feature = "tiff")]
             (Source::Tiff(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
+        }
+        if let Some((path, georef)) = sidecar_of {
+            job.summary.sidecars =
+                io::sidecar::write_sidecars(&path, &georef).map_err(ConvertError::at(Place::Output))?;
         }
         Ok(job.summary)
     }

@@ -25,7 +25,7 @@ use std::path::Path;
 use crate::convert::{BorderChoices, Warning};
 use crate::error::{Error, Result};
 use crate::fit::checked_len;
-use crate::io::{self, Channel, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
+use crate::io::{self, Affine, Channel, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
 use crate::options::{Convention, Options};
 use crate::tiling::{self, ImageKind, KindChoice, TilingOptions};
 
@@ -125,22 +125,150 @@ pub fn shade(
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    let [lx, ly, lz] = light.direction();
-    // Flipping the light's y is the same as flipping every normal's y.
-    let ly = match convention {
-        Convention::OpenGl => ly,
-        Convention::DirectX => -ly,
-    };
-    Ok(normals
-        .iter()
-        .map(|n| {
-            let [x, y, z] = n.map(f64::from);
-            let len = (x * x + y * y + z * z).sqrt();
-            let cos = if len > 0.0 && len.is_finite() { (x * lx + y * ly + z * lz) / len } else { lz };
-            let value = AMBIENT + (1.0 - AMBIENT) * cos.max(0.0);
-            (value * 255.0).round() as u8
-        })
-        .collect())
+    Ok(shade_with(normals, Lamp::light(light, convention)))
+}
+
+/// The hillshade of `normals` under `sun`, as `gdaldem hillshade` draws it:
+/// 1 + 254 · max(0, n · L), rounded, so 1 is full shadow (gdaldem keeps 0
+/// for nodata). North, for the sun's azimuth, is found from `affine`, the
+/// raster's georeferencing (up the image when there is none, or for a
+/// north-up raster). `normals` and the errors as [`shade`].
+///
+/// ```
+/// use normalfit::{shade::{shade_sun, Sun}, Convention};
+/// let flat = vec![[0.0f32, 0.0, 1.0]; 4];
+/// // sin 45° = 0.7071: 1 + 254 · 0.7071 = 180.6.
+/// assert_eq!(shade_sun(&flat, 2, 2, Sun::default(), None, Convention::OpenGl).unwrap(), [181; 4]);
+/// ```
+pub fn shade_sun(
+    normals: &[[f32; 3]],
+    width: usize,
+    height: usize,
+    sun: Sun,
+    affine: Option<&Affine>,
+    convention: Convention,
+) -> Result<Vec<u8>> {
+    let len = checked_len(width, height)?;
+    if normals.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: normals.len() });
+    }
+    Ok(shade_with(normals, Lamp::sun(sun, affine, convention)))
+}
+
+/// Every texel's grey under `lamp`.
+fn shade_with(normals: &[[f32; 3]], lamp: Lamp) -> Vec<u8> {
+    normals.iter().map(|&n| lamp.grey(n)).collect()
+}
+
+/// A light resolved for one image: its direction in the fit's frame
+/// (DirectX's y already flipped) and how n · L becomes a grey.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Lamp {
+    direction: [f64; 3],
+    /// gdaldem's scale (1 + 254 · cos) rather than the texture view's
+    /// ambient share.
+    gis: bool,
+}
+
+impl Lamp {
+    /// The texture view's light.
+    fn light(light: Light, convention: Convention) -> Lamp {
+        Lamp { direction: flip_y(light.direction(), convention), gis: false }
+    }
+
+    /// The GIS sun over a raster placed by `affine`.
+    pub(crate) fn sun(sun: Sun, affine: Option<&Affine>, convention: Convention) -> Lamp {
+        Lamp { direction: flip_y(sun.direction(affine), convention), gis: true }
+    }
+
+    /// The grey of a texel whose normal is `n` (normalised here; a zero
+    /// or non-finite one is taken as flat).
+    pub(crate) fn grey(&self, n: [f32; 3]) -> u8 {
+        let [lx, ly, lz] = self.direction;
+        let [x, y, z] = n.map(f64::from);
+        let len = (x * x + y * y + z * z).sqrt();
+        let cos = if len > 0.0 && len.is_finite() { (x * lx + y * ly + z * lz) / len } else { lz };
+        if self.gis {
+            (1.0 + 254.0 * cos.max(0.0)).round() as u8
+        } else {
+            ((AMBIENT + (1.0 - AMBIENT) * cos.max(0.0)) * 255.0).round() as u8
+        }
+    }
+}
+
+/// Flipping the light's y is the same as flipping every DirectX normal's.
+fn flip_y([x, y, z]: [f64; 3], convention: Convention) -> [f64; 3] {
+    match convention {
+        Convention::OpenGl => [x, y, z],
+        Convention::DirectX => [x, -y, z],
+    }
+}
+
+/// The sun as GIS tools give it (`gdaldem hillshade -az -alt`): the
+/// azimuth in degrees clockwise from north (0 north, 90 east, 315
+/// north-west), the altitude in degrees above the horizon.
+///
+/// ```
+/// use normalfit::shade::Sun;
+/// let sun = Sun::default();
+/// assert_eq!((sun.azimuth_deg, sun.altitude_deg), (315.0, 45.0));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sun {
+    /// Degrees clockwise from north. Default: 315 (north-west).
+    pub azimuth_deg: f64,
+    /// Degrees above the horizon, 90 = overhead. Default: 45.
+    pub altitude_deg: f64,
+}
+
+impl Default for Sun {
+    /// gdaldem's: 315°, 45°.
+    fn default() -> Self {
+        Sun { azimuth_deg: 315.0, altitude_deg: 45.0 }
+    }
+}
+
+impl Sun {
+    /// A sun at `azimuth_deg` (clockwise from north), `altitude_deg` above
+    /// the horizon.
+    ///
+    /// Errors: [`Error::InvalidOption`] for a non-finite azimuth or an
+    /// altitude outside 0 to 90 degrees.
+    pub fn new(azimuth_deg: f64, altitude_deg: f64) -> Result<Sun> {
+        if !azimuth_deg.is_finite() {
+            return Err(Error::InvalidOption(format!(
+                "the sun's azimuth must be a finite number of degrees, got {azimuth_deg}"
+            )));
+        }
+        if !(0.0..=90.0).contains(&altitude_deg) {
+            return Err(Error::InvalidOption(format!(
+                "the sun's altitude must be from 0 to 90 degrees, got {altitude_deg}"
+            )));
+        }
+        Ok(Sun { azimuth_deg, altitude_deg })
+    }
+
+    /// The unit vector towards the sun in the OpenGL tangent frame of a
+    /// raster placed by `affine` (+x along a row, +y up the image, +z up).
+    /// The sun's horizontal direction in map coordinates, (sin az, cos az)
+    /// east and north, is projected on the raster's axes: a column step
+    /// (a, d) and a step up the image (−b, −e), each made unit. A north-up
+    /// raster (b = d = 0, e < 0), and a raster without georeferencing,
+    /// give (cos alt · sin az, cos alt · cos az, sin alt).
+    #[must_use]
+    pub fn direction(self, affine: Option<&Affine>) -> [f64; 3] {
+        let (az, alt) = (self.azimuth_deg.to_radians(), self.altitude_deg.to_radians());
+        let (east, north) = (az.sin(), az.cos());
+        let unit = |x: f64, y: f64| {
+            let l = x.hypot(y);
+            if l > 0.0 && l.is_finite() { (x / l, y / l) } else { (0.0, 0.0) }
+        };
+        let ((xe, xn), (ye, yn)) = match affine {
+            Some(t) => (unit(t.a, t.d), unit(-t.b, -t.e)),
+            None => ((1.0, 0.0), (0.0, 1.0)),
+        };
+        [alt.cos() * (east * xe + north * xn), alt.cos() * (east * ye + north * yn), alt.sin()]
+    }
 }
 
 /// `pixels` (one byte a texel, `width * height`, row-major) repeated 2×2:
@@ -252,6 +380,20 @@ mod tests {
     }
 }
 
+/// When [`lit_view`] lights an image with the GIS sun ([`shade_sun`],
+/// gdaldem's convention) rather than the texture view's light ([`shade`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum SunChoice {
+    /// Never: the light for every image.
+    Off,
+    /// For georeferenced images (a GeoTIFF with a transform), north from
+    /// their transform; the light for the others. The default.
+    Georeferenced(Sun),
+    /// For every image; north is up the image where there is no transform.
+    Always(Sun),
+}
+
 /// What [`lit_view`] does with an image.
 #[derive(Clone, Debug)]
 #[non_exhaustive]
@@ -262,8 +404,11 @@ pub struct LitOptions {
     pub fit: Options,
     /// The border modes for height maps, fixed or `auto`.
     pub borders: BorderChoices,
-    /// The light.
+    /// The light of the texture view, for inputs the sun does not light.
     pub light: Light,
+    /// When the GIS sun lights the image instead ([`shade_sun`]).
+    /// Default: [`SunChoice::Georeferenced`] with [`Sun::default`].
+    pub sun: SunChoice,
     /// Repeat the picture 2×2, so seams show.
     pub tile: bool,
     /// Whether the image is a normal or a height map (detected by default).
@@ -281,6 +426,7 @@ impl Default for LitOptions {
             borders: fit.borders.into(),
             fit,
             light: Light::default(),
+            sun: SunChoice::Georeferenced(Sun::default()),
             tile: false,
             kind: KindChoice::Auto,
             channel: None,
@@ -312,11 +458,32 @@ impl LitOptions {
         self
     }
 
-    /// With this light.
+    /// With this light, for every input (the sun off: a light given is
+    /// the texture view's).
     #[must_use]
     pub fn with_light(mut self, light: Light) -> LitOptions {
         self.light = light;
+        self.sun = SunChoice::Off;
         self
+    }
+
+    /// With this choice of sun.
+    #[must_use]
+    pub fn with_sun(mut self, sun: SunChoice) -> LitOptions {
+        self.sun = sun;
+        self
+    }
+
+    /// The lamp for an image placed by `georef` (none: not georeferenced),
+    /// in the fit's convention.
+    pub(crate) fn lamp(&self, georef: Option<&crate::io::Georef>) -> Lamp {
+        let affine = georef.and_then(crate::io::Georef::affine);
+        let convention = self.fit.convention;
+        match self.sun {
+            SunChoice::Always(sun) => Lamp::sun(sun, affine.as_ref(), convention),
+            SunChoice::Georeferenced(sun) if affine.is_some() => Lamp::sun(sun, affine.as_ref(), convention),
+            _ => Lamp::light(self.light, convention),
+        }
     }
 
     /// Tiled 2×2 (`true`) or not.
@@ -374,7 +541,8 @@ impl LitView {
     }
 }
 
-/// The lit picture of a decoded image: a normal map's colours read back
+/// The lit picture of a decoded image (lit by the sun or the light as
+/// [`LitOptions::sun`] says): a normal map's colours read back
 /// ([`crate::normal_map::decode`]), or a height map's normals fitted with
 /// `opts.fit` (`auto` borders and the warning about a wrap that draws a
 /// seam from the tiling check, as a conversion does); then lit in the frame
@@ -407,7 +575,12 @@ pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
             crate::normals(&heights, w, h, &fit)?
         }
     };
-    let lit = shade(&normals, w, h, opts.light, opts.fit.convention)?;
+    let lamp = opts.lamp(raster.georef.as_ref());
+    let len = checked_len(w, h)?;
+    if normals.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: normals.len() });
+    }
+    let lit = shade_with(&normals, lamp);
     let (pixels, width, height) = if opts.tile { (tile_2x2(&lit, w, h)?, 2 * w, 2 * h) } else { (lit, w, h) };
     Ok(LitView { pixels, width, height, kind, warnings })
 }
