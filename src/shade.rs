@@ -20,12 +20,12 @@
 //! writes it as a gray PNG.
 
 use std::io::{Seek, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::convert::{BorderChoices, Warning};
 use crate::error::{Error, Result};
 use crate::fit::checked_len;
-use crate::io::{self, Affine, Channel, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
+use crate::io::{self, Affine, Channel, Georef, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
 use crate::options::{Convention, Options};
 use crate::tiling::{self, ImageKind, KindChoice, TilingOptions};
 
@@ -529,6 +529,9 @@ pub struct LitView {
     pub kind: ImageKind,
     /// For a height map, the warning about a wrap that draws a seam.
     pub warnings: Vec<Warning>,
+    /// The georeferencing of the image (a GeoTIFF's), which the picture
+    /// keeps when it is not tiled: [`LitView::write_file`] writes it beside.
+    pub georef: Option<Georef>,
 }
 
 impl LitView {
@@ -538,6 +541,19 @@ impl LitView {
     pub fn encode(&self, out: impl Write + Seek) -> Result<()> {
         let encoding = PngOptions::new(PngDepth::Eight).with_compression(PngCompression::Default).into();
         io::encode_gray(&self.pixels, self.width, self.height, &encoding, out)
+    }
+
+    /// Writes the picture to the file `path` ([`LitView::encode`], whole or
+    /// not at all), and beside it the georeferencing sidecars
+    /// ([`io::sidecar`]) when it has any. Returns the sidecars written.
+    ///
+    /// Errors: those of [`LitView::encode`] and of writing the files.
+    pub fn write_file(&self, path: &Path) -> Result<Vec<PathBuf>> {
+        io::write_file_atomically(path, |out| self.encode(out))?;
+        match &self.georef {
+            Some(georef) => io::sidecar::write_sidecars(path, georef),
+            None => Ok(Vec::new()),
+        }
     }
 }
 
@@ -582,7 +598,8 @@ pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
     }
     let lit = shade_with(&normals, lamp);
     let (pixels, width, height) = if opts.tile { (tile_2x2(&lit, w, h)?, 2 * w, 2 * h) } else { (lit, w, h) };
-    Ok(LitView { pixels, width, height, kind, warnings })
+    let georef = if opts.tile { None } else { raster.georef.clone() };
+    Ok(LitView { pixels, width, height, kind, warnings, georef })
 }
 
 /// [`lit_view`] of the image at `path`.
@@ -590,4 +607,71 @@ pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
 /// Errors: those of [`io::read_path`] and [`lit_view`].
 pub fn lit_view_of_file(path: &Path, read: &ReadOptions, opts: &LitOptions) -> Result<LitView> {
     lit_view(&io::read_path(path, read)?, opts)
+}
+
+/// What [`lit_file_streamed`] did.
+#[derive(Clone, Debug)]
+#[non_exhaustive]
+pub struct LitStreamed {
+    /// Columns of the picture.
+    pub width: usize,
+    /// Rows of the picture.
+    pub height: usize,
+    /// The warning about a wrap that draws a seam, if any.
+    pub warnings: Vec<Warning>,
+    /// The georeferencing sidecars written beside the picture.
+    pub sidecars: Vec<PathBuf>,
+}
+
+/// The lit view of the height map at `input`, written to the PNG file
+/// `output` without holding the image, when it can stream: a TIFF band the
+/// `tiff` crate reads (GeoTIFF elevation: float, signed or 32-bit
+/// samples, or any TIFF with [`ReadOptions::band`]), fixed borders, not
+/// tiled, not a normal map, no channel. `Ok(None)` otherwise, with nothing
+/// written: [`lit_view_of_file`] then does it whole. The picture is
+/// [`lit_view`]'s, grey for grey; the sidecars as [`LitView::write_file`]
+/// writes them. Memory: a few bands of rows (see [`crate::pipeline`]).
+///
+/// Errors: those of reading the input and of the fit;
+/// [`Error::InvalidOption`] if `output` is `input`; [`Error::Io`] when
+/// writing fails (the output is then not there).
+#[cfg(feature = "tiff")]
+pub fn lit_file_streamed(
+    input: &Path,
+    read: &ReadOptions,
+    opts: &LitOptions,
+    output: &Path,
+) -> Result<Option<LitStreamed>> {
+    use crate::pipeline::{RowSource, TiffRows};
+    let Ok(borders) = opts.borders.fixed() else { return Ok(None) };
+    if opts.tile || opts.signed || opts.kind == KindChoice::Normal || opts.channel.is_some() {
+        return Ok(None);
+    }
+    let Some(rows) = TiffRows::open(input, read, None)? else { return Ok(None) };
+    if crate::convert::same_file(input, output) {
+        return Err(Error::InvalidOption(
+            "the output is the input (or a link to it): normalfit never writes over an input".into(),
+        ));
+    }
+    let (width, height) = (rows.width(), rows.height());
+    let georef = rows.georef().cloned();
+    let lamp = opts.lamp(georef.as_ref());
+    let fit = opts.fit.clone().with_borders(borders);
+    let mut seams = if opts.borders.needs_check() { tiling::HeightSeams::new(width, height).ok() } else { None };
+    let visit = |row: &[f32]| {
+        if let Some(s) = seams.as_mut() {
+            let _ = s.push_row(row);
+        }
+    };
+    io::write_file_atomically(output, |file| crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file))?;
+    let mut warnings = Vec::new();
+    if let Some(seams) = seams {
+        let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?;
+        warnings.extend(opts.borders.seams(&report));
+    }
+    let sidecars = match &georef {
+        Some(georef) => io::sidecar::write_sidecars(output, georef)?,
+        None => Vec::new(),
+    };
+    Ok(Some(LitStreamed { width, height, warnings, sidecars }))
 }

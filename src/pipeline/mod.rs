@@ -42,6 +42,8 @@ use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 pub use self::exr::{ExrRows, convert_exr};
+#[cfg(feature = "tiff")]
+pub(crate) use self::png::shade_png_seekable;
 pub use self::png::{PngRows, convert_png, convert_png_seekable};
 #[cfg(feature = "tiff")]
 pub use self::tiff::TiffRows;

@@ -321,6 +321,56 @@ pub fn convert_png_seekable<W: Write + Seek>(
     Ok(())
 }
 
+/// The lit view of the rows of `rows` (see [`crate::shade`]): the fit's
+/// normals lit by `lamp`, an 8-bit gray PNG written to `out` in one pass,
+/// the top rows last as [`convert_png_seekable`] writes them. The grey of
+/// every texel is the whole-image view's.
+#[cfg(feature = "tiff")]
+pub(crate) fn shade_png_seekable<W: Write + Seek>(
+    rows: impl RowSource,
+    opts: &Options,
+    lamp: crate::shade::Lamp,
+    visit: impl FnMut(&[f32]) + Send,
+    out: &mut W,
+) -> Result<()> {
+    let start = out.stream_position()?;
+    let first_idat = convert_as(rows, None, opts, visit, out, (PngCompression::Default, true), LitTexels { lamp })?;
+    let end = out.stream_position()?;
+    out.seek(std::io::SeekFrom::Start(start + HEADER_BYTES))?;
+    write_chunk(out, b"IDAT", &first_idat)?;
+    out.seek(std::io::SeekFrom::Start(end))?;
+    out.flush()?;
+    Ok(())
+}
+
+/// Normals lit by a lamp: one gray byte a texel.
+#[cfg(feature = "tiff")]
+struct LitTexels {
+    lamp: crate::shade::Lamp,
+}
+
+#[cfg(feature = "tiff")]
+impl PngTexels for LitTexels {
+    type Normal = [f32; 3];
+    fn bits(&self) -> u8 {
+        8
+    }
+    fn samples(&self) -> usize {
+        1
+    }
+    fn needs_heights(&self) -> bool {
+        false
+    }
+    fn raw<'a>(&self, normals: &'a mut [[f32; 3]], _: &[f32]) -> Cow<'a, [u8]> {
+        let lamp = self.lamp;
+        let mut grey = vec![0u8; normals.len()];
+        grey.par_chunks_mut(1 << 14)
+            .zip(normals.par_chunks(1 << 14))
+            .for_each(|(g, n)| g.iter_mut().zip(n).for_each(|(g, &n)| *g = lamp.grey(n)));
+        Cow::Owned(grey)
+    }
+}
+
 /// Bytes of the PNG signature (8) and the IHDR chunk (25), after which the
 /// first IDAT chunk starts.
 const HEADER_BYTES: u64 = 8 + 25;
@@ -608,9 +658,13 @@ fn write_signature_and_header<W: Write + ?Sized>(
     let mut ihdr = Vec::with_capacity(13);
     ihdr.extend_from_slice(&w.to_be_bytes());
     ihdr.extend_from_slice(&h.to_be_bytes());
-    // Bit depth, colour type (2: RGB, 6: RGBA), deflate, adaptive
+    // Bit depth, colour type (0: gray, 2: RGB, 6: RGBA), deflate, adaptive
     // filtering, no interlace.
-    let color_type = if samples == 4 { 6 } else { 2 };
+    let color_type = match samples {
+        1 => 0,
+        4 => 6,
+        _ => 2,
+    };
     ihdr.extend_from_slice(&[bits, color_type, 0, 0, 0]);
     write_chunk(out, b"IHDR", &ihdr)
 }
