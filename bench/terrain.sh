@@ -58,11 +58,13 @@ row() {
 slope="gdaldem slope -q $dem $work/slope.tif"
 hillshade="gdaldem hillshade -q $dem $work/hillshade.tif"
 row "convert -s 0.1 --border clamp → 8-bit PNG" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --border clamp --bits 8
+row "convert -s 0.1 --border clamp → 16-bit PNG (the default for float input)" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --border clamp
 row "convert -s 0.1 --border clamp → float EXR" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.exr" -s 0.1 --border clamp
 row "convert -s 0.1 (wrap, the default) → 8-bit PNG" "slope" "$slope" \
-  "$bin" convert "$dem" -o "$work/n.png" -s 0.1
+  "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --bits 8
 row "shade -s 0.1 --border clamp (sun 315°, 45°)" "hillshade" "$hillshade" \
   "$bin" shade "$dem" -o "$work/lit.png" -s 0.1 --border clamp
 echo
