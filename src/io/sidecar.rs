@@ -5,7 +5,7 @@
 //! * The world file (`<stem>.pgw` beside a PNG: the extension's first and
 //!   last letters and `w`, as GDAL looks for it) holds six lines: x per
 //!   column, y per column, x per row, y per row (a, d, b, e of
-//!   [`Affine`]), then the model x and y of the *centre* of the top-left
+//!   [`Affine`](super::read::Affine)), then the model x and y of the *centre* of the top-left
 //!   texel. The centre is raster point (0.5, 0.5) of a PixelIsArea
 //!   GeoTIFF (GeoTIFF's default; the tiepoint names a texel's corner) and
 //!   (0, 0) of a PixelIsPoint one (the tiepoint names its centre). GDAL
