@@ -9,7 +9,8 @@
 //!
 //! * the output's [`Encoding`], from the output's name, the options and the
 //!   input ([`OutputFormat::choose`], [`Encoding::choose`]);
-//! * streaming or whole: PNG and scan-line EXR files stream through
+//! * streaming or whole: PNG, scan-line EXR and the TIFF bands the `tiff`
+//!   crate reads (GeoTIFF elevation) stream through
 //!   [`crate::pipeline`] (memory grows with the width, not the height),
 //!   unless a residual is asked for, which is made from the whole image;
 //!   both give the same bytes;
@@ -53,6 +54,8 @@ use crate::io::{
     self, Channel, Encoding, ExrDepth, ExrOptions, InputFormat, Layout, OutputFormat, PngCompression, PngDepth,
     PngOptions, Raster, ReadOptions, SampleType,
 };
+#[cfg(feature = "tiff")]
+use crate::pipeline::TiffRows;
 use crate::pipeline::{self, ExrRows, PngRows, RowSource};
 use crate::samples::try_vec;
 use crate::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport};
@@ -346,6 +349,10 @@ pub struct Summary {
     pub tiling: Option<TilingReport>,
     /// The warnings, in order.
     pub warnings: Vec<Warning>,
+    /// The georeferencing files written beside a PNG normal map of a
+    /// GeoTIFF ([`io::sidecar`]): its world file, and its `.aux.xml` when
+    /// the GeoTIFF names an EPSG code.
+    pub sidecars: Vec<PathBuf>,
 }
 
 /// Every choice of a conversion. The defaults are the contract's: the
@@ -515,6 +522,16 @@ impl Conversion {
                     SampleType::Float,
                 ));
             }
+            #[cfg(feature = "tiff")]
+            if let Some(rows) = TiffRows::open(path, &self.read, self.channel.clone()).map_err(&fail)? {
+                let sample = rows.sample();
+                return Ok(self.opened(
+                    Some(path),
+                    Source::Tiff(Box::new(rows), path.to_path_buf()),
+                    InputFormat::Tiff,
+                    sample,
+                ));
+            }
         }
         let (path, raster) = match input {
             Input::Path(path) => (Some(path), io::read_path(path, &self.read).map_err(&fail)?),
@@ -587,6 +604,9 @@ enum Source {
     Png(Box<PngRows>, PathBuf),
     /// A scan-line EXR file that streams, and its path.
     Exr(Box<ExrRows>, PathBuf),
+    /// A TIFF band that streams, and its path.
+    #[cfg(feature = "tiff")]
+    Tiff(Box<TiffRows>, PathBuf),
     /// A decoded image, boxed for the same reason in reverse: a GeoTIFF's
     /// georeferencing makes a raster several times a decoder's box.
     Whole(Box<Raster>),
@@ -671,7 +691,19 @@ impl Opened {
                 streamed: false,
                 tiling: None,
                 warnings: Vec::new(),
+                sidecars: Vec::new(),
             },
+        };
+        let georef = match &source {
+            Source::Whole(raster) => raster.georef.clone(),
+            #[cfg(feature = "tiff")]
+            Source::Tiff(rows, _) => rows.georef().cloned(),
+            _ => None,
+        };
+        // Beside a PNG file: GDAL reads no EXR here, and a writer has no name.
+        let sidecar_of = match (&normals, encoding) {
+            (Some(Output::File { path, .. }), Encoding::Png(_)) => georef.map(|g| (path.to_path_buf(), g)),
+            _ => None,
         };
         match (source, normals) {
             (Source::Whole(raster), normals) => job.whole(*raster, normals, residual)?,
@@ -681,6 +713,12 @@ impl Opened {
             }
             (Source::Png(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
             (Source::Exr(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
+            #[cfg(feature = "tiff")]
+            (Source::Tiff(rows, input), Some(out)) => job.streaming(*rows, &input, out)?,
+        }
+        if let Some((path, georef)) = sidecar_of {
+            job.summary.sidecars =
+                io::sidecar::write_sidecars(&path, &georef).map_err(ConvertError::at(Place::Output))?;
         }
         Ok(job.summary)
     }
@@ -1165,6 +1203,17 @@ impl Reopen for PngRows {
     fn last_rows(_: &Path, _: &ReadOptions, _: Option<Channel>, _: usize) -> Option<Result<Vec<f64>>> {
         // PNG cannot seek: its last rows come from a pass over the file.
         None
+    }
+}
+
+#[cfg(feature = "tiff")]
+impl Reopen for TiffRows {
+    fn reopen(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<Self>> {
+        TiffRows::open(path, opts, channel)
+    }
+
+    fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Option<Result<Vec<f64>>> {
+        Some(TiffRows::last_rows(path, opts, channel, rows))
     }
 }
 

@@ -389,3 +389,25 @@ fn the_gallery_is_what_the_readme_commands_make() {
         }
     }
 }
+
+#[test]
+fn the_sun_lights_with_azimuth_and_altitude_and_refuses_a_light_beside_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("ramp.png");
+    // Rising to the east, the slope faces west: a sun in the west (270°)
+    // lights it more than flat ground, 1 + 254 · sin 45° = 181, one in the
+    // east (90°) less (no georeferencing: north is up the image).
+    write_gray16(&input, 16, 16, |x, _| (x * 2000) as u16);
+    let grey = |azimuth: &str| {
+        let out = dir.path().join(format!("lit{azimuth}.png"));
+        ok(&run(&["shade", s(&input), "-o", s(&out), "--border", "clamp", "--azimuth", azimuth]));
+        let (_, _, v) = gray(&out);
+        v[8 * 16 + 8]
+    };
+    let (west, east) = (grey("270"), grey("90"));
+    assert!(west > 181 && east < 181, "west {west}, east {east}");
+    let e = error_line(&run(&["shade", s(&input), "--light", "135,35", "--azimuth", "315"]));
+    assert!(e.contains("--azimuth") || e.contains("--light"), "{e}");
+    let e = error_line(&run(&["shade", s(&input), "--altitude", "95"]));
+    assert!(e.contains("altitude"), "{e}");
+}

@@ -244,9 +244,25 @@ pub struct ShadeArgs {
     /// Where the light comes from, in degrees: the azimuth counter-clockwise
     /// from the image's right (0 right, 90 top, 135 top-left, 180 left), and
     /// the elevation above the surface (90 overhead, small values rake).
-    #[arg(long, value_name = "AZIMUTH,ELEVATION", default_value_t = LightArg(Light::default()),
-          value_parser = parse_light, allow_hyphen_values = true)]
-    pub light: LightArg,
+    /// The texture view, with a little ambient light. Default: 135,35, for
+    /// inputs without georeferencing (a GeoTIFF with a transform gets the
+    /// sun: --azimuth, --altitude).
+    #[arg(long, value_name = "AZIMUTH,ELEVATION", value_parser = parse_light, allow_hyphen_values = true,
+          conflicts_with_all = ["azimuth", "altitude"])]
+    pub light: Option<LightArg>,
+
+    /// The sun's azimuth in degrees clockwise from north, as `gdaldem
+    /// hillshade -az` (315 north-west, the default): a hillshade in GIS
+    /// convention, 1 (shadow) to 255 like gdaldem's, north from the
+    /// GeoTIFF's transform (up the image without one). Georeferenced inputs
+    /// get it by default; giving it (or --altitude) lights every input so.
+    #[arg(long, value_name = "DEGREES", allow_hyphen_values = true)]
+    pub azimuth: Option<f64>,
+
+    /// The sun's altitude in degrees above the horizon, as `gdaldem
+    /// hillshade -alt` (default 45).
+    #[arg(long, value_name = "DEGREES")]
+    pub altitude: Option<f64>,
 
     /// Repeat the lit view 2×2, so the wrap seams cross the middle.
     #[arg(long)]
@@ -631,8 +647,7 @@ pub fn library_message(e: &normalfit::Error) -> String {
     }
 }
 
-/// `--light AZIMUTH,ELEVATION`, shown (and defaulted) as the library's
-/// [`Light::default()`] prints.
+/// `--light AZIMUTH,ELEVATION`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightArg(pub Light);
 

@@ -7,13 +7,13 @@
 use std::io::Write;
 use std::path::Path;
 
-use normalfit::io::{self, ReadOptions};
-use normalfit::shade::{LitOptions, lit_view};
+use normalfit::io::ReadOptions;
+use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_view};
 
 use super::args::ShadeArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::fitting;
-use super::input::{read_input, stdin_at_most_once};
+use super::input::{Input, read_input, stdin_at_most_once};
 use super::output::Destination;
 use super::report::Failure;
 
@@ -42,14 +42,18 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
             return Err(Failure::file(path, "shade writes PNG: name the output .png"));
         }
     }
-    let lit = LitOptions::new()
-        .with_fit(fit)
-        .with_borders(args.fit.border)
-        .with_light(args.light.0)
-        .with_tile(args.tile)
-        .with_kind(args.kind)
-        .with_channel(args.channel.clone())
-        .with_signed(args.signed);
+    let lit = LitOptions::new().with_fit(fit).with_borders(args.fit.border);
+    let lit = match (args.light, args.azimuth, args.altitude) {
+        (Some(light), _, _) => lit.with_light(light.0),
+        (None, None, None) => lit,
+        (None, azimuth, altitude) => {
+            let default = Sun::default();
+            let sun = Sun::new(azimuth.unwrap_or(default.azimuth_deg), altitude.unwrap_or(default.altitude_deg))
+                .map_err(|e| Failure::usage(e.to_string()))?;
+            lit.with_sun(SunChoice::Always(sun))
+        }
+    };
+    let lit = lit.with_tile(args.tile).with_kind(args.kind).with_channel(args.channel.clone()).with_signed(args.signed);
     let plan = Plan { lit, read: args.terrain.apply(ReadOptions::default()), destination, quiet: args.batch.quiet };
     Ok(batch.run(|job, turn| plan.shade_one(job, turn)))
 }
@@ -65,6 +69,23 @@ impl Plan {
         if !turn.wanted(target.as_deref(), input) {
             return Ok(Outcome::Skipped);
         }
+        if let Some(path) = &target
+            && !job.subfolder.as_os_str().is_empty()
+            && let Some(folder) = path.parent()
+        {
+            std::fs::create_dir_all(folder)
+                .map_err(|e| Failure::file(folder, format!("cannot create the output folder: {e}")))?;
+        }
+        // A GeoTIFF's heights stream to a file, band by band.
+        if let (Input::File(file), Some(path)) = (input, &target)
+            && let Some(done) =
+                lit_file_streamed(file, &self.read, &self.lit, path).map_err(|e| Failure::file(input.name(), e))?
+        {
+            if !self.quiet {
+                done.warnings.iter().for_each(|w| fitting::warn(w, input));
+            }
+            return Ok(Outcome::Done);
+        }
         let raster = read_input(input, &self.read)?;
         let view = lit_view(&raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
         if !self.quiet {
@@ -72,13 +93,7 @@ impl Plan {
         }
         match &target {
             Some(path) => {
-                if !job.subfolder.as_os_str().is_empty()
-                    && let Some(folder) = path.parent()
-                {
-                    std::fs::create_dir_all(folder)
-                        .map_err(|e| Failure::file(folder, format!("cannot create the output folder: {e}")))?;
-                }
-                io::write_file_atomically(path, |out| view.encode(out)).map_err(|e| Failure::file(path, e))?;
+                view.write_file(path).map_err(|e| Failure::file(path, e))?;
             }
             None => {
                 let stdout_name = Path::new("<standard output>");

@@ -14,6 +14,7 @@ mod atomic;
 pub mod encoding;
 mod memory;
 pub mod read;
+pub mod sidecar;
 pub mod write;
 
 pub use crate::pipeline as stream;

@@ -8,11 +8,14 @@
 //! encoders' options are the whole-image writers' own
 //! ([`PngOptions`], [`ExrOptions`]), and give the same samples.
 //!
-//! Inputs that stream: PNG that is not interlaced ([`PngRows`]) and
-//! scan-line OpenEXR parts ([`ExrRows`]). Outputs: PNG ([`convert_png`],
+//! Inputs that stream: PNG that is not interlaced ([`PngRows`]),
+//! scan-line OpenEXR parts ([`ExrRows`]) and the TIFF bands the `tiff`
+//! crate reads (`TiffRows`: float, half, 32- and 64-bit and signed
+//! integer GeoTIFF, striped or tiled, chunky or planar, and any TIFF with
+//! a band asked for). Outputs: PNG ([`convert_png`],
 //! [`convert_png_seekable`]) and OpenEXR ([`convert_exr`]). Other inputs
-//! (interlaced PNG, tiled or multi-resolution EXR, TIFF, JPEG, …) are decoded
-//! whole by [`crate::io::read`].
+//! (interlaced PNG, tiled or multi-resolution EXR, 8- and 16-bit TIFF
+//! without a band, JPEG, …) are decoded whole by [`crate::io::read`].
 //!
 //! Three stages run at once: a thread decodes rows into bands of heights;
 //! a thread fits each band (its row tiles in parallel on rayon's pool) and
@@ -32,12 +35,18 @@
 
 mod exr;
 mod png;
+#[cfg(feature = "tiff")]
+mod tiff;
 
 use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 pub use self::exr::{ExrRows, convert_exr};
+#[cfg(feature = "tiff")]
+pub(crate) use self::png::shade_png_seekable;
 pub use self::png::{PngRows, convert_png, convert_png_seekable};
+#[cfg(feature = "tiff")]
+pub use self::tiff::TiffRows;
 pub use crate::io::encoding::{ExrOptions, PngDepth, PngOptions};
 
 use crate::error::{Error, Result};

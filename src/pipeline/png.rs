@@ -284,8 +284,8 @@ pub fn convert_png(
     let PngOptions { depth, compression, layout } = output.into();
     let how = Writing { compression, deferred: false, layout };
     match depth {
-        PngDepth::Eight => convert_as::<u8, _, _>(rows, tail, opts, visit, out, how),
-        PngDepth::Sixteen => convert_as::<u16, _, _>(rows, tail, opts, visit, out, how),
+        PngDepth::Eight => convert_normals::<u8, _, _>(rows, tail, opts, visit, out, how),
+        PngDepth::Sixteen => convert_normals::<u16, _, _>(rows, tail, opts, visit, out, how),
     }?;
     out.flush()?;
     Ok(())
@@ -309,8 +309,8 @@ pub fn convert_png_seekable<W: Write + Seek>(
     let PngOptions { depth, compression, layout } = output.into();
     let how = Writing { compression, deferred: true, layout };
     let first_idat = match depth {
-        PngDepth::Eight => convert_as::<u8, _, _>(rows, None, opts, visit, out, how),
-        PngDepth::Sixteen => convert_as::<u16, _, _>(rows, None, opts, visit, out, how),
+        PngDepth::Eight => convert_normals::<u8, _, _>(rows, None, opts, visit, out, how),
+        PngDepth::Sixteen => convert_normals::<u16, _, _>(rows, None, opts, visit, out, how),
     }?;
     // The room kept for the first IDAT chunk follows the signature and IHDR.
     let end = out.stream_position()?;
@@ -321,35 +321,147 @@ pub fn convert_png_seekable<W: Write + Seek>(
     Ok(())
 }
 
+/// The lit view of the rows of `rows` (see [`crate::shade`]): the fit's
+/// normals lit by `lamp`, an 8-bit gray PNG written to `out` in one pass,
+/// the top rows last as [`convert_png_seekable`] writes them. The grey of
+/// every texel is the whole-image view's.
+#[cfg(feature = "tiff")]
+pub(crate) fn shade_png_seekable<W: Write + Seek>(
+    rows: impl RowSource,
+    opts: &Options,
+    lamp: crate::shade::Lamp,
+    visit: impl FnMut(&[f32]) + Send,
+    out: &mut W,
+) -> Result<()> {
+    let start = out.stream_position()?;
+    // One filter (Avg) for every row: choosing per row was a tenth of a
+    // streamed lit view's processor time.
+    let first_idat = convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels { lamp })?;
+    let end = out.stream_position()?;
+    out.seek(std::io::SeekFrom::Start(start + HEADER_BYTES))?;
+    write_chunk(out, b"IDAT", &first_idat)?;
+    out.seek(std::io::SeekFrom::Start(end))?;
+    out.flush()?;
+    Ok(())
+}
+
+/// Normals lit by a lamp: one gray byte a texel.
+#[cfg(feature = "tiff")]
+struct LitTexels {
+    lamp: crate::shade::Lamp,
+}
+
+#[cfg(feature = "tiff")]
+impl PngTexels for LitTexels {
+    type Normal = [f32; 3];
+    fn bits(&self) -> u8 {
+        8
+    }
+    fn samples(&self) -> usize {
+        1
+    }
+    fn needs_heights(&self) -> bool {
+        false
+    }
+    fn raw<'a>(&self, normals: &'a mut [[f32; 3]], _: &[f32]) -> Cow<'a, [u8]> {
+        let lamp = self.lamp;
+        let mut grey = vec![0u8; normals.len()];
+        grey.par_chunks_mut(1 << 14)
+            .zip(normals.par_chunks(1 << 14))
+            .for_each(|(g, n)| g.iter_mut().zip(n).for_each(|(g, &n)| *g = lamp.grey(n)));
+        Cow::Owned(grey)
+    }
+}
+
 /// Bytes of the PNG signature (8) and the IHDR chunk (25), after which the
 /// first IDAT chunk starts.
 const HEADER_BYTES: u64 = 8 + 25;
+
+/// What a streamed PNG's texels are made of: the fit's texels of a band
+/// (`Normal`, one per texel) turned into the bytes a PNG row stores.
+pub(super) trait PngTexels: Send {
+    /// The fit's texel type.
+    type Normal: FromNormal + Default + Send;
+    /// Bits per sample, and samples per texel (the PNG's colour type).
+    fn bits(&self) -> u8;
+    fn samples(&self) -> usize;
+    /// Whether [`PngTexels::raw`] takes the band's heights.
+    fn needs_heights(&self) -> bool;
+    /// A band's texels (and its heights, when asked for) as the PNG's
+    /// unfiltered bytes, row after row.
+    fn raw<'a>(&self, normals: &'a mut [Self::Normal], heights: &[f32]) -> Cow<'a, [u8]>;
+}
+
+/// A normal map's texels, in a layout, as samples of type `S`.
+struct NormalTexels<S> {
+    layout: Layout,
+    _sample: std::marker::PhantomData<S>,
+}
+
+impl<S: PngSample> PngTexels for NormalTexels<S>
+where
+    [S; 3]: FromNormal + Default,
+{
+    type Normal = [S; 3];
+    fn bits(&self) -> u8 {
+        S::BITS
+    }
+    fn samples(&self) -> usize {
+        self.layout.png_samples()
+    }
+    fn needs_heights(&self) -> bool {
+        self.layout.needs_heights()
+    }
+    fn raw<'a>(&self, normals: &'a mut [[S; 3]], heights: &[f32]) -> Cow<'a, [u8]> {
+        if self.layout == Layout::Rgb {
+            S::be_bytes(normals.as_flattened())
+        } else {
+            let mut laid_out = Vec::with_capacity(normals.len() * self.samples());
+            lay_out(normals, heights, self.layout, Container::Png, &mut laid_out);
+            Cow::Owned(S::be_bytes(&laid_out).into_owned())
+        }
+    }
+}
+
+/// [`convert_as`] for a normal map of samples `S`.
+fn convert_normals<S: PngSample, R: RowSource, W: Write + ?Sized>(
+    rows: R,
+    tail: Option<&[f64]>,
+    opts: &Options,
+    visit: impl FnMut(&[f32]) + Send,
+    out: &mut W,
+    how: Writing,
+) -> Result<Vec<u8>>
+where
+    [S; 3]: FromNormal + Default,
+{
+    let texels = NormalTexels::<S> { layout: how.layout, _sample: std::marker::PhantomData };
+    convert_as(rows, tail, opts, visit, out, (how.compression, how.deferred), texels)
+}
 
 /// Streams the PNG into `out`. With `deferred`, the top N/2 rows are
 /// fitted last: `out` gets room for the first IDAT chunk after the header,
 /// and the chunk's data (zlib header and the top rows, stored) is returned
 /// for the caller to write there; otherwise everything is written in order
 /// and nothing is returned.
-fn convert_as<S: PngSample, R: RowSource, W: Write + ?Sized>(
+pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     rows: R,
     tail: Option<&[f64]>,
     opts: &Options,
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
-    Writing { compression, deferred, layout }: Writing,
-) -> Result<Vec<u8>>
-where
-    [S; 3]: FromNormal + Default,
-{
+    (compression, deferred): (PngCompression, bool),
+    texels: P,
+) -> Result<Vec<u8>> {
     let (w, h) = (rows.width(), rows.height());
     let unit = rows.unit();
     let fit = BandFit::new(w, h, opts)?.with_unit(unit);
-    let samples = layout.png_samples();
-    let texel_bytes = samples * usize::from(S::BITS / 8);
+    let (bits, samples) = (texels.bits(), texels.samples());
+    let texel_bytes = samples * usize::from(bits / 8);
     let stride = texel_bytes * w;
     let top_len = fit.radius().min(h) * (stride + 1);
 
-    write_signature_and_header(out, w, h, S::BITS, samples)?;
+    write_signature_and_header(out, w, h, bits, samples)?;
     if deferred {
         // Room for the first IDAT chunk: zlib header and the top rows as
         // stored blocks, filled in at the end.
@@ -376,15 +488,9 @@ where
     // by the next band's filtering: a new buffer each band would be zeroed
     // first (1 to 2 % of a 32768² conversion).
     let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<u8>>(1);
-    let prepare = move |rows: Range<usize>, normals: &mut [[S; 3]], heights: Vec<f32>| -> Vec<u8> {
-        let laid_out = if layout == Layout::Rgb {
-            Cow::Borrowed(normals.as_flattened())
-        } else {
-            let mut laid_out = Vec::with_capacity(normals.len() * samples);
-            lay_out(normals, &heights, layout, Container::Png, &mut laid_out);
-            Cow::Owned(laid_out)
-        };
-        let raw = S::be_bytes(&laid_out);
+    let needs_heights = texels.needs_heights();
+    let prepare = move |rows: Range<usize>, normals: &mut [P::Normal], heights: Vec<f32>| -> Vec<u8> {
+        let raw = texels.raw(normals, &heights);
         if deferred && rows.start == 0 {
             // Stored as they are: filter type 0 before each row.
             raw.chunks_exact(stride).flat_map(|row| std::iter::once(0).chain(row.iter().copied())).collect()
@@ -406,7 +512,7 @@ where
         }
         Ok(())
     };
-    run(rows, &fit, tail, (deferred, layout.needs_heights()), visit, Stages { prepare, consume })?;
+    run(rows, &fit, tail, (deferred, needs_heights), visit, Stages { prepare, consume })?;
     compressor.finish()?.into_inner().map_err(|e| Error::Io(e.into_error()))?;
     let mut trailer = idat.take_trailer()?;
     let mut first_idat = Vec::new();
@@ -554,9 +660,13 @@ fn write_signature_and_header<W: Write + ?Sized>(
     let mut ihdr = Vec::with_capacity(13);
     ihdr.extend_from_slice(&w.to_be_bytes());
     ihdr.extend_from_slice(&h.to_be_bytes());
-    // Bit depth, colour type (2: RGB, 6: RGBA), deflate, adaptive
+    // Bit depth, colour type (0: gray, 2: RGB, 6: RGBA), deflate, adaptive
     // filtering, no interlace.
-    let color_type = if samples == 4 { 6 } else { 2 };
+    let color_type = match samples {
+        1 => 0,
+        4 => 6,
+        _ => 2,
+    };
     ihdr.extend_from_slice(&[bits, color_type, 0, 0, 0]);
     write_chunk(out, b"IHDR", &ihdr)
 }

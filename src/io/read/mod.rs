@@ -69,6 +69,8 @@ pub use self::georef::{Affine, Georef, ModelType, RasterType, metres_per_degree}
 pub use self::packed::PackedElevation;
 pub(crate) use self::png::{PNG_SIGNATURE, check_png_header, check_png_palette};
 pub use self::raw::{ByteOrder, RawOptions, parse_size};
+#[cfg(feature = "tiff")]
+pub(crate) use self::tiff::TiffBand;
 use crate::error::{Error, Result, one_line};
 use crate::samples::{Samples, try_vec};
 

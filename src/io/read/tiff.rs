@@ -8,7 +8,7 @@
 //! it as it always has. The georeferencing tags are read from every TIFF
 //! ([`Georef`]).
 
-use std::io::Cursor;
+use std::io::{Cursor, Read, Seek};
 
 use crate::par::prelude::*;
 use image::ImageFormat;
@@ -121,7 +121,7 @@ impl TiffLayout {
     /// gray + alpha, RGB, RGBA, or multi-band (GDAL's several bands of
     /// BlackIsZero). `None` for palette, CMYK, YCbCr, Lab and a colour type
     /// `tiff` refuses: `image` reads or reports those.
-    fn of(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> Result<Option<TiffLayout>> {
+    fn of<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>) -> Result<Option<TiffLayout>> {
         use tiff::ColorType as C;
         let Ok(color) = decoder.colortype() else { return Ok(None) };
         let (bands, bits) = match color {
@@ -187,19 +187,8 @@ fn decode_band(
     layout: TiffLayout,
     opts: &ReadOptions,
 ) -> Result<Raster> {
-    let Some(kind) = TiffGray::of(layout.format, layout.bits) else {
-        return Err(Error::Unsupported(format!(
-            "{}-bit {} samples are not read (8-, 16-, 32- and 64-bit integers, 16-, 32- and 64-bit floats are)",
-            layout.bits,
-            format_name(layout.format)
-        )));
-    };
-    let band = opts.band.unwrap_or(1);
+    let (kind, index) = choose_band(layout, opts)?;
     let bands = layout.bands;
-    let index = usize::try_from(band).ok().and_then(|b| b.checked_sub(1)).filter(|&i| i < bands).ok_or_else(|| {
-        Error::Unsupported(format!("band {band} asked for, but the file has {bands} band{}", plural(bands)))
-    })?;
-
     let (width, height) = decoder.dimensions().map_err(from_tiff_error)?;
     check_size(u64::from(width), u64::from(height), opts)?;
     let texels = to_usize(u64::from(width) * u64::from(height))?;
@@ -241,6 +230,27 @@ fn decode_band(
         planes: vec![Plane { name: "Y".into(), data }],
         georef: None,
     })
+}
+
+/// The sample layout of `layout` and the 0-based index of the band read:
+/// [`ReadOptions::band`], else the first.
+///
+/// Errors: [`Error::Unsupported`] for a sample format not read here, or a
+/// band the file does not have.
+fn choose_band(layout: TiffLayout, opts: &ReadOptions) -> Result<(TiffGray, usize)> {
+    let Some(kind) = TiffGray::of(layout.format, layout.bits) else {
+        return Err(Error::Unsupported(format!(
+            "{}-bit {} samples are not read (8-, 16-, 32- and 64-bit integers, 16-, 32- and 64-bit floats are)",
+            layout.bits,
+            format_name(layout.format)
+        )));
+    };
+    let band = opts.band.unwrap_or(1);
+    let bands = layout.bands;
+    let index = usize::try_from(band).ok().and_then(|b| b.checked_sub(1)).filter(|&i| i < bands).ok_or_else(|| {
+        Error::Unsupported(format!("band {band} asked for, but the file has {bands} band{}", plural(bands)))
+    })?;
+    Ok((kind, index))
 }
 
 /// The samples of band `index` (0-based) of a planar TIFF, row-major,
@@ -327,9 +337,9 @@ fn format_name(format: SampleFormat) -> String {
 /// The georeferencing tags of the first image, checked (a tag of the
 /// wrong length or a GDAL_NODATA that is not a number is an error: read
 /// wrong, it would silently misplace or misfit the terrain).
-fn read_georef(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> Result<Georef> {
+fn read_georef<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>) -> Result<Georef> {
     let mut georef = Georef::default();
-    let doubles = |decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>, code: u16, name: &str| {
+    let doubles = |decoder: &mut tiff::decoder::Decoder<R>, code: u16, name: &str| {
         tag(decoder, code, name)?.map(|v| v.into_f64_vec().map_err(|e| tag_error(name, e))).transpose()
     };
     let scale = doubles(decoder, georef_tags::MODEL_PIXEL_SCALE, "ModelPixelScale")?;
@@ -348,8 +358,8 @@ fn read_georef(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> Result<Ge
 }
 
 /// A tag's value, if present.
-fn tag(
-    decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>,
+fn tag<R: Read + Seek>(
+    decoder: &mut tiff::decoder::Decoder<R>,
     code: u16,
     name: &str,
 ) -> Result<Option<tiff::decoder::ifd::Value>> {
@@ -428,5 +438,244 @@ fn from_tiff_error(e: tiff::TiffError) -> Error {
         E::UnsupportedError(e) => Error::Unsupported(message(&e.to_string())),
         E::LimitsExceeded => Error::Limits("tiff data exceeds the decoder's limits".into()),
         e @ (E::FormatError(_) | E::IntSizeError | E::UsageError(_)) => Error::Decode(message(&e.to_string())),
+    }
+}
+
+/// One band of a TIFF read a row of chunks at a time: a strip, or the
+/// tiles across the image. What [`decode`] reads with `decode_band` (the
+/// layouts `image` does not read, or any with [`ReadOptions::band`]),
+/// for the streaming conversion (`crate::pipeline::TiffRows`), which
+/// then holds one row of chunks, not the image.
+///
+/// Chunky files (bands interleaved per texel) decode every band of a
+/// chunk and keep the one asked for; planar files read only the band's
+/// own chunks. Values are the ones `decode_band` gives, sample for
+/// sample ([`TiffBand::values`]).
+pub(crate) struct TiffBand<R: Read + Seek> {
+    decoder: tiff::decoder::Decoder<R>,
+    kind: TiffGray,
+    width: usize,
+    height: usize,
+    /// Columns and rows of a chunk (a strip is the image's width).
+    chunk: (usize, usize),
+    /// Chunks across the image.
+    across: usize,
+    /// The id of the band's first chunk (its plane's, when planar).
+    first_chunk: usize,
+    /// Where the band's sample starts in a decoded texel, and the bytes of
+    /// a decoded texel (all bands when chunky, one when planar).
+    offset: usize,
+    texel_bytes: usize,
+    georef: Option<Georef>,
+    /// A decoded chunk, reused.
+    scratch: Vec<u8>,
+}
+
+impl<R: Read + Seek> TiffBand<R> {
+    /// Opens the band of the TIFF `reader` holds that `decode_band` would
+    /// read; `Ok(None)` for a file that is not a TIFF `tiff` parses, or
+    /// one `image` reads (8- and 16-bit gray, RGB, … with no band asked
+    /// for) or reports (palette, CMYK, …): the whole-image reader takes
+    /// those, with its messages. Reads the header and tags only.
+    ///
+    /// Errors: those of `decode_band` for the same file (a sample format
+    /// not read, a band past the last, a size past
+    /// [`ReadOptions::max_texels`], bad geo tags), and [`Error::Decode`]
+    /// for a chunk count that does not match the image.
+    pub(crate) fn open(reader: R, opts: &ReadOptions) -> Result<Option<Self>> {
+        let Ok(mut decoder) = tiff::decoder::Decoder::new(reader) else { return Ok(None) };
+        let georef = read_georef(&mut decoder)?;
+        let Some(layout) = TiffLayout::of(&mut decoder)? else { return Ok(None) };
+        if opts.band.is_none() && layout.image_reads() {
+            return Ok(None);
+        }
+        let (kind, index) = choose_band(layout, opts)?;
+        let bands = layout.bands;
+        let (width, height) = decoder.dimensions().map_err(from_tiff_error)?;
+        check_size(u64::from(width), u64::from(height), opts)?;
+        let (w, h) = (to_usize(width.into())?, to_usize(height.into())?);
+        let planar = bands > 1
+            && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
+        let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
+        // `tiff` checks the chunk geometry here.
+        decoder.image_buffer_layout().map_err(from_tiff_error)?;
+        let total = match decoder.get_chunk_type() {
+            tiff::decoder::ChunkType::Tile => decoder.tile_count(),
+            tiff::decoder::ChunkType::Strip => decoder.strip_count(),
+        }
+        .map_err(from_tiff_error)?;
+        let (cw, ch) = decoder.chunk_dimensions();
+        let (cw, ch) = (to_usize(cw.into())?.max(1).min(w.max(1)), to_usize(ch.into())?.max(1).min(h.max(1)));
+        let (across, down) = (w.div_ceil(cw), h.div_ceil(ch));
+        let per_plane = across * down;
+        let planes = if planar { bands } else { 1 };
+        if to_usize(total.into())? != per_plane * planes {
+            return Err(Error::Decode(format!(
+                "tiff has {total} strips or tiles, {planes} plane{} of {per_plane} each were expected",
+                plural(planes)
+            )));
+        }
+        let size = kind.bytes();
+        let (first_chunk, offset, texel_bytes) =
+            if planar { (index * per_plane, 0, size) } else { (0, index * size, bands * size) };
+        Ok(Some(TiffBand {
+            decoder,
+            kind,
+            width: w,
+            height: h,
+            chunk: (cw, ch),
+            across,
+            first_chunk,
+            offset,
+            texel_bytes,
+            georef: (!georef.is_empty()).then_some(georef),
+            scratch: Vec::new(),
+        }))
+    }
+
+    /// Columns and rows.
+    pub(crate) fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Rows in a row of chunks (the last may have fewer).
+    pub(crate) fn rows_per_chunk(&self) -> usize {
+        self.chunk.1
+    }
+
+    /// What was stored, as [`Raster::sample`] gives it.
+    pub(crate) fn sample(&self) -> SampleType {
+        self.kind.sample()
+    }
+
+    /// The file's georeferencing, as [`Raster::georef`] gives it.
+    pub(crate) fn georef(&self) -> Option<&Georef> {
+        self.georef.as_ref()
+    }
+
+    /// The height of a value of 1 from [`TiffBand::values`]: 1/255 and
+    /// 1/65535 for 8- and 16-bit unsigned integers (kept as stored), 1
+    /// for the rest (floats as stored, other integers already divided).
+    pub(crate) fn unit(&self) -> f64 {
+        match self.kind {
+            TiffGray::U8 => 1.0 / 255.0,
+            TiffGray::U16 => 1.0 / 65535.0,
+            _ => 1.0,
+        }
+    }
+
+    /// Whether every value is an `f32` exactly (8- and 16-bit unsigned
+    /// integers, half and single floats).
+    pub(crate) fn exact_in_f32(&self) -> bool {
+        matches!(self.kind, TiffGray::U8 | TiffGray::U16 | TiffGray::F16 | TiffGray::F32)
+    }
+
+    /// Bytes of one sample of the band.
+    pub(crate) fn sample_bytes(&self) -> usize {
+        self.kind.bytes()
+    }
+
+    /// Decodes the row of chunks `k` (image rows from k · rows-per-chunk)
+    /// into `out`: the band's samples of those rows, row-major, packed,
+    /// native-endian, without the padding of edge tiles. `out` is resized.
+    ///
+    /// Errors: [`Error::Decode`] for a corrupt or truncated chunk,
+    /// [`Error::Limits`] when its memory is not there.
+    pub(crate) fn read_chunk_row(&mut self, k: usize, out: &mut Vec<u8>) -> Result<()> {
+        let (w, h, (cw, ch)) = (self.width, self.height, self.chunk);
+        let size = self.kind.bytes();
+        let y0 = k * ch;
+        if y0 >= h {
+            return Err(Error::Decode(format!("all {h} rows have been read")));
+        }
+        let rows = ch.min(h - y0);
+        let len = rows * w * size;
+        out.clear();
+        out.try_reserve_exact(len).map_err(|_| Error::Limits(format!("{len} bytes for a row of tiff chunks")))?;
+        out.resize(len, 0);
+        for i in 0..self.across {
+            let id = self.first_chunk + k * self.across + i;
+            let id = u32::try_from(id).map_err(|_| Error::Limits("too many tiff chunks".into()))?;
+            let layout = self.decoder.image_chunk_buffer_layout(id).map_err(from_tiff_error)?;
+            let chunk = &mut self.scratch;
+            chunk.clear();
+            chunk
+                .try_reserve_exact(layout.len)
+                .map_err(|_| Error::Limits(format!("{} bytes for a tiff chunk", layout.len)))?;
+            chunk.resize(layout.len, 0);
+            self.decoder.read_chunk_bytes(id, chunk).map_err(from_tiff_error)?;
+            let x0 = i * cw;
+            let cols = cw.min(w - x0);
+            let stride = layout.row_stride.map_or(0, std::num::NonZeroUsize::get);
+            let row_bytes = (cols - 1) * self.texel_bytes + self.offset + size;
+            if stride < cols * self.texel_bytes || layout.len < stride * (rows - 1) + row_bytes {
+                return Err(Error::Decode(format!(
+                    "tiff chunk {id} of {} bytes cannot hold its {cols} × {rows} texels",
+                    layout.len
+                )));
+            }
+            for r in 0..rows {
+                let to = &mut out[((r * w) + x0) * size..][..cols * size];
+                let from = &chunk[r * stride + self.offset..];
+                if self.texel_bytes == size {
+                    to.copy_from_slice(&from[..cols * size]);
+                } else {
+                    for (t, f) in to.chunks_exact_mut(size).zip(from.chunks(self.texel_bytes)) {
+                        t.copy_from_slice(&f[..size]);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The values of packed samples (from [`TiffBand::read_chunk_row`])
+    /// in `f64`, as `decode_band` gives them: 8- and 16-bit unsigned
+    /// integers and floats as stored, other integers divided by
+    /// 2^bits − 1 (heights in contract units).
+    pub(crate) fn values(&self, bytes: &[u8], out: &mut [f64]) {
+        let size = self.kind.bytes();
+        for (o, p) in out.iter_mut().zip(bytes.chunks_exact(size)) {
+            *o = sample_value(self.kind, p);
+        }
+    }
+
+    /// [`TiffBand::values`] in `f32`, exact when
+    /// [`TiffBand::exact_in_f32`].
+    pub(crate) fn values_f32(&self, bytes: &[u8], out: &mut [f32]) {
+        fn ne<const N: usize>(p: &[u8]) -> [u8; N] {
+            std::array::from_fn(|i| p[i])
+        }
+        let size = self.kind.bytes();
+        let samples = bytes.chunks_exact(size);
+        match self.kind {
+            TiffGray::F32 => out.iter_mut().zip(samples).for_each(|(o, p)| *o = f32::from_ne_bytes(ne(p))),
+            TiffGray::U16 => out.iter_mut().zip(samples).for_each(|(o, p)| *o = f32::from(u16::from_ne_bytes(ne(p)))),
+            TiffGray::U8 => out.iter_mut().zip(samples).for_each(|(o, p)| *o = f32::from(p[0])),
+            kind => out.iter_mut().zip(samples).for_each(|(o, p)| *o = sample_value(kind, p) as f32),
+        }
+    }
+}
+
+/// One native-endian sample as `decode_band` reads it, in `f64` (see
+/// [`TiffBand::values`]).
+fn sample_value(kind: TiffGray, p: &[u8]) -> f64 {
+    fn ne<const N: usize>(p: &[u8]) -> [u8; N] {
+        std::array::from_fn(|i| p[i])
+    }
+    const U32_TOP: f64 = u32::MAX as f64;
+    const U64_TOP: f64 = u64::MAX as f64;
+    match kind {
+        TiffGray::U8 => f64::from(p[0]),
+        TiffGray::U16 => f64::from(u16::from_ne_bytes(ne(p))),
+        TiffGray::F16 => f64::from(exr::prelude::f16::from_bits(u16::from_ne_bytes(ne(p))).to_f32()),
+        TiffGray::F32 => f64::from(f32::from_ne_bytes(ne(p))),
+        TiffGray::F64 => f64::from_ne_bytes(ne(p)),
+        TiffGray::U32 => f64::from(u32::from_ne_bytes(ne(p))) / U32_TOP,
+        TiffGray::U64 => u64::from_ne_bytes(ne(p)) as f64 / U64_TOP,
+        TiffGray::I8 => f64::from(i8::from_ne_bytes(ne(p))) / 255.0,
+        TiffGray::I16 => f64::from(i16::from_ne_bytes(ne(p))) / 65535.0,
+        TiffGray::I32 => f64::from(i32::from_ne_bytes(ne(p))) / U32_TOP,
+        TiffGray::I64 => i64::from_ne_bytes(ne(p)) as f64 / U64_TOP,
     }
 }

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Times normalfit on a float32 GeoTIFF against GDAL's DEM tools, in one
+# run: normals (`convert`, to an 8-bit PNG and to a float EXR) against
+# `gdaldem slope`, and the lit view (`shade`, gdaldem's sun) against
+# `gdaldem hillshade`. Each command 3 times, in turn with its GDAL
+# counterpart; the best wall time and the highest peak RSS (/usr/bin/time).
+# Prints a Markdown table with the ratios and the load average: the
+# machine may be shared, so compare ratios from one run.
+#
+#   bench/terrain.sh          # 4096² (bench/.work/dem4096.tif: the ridged noise
+#                             # of examples/heightmap.rs, 0–2000 m, 10 m texels, UTM 33N)
+#   bench/terrain.sh 2048     # another size
+#
+# Needs a Rust toolchain, GDAL and GNU time (apt-get install -y gdal-bin time).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+size=${1:-4096}
+target=${CARGO_TARGET_DIR:-target}
+work=bench/.work
+mkdir -p "$work"
+for tool in gdal_translate gdaldem /usr/bin/time; do
+  command -v "$tool" >/dev/null || { echo "$tool is missing: apt-get install -y gdal-bin time" >&2; exit 1; }
+done
+cargo build --release --locked --bin normalfit --example heightmap
+bin=$target/release/normalfit
+h=$work/h$size.png
+dem=$work/dem$size.tif
+[ -f "$h" ] || "$target/release/examples/heightmap" "$size" "$h"
+# Heights 0 to 2000 m, 10 m texels: gdaldem's geometry is normalfit's at
+# -s 0.1 (metres of height per metre of ground, one texel = 10 m).
+[ -f "$dem" ] || gdal_translate -q -ot Float32 -scale 0 65535 0 2000 -a_srs EPSG:32633 \
+  -a_ullr 500000 5000000 $((500000 + 10 * size)) $((5000000 - 10 * size)) "$h" "$dem"
+
+# best wall time (s) and highest peak RSS (MiB) of 3 runs of "$@"
+measure() {
+  local best=999999 peak=0 t m
+  for _ in 1 2 3; do
+    /usr/bin/time -f '%e %M' -o "$work/time.txt" "$@" >/dev/null 2>"$work/stderr.txt" || { cat "$work/stderr.txt" >&2; exit 1; }
+    read -r t m < "$work/time.txt"
+    best=$(python3 -c "print(min($best, $t))")
+    peak=$(( m > peak ? m : peak ))
+  done
+  echo "$best $((peak / 1024))"
+}
+
+echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
+echo
+echo "| ${size}² float32 GeoTIFF, 10 m | wall (best of 3) | peak RSS | GDAL | GDAL wall | GDAL RSS | speed-up |"
+echo "|---|---|---|---|---|---|---|"
+row() {
+  local label=$1 gdal_label=$2 gdal_cmd=$3; shift 3
+  read -r t m < <(measure "$@")
+  # shellcheck disable=SC2086
+  read -r tg mg < <(measure $gdal_cmd)
+  ratio=$(python3 -c "print(f'{$tg / $t:.2f}×')")
+  echo "| $label | $t s | $m MiB | $gdal_label | $tg s | $mg MiB | $ratio |"
+}
+slope="gdaldem slope -q $dem $work/slope.tif"
+hillshade="gdaldem hillshade -q $dem $work/hillshade.tif"
+row "convert -s 0.1 --border clamp → 8-bit PNG" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --border clamp --bits 8
+row "convert -s 0.1 --border clamp → 16-bit PNG (the default for float input)" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --border clamp
+row "convert -s 0.1 --border clamp → float EXR" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.exr" -s 0.1 --border clamp
+row "convert -s 0.1 (wrap, the default) → 8-bit PNG" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --bits 8
+row "shade -s 0.1 --border clamp (sun 315°, 45°)" "hillshade" "$hillshade" \
+  "$bin" shade "$dem" -o "$work/lit.png" -s 0.1 --border clamp
+echo
+echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
