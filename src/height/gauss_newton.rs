@@ -336,24 +336,44 @@ impl<'a> Problem<'a> {
     /// −W⁻¹ Jᵀ W r into `out`.
     fn gradient(&self, z: &[f64], lin: &Linear, r: &[[f64; 2]], out: &mut [f64], planes: &mut [Vec<f64>; 4]) {
         let w = self.w;
-        {
-            let [ax, ay, s, sm] = planes;
-            ax.par_chunks_mut(w)
-                .zip(ay.par_chunks_mut(w))
-                .zip(s.par_chunks_mut(w))
-                .zip(sm.par_chunks_mut(w))
-                .enumerate()
-                .for_each(|(y, (((ax, ay), s), sm))| {
-                    for x in 0..w {
-                        let k = y * w + x;
-                        let wt = self.weight(x, y);
-                        let wr = [wt * r[k][0], wt * r[k][1]];
-                        self.back_texel(lin, k, wr, [0.0; 2], (&mut ax[x], &mut ay[x], &mut s[x], &mut sm[x]));
-                    }
-                });
-        }
+        self.back_rows(
+            lin,
+            planes,
+            |_| (),
+            |(), x, y| {
+                let (k, wt) = (y * w + x, self.weight(x, y));
+                ([wt * r[k][0], wt * r[k][1]], [0.0; 2])
+            },
+        );
         self.transpose(z, planes, out);
         out.iter_mut().for_each(|o| *o = -*o);
+    }
+
+    /// Fills the planes [ax, ay, s, s·mean] that [`Self::transpose`] takes,
+    /// rows in parallel: `row(y)` is computed once a row, and `texel(row,
+    /// x, y)` gives each texel's weighted residual-like value and damping
+    /// for [`Self::back_texel`].
+    fn back_rows<R>(
+        &self,
+        lin: &Linear,
+        planes: &mut [Vec<f64>; 4],
+        row: impl Fn(usize) -> R + Sync,
+        texel: impl Fn(&R, usize, usize) -> ([f64; 2], [f64; 2]) + Sync,
+    ) {
+        let w = self.w;
+        let [ax, ay, s, sm] = planes;
+        ax.par_chunks_mut(w)
+            .zip(ay.par_chunks_mut(w))
+            .zip(s.par_chunks_mut(w))
+            .zip(sm.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (((ax, ay), s), sm))| {
+                let this_row = row(y);
+                for x in 0..w {
+                    let (wr, damp) = texel(&this_row, x, y);
+                    self.back_texel(lin, y * w + x, wr, damp, (&mut ax[x], &mut ay[x], &mut s[x], &mut sm[x]));
+                }
+            });
     }
 
     /// The per-texel part of Jᵀ applied to a weighted residual-like `wr`
@@ -414,25 +434,15 @@ impl<'a> Problem<'a> {
 
     /// (W⁻¹JᵀWJ + μ(M + ε)) v into `out`.
     fn apply(&self, z: &[f64], lin: &Linear, mu: f64, v: &[f64], out: &mut [f64], planes: &mut [Vec<f64>; 4]) {
-        let w = self.w;
-        {
-            let [ax, ay, s, sm] = planes;
-            ax.par_chunks_mut(w)
-                .zip(ay.par_chunks_mut(w))
-                .zip(s.par_chunks_mut(w))
-                .zip(sm.par_chunks_mut(w))
-                .enumerate()
-                .for_each(|(y, (((ax, ay), s), sm))| {
-                    let (jv, dv) = self.jacobian_row(z, lin, v, y);
-                    for x in 0..w {
-                        let k = y * w + x;
-                        let wt = self.weight(x, y);
-                        let wj = [wt * jv[x][0], wt * jv[x][1]];
-                        let damp = [mu * wt * dv[x][0], mu * wt * dv[x][1]];
-                        self.back_texel(lin, k, wj, damp, (&mut ax[x], &mut ay[x], &mut s[x], &mut sm[x]));
-                    }
-                });
-        }
+        self.back_rows(
+            lin,
+            planes,
+            |y| self.jacobian_row(z, lin, v, y),
+            |(jv, dv), x, y| {
+                let wt = self.weight(x, y);
+                ([wt * jv[x][0], wt * jv[x][1]], [mu * wt * dv[x][0], mu * wt * dv[x][1]])
+            },
+        );
         self.transpose(z, planes, out);
         let extra = mu * (self.lambda + EPSILON);
         out.iter_mut().zip(v).for_each(|(o, v)| *o += extra * v);

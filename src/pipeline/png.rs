@@ -312,10 +312,16 @@ pub fn convert_png_seekable<W: Write + Seek>(
         PngDepth::Eight => convert_normals::<u8, _, _>(rows, None, opts, visit, out, how),
         PngDepth::Sixteen => convert_normals::<u16, _, _>(rows, None, opts, visit, out, how),
     }?;
-    // The room kept for the first IDAT chunk follows the signature and IHDR.
+    write_first_idat(out, start, &first_idat)
+}
+
+/// Writes the first IDAT chunk into the room kept for it after the
+/// signature and IHDR of the PNG that began at `start`, and returns to the
+/// end of the file.
+fn write_first_idat<W: Write + Seek>(out: &mut W, start: u64, first_idat: &[u8]) -> Result<()> {
     let end = out.stream_position()?;
     out.seek(std::io::SeekFrom::Start(start + HEADER_BYTES))?;
-    write_chunk(out, b"IDAT", &first_idat)?;
+    write_chunk(out, b"IDAT", first_idat)?;
     out.seek(std::io::SeekFrom::Start(end))?;
     out.flush()?;
     Ok(())
@@ -337,12 +343,7 @@ pub(crate) fn shade_png_seekable<W: Write + Seek>(
     // One filter (Avg) for every row: choosing per row was a tenth of a
     // streamed lit view's processor time.
     let first_idat = convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels { lamp })?;
-    let end = out.stream_position()?;
-    out.seek(std::io::SeekFrom::Start(start + HEADER_BYTES))?;
-    write_chunk(out, b"IDAT", &first_idat)?;
-    out.seek(std::io::SeekFrom::Start(end))?;
-    out.flush()?;
-    Ok(())
+    write_first_idat(out, start, &first_idat)
 }
 
 /// Normals lit by a lamp: one gray byte a texel.
