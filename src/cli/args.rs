@@ -287,6 +287,9 @@ pub struct ShadeArgs {
     pub terrain: TerrainArgs,
 
     #[command(flatten)]
+    pub units: UnitsArgs,
+
+    #[command(flatten)]
     pub batch: BatchArgs,
 
     #[command(flatten)]
@@ -479,8 +482,8 @@ impl TerrainArgs {
     }
 }
 
-/// Fits in real-world units (docs/terrain.md): `convert` only. The rules
-/// are the library's ([`normalfit::units::MapSpacing`]).
+/// Fits in real-world units (docs/terrain.md), for `convert` and `shade`.
+/// The rules are the library's ([`normalfit::units::MapSpacing`]).
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Terrain")]
 pub struct UnitsArgs {
