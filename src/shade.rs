@@ -736,7 +736,15 @@ pub fn lit_file_streamed(
             let _ = s.push_row(row);
         }
     };
-    io::write_file_atomically(output, |file| crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file))?;
+    // Map units fit the samples as stored; a band the rows give in
+    // contract units (signed and 32-bit integers: value / (2^bits − 1))
+    // is given back its stored values, as `Raster::into_stored_heights`
+    // does.
+    let restore = opts.map_units.is_some() && rows.unit() == 1.0 && rows.sample().stored_per_unit() != 1.0;
+    io::write_file_atomically(output, |file| match restore {
+        true => crate::pipeline::shade_png_seekable(StoredRows::new(rows), &fit, lamp, visit, file),
+        false => crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file),
+    })?;
     let mut warnings = Vec::new();
     if let Some(seams) = seams {
         let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?;
@@ -747,4 +755,54 @@ pub fn lit_file_streamed(
         None => Vec::new(),
     };
     Ok(Some(LitStreamed { width, height, warnings, sidecars }))
+}
+
+/// Rows given in contract units (value / (2^bits − 1)) as the values
+/// stored: each times 2^bits − 1, made whole again for integers of up to
+/// 32 bits (the division's error is under 2⁻²⁰), exactly as
+/// [`Raster::into_stored_heights`] computes them. For a fit in map units,
+/// which takes the values as they are.
+#[cfg(feature = "tiff")]
+struct StoredRows<R> {
+    rows: R,
+    scale: f64,
+    whole: bool,
+}
+
+#[cfg(feature = "tiff")]
+impl StoredRows<crate::pipeline::TiffRows> {
+    fn new(rows: crate::pipeline::TiffRows) -> Self {
+        use crate::io::SampleType;
+        let sample = rows.sample();
+        let whole = matches!(sample, SampleType::Int { bits } | SampleType::SignedInt { bits } if bits <= 32);
+        StoredRows { scale: sample.stored_per_unit(), whole, rows }
+    }
+}
+
+#[cfg(feature = "tiff")]
+impl<R: crate::pipeline::RowSource> crate::pipeline::RowSource for StoredRows<R> {
+    fn width(&self) -> usize {
+        self.rows.width()
+    }
+
+    fn height(&self) -> usize {
+        self.rows.height()
+    }
+
+    /// Only a fit in map units reads these rows, and it takes the values
+    /// as they are; the tiling check's heights are then stored values too,
+    /// as a whole image's are.
+    fn unit(&self) -> f64 {
+        1.0
+    }
+
+    fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
+        self.rows.next_row(out)?;
+        let scale = self.scale;
+        match self.whole {
+            true => out.iter_mut().for_each(|v| *v = (*v * scale).round()),
+            false => out.iter_mut().for_each(|v| *v *= scale),
+        }
+        Ok(())
+    }
 }
