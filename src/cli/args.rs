@@ -468,11 +468,7 @@ impl TerrainArgs {
         if let Some(band) = self.band {
             opts = opts.with_band(band);
         }
-        if self.size.is_some() || self.byte_order.is_some() {
-            let mut raw = RawOptions::default().with_byte_order(self.byte_order.unwrap_or_default());
-            if let Some((w, h)) = self.size {
-                raw = raw.with_size(w, h);
-            }
+        if let Some(raw) = RawOptions::given(self.size, self.byte_order) {
             opts = opts.with_raw(raw);
         }
         if let Some(packing) = self.decode {
