@@ -315,7 +315,8 @@ fn the_shipped_dem_against_gdaldem_hillshade() {
     };
     let ours = |file: &Path, extra: &[&str]| -> Vec<i32> {
         let out = dir.path().join("ours.png");
-        ok(&[&["shade", s(file), "--units", "map", "--border", "clamp", "-o", s(&out)][..], extra].concat());
+        let border: &[&str] = if extra.contains(&"--border") { &[] } else { &["--border", "clamp"] };
+        ok(&[&["shade", s(file), "--units", "map", "-o", s(&out)][..], border, extra].concat());
         greys(&out)
     };
     // Texels gdaldem computes: not its edge.
@@ -341,6 +342,14 @@ fn the_shipped_dem_against_gdaldem_hillshade() {
     let n3zt = compare("N 3 orthogonal vs Zevenbergen-Thorne", &ours(&cut, &[]), &zt, &texels);
     let zth = compare("gdaldem Zevenbergen-Thorne vs Horn", &zt, &horn, &texels);
 
+    // The edges: gdaldem computes them with -compute_edges, normalfit by
+    // its border modes.
+    let edges: Vec<usize> =
+        (0..w * h).filter(|k| k % w == 0 || k % w == w - 1 || k / w == 0 || k / w == h - 1).collect();
+    let computed = gdaldem(&cut, &["-compute_edges"]);
+    let clamp_edges = compare("edges: clamp vs -compute_edges", &ours(&cut, &[]), &computed, &edges);
+    compare("edges: mirror vs -compute_edges", &ours(&cut, &["--border", "mirror"]), &computed, &edges);
+
     // The DEM as it is: gdaldem's documented -s 111120 for degrees takes
     // one scale for both axes (a degree of longitude is 0.80 of that at
     // 36.6° N); normalfit converts each row's degrees to metres.
@@ -360,4 +369,5 @@ fn the_shipped_dem_against_gdaldem_hillshade() {
     // farther from the fit than Horn's 1:2:1.
     assert!(n5.1 > n3.1 && n3zt.1 > n3.1 && zth.1 > n3.1, "{n5:?} {n3zt:?} {zth:?}");
     assert!(geo.0 > n3.0, "{geo:?}");
+    assert!(clamp_edges.0 > n3.0, "{clamp_edges:?}");
 }
