@@ -235,8 +235,7 @@ fn map_units_match_gdaldem_hillshade_on_projected_planes() {
     for (dx, dy) in [(10.0, 10.0), (30.0, 20.0), (5.0, 12.5)] {
         for (p, q) in planes {
             // Rows go south: north = −row · dy.
-            let z: Vec<f64> =
-                (0..w * h).map(|k| 300.0 + p * (k % w) as f64 * dx - q * (k / w) as f64 * dy).collect();
+            let z: Vec<f64> = (0..w * h).map(|k| 300.0 + p * (k % w) as f64 * dx - q * (k / w) as f64 * dy).collect();
             let tif = gdal_geotiff(dir.path(), (w, h), &z, (dx, dy));
             for sun in suns {
                 let theirs = dir.path().join("hs.tif");
@@ -265,7 +264,9 @@ fn map_units_match_gdaldem_hillshade_on_projected_planes() {
             }
         }
     }
-    println!("projected planes in map units: at most {worst} grey level(s) from gdaldem hillshade over {texels} texels");
+    println!(
+        "projected planes in map units: at most {worst} grey level(s) from gdaldem hillshade over {texels} texels"
+    );
     // The planes are lit differently (flat ground alone would pass with
     // the spacing lost).
     distinct.sort_unstable();

@@ -27,7 +27,9 @@ use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
 use normalfit::fit::{Halo, Window};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
-use normalfit::io::{ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions};
+use normalfit::io::{
+    ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
+};
 use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
@@ -859,8 +861,9 @@ fn terrain_read(
 ) -> PyResult<ReadOptions> {
     if let Some(band) = band {
         let k = whole(band, "band")?;
-        let k = u32::try_from(k)
-            .map_err(|_| PyValueError::new_err(format!("invalid option: bands count from 1, as in GDAL: got band {k}")))?;
+        let k = u32::try_from(k).map_err(|_| {
+            PyValueError::new_err(format!("invalid option: bands count from 1, as in GDAL: got band {k}"))
+        })?;
         read = read.with_band(k);
     }
     let size = size.map(raw_size).transpose()?;
