@@ -87,14 +87,19 @@ fn streamed_and_whole_lit_views_agree_in_map_units() {
             let tif = dir.path().join(format!("{place}_{kind:?}.tif"));
             std::fs::write(&tif, geotiff::write(w, h, &Layout::gray(kind), &[values], &tags)).unwrap();
             let what = format!("{place} {kind:?}");
-            let map = LitOptions::new().with_fit(clamp()).with_map_units(Some(MapSpacing::FromFile));
-
-            let streamed = dir.path().join("streamed.png");
-            lit_file_streamed(&tif, &ReadOptions::default(), &map, &streamed).unwrap().expect("streams");
             let raster = read_path(&tif, &ReadOptions::default()).unwrap();
+            // Every border: a wrap in y fits the top rows last.
+            for border in [Border::Wrap, Border::Mirror, Border::Clamp] {
+                let fit = Options::new().with_borders(Borders::both(border));
+                let map = LitOptions::new().with_fit(fit).with_map_units(Some(MapSpacing::FromFile));
+                let streamed = dir.path().join("streamed.png");
+                lit_file_streamed(&tif, &ReadOptions::default(), &map, &streamed).unwrap().expect("streams");
+                let whole = lit_view(&raster, &map).unwrap();
+                let got = greys(&streamed);
+                assert_eq!(got, whole.pixels.iter().map(|&v| i32::from(v)).collect::<Vec<_>>(), "{what} {border:?}");
+            }
+            let map = LitOptions::new().with_fit(clamp()).with_map_units(Some(MapSpacing::FromFile));
             let whole = lit_view(&raster, &map).unwrap();
-            let got = greys(&streamed);
-            assert_eq!(got, whole.pixels.iter().map(|&v| i32::from(v)).collect::<Vec<_>>(), "{what}");
 
             // The same from the parts: the stored heights, the spacing of
             // the georeferencing, the fit, the sun.
