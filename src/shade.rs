@@ -19,6 +19,7 @@
 //! map fitted first, the light applied, tiled if asked; [`LitView::encode`]
 //! writes it as a gray PNG.
 
+use std::borrow::Cow;
 use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
@@ -27,7 +28,9 @@ use crate::error::{Error, Result};
 use crate::fit::checked_len;
 use crate::io::{self, Affine, Channel, Georef, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
 use crate::options::{Convention, Options};
+use crate::samples::Samples;
 use crate::tiling::{self, ImageKind, KindChoice, TilingOptions};
+use crate::units::MapSpacing;
 
 /// The share of full brightness a texel gets even when it faces away from
 /// the light, so shadowed slopes keep some visible detail.
@@ -430,6 +433,15 @@ pub struct LitOptions {
     pub channel: Option<Channel>,
     /// A float normal map holds n itself, not (n + 1)/2.
     pub signed: bool,
+    /// Fit height maps in real-world units ([`crate::Units::Map`]), the
+    /// spacing from the file or given, as a conversion does
+    /// ([`crate::convert::Conversion::map_units`]): heights as stored (a
+    /// DEM's metres), texels as far apart as the ground says, so that at
+    /// gain 1 the slopes, and the sun's hillshade, are the terrain's, as
+    /// `gdaldem hillshade` draws them at its default `-z 1`. The fit's own
+    /// [`Options::units`] are replaced by what this gives. Normal maps are
+    /// lit as they are. Default: `None`, the contract's units.
+    pub map_units: Option<MapSpacing>,
 }
 
 impl Default for LitOptions {
@@ -444,6 +456,7 @@ impl Default for LitOptions {
             kind: KindChoice::Auto,
             channel: None,
             signed: false,
+            map_units: None,
         }
     }
 }
@@ -526,6 +539,25 @@ impl LitOptions {
         self.signed = signed;
         self
     }
+
+    /// Fitting height maps in map units, the spacing from the file
+    /// ([`MapSpacing::FromFile`]) or given; `None` for the contract's
+    /// units. Front ends take it from `--units` and `--pixel-size` by
+    /// [`MapSpacing::choose`].
+    #[must_use]
+    pub fn with_map_units(mut self, map_units: Option<MapSpacing>) -> LitOptions {
+        self.map_units = map_units;
+        self
+    }
+
+    /// The fit of a `height`-row image placed by `georef`, in map units
+    /// when asked.
+    fn fit_for(&self, georef: Option<&Georef>, height: usize) -> Result<Options> {
+        match &self.map_units {
+            Some(map) => Ok(self.fit.clone().with_units(map.units(georef, height)?)),
+            None => Ok(self.fit.clone()),
+        }
+    }
 }
 
 /// A lit picture: 8-bit gray, row-major.
@@ -574,44 +606,70 @@ impl LitView {
 /// [`LitOptions::sun`] says): a normal map's colours read back
 /// ([`crate::normal_map::decode`]), or a height map's normals fitted with
 /// `opts.fit` (`auto` borders and the warning about a wrap that draws a
-/// seam from the tiling check, as a conversion does); then lit in the frame
-/// of `opts.fit.convention`, which [`shade`] undoes, so both conventions
-/// light the same on screen.
+/// seam from the tiling check, as a conversion does; in map units when
+/// [`LitOptions::map_units`] says, the heights as stored); then lit in the
+/// frame of `opts.fit.convention`, which [`shade`] undoes, so both
+/// conventions light the same on screen.
 ///
 /// Errors: those of [`crate::normal_map::kind_of`] and
-/// [`crate::normal_map::decode`], of the fit, and [`Error::InvalidOption`]
-/// for `signed` with a height map.
+/// [`crate::normal_map::decode`], of the fit, of
+/// [`MapSpacing::units`] (map units of a file without georeferencing and
+/// no pixel size given, …), and [`Error::InvalidOption`] for `signed` with
+/// a height map.
 pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
+    lit(Cow::Borrowed(raster), opts)
+}
+
+/// [`lit_view`] of a raster the caller gives up: in map units its stored
+/// heights are taken out of it rather than copied.
+///
+/// Errors: those of [`lit_view`].
+pub fn lit_view_owned(raster: Raster, opts: &LitOptions) -> Result<LitView> {
+    lit(Cow::Owned(raster), opts)
+}
+
+fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
     let (w, h) = (raster.width, raster.height);
-    let kind = crate::normal_map::kind_of(raster, opts.kind, opts.channel.as_ref())?;
+    let kind = crate::normal_map::kind_of(&raster, opts.kind, opts.channel.as_ref())?;
+    let georef = if opts.tile { None } else { raster.georef.clone() };
+    let lamp = opts.lamp(raster.georef.as_ref());
     let mut warnings = Vec::new();
     let normals = match kind {
-        ImageKind::Normal => crate::normal_map::decode(raster, opts.signed)?,
+        ImageKind::Normal => crate::normal_map::decode(&raster, opts.signed)?,
         ImageKind::Height => {
             if opts.signed {
                 return Err(Error::InvalidOption(
                     "signed is for normal maps, and this is a height map (name its kind normal if it is not)".into(),
                 ));
             }
-            let heights = raster.heights(opts.channel.clone())?;
+            let fit = opts.fit_for(raster.georef.as_ref(), h)?;
+            // Map units fit the heights as stored (a DEM's metres).
+            let heights = match opts.map_units {
+                Some(_) => raster.into_owned().into_stored_heights(opts.channel.clone())?,
+                None => Samples::F32(raster.heights(opts.channel.clone())?),
+            };
             let report = opts
                 .borders
                 .needs_check()
-                .then(|| tiling::check(&[&heights], w, h, &TilingOptions::new().with_kind(KindChoice::Height)))
+                .then(|| {
+                    let plane = heights.to_f32()?;
+                    tiling::check(&[&plane], w, h, &TilingOptions::new().with_kind(KindChoice::Height))
+                })
                 .transpose()?;
             warnings.extend(report.as_ref().and_then(|r| opts.borders.seams(r)));
-            let fit = opts.fit.clone().with_borders(opts.borders.resolve(report.as_ref()));
-            crate::normals(&heights, w, h, &fit)?
+            let fit = fit.with_borders(opts.borders.resolve(report.as_ref()));
+            let mut normals = crate::samples::try_vec(checked_len(w, h)?)?;
+            normals.resize(checked_len(w, h)?, [0.0f32; 3]);
+            heights.normals_into(w, h, &fit, &mut normals)?;
+            normals
         }
     };
-    let lamp = opts.lamp(raster.georef.as_ref());
     let len = checked_len(w, h)?;
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
     let lit = shade_with(&normals, lamp);
     let (pixels, width, height) = if opts.tile { (tile_2x2(&lit, w, h)?, 2 * w, 2 * h) } else { (lit, w, h) };
-    let georef = if opts.tile { None } else { raster.georef.clone() };
     Ok(LitView { pixels, width, height, kind, warnings, georef })
 }
 
@@ -619,7 +677,7 @@ pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
 ///
 /// Errors: those of [`io::read_path`] and [`lit_view`].
 pub fn lit_view_of_file(path: &Path, read: &ReadOptions, opts: &LitOptions) -> Result<LitView> {
-    lit_view(&io::read_path(path, read)?, opts)
+    lit_view_owned(io::read_path(path, read)?, opts)
 }
 
 /// What [`lit_file_streamed`] did.
@@ -669,14 +727,24 @@ pub fn lit_file_streamed(
     let (width, height) = (rows.width(), rows.height());
     let georef = rows.georef().cloned();
     let lamp = opts.lamp(georef.as_ref());
-    let fit = opts.fit.clone().with_borders(borders);
+    // Map units: the rows are the samples as stored, which the fit then
+    // takes as they are.
+    let fit = opts.fit_for(georef.as_ref(), height)?.with_borders(borders);
     let mut seams = if opts.borders.needs_check() { tiling::HeightSeams::new(width, height).ok() } else { None };
     let visit = |row: &[f32]| {
         if let Some(s) = seams.as_mut() {
             let _ = s.push_row(row);
         }
     };
-    io::write_file_atomically(output, |file| crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file))?;
+    // Map units fit the samples as stored; a band the rows give in
+    // contract units (signed and 32-bit integers: value / (2^bits − 1))
+    // is given back its stored values, as `Raster::into_stored_heights`
+    // does.
+    let restore = opts.map_units.is_some() && rows.unit() == 1.0 && rows.sample().stored_per_unit() != 1.0;
+    io::write_file_atomically(output, |file| match restore {
+        true => crate::pipeline::shade_png_seekable(StoredRows::new(rows), &fit, lamp, visit, file),
+        false => crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file),
+    })?;
     let mut warnings = Vec::new();
     if let Some(seams) = seams {
         let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?;
@@ -687,4 +755,54 @@ pub fn lit_file_streamed(
         None => Vec::new(),
     };
     Ok(Some(LitStreamed { width, height, warnings, sidecars }))
+}
+
+/// Rows given in contract units (value / (2^bits − 1)) as the values
+/// stored: each times 2^bits − 1, made whole again for integers of up to
+/// 32 bits (the division's error is under 2⁻²⁰), exactly as
+/// [`Raster::into_stored_heights`] computes them. For a fit in map units,
+/// which takes the values as they are.
+#[cfg(feature = "tiff")]
+struct StoredRows<R> {
+    rows: R,
+    scale: f64,
+    whole: bool,
+}
+
+#[cfg(feature = "tiff")]
+impl StoredRows<crate::pipeline::TiffRows> {
+    fn new(rows: crate::pipeline::TiffRows) -> Self {
+        use crate::io::SampleType;
+        let sample = rows.sample();
+        let whole = matches!(sample, SampleType::Int { bits } | SampleType::SignedInt { bits } if bits <= 32);
+        StoredRows { scale: sample.stored_per_unit(), whole, rows }
+    }
+}
+
+#[cfg(feature = "tiff")]
+impl<R: crate::pipeline::RowSource> crate::pipeline::RowSource for StoredRows<R> {
+    fn width(&self) -> usize {
+        self.rows.width()
+    }
+
+    fn height(&self) -> usize {
+        self.rows.height()
+    }
+
+    /// Only a fit in map units reads these rows, and it takes the values
+    /// as they are; the tiling check's heights are then stored values too,
+    /// as a whole image's are.
+    fn unit(&self) -> f64 {
+        1.0
+    }
+
+    fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
+        self.rows.next_row(out)?;
+        let scale = self.scale;
+        match self.whole {
+            true => out.iter_mut().for_each(|v| *v = (*v * scale).round()),
+            false => out.iter_mut().for_each(|v| *v *= scale),
+        }
+        Ok(())
+    }
 }

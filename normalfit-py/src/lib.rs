@@ -27,7 +27,9 @@ use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
 use normalfit::fit::{Halo, Window};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
-use normalfit::io::{Channel, Layout, OutputFormat, PngCompression, ReadOptions};
+use normalfit::io::{
+    ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
+};
 use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
@@ -364,7 +366,7 @@ fn borrow_error(e: numpy::BorrowError) -> PyErr {
 /// `normals` with every argument given (see `normalfit.normals`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads))]
+#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size))]
 fn normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -379,10 +381,17 @@ fn normals<'py>(
     residual: bool,
     out: Option<&Bound<'py, PyAny>>,
     threads: Option<&Bound<'py, PyAny>>,
+    units: &str,
+    pixel_size: Option<(f64, f64)>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
-    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let (mut opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    // An array has no georeferencing: map units need the pixel size (the
+    // library says so when it is missing).
+    if let Some(map) = map_units(units, pixel_size)? {
+        opts = opts.with_units(map.units(None, heights.shape()[0]).map_err(to_py_err)?);
+    }
     let output = output_kind(py, dtype)?;
     let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)?, window: None };
     fit_call(heights, kind, output, &call)
@@ -835,6 +844,58 @@ fn read_options(max_texels: Option<u64>, layer: Option<String>) -> PyResult<Read
     Ok(read)
 }
 
+/// `units=` and `pixel_size=`: the map units they ask for, by the
+/// library's rule (`--units`, `--pixel-size`).
+fn map_units(units: &str, pixel_size: Option<(f64, f64)>) -> PyResult<Option<MapSpacing>> {
+    Ok(MapSpacing::choose(parse_named::<UnitsName>(units)?, pixel_size.map(|(x, y)| [x, y])))
+}
+
+/// How terrain files are read, the CLI's `--band`, `--size`,
+/// `--byte-order` and `--decode` on top of `read`, checked by the library.
+fn terrain_read(
+    mut read: ReadOptions,
+    band: Option<&Bound<'_, PyAny>>,
+    size: Option<&Bound<'_, PyAny>>,
+    byte_order: Option<&str>,
+    decode: Option<&str>,
+) -> PyResult<ReadOptions> {
+    if let Some(band) = band {
+        let k = whole(band, "band")?;
+        let k = u32::try_from(k).map_err(|_| {
+            PyValueError::new_err(format!("invalid option: bands count from 1, as in GDAL: got band {k}"))
+        })?;
+        read = read.with_band(k);
+    }
+    let size = size.map(raw_size).transpose()?;
+    let byte_order = byte_order.map(parse_named::<ByteOrder>).transpose()?;
+    if let Some(raw) = RawOptions::given(size, byte_order) {
+        read = read.with_raw(raw);
+    }
+    if let Some(packing) = decode {
+        read = read.with_decode(parse_named::<PackedElevation>(packing)?);
+    }
+    read.validate().map_err(to_py_err)?;
+    Ok(read)
+}
+
+/// `size=`: a `(width, height)` pair or the command line's `"WxH"`.
+fn raw_size(size: &Bound<'_, PyAny>) -> PyResult<(usize, usize)> {
+    if let Ok(text) = size.cast::<PyString>() {
+        return normalfit::io::parse_size(&text.to_cow()?).map_err(to_py_err);
+    }
+    if let Ok(pair) = size.cast::<PyTuple>()
+        && pair.len() == 2
+    {
+        let side = |i: usize, name: &str| -> PyResult<usize> {
+            let v = whole(&pair.get_item(i)?, name)?;
+            usize::try_from(v)
+                .map_err(|_| PyValueError::new_err(format!("invalid option: RAW {name} must be at least 1, got {v}")))
+        };
+        return Ok((side(0, "width")?, side(1, "height")?));
+    }
+    Err(PyTypeError::new_err(format!("size must be a (width, height) pair or 'WxH', got {}", shown(size))))
+}
+
 /// `channel=`: a keyword (luma, r, g, b, a) or an OpenEXR channel's name,
 /// resolved per file by the library's rule, as `--channel` is.
 fn parse_channel(channel: Option<String>) -> PyResult<Option<Channel>> {
@@ -885,7 +946,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -909,16 +970,21 @@ fn convert(
     layer: Option<String>,
     units: &str,
     pixel_size: Option<(f64, f64)>,
+    band: Option<&Bound<'_, PyAny>>,
+    size: Option<&Bound<'_, PyAny>>,
+    byte_order: Option<&str>,
+    decode: Option<&str>,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let map_units = MapSpacing::choose(parse_named::<UnitsName>(units)?, pixel_size.map(|(x, y)| [x, y]));
+    let map_units = map_units(units, pixel_size)?;
+    let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?;
     let format = format.map(parse_named::<OutputFormat>).transpose()?;
     let compression = parse_named::<PngCompression>(compression)?;
     let layout = Layout::from_parts(parse_named(channels)?, parse_named(alpha)?).map_err(to_py_err)?;
     let mut conversion = Conversion::new()
         .with_fit(opts)
         .with_borders(borders)
-        .with_read(read_options(max_texels, layer)?)
+        .with_read(read)
         .with_channel(parse_channel(channel)?)
         .with_format(format)
         .with_signed(signed)
@@ -962,7 +1028,7 @@ fn decode_normals<'py>(
 /// `lit_view` with every argument given (see `normalfit.lit_view`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer))]
+#[pyo3(signature = (path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode))]
 fn lit_view<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -980,6 +1046,12 @@ fn lit_view<'py>(
     invert: bool,
     max_texels: Option<u64>,
     layer: Option<String>,
+    units: &str,
+    pixel_size: Option<(f64, f64)>,
+    band: Option<&Bound<'py, PyAny>>,
+    size: Option<&Bound<'py, PyAny>>,
+    byte_order: Option<&str>,
+    decode: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let light = Light::new(light.0, light.1).map_err(to_py_err)?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
@@ -990,8 +1062,9 @@ fn lit_view<'py>(
         .with_tile(tile)
         .with_kind(parse_named(kind)?)
         .with_channel(parse_channel(channel)?)
-        .with_signed(signed);
-    let read = read_options(max_texels, layer)?;
+        .with_signed(signed)
+        .with_map_units(map_units(units, pixel_size)?);
+    let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?;
     let view = py.detach(|| shade::lit_view_of_file(&path, &read, &lit)).map_err(|e| file_error(&path, e, false))?;
     let (w, h) = (view.width, view.height);
     Ok(PyArray1::from_vec(py, view.pixels).reshape([h, w])?.into_any())

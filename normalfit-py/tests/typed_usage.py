@@ -23,6 +23,12 @@ used: tuple[str, str] = summary.borders
 warnings: list[str] = summary.warnings
 decoded = normalfit.decode_normals("out.png")
 lit = normalfit.lit_view("in.png", light=(45.0, 60.0), tile=True)
+metres = normalfit.normals(heights, pixel_size=(30.0, 20.0), fit="vertical")
+mapped = normalfit.normals(heights, units="map", pixel_size=10.0)
+raw = normalfit.convert("t.r16", "n.png", size=(1025, 1025), byte_order="big", units="map", pixel_size=2.0)
+band = normalfit.convert("dem.tif", "n.exr", band=2, units="map")
+tile = normalfit.convert("tile.png", "n.png", decode="terrarium", size="256x256")
+lit_dem = normalfit.lit_view("dem.tif", units="map", band=1)
 from_file: normalfit.TilingReport = normalfit.check_tiling("in.png", channel="r")
 back, info = normalfit.height(unit, scale=2.0, fit="vertical", convention="auto", model="exact")
 range_: tuple[float, float] = info.range

@@ -287,6 +287,9 @@ pub struct ShadeArgs {
     pub terrain: TerrainArgs,
 
     #[command(flatten)]
+    pub units: UnitsArgs,
+
+    #[command(flatten)]
     pub batch: BatchArgs,
 
     #[command(flatten)]
@@ -465,11 +468,7 @@ impl TerrainArgs {
         if let Some(band) = self.band {
             opts = opts.with_band(band);
         }
-        if self.size.is_some() || self.byte_order.is_some() {
-            let mut raw = RawOptions::default().with_byte_order(self.byte_order.unwrap_or_default());
-            if let Some((w, h)) = self.size {
-                raw = raw.with_size(w, h);
-            }
+        if let Some(raw) = RawOptions::given(self.size, self.byte_order) {
             opts = opts.with_raw(raw);
         }
         if let Some(packing) = self.decode {
@@ -479,8 +478,8 @@ impl TerrainArgs {
     }
 }
 
-/// Fits in real-world units (docs/terrain.md): `convert` only. The rules
-/// are the library's ([`normalfit::units::MapSpacing`]).
+/// Fits in real-world units (docs/terrain.md), for `convert` and `shade`.
+/// The rules are the library's ([`normalfit::units::MapSpacing`]).
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Terrain")]
 pub struct UnitsArgs {

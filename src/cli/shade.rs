@@ -8,7 +8,8 @@ use std::io::Write;
 use std::path::Path;
 
 use normalfit::io::ReadOptions;
-use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_view};
+use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_view_owned};
+use normalfit::units::MapSpacing;
 
 use super::args::ShadeArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
@@ -53,7 +54,12 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
             lit.with_sun(SunChoice::Always(sun))
         }
     };
-    let lit = lit.with_tile(args.tile).with_kind(args.kind).with_channel(args.channel.clone()).with_signed(args.signed);
+    let lit = lit
+        .with_tile(args.tile)
+        .with_kind(args.kind)
+        .with_channel(args.channel.clone())
+        .with_signed(args.signed)
+        .with_map_units(MapSpacing::choose(args.units.units, args.units.pixel_size));
     let plan = Plan { lit, read: args.terrain.apply(ReadOptions::default()), destination, quiet: args.batch.quiet };
     Ok(batch.run(|job, turn| plan.shade_one(job, turn)))
 }
@@ -87,7 +93,7 @@ impl Plan {
             return Ok(Outcome::Done);
         }
         let raster = read_input(input, &self.read)?;
-        let view = lit_view(&raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
+        let view = lit_view_owned(raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
         if !self.quiet {
             view.warnings.iter().for_each(|w| fitting::warn(w, input));
         }

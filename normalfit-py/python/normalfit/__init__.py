@@ -52,6 +52,8 @@ def normals(
     residual: bool = False,
     out: Any = None,
     threads: int | None = None,
+    units: str = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
 ) -> Any:
     """The normal map of a height map.
 
@@ -86,6 +88,15 @@ def normals(
         (returned); it must not share memory with heights.
     threads: run on a pool of this many threads (pools are kept per size);
         default: every core (rayon's global pool).
+    units: "texels" (the contract's units, above) or "map": heights as
+        they are, whatever the dtype (a DEM's metres, a uint16's stored
+        integers), texels pixel_size apart, so that a texel's slope is the
+        terrain's times the gain (docs/terrain.md). An array has no
+        georeferencing: map units need pixel_size.
+    pixel_size: map units with this spacing, x (square) or (x, y): x
+        column to column, y row to row, in the heights' unit (the command
+        line's --pixel-size; implies units="map"). The residual is then in
+        the heights' unit.
 
     Returns a (rows, columns, 3) array of dtype.
 
@@ -95,7 +106,8 @@ def normals(
     MemoryError when the memory is not there.
     """
     return _normalfit.normals(
-        heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads
+        heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
+        None if pixel_size is None else _pair(pixel_size),
     )
 
 
@@ -158,6 +170,10 @@ def convert(
     layer: str | None = None,
     units: str = "texels",
     pixel_size: float | tuple[float, float] | None = None,
+    band: int | None = None,
+    size: tuple[int, int] | str | None = None,
+    byte_order: str | None = None,
+    decode: str | None = None,
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -177,6 +193,15 @@ def convert(
     real-world units, docs/terrain.md); pixel_size: map units with this
     spacing, x or (x, y) in the heights' unit (--pixel-size).
 
+    Terrain files (docs/terrain.md), as the command line reads them:
+    band: TIFF band K, 1-based as GDAL counts (--band); size: a RAW
+    heightmap's (width, height) or "WxH" (--size; default: a square from
+    the file's length); byte_order: "little" or "big", a RAW's 16-bit
+    samples (--byte-order); giving size or byte_order also reads files
+    whose extension names no format as RAW; decode: "terrain-rgb" or
+    "terrarium", heights packed in 8-bit RGB tiles unpacked to metres
+    (--decode).
+
     Returns a ConversionSummary (width, height, input_format, borders as
     used, streamed, tiling, warnings). Raises ValueError for a bad option,
     OSError naming the file for a file that cannot be read or written.
@@ -184,7 +209,7 @@ def convert(
     return _normalfit.convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
         compression, alpha, channels, residual, max_texels, layer, units,
-        None if pixel_size is None else _pair(pixel_size),
+        None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode,
     )
 
 
@@ -228,6 +253,12 @@ def lit_view(
     invert: bool = False,
     max_texels: int | None = None,
     layer: str | None = None,
+    units: str = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
+    band: int | None = None,
+    size: tuple[int, int] | str | None = None,
+    byte_order: str | None = None,
+    decode: str | None = None,
 ) -> Any:
     """``normalfit shade``: a normal map file, or a height map file through
     the fit (normals()'s options), lit by a directional light.
@@ -236,13 +267,15 @@ def lit_view(
         the image's right (135 = top-left), elevation above the surface
         (0 to 90). tile: repeat 2 x 2 so wrap seams show. kind: "auto",
         "height" or "normal". signed: a float normal map holds n itself.
+        units, pixel_size, band, size, byte_order, decode: as convert()'s
+        (a height map fitted in map units, terrain files).
 
     Returns the gray picture as a (rows, columns) uint8 array (twice each
     side when tiled), the pixels ``normalfit shade`` writes.
     """
     return _normalfit.lit_view(
         path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
-        max_texels, layer,
+        max_texels, layer, units, None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode,
     )
 
 

@@ -70,6 +70,8 @@ def normals(
     residual: bool = False,
     out: npt.NDArray[Any] | None = None,
     threads: int | None = None,
+    units: Literal["texels", "map"] = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
 ) -> Any: ...
 @final
 class ConversionSummary:
@@ -122,6 +124,10 @@ def convert(
     layer: str | None = None,
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | None = None,
+    band: int | None = None,
+    size: tuple[int, int] | str | None = None,
+    byte_order: Literal["little", "le", "big", "be"] | None = None,
+    decode: Literal["terrain-rgb", "mapbox", "terrarium"] | None = None,
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None
@@ -143,6 +149,12 @@ def lit_view(
     invert: bool = False,
     max_texels: int | None = None,
     layer: str | None = None,
+    units: Literal["texels", "map"] = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
+    band: int | None = None,
+    size: tuple[int, int] | str | None = None,
+    byte_order: Literal["little", "le", "big", "be"] | None = None,
+    decode: Literal["terrain-rgb", "mapbox", "terrarium"] | None = None,
 ) -> npt.NDArray[np.uint8]: ...
 @final
 class HeightInfo:

@@ -39,6 +39,8 @@ def normals(
     residual: bool,
     out: Any | None,
     threads: int | None,
+    units: str,
+    pixel_size: tuple[float, float] | None,
 ) -> Any: ...
 def check_tiling(image: Any, threshold: float, kind: str) -> TilingReport: ...
 def check_tiling_file(
@@ -66,6 +68,10 @@ def convert(
     layer: str | None,
     units: str,
     pixel_size: tuple[float, float] | None,
+    band: Any | None,
+    size: Any | None,
+    byte_order: str | None,
+    decode: str | None,
 ) -> ConversionSummary: ...
 def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
 def lit_view(
@@ -84,6 +90,12 @@ def lit_view(
     invert: bool,
     max_texels: int | None,
     layer: str | None,
+    units: str,
+    pixel_size: tuple[float, float] | None,
+    band: Any | None,
+    size: Any | None,
+    byte_order: str | None,
+    decode: str | None,
 ) -> Any: ...
 def height(
     normals: Any,

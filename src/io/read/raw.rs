@@ -46,6 +46,22 @@ pub struct RawOptions {
 }
 
 impl RawOptions {
+    /// The RAW layout a front end's options ask for (`--size WxH`,
+    /// `--byte-order`; Python's `size=`, `byte_order=`): `None` when
+    /// neither is given (files named `.raw`, `.r16`, `.r8` are still RAW,
+    /// square, little-endian), else the size if given and the byte order
+    /// (little by default). Giving either also reads standard input and
+    /// files whose extension names no format as RAW ([`ReadOptions::raw`]).
+    ///
+    /// [`ReadOptions::raw`]: super::ReadOptions::raw
+    #[must_use]
+    pub fn given(size: Option<(usize, usize)>, byte_order: Option<ByteOrder>) -> Option<RawOptions> {
+        if size.is_none() && byte_order.is_none() {
+            return None;
+        }
+        Some(RawOptions { size, byte_order: byte_order.unwrap_or_default(), bits: None })
+    }
+
     /// The same options with a size.
     #[must_use]
     pub fn with_size(mut self, width: usize, height: usize) -> Self {
