@@ -241,6 +241,17 @@ pub(crate) fn try_vec<T>(len: usize) -> Result<Vec<T>> {
     Ok(v)
 }
 
+/// [`try_vec`] holding `len` copies of `value`, written in parallel. The
+/// first write to each page of a large vector costs a page fault, and a
+/// serial fill of one plane of a 4096² image (134 MB) took 70 ms of the
+/// height inverse's 2 s on one core while the other waited.
+pub(crate) fn try_filled<T: Copy + Send + Sync>(len: usize, value: T) -> Result<Vec<T>> {
+    use crate::par::prelude::*;
+    let mut v = try_vec(len)?;
+    v.par_extend((0..len).into_par_iter().map(|_| value));
+    Ok(v)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -23,10 +23,10 @@ use std::path::Path;
 
 use crate::convert::{ConvertError, Input, Output, Place};
 use crate::error::{Error, Result};
-use crate::io::{self, ExrDepth, ExrOptions, InputFormat, OutputFormat, PngDepth, PngOptions, ReadOptions, SampleType};
+use crate::io::{self, ExrDepth, InputFormat, OutputFormat, PngDepth, PngOptions, ReadOptions, SampleType};
 use crate::samples::{Samples, try_vec, with_slice};
 
-use super::{HeightOptions, HeightReport, heights_of_rows};
+use super::{HeightOptions, HeightReport, SlopeField, heights_of_slopes};
 
 /// Something the caller may want to tell its user; the heights were written.
 #[derive(Clone, Debug, PartialEq)]
@@ -221,8 +221,10 @@ impl HeightConversion {
                 });
             }
         };
-        let found = heights_of_rows(&row, w, h, &options).map_err(fail_in)?;
+        let field = SlopeField::of_rows(&row, w, h).map_err(fail_in)?;
         drop(raster);
+        let found = heights_of_slopes(&field, &options).map_err(fail_in)?;
+        drop(field);
         let report = found.report.clone();
         let (lo, hi) = report.range;
         let png_range = (format == OutputFormat::Png).then_some((lo, hi));
@@ -237,14 +239,18 @@ impl HeightConversion {
             })?;
         }
         let result = match format {
-            OutputFormat::Exr => {
-                let mut stored: Vec<f32> = try_vec(values.len()).map_err(fail_out)?;
-                stored.extend(values.iter().map(|&v| v as f32));
-                drop(values);
-                crate::convert::write_to(output, |file| {
-                    io::encode_gray(&stored, w, h, &ExrOptions::new(ExrDepth::Float).into(), file)
+            // Converted to f32 as the blocks are written: no copy of the
+            // heights (67 MB at 4096²).
+            OutputFormat::Exr => crate::convert::write_to(output, |file| {
+                io::write::write_exr_rows(file, w, h, ExrDepth::Float, &["Y"], |push| {
+                    let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
+                    values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
+                        stored.clear();
+                        stored.extend(rows.iter().map(|&v| v as f32));
+                        push(&stored)
+                    })
                 })
-            }
+            }),
             OutputFormat::Png => {
                 let span = hi - lo;
                 let mut stored: Vec<u16> = try_vec(values.len()).map_err(fail_out)?;
@@ -276,8 +282,11 @@ impl HeightConversion {
     }
 }
 
+/// Rows of heights converted to f32 at a time for an EXR.
+const EXR_ROWS: usize = 256;
+
 /// Bytes a conversion holds per texel besides the decoded image: the
-/// solve's row spectra ([`super::solve::Solver::memory`]: 8 bytes a texel
+/// slopes ([`SlopeField`], 16), the solve's row spectra ([`super::solve::Solver::memory`]: 8 bytes a texel
 /// for the exact model with a wrapped or mirrored x, 16 clamped; the
 /// generic model's two complex planes 16 or 32), the heights (8), the orthogonal
 /// fit's ratios and kept heights (24), the conjugate gradients' vectors
@@ -287,5 +296,5 @@ fn per_texel(options: &HeightOptions, width: usize) -> u64 {
     let clamp = options.borders.x == crate::Border::Clamp || options.borders.y == crate::Border::Clamp;
     let iterative = if clamp && options.patch > 3 { 48 } else { 0 };
     let orthogonal = if options.fit == crate::Fit::Orthogonal { 24 } else { 0 };
-    spectra.div_ceil(width.max(1) as u64) + 8 + orthogonal + iterative + 4
+    SlopeField::BYTES_PER_TEXEL + spectra.div_ceil(width.max(1) as u64) + 8 + orthogonal + iterative + 4
 }

@@ -284,6 +284,17 @@ pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 /// read the file is [`Error::Io`].
 pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let raw = raw_layout_for(path, opts);
+    if raw.is_none() {
+        // An OpenEXR file is decoded from the file, a block at a time, not
+        // from a copy of it in memory.
+        let file = std::fs::File::open(path)?;
+        let file_len = file.metadata()?.len();
+        let mut read = std::io::BufReader::with_capacity(1 << 16, file);
+        if std::io::BufRead::fill_buf(&mut read)?.starts_with(&exr::EXR_MAGIC) {
+            opts.validate()?;
+            return decode_checked(InputFormat::Exr, opts, || exr::decode_exr_from(read, file_len, opts));
+        }
+    }
     let bytes = std::fs::read(path)?;
     decode_as(&bytes, raw.as_ref(), opts)
 }
@@ -311,6 +322,16 @@ fn decode_as(bytes: &[u8], raw: Option<&RawOptions>, opts: &ReadOptions) -> Resu
         Some(_) => InputFormat::Raw,
         None => InputFormat::recognise(bytes)?,
     };
+    decode_checked(format.clone(), opts, || match raw {
+        Some(raw) => raw::decode_raw(bytes, raw, opts),
+        None => format.info().decode(bytes, opts),
+    })
+}
+
+/// `decode` of a file in `format`, with the rules every format shares:
+/// no layer asked of a format without layers, nor a band of one without
+/// bands; then the packing, if any.
+fn decode_checked(format: InputFormat, opts: &ReadOptions, decode: impl FnOnce() -> Result<Raster>) -> Result<Raster> {
     if let Some(layer) = &opts.layer
         && format != InputFormat::Exr
     {
@@ -321,10 +342,7 @@ fn decode_as(bytes: &[u8], raw: Option<&RawOptions>, opts: &ReadOptions) -> Resu
     {
         return Err(no_bands(&format, band));
     }
-    let raster = match raw {
-        Some(raw) => raw::decode_raw(bytes, raw, opts)?,
-        None => format.info().decode(bytes, opts)?,
-    };
+    let raster = decode()?;
     match opts.decode {
         Some(packing) => packed::unpack(raster, packing),
         None => Ok(raster),
