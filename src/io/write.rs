@@ -677,9 +677,12 @@ const EXR_ZLIB_LEVEL: u8 = 1;
 /// that make them compress: the even bytes first, then the odd ones, and
 /// each byte replaced by its difference from the one before, plus 128.
 /// `exr` does this itself but deflates with miniz_oxide at level 4, which
-/// took 85 % of an EXR conversion's time; fdeflate is several times
-/// faster on these bytes and about as small. A block that does not shrink
-/// is stored as it is, which is how EXR readers tell the two apart.
+/// took 85 % of an EXR conversion's time; level 1 is several times
+/// faster. On a 4096² map of float heights in these blocks, level 1 took
+/// 0.38 s to 86 % of the size; libdeflate's level 1 0.41 s to 71 %,
+/// zlib-rs's 0.44 s to 86 %, and fdeflate (made for PNG's filtered bytes)
+/// 0.07 s to 137 %. A block that does not shrink is stored as it is,
+/// which is how EXR readers tell the two apart.
 fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth: ExrDepth) -> Result<Chunk> {
     let raw = exr_block_bytes(samples, row_len, order, depth);
     let mut split = vec![0u8; raw.len()];
