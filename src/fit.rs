@@ -231,7 +231,7 @@ fn fit_image<H: Sample, T: FromNormal>(
 /// asked for (then non-finite heights are holes even without a nodata
 /// value): `valid[k]` tells whether texel k has a normal. Returns the
 /// count of missing texels.
-fn fit_image_masked<H: Sample, T: FromNormal>(
+pub(crate) fn fit_image_masked<H: Sample, T: FromNormal>(
     heights: &[H],
     width: usize,
     height: usize,
@@ -346,6 +346,8 @@ pub struct BandFit {
     band_rows: usize,
     /// The height of a row value of 1, when not the sample type's own.
     unit: Option<f64>,
+    /// Missing texels in the bands fitted so far.
+    missing: std::sync::atomic::AtomicUsize,
 }
 
 impl BandFit {
@@ -359,7 +361,7 @@ impl BandFit {
         // share among the threads.
         let blocks = crate::par::current_num_threads().clamp(1, (MAX_BLOCK_TEXELS / (plan.block_rows * width)).max(1));
         let band_rows = plan.block_rows * blocks;
-        Ok(BandFit { plan, height, band_rows, unit: None })
+        Ok(BandFit { plan, height, band_rows, unit: None, missing: 0.into() })
     }
 
     /// The same fit of rows whose values are heights in units of `unit`
@@ -450,6 +452,12 @@ impl BandFit {
         self.plan.nodata.is_some()
     }
 
+    /// The missing texels of every band fitted so far (by either call).
+    #[must_use]
+    pub fn missing(&self) -> usize {
+        self.missing.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     fn fit_band_with<'a, H: Sample, T: FromNormal>(
         &self,
         rows: Range<usize>,
@@ -508,7 +516,9 @@ impl BandFit {
             None => &mut own[..],
         };
         self.plan.fit_rows(&source, unit, (rows.start, 0..w), out, None, Some((&mut *valid, nodata)));
-        Ok(valid.iter().filter(|&&v| !v).count())
+        let missing = valid.iter().filter(|&&v| !v).count();
+        self.missing.fetch_add(missing, std::sync::atomic::Ordering::Relaxed);
+        Ok(missing)
     }
 }
 

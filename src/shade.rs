@@ -545,6 +545,10 @@ pub struct LitView {
     /// The georeferencing of the image (a GeoTIFF's), which the picture
     /// keeps when it is not tiled: [`LitView::write_file`] writes it beside.
     pub georef: Option<Georef>,
+    /// Missing texels of a height map with holes (a nodata value, the
+    /// fit's or the GeoTIFF's): grey 0, as `gdaldem hillshade` writes
+    /// nodata (counted once, not per tile).
+    pub missing: usize,
 }
 
 impl LitView {
@@ -585,8 +589,32 @@ pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
     let (w, h) = (raster.width, raster.height);
     let kind = crate::normal_map::kind_of(raster, opts.kind, opts.channel.as_ref())?;
     let mut warnings = Vec::new();
+    let mut valid: Option<Vec<bool>> = None;
     let normals = match kind {
         ImageKind::Normal => crate::normal_map::decode(raster, opts.signed)?,
+        ImageKind::Height if opts.fit.nodata.or(raster.georef.as_ref().and_then(|g| g.nodata)).is_some() => {
+            if opts.signed {
+                return Err(Error::InvalidOption(
+                    "signed is for normal maps, and this is a height map (name its kind normal if it is not)".into(),
+                ));
+            }
+            let nodata = opts.fit.nodata.or(raster.georef.as_ref().and_then(|g| g.nodata)).unwrap_or(f64::NAN);
+            let (heights, nodata) = raster.clone().into_heights_with_holes(opts.channel.clone(), false, nodata)?;
+            let check = heights.to_f32()?;
+            let report = opts
+                .borders
+                .needs_check()
+                .then(|| tiling::check(&[&check], w, h, &TilingOptions::new().with_kind(KindChoice::Height)))
+                .transpose()?;
+            warnings.extend(report.as_ref().and_then(|r| opts.borders.seams(r)));
+            let fit =
+                opts.fit.clone().with_borders(opts.borders.resolve(report.as_ref())).with_nodata(Some(nodata));
+            let mut normals = vec![[0.0f32; 3]; checked_len(w, h)?];
+            let mut mask = vec![false; normals.len()];
+            heights.normals_masked_into((w, h), &fit, &mut normals, None, &mut mask)?;
+            valid = Some(mask);
+            normals
+        }
         ImageKind::Height => {
             if opts.signed {
                 return Err(Error::InvalidOption(
@@ -609,10 +637,17 @@ pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    let lit = shade_with(&normals, lamp);
+    let mut lit = shade_with(&normals, lamp);
+    let mut missing = 0;
+    if let Some(valid) = &valid {
+        for (g, _) in lit.iter_mut().zip(valid).filter(|(_, v)| !**v) {
+            *g = 0;
+            missing += 1;
+        }
+    }
     let (pixels, width, height) = if opts.tile { (tile_2x2(&lit, w, h)?, 2 * w, 2 * h) } else { (lit, w, h) };
     let georef = if opts.tile { None } else { raster.georef.clone() };
-    Ok(LitView { pixels, width, height, kind, warnings, georef })
+    Ok(LitView { pixels, width, height, kind, warnings, georef, missing })
 }
 
 /// [`lit_view`] of the image at `path`.
@@ -634,6 +669,8 @@ pub struct LitStreamed {
     pub warnings: Vec<Warning>,
     /// The georeferencing sidecars written beside the picture.
     pub sidecars: Vec<PathBuf>,
+    /// Missing texels (grey 0), as [`LitView::missing`].
+    pub missing: usize,
 }
 
 /// The lit view of the height map at `input`, written to the PNG file
@@ -669,14 +706,19 @@ pub fn lit_file_streamed(
     let (width, height) = (rows.width(), rows.height());
     let georef = rows.georef().cloned();
     let lamp = opts.lamp(georef.as_ref());
-    let fit = opts.fit.clone().with_borders(borders);
+    let nodata = opts.fit.nodata.or_else(|| georef.as_ref().and_then(|g| g.nodata));
+    let fit = opts.fit.clone().with_borders(borders).with_nodata(nodata);
     let mut seams = if opts.borders.needs_check() { tiling::HeightSeams::new(width, height).ok() } else { None };
     let visit = |row: &[f32]| {
         if let Some(s) = seams.as_mut() {
             let _ = s.push_row(row);
         }
     };
-    io::write_file_atomically(output, |file| crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file))?;
+    let mut missing = 0;
+    io::write_file_atomically(output, |file| {
+        missing = crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file)?;
+        Ok(())
+    })?;
     let mut warnings = Vec::new();
     if let Some(seams) = seams {
         let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?;
@@ -686,5 +728,5 @@ pub fn lit_file_streamed(
         Some(georef) => io::sidecar::write_sidecars(output, georef)?,
         None => Vec::new(),
     };
-    Ok(Some(LitStreamed { width, height, warnings, sidecars }))
+    Ok(Some(LitStreamed { width, height, warnings, sidecars, missing }))
 }

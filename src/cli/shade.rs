@@ -31,7 +31,7 @@ struct Plan {
 /// Shades every input (files, and the images of folders); returns the
 /// failures (already reported).
 pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
-    let fit = fitting::options(&args.fit)?;
+    let fit = fitting::options(&args.fit)?.with_nodata(args.holes.nodata);
     stdin_at_most_once(&args.inputs)?;
     let words = Words { done: "shaded", purpose: "to shade" };
     let batch = Batch::gather(&args.inputs, &args.batch, SUFFIX, words);
@@ -83,6 +83,10 @@ impl Plan {
         {
             if !self.quiet {
                 done.warnings.iter().for_each(|w| fitting::warn(w, input));
+                if done.missing > 0 || self.lit.fit.nodata.is_some() {
+                    let texels = done.width * done.height;
+                    fitting::report_missing(input, done.missing, texels, self.lit.fit.nodata, "grey");
+                }
             }
             return Ok(Outcome::Done);
         }
@@ -90,6 +94,10 @@ impl Plan {
         let view = lit_view(&raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
         if !self.quiet {
             view.warnings.iter().for_each(|w| fitting::warn(w, input));
+            if view.missing > 0 || self.lit.fit.nodata.is_some() {
+                let texels = raster.width * raster.height;
+                fitting::report_missing(input, view.missing, texels, self.lit.fit.nodata, "grey");
+            }
         }
         match &target {
             Some(path) => {
