@@ -830,8 +830,7 @@ impl Job<'_> {
         let heights = match (units.is_some(), conversion.fit.nodata) {
             (stored, Some(nodata)) => {
                 let channel = conversion.channel.clone();
-                let (heights, nodata) =
-                    raster.into_heights_with_holes(channel, stored, nodata).map_err(&in_failure)?;
+                let (heights, nodata) = raster.into_heights_with_holes(channel, stored, nodata).map_err(&in_failure)?;
                 fit_nodata = Some(nodata);
                 heights
             }
@@ -941,6 +940,8 @@ impl Job<'_> {
             self.judge(report);
         }
         let fit = self.fit_options();
+        // The nodata value as the rows hold it.
+        let fit = fit.clone().with_nodata(fit.nodata.map(|v| rows.row_value(v)));
         let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
         let mut seams = match self.summary.tiling.is_none() && borders.needs_check() {
             true => self.seam_check(width, height)?,

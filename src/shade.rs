@@ -607,8 +607,7 @@ pub fn lit_view(raster: &Raster, opts: &LitOptions) -> Result<LitView> {
                 .then(|| tiling::check(&[&check], w, h, &TilingOptions::new().with_kind(KindChoice::Height)))
                 .transpose()?;
             warnings.extend(report.as_ref().and_then(|r| opts.borders.seams(r)));
-            let fit =
-                opts.fit.clone().with_borders(opts.borders.resolve(report.as_ref())).with_nodata(Some(nodata));
+            let fit = opts.fit.clone().with_borders(opts.borders.resolve(report.as_ref())).with_nodata(Some(nodata));
             let mut normals = vec![[0.0f32; 3]; checked_len(w, h)?];
             let mut mask = vec![false; normals.len()];
             heights.normals_masked_into((w, h), &fit, &mut normals, None, &mut mask)?;
@@ -707,7 +706,7 @@ pub fn lit_file_streamed(
     let georef = rows.georef().cloned();
     let lamp = opts.lamp(georef.as_ref());
     let nodata = opts.fit.nodata.or_else(|| georef.as_ref().and_then(|g| g.nodata));
-    let fit = opts.fit.clone().with_borders(borders).with_nodata(nodata);
+    let fit = opts.fit.clone().with_borders(borders).with_nodata(nodata.map(|v| rows.row_value(v)));
     let mut seams = if opts.borders.needs_check() { tiling::HeightSeams::new(width, height).ok() } else { None };
     let visit = |row: &[f32]| {
         if let Some(s) = seams.as_mut() {

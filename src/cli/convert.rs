@@ -123,7 +123,13 @@ impl Plan {
                 if let Some(nodata) = summary.nodata
                     && !self.quiet
                 {
-                    fitting::report_missing(input, summary.missing, summary.width * summary.height, Some(nodata), "alpha");
+                    fitting::report_missing(
+                        input,
+                        summary.missing,
+                        summary.width * summary.height,
+                        Some(nodata),
+                        "alpha",
+                    );
                 }
                 Ok(Outcome::Done)
             }

@@ -75,6 +75,14 @@ pub trait RowSource: Send {
     /// samples as stored, 1 for floats and heights.
     fn unit(&self) -> f64;
 
+    /// The row value of a stored sample value `v` (a nodata value as a
+    /// file's tag or the user gives it): `v` itself, unless the source
+    /// divides its samples (a TIFF's signed and 32-bit integers, given in
+    /// contract units), and then `v` divided the same way.
+    fn row_value(&self, v: f64) -> f64 {
+        v
+    }
+
     /// Decodes the next row into `out` (`width` values).
     ///
     /// Errors: [`Error::Decode`] for corrupt or truncated data, or when all
