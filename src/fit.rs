@@ -275,6 +275,22 @@ pub(crate) fn fit_image_masked<H: Sample, T: FromNormal>(
     Ok(valid.iter().filter(|&&v| !v).count())
 }
 
+/// [`normals_masked_into`] and the residual
+/// ([`normals_and_residual_into`]'s; NaN where a texel is missing).
+///
+/// Errors: as [`normals_masked_into`]; [`Error::BufferSize`] also for a
+/// `residual` of the wrong length.
+pub fn normals_masked_and_residual_into<H: Sample, T: FromNormal>(
+    heights: &[H],
+    (width, height): (usize, usize),
+    opts: &Options,
+    out: &mut [T],
+    residual: &mut [f32],
+    valid: &mut [bool],
+) -> Result<usize> {
+    fit_image_masked(heights, width, height, opts, out, Some(residual), Some(valid))
+}
+
 /// Like [`normals_into`], with holes: texels whose value is
 /// `opts.nodata`, and non-finite ones (whether or not a nodata value is
 /// set), are missing, and each patch is fitted to its valid points alone.

@@ -70,6 +70,7 @@ def normals(
     residual: bool = False,
     out: npt.NDArray[Any] | None = None,
     threads: int | None = None,
+    nodata: float | None = None,
 ) -> Any: ...
 @final
 class ConversionSummary:
@@ -89,6 +90,10 @@ class ConversionSummary:
     def tiling(self) -> TilingReport | None: ...
     @property
     def warnings(self) -> list[str]: ...
+    @property
+    def nodata(self) -> float | None: ...
+    @property
+    def missing(self) -> int: ...
 
 def check_tiling(
     image: _Heights | _Path,
@@ -122,6 +127,7 @@ def convert(
     layer: str | None = None,
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | None = None,
+    nodata: float | None = None,
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None

@@ -39,6 +39,7 @@ def normals(
     residual: bool,
     out: Any | None,
     threads: int | None,
+    nodata: float | None,
 ) -> Any: ...
 def check_tiling(image: Any, threshold: float, kind: str) -> TilingReport: ...
 def check_tiling_file(
@@ -66,6 +67,7 @@ def convert(
     layer: str | None,
     units: str,
     pixel_size: tuple[float, float] | None,
+    nodata: float | None,
 ) -> ConversionSummary: ...
 def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
 def lit_view(
