@@ -153,7 +153,7 @@ fn dem_with_nodata(w: usize, h: usize, kind: Kind, nodata: f64) -> (Vec<u8>, Vec
     let mut values = Vec::new();
     for k in 0..w * h {
         let (x, y) = (k % w, k / w);
-        let hole = (k * 7919) % 13 == 0 || (x >= 10 && x < 16 && y >= 4 && y < 9);
+        let hole = (k * 7919) % 13 == 0 || ((10..16).contains(&x) && (4..9).contains(&y));
         values.push(if hole { nodata } else { (300 + 3 * x + 2 * y + (k * 31) % 7) as f64 });
     }
     let layout = Layout::gray(kind);
