@@ -38,7 +38,7 @@ fn holed_u16(w: usize, h: usize) -> Vec<u16> {
             state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             let (x, y) = (k % w, k / w);
             let block = (5..9).contains(&x) && (3..6).contains(&y);
-            if (state >> 33) % 10 == 0 || block {
+            if (state >> 33).is_multiple_of(10) || block {
                 0
             } else {
                 1000 + (x * 400 + y * 150) as u16 + ((state >> 40) % 300) as u16
@@ -153,7 +153,7 @@ fn dem_with_nodata(w: usize, h: usize, kind: Kind, nodata: f64) -> (Vec<u8>, Vec
     let mut values = Vec::new();
     for k in 0..w * h {
         let (x, y) = (k % w, k / w);
-        let hole = (k * 7919) % 13 == 0 || ((10..16).contains(&x) && (4..9).contains(&y));
+        let hole = (k * 7919).is_multiple_of(13) || ((10..16).contains(&x) && (4..9).contains(&y));
         values.push(if hole { nodata } else { (300 + 3 * x + 2 * y + (k * 31) % 7) as f64 });
     }
     let layout = Layout::gray(kind);

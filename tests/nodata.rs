@@ -55,15 +55,15 @@ fn smallest_eigenvector(mut a: [[f64; 3]; 3]) -> [f64; 3] {
             let c = 1.0 / (t * t + 1.0).sqrt();
             let s = t * c;
             // a ← Jᵀ a J, v ← v J, J the rotation in the (p, q) plane.
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
+            for row in &mut a {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = c * akp - s * akq;
+                row[q] = s * akp + c * akq;
             }
+            let (ap, aq) = (a[p], a[q]);
             for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
+                a[p][k] = c * ap[k] - s * aq[k];
+                a[q][k] = s * ap[k] + c * aq[k];
             }
             for row in &mut v {
                 let (vp, vq) = (row[p], row[q]);
@@ -353,7 +353,7 @@ fn too_few_or_collinear_points_are_missing() {
 #[test]
 fn an_all_missing_image_is_all_missing() {
     for (w, h) in [(1, 1), (5, 3), (64, 70)] {
-        let heights = vec![-32768i16 as f32; w * h];
+        let heights = vec![-32768.0f32; w * h];
         let opts = Options::new().with_nodata(Some(-32768.0));
         let mut normals = vec![[0u8; 3]; w * h];
         let mut valid = vec![true; w * h];
@@ -380,8 +380,8 @@ fn flat_heights_with_holes_give_flat_normals() {
             let mut normals = vec![[0u8; 3]; w * h];
             let mut valid = vec![false; w * h];
             normals_masked_into(&heights, w, h, &opts, &mut normals, &mut valid).unwrap();
-            for k in 0..w * h {
-                assert_eq!(normals[k], [128, 128, 255], "N {n} {fit:?} texel {k}");
+            for (k, normal) in normals.iter().enumerate() {
+                assert_eq!(*normal, [128, 128, 255], "N {n} {fit:?} texel {k}");
             }
             assert!(valid.iter().filter(|&&v| v).count() > w * h / 2);
         }
