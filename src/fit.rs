@@ -874,7 +874,15 @@ impl Plan {
                 let h = src.values[(at - src.x0) as usize].to_f64();
                 if masked::is_hole(h, nodata) { 0.0 } else { gain * h }
             };
-            padded.extend((lo..hi).map(value));
+            if a >= 0 && b <= src.values.len() as isize {
+                let values = &src.values[a as usize..b as usize];
+                padded.extend(values.iter().map(|&h| {
+                    let h = h.to_f64();
+                    if masked::is_hole(h, nodata) { 0.0 } else { gain * h }
+                }));
+            } else {
+                padded.extend((lo..hi).map(value));
+            }
         } else if a >= 0 && b <= src.values.len() as isize {
             // Away from the borders: a slice, and a loop that vectorises.
             padded.extend(src.values[a as usize..b as usize].iter().map(|&h| gain * h.to_f64()));

@@ -108,6 +108,16 @@ impl MaskSums {
         let (lo, hi) = (self.cols.start as isize - r, self.cols.end as isize + r);
         let held = src.x0..src.x0 + src.values.len() as isize;
         self.valid.clear();
+        if !src.holes {
+            self.valid.resize((hi - lo) as usize, 1);
+            return;
+        }
+        if lo >= held.start && hi <= held.end {
+            // Away from the borders: the row's own values.
+            let values = &src.values[(lo - src.x0) as usize..(hi - src.x0) as usize];
+            self.valid.extend(values.iter().map(|&h| u8::from(!is_hole(h.to_f64(), nodata))));
+            return;
+        }
         self.valid.extend((lo..hi).map(|u| {
             let at = if held.contains(&u) { u } else { plan.borders.x.map(u, plan.width) as isize };
             u8::from(!is_hole(src.values[(at - src.x0) as usize].to_f64(), nodata))
@@ -117,8 +127,17 @@ impl MaskSums {
     /// Σm, Σi·m, Σi²·m over each column's window of one source row, by
     /// running sums (integers: exact).
     fn row_sums<H: Sample>(&mut self, plan: &Plan, src: RowRef<'_, H>, nodata: f64, entering: bool) {
-        self.valid_row(plan, src, nodata);
         let (n, r) = (plan.n, plan.r as i64);
+        let out = if entering { &mut self.entering } else { &mut self.leaving };
+        if !src.holes {
+            // Every window full: N, 0 and Σi² = r(r + 1)(2r + 1)/3.
+            let [o0, o1, o2] = out;
+            o0.fill(n as i64);
+            o1.fill(0);
+            o2.fill(r * (r + 1) * (2 * r + 1) / 3);
+            return;
+        }
+        self.valid_row(plan, src, nodata);
         let out = if entering { &mut self.entering } else { &mut self.leaving };
         let m = &self.valid;
         let (mut c0, mut c1, mut c2) = (0i64, 0i64, 0i64);
