@@ -353,6 +353,13 @@ pub struct Summary {
     /// GeoTIFF ([`io::sidecar`]): its world file, and its `.aux.xml` when
     /// the GeoTIFF names an EPSG code.
     pub sidecars: Vec<PathBuf>,
+    /// The nodata value the conversion used (the fit's, else the
+    /// GeoTIFF's GDAL_NODATA tag), if any: the map then has holes, and an
+    /// alpha of validity ([`Layout::RgbValid`]).
+    pub nodata: Option<f64>,
+    /// Missing texels (holes, and texels whose valid points do not
+    /// determine a plane): alpha 0 in the map. 0 without a nodata value.
+    pub missing: usize,
 }
 
 /// Every choice of a conversion. The defaults are the contract's: the
@@ -675,7 +682,21 @@ impl Opened {
             let problem = "this conversion makes no residual map (Conversion::with_residual)";
             return Err(ConvertError { place: Place::Residual, error: Error::InvalidOption(problem.into()) });
         }
-        let Opened { conversion, path, source, format, sample } = self;
+        let Opened { mut conversion, path, source, format, sample } = self;
+        let georef = match &source {
+            Source::Whole(raster) => raster.georef.clone(),
+            #[cfg(feature = "tiff")]
+            Source::Tiff(rows, _) => rows.georef().cloned(),
+            _ => None,
+        };
+        // Holes: the nodata value given, else the GeoTIFF's own; the map
+        // then says which texels are missing in its alpha.
+        let nodata = conversion.fit.nodata.or_else(|| georef.as_ref().and_then(|g| g.nodata));
+        conversion.fit.nodata = nodata;
+        let encoding = &match nodata {
+            Some(_) => encoding.with_layout(encoding.layout().with_holes()),
+            None => *encoding,
+        };
         let mut job = Job {
             conversion: &conversion,
             input: path.as_deref(),
@@ -692,13 +713,9 @@ impl Opened {
                 tiling: None,
                 warnings: Vec::new(),
                 sidecars: Vec::new(),
+                nodata,
+                missing: 0,
             },
-        };
-        let georef = match &source {
-            Source::Whole(raster) => raster.georef.clone(),
-            #[cfg(feature = "tiff")]
-            Source::Tiff(rows, _) => rows.georef().cloned(),
-            _ => None,
         };
         // Beside a PNG file: GDAL reads no EXR here, and a writer has no name.
         let sidecar_of = match (&normals, encoding) {
@@ -809,11 +826,17 @@ impl Job<'_> {
             Some(map) => Some(map.units(raster.georef.as_ref(), height).map_err(&in_failure)?),
             None => None,
         };
-        let heights = match units {
-            Some(_) => raster.into_stored_heights(conversion.channel.clone()),
-            None => raster.into_heights(conversion.channel.clone()),
-        }
-        .map_err(&in_failure)?;
+        let mut fit_nodata = conversion.fit.nodata;
+        let heights = match (units.is_some(), conversion.fit.nodata) {
+            (stored, Some(nodata)) => {
+                let channel = conversion.channel.clone();
+                let (heights, nodata) = raster.into_heights_with_holes(channel, stored, nodata).map_err(&in_failure)?;
+                fit_nodata = Some(nodata);
+                heights
+            }
+            (true, None) => raster.into_stored_heights(conversion.channel.clone()).map_err(&in_failure)?,
+            (false, None) => raster.into_heights(conversion.channel.clone()).map_err(&in_failure)?,
+        };
         let report = match conversion.borders.needs_check() {
             true => match self.seam_check(width, height)? {
                 Some(mut seams) => {
@@ -827,7 +850,7 @@ impl Job<'_> {
         if let Some(report) = report {
             self.judge(report);
         }
-        let mut fit = self.fit_options();
+        let mut fit = self.fit_options().with_nodata(fit_nodata);
         if let Some(units) = units {
             fit = fit.with_units(units);
         }
@@ -837,11 +860,22 @@ impl Job<'_> {
         check_encode_memory(&self.encoding, to_writer, normals.is_some(), residual.is_some(), width, height)
             .map_err(ConvertError::at(first))?;
         let mut distances = residual.as_ref().map(|_| zeroed::<f32>(heights.len())).transpose().map_err(&in_failure)?;
-        let texels = Texels::fit(&heights, width, height, &fit, &self.encoding, distances.as_deref_mut())
-            .map_err(&in_failure)?;
-        // An alpha of heights takes them in contract units, as f32.
-        let heights =
-            if self.encoding.layout().needs_heights() { heights.into_f32().map_err(&in_failure)? } else { Vec::new() };
+        let mut valid = match fit.nodata {
+            Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
+            None => None,
+        };
+        let texels =
+            Texels::fit(&heights, width, height, &fit, &self.encoding, distances.as_deref_mut(), valid.as_deref_mut())
+                .map_err(&in_failure)?;
+        self.summary.missing = valid.as_ref().map_or(0, |v| v.iter().filter(|&&v| !v).count());
+        // An alpha of heights takes them in contract units, as f32; an
+        // alpha of validity, 1 and 0.
+        let heights = match (self.encoding.layout(), &valid) {
+            (Layout::RgbValid, Some(valid)) => valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect(),
+            (Layout::RgbValid, None) => vec![1.0; width * height],
+            (layout, _) if layout.needs_heights() => heights.into_f32().map_err(&in_failure)?,
+            _ => Vec::new(),
+        };
         let encoding = self.encoding;
         if let Some(out) = normals {
             self.prepare(&out, Place::Output)?;
@@ -906,6 +940,8 @@ impl Job<'_> {
             self.judge(report);
         }
         let fit = self.fit_options();
+        // The nodata value as the rows hold it.
+        let fit = fit.clone().with_nodata(fit.nodata.map(|v| rows.row_value(v)));
         let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
         let mut seams = match self.summary.tiling.is_none() && borders.needs_check() {
             true => self.seam_check(width, height)?,
@@ -929,26 +965,37 @@ impl Job<'_> {
             }
         };
         let (w, h) = (width, height);
+        let mut missing = 0;
         let result = match (out, self.encoding) {
             (Output::File { path, .. }, Encoding::Exr(options)) => io::write_file_atomically(path, |file| {
-                pipeline::convert_exr(rows, tail, &fit, options, visit, file).inspect_err(&mut on_input)
+                missing = pipeline::convert_exr_counting(rows, tail, &fit, options, visit, file)
+                    .inspect_err(&mut on_input)?;
+                Ok(())
             }),
             (Output::Writer(writer), Encoding::Exr(options)) => {
                 // EXR seeks back to its offset table: the file is assembled
                 // first, and must leave the stream room to work.
                 let mut bytes = InMemory::default();
                 check_assembly_memory(&self.encoding, w, h)
-                    .and_then(|()| pipeline::convert_exr(rows, tail, &fit, options, visit, &mut bytes))
+                    .and_then(|()| pipeline::convert_exr_counting(rows, tail, &fit, options, visit, &mut bytes))
                     .inspect_err(&mut on_input)
-                    .and_then(|()| write_all(writer, bytes.0.get_ref()))
+                    .and_then(|m| {
+                        missing = m;
+                        write_all(writer, bytes.0.get_ref())
+                    })
             }
             (Output::File { path, .. }, Encoding::Png(options)) => io::write_file_atomically(path, |file| {
-                pipeline::convert_png_seekable(rows, &fit, options, visit, file).inspect_err(&mut on_input)
+                missing = pipeline::convert_png_seekable_counting(rows, &fit, options, visit, file)
+                    .inspect_err(&mut on_input)?;
+                Ok(())
             }),
             (Output::Writer(writer), Encoding::Png(options)) => {
-                pipeline::convert_png(rows, tail, &fit, options, visit, writer).inspect_err(&mut on_input)
+                pipeline::convert_png_counting(rows, tail, &fit, options, visit, writer)
+                    .inspect_err(&mut on_input)
+                    .map(|m| missing = m)
             }
         };
+        self.summary.missing = missing;
         let place = if input_failed { Place::Input } else { Place::Output };
         result.map_err(ConvertError::at(place))?;
         // A failed write stopped the rows part way: no seams to judge.
@@ -1017,6 +1064,7 @@ impl Texels {
         opts: &Options,
         encoding: &Encoding,
         residual: Option<&mut [f32]>,
+        valid: Option<&mut [bool]>,
     ) -> Result<Texels> {
         fn fitted<T: FromNormal + Default + Clone>(
             heights: &Samples,
@@ -1024,22 +1072,26 @@ impl Texels {
             h: usize,
             opts: &Options,
             residual: Option<&mut [f32]>,
+            valid: Option<&mut [bool]>,
         ) -> Result<Vec<T>> {
             let mut texels = zeroed::<T>(heights.len())?;
-            match residual {
-                Some(r) => heights.normals_and_residual_into(w, h, opts, &mut texels, r)?,
-                None => heights.normals_into(w, h, opts, &mut texels)?,
+            match (residual, valid) {
+                (residual, Some(valid)) => {
+                    heights.normals_masked_into((w, h), opts, &mut texels, residual, valid)?;
+                }
+                (Some(r), None) => heights.normals_and_residual_into(w, h, opts, &mut texels, r)?,
+                (None, None) => heights.normals_into(w, h, opts, &mut texels)?,
             }
             Ok(texels)
         }
         Ok(match encoding {
             Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => {
-                Texels::Eight(fitted(heights, w, h, opts, residual)?)
+                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
             }
             Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => {
-                Texels::Sixteen(fitted(heights, w, h, opts, residual)?)
+                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
             }
-            Encoding::Exr(_) => Texels::Float(fitted(heights, w, h, opts, residual)?),
+            Encoding::Exr(_) => Texels::Float(fitted(heights, w, h, opts, residual, valid)?),
         })
     }
 

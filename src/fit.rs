@@ -74,7 +74,10 @@ use crate::error::{Error, Result};
 use crate::options::{Borders, Fit, Options, Spacing, Units};
 use crate::samples::Sample;
 
+mod masked;
 mod window;
+pub(crate) use masked::row_has_hole;
+use masked::{MaskSums, Moments, masked_normal};
 pub use window::{Halo, Window, window_normals_and_residual_into, window_normals_into};
 
 /// A type an output texel can be made from a unit normal.
@@ -221,19 +224,106 @@ fn fit_image<H: Sample, T: FromNormal>(
     out: &mut [T],
     residual: Option<&mut [f32]>,
 ) -> Result<()> {
+    fit_image_masked(heights, width, height, opts, out, residual, None).map(|_| ())
+}
+
+/// [`fit_image`], with holes when `opts.nodata` is set or `valid` is
+/// asked for (then non-finite heights are holes even without a nodata
+/// value): `valid[k]` tells whether texel k has a normal. Returns the
+/// count of missing texels.
+pub(crate) fn fit_image_masked<H: Sample, T: FromNormal>(
+    heights: &[H],
+    width: usize,
+    height: usize,
+    opts: &Options,
+    out: &mut [T],
+    residual: Option<&mut [f32]>,
+    valid: Option<&mut [bool]>,
+) -> Result<usize> {
     let plan = Plan::new(width, height, opts)?;
     let len = width * height;
-    for actual in [heights.len(), out.len()].into_iter().chain(residual.as_ref().map(|r| r.len())) {
+    let lens = [heights.len(), out.len()].into_iter().chain(residual.as_ref().map(|r| r.len()));
+    for actual in lens.chain(valid.as_ref().map(|v| v.len())) {
         if actual != len {
             return Err(Error::BufferSize { expected: len, actual });
         }
     }
-    if let Some((x, y)) = first_non_finite(heights, width) {
-        return Err(Error::NonFiniteHeight { x, y });
+    if plan.nodata.is_none() && valid.is_none() {
+        if let Some((x, y)) = first_non_finite(heights, width) {
+            return Err(Error::NonFiniteHeight { x, y });
+        }
+        let rows = |v: isize| RowRef {
+            values: &heights[plan.borders.y.map(v, height) * width..][..width],
+            x0: 0,
+            holes: false,
+        };
+        plan.fit_rows(&rows, H::UNIT, (0, 0..width), out, residual, None);
+        return Ok(0);
     }
-    let rows = |v: isize| RowRef { values: &heights[plan.borders.y.map(v, height) * width..][..width], x0: 0 };
-    plan.fit_rows(&rows, H::UNIT, (0, 0..width), out, residual);
-    Ok(())
+    let nodata = plan.nodata.unwrap_or(f64::NAN);
+    let holes: Vec<bool> = heights.chunks_exact(width).map(|row| row_has_hole(row, nodata)).collect();
+    let mut own = if valid.is_none() { vec![false; len] } else { Vec::new() };
+    let valid = match valid {
+        Some(valid) => valid,
+        None => &mut own[..],
+    };
+    let rows = |v: isize| {
+        let y = plan.borders.y.map(v, height);
+        RowRef { values: &heights[y * width..][..width], x0: 0, holes: holes[y] }
+    };
+    plan.fit_rows(&rows, H::UNIT, (0, 0..width), out, residual, Some((&mut *valid, nodata)));
+    Ok(valid.iter().filter(|&&v| !v).count())
+}
+
+/// [`normals_masked_into`] and the residual
+/// ([`normals_and_residual_into`]'s; NaN where a texel is missing).
+///
+/// Errors: as [`normals_masked_into`]; [`Error::BufferSize`] also for a
+/// `residual` of the wrong length.
+pub fn normals_masked_and_residual_into<H: Sample, T: FromNormal>(
+    heights: &[H],
+    (width, height): (usize, usize),
+    opts: &Options,
+    out: &mut [T],
+    residual: &mut [f32],
+    valid: &mut [bool],
+) -> Result<usize> {
+    fit_image_masked(heights, width, height, opts, out, Some(residual), Some(valid))
+}
+
+/// Like [`normals_into`], with holes: texels whose value is
+/// `opts.nodata`, and non-finite ones (whether or not a nodata value is
+/// set), are missing, and each patch is fitted to its valid points alone.
+/// `valid[k]` is set to whether texel k has a normal: it is missing when
+/// it is itself a hole, or when its patch's valid points are fewer than
+/// three or collinear. A missing texel's normal is written flat,
+/// (0, 0, 1). A patch without a hole gives the same bits as
+/// [`normals_into`]. Returns the count of missing texels.
+///
+/// ```
+/// use normalfit::{normals_masked_into, Options};
+/// let (w, h) = (6, 5);
+/// let mut heights: Vec<f32> = (0..w * h).map(|k| 0.1 * (k % w) as f32).collect();
+/// heights[2 * w + 3] = f32::NAN;
+/// let mut normals = vec![[0.0f32; 3]; w * h];
+/// let mut valid = vec![false; w * h];
+/// let missing = normals_masked_into(&heights, w, h, &Options::new(), &mut normals, &mut valid)?;
+/// assert_eq!(missing, 1);
+/// assert!(!valid[2 * w + 3] && valid[2 * w + 2]);
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+///
+/// Errors: as [`normals_into`] (but no [`Error::NonFiniteHeight`]);
+/// [`Error::BufferSize`] also for a `valid` of the wrong length.
+pub fn normals_masked_into<H: Sample, T: FromNormal>(
+    heights: &[H],
+    width: usize,
+    height: usize,
+    opts: &Options,
+    out: &mut [T],
+    valid: &mut [bool],
+) -> Result<usize> {
+    fit_image_masked(heights, width, height, opts, out, None, Some(valid))
 }
 
 /// The fit of an image whose rows arrive in bands, top to bottom, for
@@ -272,6 +362,8 @@ pub struct BandFit {
     band_rows: usize,
     /// The height of a row value of 1, when not the sample type's own.
     unit: Option<f64>,
+    /// Missing texels in the bands fitted so far.
+    missing: std::sync::atomic::AtomicUsize,
 }
 
 impl BandFit {
@@ -285,7 +377,7 @@ impl BandFit {
         // share among the threads.
         let blocks = crate::par::current_num_threads().clamp(1, (MAX_BLOCK_TEXELS / (plan.block_rows * width)).max(1));
         let band_rows = plan.block_rows * blocks;
-        Ok(BandFit { plan, height, band_rows, unit: None })
+        Ok(BandFit { plan, height, band_rows, unit: None, missing: 0.into() })
     }
 
     /// The same fit of rows whose values are heights in units of `unit`
@@ -347,6 +439,48 @@ impl BandFit {
         row: &(dyn Fn(usize) -> &'a [H] + Sync),
         out: &mut [T],
     ) -> Result<()> {
+        self.fit_band_with(rows, row, out, None).map(|_| ())
+    }
+
+    /// Like [`fit_band`](Self::fit_band), with holes (see
+    /// [`normals_masked_into`]): `valid` (as long as `out`) gets whether
+    /// each texel has a normal. Returns the band's count of missing texels.
+    /// The texels and `valid` are the same, bit for bit, as
+    /// [`normals_masked_into`] gives for the whole image.
+    ///
+    /// Errors: as [`fit_band`](Self::fit_band), but no
+    /// [`Error::NonFiniteHeight`].
+    pub fn fit_band_masked<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: Range<usize>,
+        row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        out: &mut [T],
+        valid: &mut [bool],
+    ) -> Result<usize> {
+        self.fit_band_with(rows, row, out, Some(valid))
+    }
+
+    /// Whether the fit has holes ([`Options::nodata`] is set): then
+    /// [`fit_band`](Self::fit_band) writes missing texels flat, and
+    /// [`fit_band_masked`](Self::fit_band_masked) says which they are.
+    #[must_use]
+    pub fn has_nodata(&self) -> bool {
+        self.plan.nodata.is_some()
+    }
+
+    /// The missing texels of every band fitted so far (by either call).
+    #[must_use]
+    pub fn missing(&self) -> usize {
+        self.missing.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    fn fit_band_with<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: Range<usize>,
+        row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        out: &mut [T],
+        valid: Option<&mut [bool]>,
+    ) -> Result<usize> {
         let w = self.plan.width;
         let (h, top) = (self.height, self.plan.r.min(self.height));
         let is_band = if rows.start < top {
@@ -359,19 +493,48 @@ impl BandFit {
         if !is_band || out.len() != rows.len() * w {
             return Err(Error::BufferSize { expected: rows.len() * w, actual: out.len() });
         }
+        if let Some(valid) = &valid
+            && valid.len() != out.len()
+        {
+            return Err(Error::BufferSize { expected: out.len(), actual: valid.len() });
+        }
+        let masked = self.plan.nodata.is_some() || valid.is_some();
+        let nodata = self.plan.nodata.unwrap_or(f64::NAN);
+        // Source row p − r's holes, for the padded rows p the band reads.
+        let mut holes = Vec::new();
         for p in rows.start..rows.end + 2 * self.plan.r {
             let y = self.plan.source_y(p);
             let r = row(y);
             if r.len() != w {
                 return Err(Error::BufferSize { expected: w, actual: r.len() });
             }
-            if let Some((x, _)) = first_non_finite(r, w) {
+            if masked {
+                holes.push(row_has_hole(r, nodata));
+            } else if let Some((x, _)) = first_non_finite(r, w) {
                 return Err(Error::NonFiniteHeight { x, y });
             }
         }
-        let source = |v: isize| RowRef { values: row(self.plan.borders.y.map(v, h)), x0: 0 };
-        self.plan.fit_rows(&source, self.unit.unwrap_or(H::UNIT), (rows.start, 0..w), out, None);
-        Ok(())
+        let unit = self.unit.unwrap_or(H::UNIT);
+        if !masked {
+            let source = |v: isize| RowRef { values: row(self.plan.borders.y.map(v, h)), x0: 0, holes: false };
+            self.plan.fit_rows(&source, unit, (rows.start, 0..w), out, None, None);
+            return Ok(0);
+        }
+        let first = rows.start as isize - self.plan.r as isize;
+        let source = |v: isize| RowRef {
+            values: row(self.plan.borders.y.map(v, h)),
+            x0: 0,
+            holes: holes.get((v - first) as usize).copied().unwrap_or(true),
+        };
+        let mut own = if valid.is_none() { vec![false; out.len()] } else { Vec::new() };
+        let valid = match valid {
+            Some(valid) => valid,
+            None => &mut own[..],
+        };
+        self.plan.fit_rows(&source, unit, (rows.start, 0..w), out, None, Some((&mut *valid, nodata)));
+        let missing = valid.iter().filter(|&&v| !v).count();
+        self.missing.fetch_add(missing, std::sync::atomic::Ordering::Relaxed);
+        Ok(missing)
     }
 }
 
@@ -434,6 +597,14 @@ const MIN_BLOCK_TEXELS: usize = 1 << 14;
 /// width.
 const MAX_BLOCK_TEXELS: usize = 1 << 24;
 
+/// A strip's holes: the valid points' moments, the strip's rows of
+/// `valid`, and the nodata value.
+struct StripHoles<'t> {
+    mask: MaskSums,
+    valid: Vec<&'t mut [bool]>,
+    nodata: f64,
+}
+
 /// One parallel task of the fit: a strip of a tile, its rows from `y0`,
 /// its columns from `x0`, as pieces of the output rows (and of the
 /// residual rows, when asked for).
@@ -442,6 +613,9 @@ struct Strip<'t, T> {
     x0: usize,
     out: Vec<&'t mut [T]>,
     residual: Option<Vec<&'t mut [f32]>>,
+    /// With holes: whether each texel has a normal, by row, and the
+    /// nodata value.
+    valid: Option<(Vec<&'t mut [bool]>, f64)>,
 }
 
 /// Everything about a conversion that is the same for every tile.
@@ -465,6 +639,8 @@ struct Plan {
     /// Map units ([`Units::Map`]): the texel spacing, and heights taken as
     /// the values given whatever their type. `None`: the contract's units.
     spacing: Option<Spacing>,
+    /// [`Options::nodata`].
+    nodata: Option<f64>,
 }
 
 impl Plan {
@@ -498,6 +674,7 @@ impl Plan {
             block_rows,
             moments: false,
             spacing,
+            nodata: opts.nodata,
         })
     }
 
@@ -523,11 +700,14 @@ impl Plan {
         (y0, cols): (usize, Range<usize>),
         out: &mut [T],
         residual: Option<&mut [f32]>,
+        valid: Option<(&mut [bool], f64)>,
     ) {
         let w = cols.len();
         let strip = self.strip_cols();
         let mut tasks: Vec<Strip<'_, T>> = Vec::new();
+        let nodata = valid.as_ref().map(|v| v.1);
         let (mut y, mut rest, mut rest_residual) = (y0, out, residual);
+        let mut rest_valid = valid.map(|v| v.0);
         while !rest.is_empty() {
             let tile_rows = if y < self.r { self.r - y } else { self.block_rows - (y - self.r) % self.block_rows };
             let len = (tile_rows * w).min(rest.len());
@@ -539,10 +719,25 @@ impl Plan {
                 }
                 None => (None, None),
             };
+            let (tile_valid, valid_tail) = match rest_valid {
+                Some(v) => {
+                    let (head, tail) = v.split_at_mut(len);
+                    (Some(head), Some(tail))
+                }
+                None => (None, None),
+            };
             let first = tasks.len();
             for x0 in cols.clone().step_by(strip) {
                 let has_residual = tile_residual.is_some();
-                tasks.push(Strip { y0: y, x0, out: Vec::new(), residual: has_residual.then(Vec::new) });
+                let valid = nodata.map(|nd| (Vec::new(), nd));
+                tasks.push(Strip { y0: y, x0, out: Vec::new(), residual: has_residual.then(Vec::new), valid });
+            }
+            if let Some(tile_valid) = tile_valid {
+                for row in tile_valid.chunks_exact_mut(w) {
+                    for (task, piece) in tasks[first..].iter_mut().zip(row.chunks_mut(strip)) {
+                        task.valid.as_mut().expect("a valid strip").0.push(piece);
+                    }
+                }
             }
             for row in tile.chunks_exact_mut(w) {
                 for (task, piece) in tasks[first..].iter_mut().zip(row.chunks_mut(strip)) {
@@ -559,6 +754,7 @@ impl Plan {
             y += tile_rows;
             rest = tail;
             rest_residual = residual_tail;
+            rest_valid = valid_tail;
         }
         // Map units take every value as it is given (a DEM's metres).
         let unit = if self.spacing.is_some() { 1.0 } else { unit };
@@ -574,6 +770,76 @@ impl Plan {
             (false, 7) => self.fit_strip_direct::<H, T, 7>(rows, gain, task),
             (false, _) => self.fit_strip_blocked(rows, gain, task),
         });
+    }
+
+    /// The holes of one strip: `None` when no row it reads holds one (every
+    /// texel is then valid, and the strip is fitted as without holes).
+    fn strip_holes<'t, 'a, H: Sample>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        y0: usize,
+        len: usize,
+        cols: Range<usize>,
+        valid: Option<(Vec<&'t mut [bool]>, f64)>,
+    ) -> Option<StripHoles<'t>> {
+        let (mut valid, nodata) = valid?;
+        let r = self.r as isize;
+        if !(y0 as isize - r..(y0 + len) as isize + r).any(|v| rows(v).holes) {
+            valid.iter_mut().for_each(|row| row.fill(true));
+            return None;
+        }
+        Some(StripHoles { mask: MaskSums::new(cols), valid, nodata })
+    }
+
+    /// Refits the texels of output row `y` (row `k` of the strip) whose
+    /// patch has a hole, from the valid points' moments (see `masked`),
+    /// over what [`Self::emit`] wrote, and marks the missing ones. `v` and
+    /// `gain` are as `emit` took them.
+    #[allow(clippy::too_many_arguments)]
+    fn patch_holes<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        v: &WindowSums,
+        gain: f64,
+        (y, k): (usize, usize),
+        holes: &mut StripHoles<'_>,
+        out: &mut [T],
+        mut residual: Option<&mut [f32]>,
+    ) {
+        let StripHoles { mask, valid, nodata } = holes;
+        mask.advance(self, rows, y as isize, *nodata);
+        let valid = &mut valid[k];
+        valid.fill(true);
+        let n2 = (self.n * self.n) as i64;
+        if mask.full(n2) {
+            return;
+        }
+        let ([sx, _], rho) = self.spacing_at(y);
+        let g = gain / sx;
+        let orthogonal = self.fit == Fit::Orthogonal;
+        for x in 0..out.len() {
+            let c = mask.c[x];
+            if c == n2 {
+                continue;
+            }
+            let moments = Moments {
+                c,
+                geometry: [mask.si[x], mask.sj[x], mask.sii[x], mask.sjj[x], mask.sij[x]],
+                z: [g * v.s0[x], g * v.si[x], g * v.sj[x], g * g * v.szz[x]],
+            };
+            let fitted = if mask.centre[x] { masked_normal(&moments, orthogonal, rho, self.sigma) } else { None };
+            let (normal, distance) = match fitted {
+                Some((normal, sum)) => (normal, ((sum / c as f64).sqrt() * sx) as f32),
+                None => {
+                    valid[x] = false;
+                    ([0.0, 0.0, 1.0], f32::NAN)
+                }
+            };
+            out[x] = T::from_normal(normal);
+            if let Some(residual) = residual.as_deref_mut() {
+                residual[x] = distance;
+            }
+        }
     }
 
     /// The source row of padded row p = y + j + r, through the y border.
@@ -596,7 +862,28 @@ impl Plan {
     fn padded_row<H: Sample>(&self, src: RowRef<'_, H>, (lo, hi): (isize, isize), gain: f64, padded: &mut Vec<f64>) {
         padded.clear();
         let (a, b) = (lo - src.x0, hi - src.x0);
-        if a >= 0 && b <= src.values.len() as isize {
+        if src.holes {
+            // A hole adds nothing to the z sums (see `masked`).
+            let nodata = self.nodata.unwrap_or(f64::NAN);
+            let value = |u: isize| {
+                let at = if (src.x0..src.x0 + src.values.len() as isize).contains(&u) {
+                    u
+                } else {
+                    self.borders.x.map(u, self.width) as isize
+                };
+                let h = src.values[(at - src.x0) as usize].to_f64();
+                if masked::is_hole(h, nodata) { 0.0 } else { gain * h }
+            };
+            if a >= 0 && b <= src.values.len() as isize {
+                let values = &src.values[a as usize..b as usize];
+                padded.extend(values.iter().map(|&h| {
+                    let h = h.to_f64();
+                    if masked::is_hole(h, nodata) { 0.0 } else { gain * h }
+                }));
+            } else {
+                padded.extend((lo..hi).map(value));
+            }
+        } else if a >= 0 && b <= src.values.len() as isize {
             // Away from the borders: a slice, and a loop that vectorises.
             padded.extend(src.values[a as usize..b as usize].iter().map(|&h| gain * h.to_f64()));
         } else {
@@ -632,12 +919,13 @@ impl Plan {
         gain: f64,
         strip: Strip<'_, T>,
     ) {
-        let Strip { y0, x0, mut out, mut residual } = strip;
+        let Strip { y0, x0, mut out, mut residual, valid } = strip;
         let Some(first) = out.first() else { return };
         let n = self.n;
         let cols = x0..x0 + first.len();
         let w = cols.len();
         let row_of = |p: usize| rows(p as isize - self.r as isize);
+        let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
 
         // Ring of the N rows' horizontal sums: slot p % N holds padded row p.
         let mut ring: Vec<RowSums> = (y0..y0 + n)
@@ -669,6 +957,9 @@ impl Plan {
             self.emit(&v, gain, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
                 self.emit_residual(&v, gain, y0 + k, residual[k]);
+            }
+            if let Some(holes) = holes.as_mut() {
+                self.patch_holes(rows, &v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
             }
         }
     }
@@ -720,12 +1011,13 @@ impl Plan {
         gain: f64,
         strip: Strip<'_, T>,
     ) {
-        let Strip { y0, x0, mut out, mut residual } = strip;
+        let Strip { y0, x0, mut out, mut residual, valid } = strip;
         let Some(first) = out.first() else { return };
         let r = (N / 2) as isize;
         let cols = x0..x0 + first.len();
         let w = cols.len();
         let row_sums = |v: isize, sums: &mut RowSums| self.direct_row_sums::<H, N>(rows(v), gain, cols.clone(), sums);
+        let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
         let mut cache = RowCache::new(N, w);
         let mut v = WindowSums::zeros(w);
         let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
@@ -739,6 +1031,9 @@ impl Plan {
             self.emit(&v, 1.0, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
                 self.emit_residual(&v, 1.0, y0 + k, residual[k]);
+            }
+            if let Some(holes) = holes.as_mut() {
+                self.patch_holes(rows, &v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
             }
         }
     }
@@ -793,12 +1088,13 @@ impl Plan {
         gain: f64,
         strip: Strip<'_, T>,
     ) {
-        let Strip { y0, x0, mut out, mut residual } = strip;
+        let Strip { y0, x0, mut out, mut residual, valid } = strip;
         let Some(first) = out.first() else { return };
         let (n, r) = (self.n, self.r as isize);
         let cols = x0..x0 + first.len();
         let w = cols.len();
         let y_end = y0 + out.len();
+        let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
 
         // Horizontal sums of the source rows a block of output rows and
         // the next one read (2N rows), in slot v mod 2N.
@@ -850,6 +1146,9 @@ impl Plan {
                 self.emit(&v, 1.0, y0 + k, &mut normal, out[k]);
                 if let Some(residual) = residual.as_mut() {
                     self.emit_residual(&v, 1.0, y0 + k, residual[k]);
+                }
+                if let Some(holes) = holes.as_mut() {
+                    self.patch_holes(rows, &v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
                 }
             }
         }
@@ -1224,6 +1523,8 @@ fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(a: f64, cx: f64, 
 struct RowRef<'a, H> {
     values: &'a [H],
     x0: isize,
+    /// Whether the row may hold holes (values read as 0 in the z sums).
+    holes: bool,
 }
 
 impl<H> Clone for RowRef<'_, H> {
@@ -1438,8 +1739,8 @@ mod tests {
         let mut plan = Plan::new(w, h, opts).unwrap();
         plan.block_rows = block_rows;
         let mut out = vec![[0.0f32; 3]; w * h];
-        let rows = |v: isize| RowRef { values: &heights[plan.borders.y.map(v, h) * w..][..w], x0: 0 };
-        plan.fit_rows(&rows, 1.0, (0, 0..w), &mut out, None);
+        let rows = |v: isize| RowRef { values: &heights[plan.borders.y.map(v, h) * w..][..w], x0: 0, holes: false };
+        plan.fit_rows(&rows, 1.0, (0, 0..w), &mut out, None, None);
         out
     }
 

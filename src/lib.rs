@@ -208,7 +208,7 @@ pub mod tiling;
 pub mod units;
 
 pub use error::{Error, Result};
-pub use fit::{FromNormal, normals, normals_and_residual_into, normals_into};
+pub use fit::{FromNormal, normals, normals_and_residual_into, normals_into, normals_masked_into};
 pub use options::{Border, Borders, Convention, Fit, Options, Spacing, Strength, Units};
 pub use samples::{Sample, Samples};
 

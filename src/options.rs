@@ -331,6 +331,13 @@ pub struct Options {
     /// Heights and texel spacing in the contract's units, or in a map's.
     /// Default: [`Units::Texels`].
     pub units: Units,
+    /// Holes: texels whose value as given (the stored sample: a 16-bit
+    /// PNG's integer, a DEM's metres) equals it, and texels that are NaN
+    /// or infinite, are missing; each patch is fitted to its valid points
+    /// alone (docs/terrain.md, "Holes"). `Some(f64::NAN)` marks only the
+    /// non-finite texels. Default: `None`, the contract's rule (SPEC §1):
+    /// a NaN or infinite height is an error, and no value is special.
+    pub nodata: Option<f64>,
 }
 
 impl Default for Options {
@@ -352,6 +359,7 @@ impl Options {
             strength: Strength::Scale(1.0),
             invert: false,
             units: Units::Texels,
+            nodata: None,
         }
     }
 
@@ -396,6 +404,13 @@ impl Options {
     #[must_use]
     pub fn with_units(mut self, units: Units) -> Self {
         self.units = units;
+        self
+    }
+
+    /// Sets the nodata value (see [`Options::nodata`]).
+    #[must_use]
+    pub fn with_nodata(mut self, nodata: Option<f64>) -> Self {
+        self.nodata = nodata;
         self
     }
 

@@ -208,6 +208,19 @@ impl Samples {
         with_slice!(self, s => crate::fit::normals_and_residual_into(s, width, height, opts, out, residual))
     }
 
+    /// [`normals_masked_into`](crate::normals_masked_into) of these
+    /// samples, whatever their type, with the residual too when given.
+    pub fn normals_masked_into<T: FromNormal>(
+        &self,
+        (width, height): (usize, usize),
+        opts: &Options,
+        out: &mut [T],
+        residual: Option<&mut [f32]>,
+        valid: &mut [bool],
+    ) -> Result<usize> {
+        with_slice!(self, s => crate::fit::fit_image_masked(s, width, height, opts, out, residual, Some(valid)))
+    }
+
     /// The first (x, y) in row order whose value is NaN or infinite.
     pub(crate) fn first_non_finite(&self, width: usize) -> Option<(usize, usize)> {
         with_slice!(self, s => crate::fit::first_non_finite(s, width))

@@ -577,6 +577,10 @@ pub struct LitView {
     /// The georeferencing of the image (a GeoTIFF's), which the picture
     /// keeps when it is not tiled: [`LitView::write_file`] writes it beside.
     pub georef: Option<Georef>,
+    /// Missing texels of a height map with holes (a nodata value, the
+    /// fit's or the GeoTIFF's): grey 0, as `gdaldem hillshade` writes
+    /// nodata (counted once, not per tile).
+    pub missing: usize,
 }
 
 impl LitView {
@@ -634,6 +638,7 @@ fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
     let georef = if opts.tile { None } else { raster.georef.clone() };
     let lamp = opts.lamp(raster.georef.as_ref());
     let mut warnings = Vec::new();
+    let mut valid: Option<Vec<bool>> = None;
     let normals = match kind {
         ImageKind::Normal => crate::normal_map::decode(&raster, opts.signed)?,
         ImageKind::Height => {
@@ -643,10 +648,16 @@ fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
                 ));
             }
             let fit = opts.fit_for(raster.georef.as_ref(), h)?;
+            let nodata = opts.fit.nodata.or(raster.georef.as_ref().and_then(|g| g.nodata));
             // Map units fit the heights as stored (a DEM's metres).
-            let heights = match opts.map_units {
-                Some(_) => raster.into_owned().into_stored_heights(opts.channel.clone())?,
-                None => Samples::F32(raster.heights(opts.channel.clone())?),
+            let stored = opts.map_units.is_some();
+            let (heights, nodata) = match nodata {
+                Some(v) => {
+                    let (heights, v) = raster.into_owned().into_heights_with_holes(opts.channel.clone(), stored, v)?;
+                    (heights, Some(v))
+                }
+                None if stored => (raster.into_owned().into_stored_heights(opts.channel.clone())?, None),
+                None => (Samples::F32(raster.heights(opts.channel.clone())?), None),
             };
             let report = opts
                 .borders
@@ -657,10 +668,16 @@ fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
                 })
                 .transpose()?;
             warnings.extend(report.as_ref().and_then(|r| opts.borders.seams(r)));
-            let fit = fit.with_borders(opts.borders.resolve(report.as_ref()));
+            let fit = fit.with_borders(opts.borders.resolve(report.as_ref())).with_nodata(nodata);
             let mut normals = crate::samples::try_vec(checked_len(w, h)?)?;
             normals.resize(checked_len(w, h)?, [0.0f32; 3]);
-            heights.normals_into(w, h, &fit, &mut normals)?;
+            if nodata.is_some() {
+                let mut mask = vec![false; normals.len()];
+                heights.normals_masked_into((w, h), &fit, &mut normals, None, &mut mask)?;
+                valid = Some(mask);
+            } else {
+                heights.normals_into(w, h, &fit, &mut normals)?;
+            }
             normals
         }
     };
@@ -668,9 +685,16 @@ fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    let lit = shade_with(&normals, lamp);
+    let mut lit = shade_with(&normals, lamp);
+    let mut missing = 0;
+    if let Some(valid) = &valid {
+        for (g, _) in lit.iter_mut().zip(valid).filter(|(_, v)| !**v) {
+            *g = 0;
+            missing += 1;
+        }
+    }
     let (pixels, width, height) = if opts.tile { (tile_2x2(&lit, w, h)?, 2 * w, 2 * h) } else { (lit, w, h) };
-    Ok(LitView { pixels, width, height, kind, warnings, georef })
+    Ok(LitView { pixels, width, height, kind, warnings, georef, missing })
 }
 
 /// [`lit_view`] of the image at `path`.
@@ -692,6 +716,8 @@ pub struct LitStreamed {
     pub warnings: Vec<Warning>,
     /// The georeferencing sidecars written beside the picture.
     pub sidecars: Vec<PathBuf>,
+    /// Missing texels (grey 0), as [`LitView::missing`].
+    pub missing: usize,
 }
 
 /// The lit view of the height map at `input`, written to the PNG file
@@ -727,23 +753,28 @@ pub fn lit_file_streamed(
     let (width, height) = (rows.width(), rows.height());
     let georef = rows.georef().cloned();
     let lamp = opts.lamp(georef.as_ref());
-    // Map units: the rows are the samples as stored, which the fit then
-    // takes as they are.
-    let fit = opts.fit_for(georef.as_ref(), height)?.with_borders(borders);
+    // Map units fit the samples as stored; a band the rows give in
+    // contract units (signed and 32-bit integers: value / (2^bits − 1))
+    // is given back its stored values, as `Raster::into_stored_heights`
+    // does.
+    let restore = opts.map_units.is_some() && rows.unit() == 1.0 && rows.sample().stored_per_unit() != 1.0;
+    // The nodata value as the fit sees the rows: stored, or the rows' own.
+    let nodata = opts.fit.nodata.or_else(|| georef.as_ref().and_then(|g| g.nodata));
+    let nodata = nodata.map(|v| if restore { v } else { rows.row_value(v) });
+    let fit = opts.fit_for(georef.as_ref(), height)?.with_borders(borders).with_nodata(nodata);
     let mut seams = if opts.borders.needs_check() { tiling::HeightSeams::new(width, height).ok() } else { None };
     let visit = |row: &[f32]| {
         if let Some(s) = seams.as_mut() {
             let _ = s.push_row(row);
         }
     };
-    // Map units fit the samples as stored; a band the rows give in
-    // contract units (signed and 32-bit integers: value / (2^bits − 1))
-    // is given back its stored values, as `Raster::into_stored_heights`
-    // does.
-    let restore = opts.map_units.is_some() && rows.unit() == 1.0 && rows.sample().stored_per_unit() != 1.0;
-    io::write_file_atomically(output, |file| match restore {
-        true => crate::pipeline::shade_png_seekable(StoredRows::new(rows), &fit, lamp, visit, file),
-        false => crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file),
+    let mut missing = 0;
+    io::write_file_atomically(output, |file| {
+        missing = match restore {
+            true => crate::pipeline::shade_png_seekable(StoredRows::new(rows), &fit, lamp, visit, file)?,
+            false => crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file)?,
+        };
+        Ok(())
     })?;
     let mut warnings = Vec::new();
     if let Some(seams) = seams {
@@ -754,7 +785,7 @@ pub fn lit_file_streamed(
         Some(georef) => io::sidecar::write_sidecars(output, georef)?,
         None => Vec::new(),
     };
-    Ok(Some(LitStreamed { width, height, warnings, sidecars }))
+    Ok(Some(LitStreamed { width, height, warnings, sidecars, missing }))
 }
 
 /// Rows given in contract units (value / (2^bits − 1)) as the values

@@ -67,14 +67,16 @@ fn a_band_of_a_planar_tiled_dem_converts_as_that_band_alone() {
     let multi = dir.path().join("multi.tif");
     fs::write(&multi, geotiff::write(w, h, &layout, &values, &geotiff::utm_tags())).unwrap();
     let single = dir.path().join("single.tif");
-    fs::write(&single, geotiff::write(w, h, &Layout::gray(Kind::I16), &[values[1].clone()], &[])).unwrap();
+    // The same tags: the GDAL_NODATA tag (−32768) makes holes of both.
+    let tags = geotiff::utm_tags();
+    fs::write(&single, geotiff::write(w, h, &Layout::gray(Kind::I16), &[values[1].clone()], &tags)).unwrap();
     let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
     ok(&["convert", s(&multi), "--band", "2", "-o", s(&a), "-s", "300"]);
     ok(&["convert", s(&single), "-o", s(&b), "-s", "300"]);
     assert_eq!(fs::read(&a).unwrap(), fs::read(&b).unwrap());
     // Without --band, the first.
     let first = dir.path().join("first.tif");
-    fs::write(&first, geotiff::write(w, h, &Layout::gray(Kind::I16), &[values[0].clone()], &[])).unwrap();
+    fs::write(&first, geotiff::write(w, h, &Layout::gray(Kind::I16), &[values[0].clone()], &tags)).unwrap();
     let (c, d) = (dir.path().join("c.png"), dir.path().join("d.png"));
     ok(&["convert", s(&multi), "-o", s(&c)]);
     ok(&["convert", s(&first), "-o", s(&d)]);

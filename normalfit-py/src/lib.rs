@@ -319,6 +319,7 @@ where
     };
     let (choices, pool, window) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()), call.window);
     let opts = call.opts;
+    let holes = opts.nodata.is_some();
     py.detach(|| -> Result<(), Error> {
         let copy;
         let heights: &[H] = match in_place {
@@ -331,6 +332,19 @@ where
         let Some(window) = window else {
             // `auto` settled by the library's tiling check, as a conversion does.
             let opts = opts.clone().with_borders(choices.settle(heights, w, h)?);
+            if holes {
+                // Missing texels are NaN (the output is float32).
+                let mut valid = vec![false; w * h];
+                on_pool(pool, || match residual_flat {
+                    Some(r) => {
+                        normalfit::fit::normals_masked_and_residual_into(heights, (w, h), &opts, texels, r, &mut valid)
+                    }
+                    None => normalfit::normals_masked_into(heights, w, h, &opts, texels, &mut valid),
+                })?;
+                let missing = <[E; 3]>::from_normal([f64::NAN; 3]);
+                texels.iter_mut().zip(&valid).filter(|(_, v)| !**v).for_each(|(t, _)| *t = missing);
+                return Ok(());
+            }
             return on_pool(pool, || match residual_flat {
                 Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
                 None => normalfit::normals_into(heights, w, h, &opts, texels),
@@ -366,7 +380,7 @@ fn borrow_error(e: numpy::BorrowError) -> PyErr {
 /// `normals` with every argument given (see `normalfit.normals`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size))]
+#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata))]
 fn normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -383,6 +397,7 @@ fn normals<'py>(
     threads: Option<&Bound<'py, PyAny>>,
     units: &str,
     pixel_size: Option<(f64, f64)>,
+    nodata: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
@@ -392,7 +407,13 @@ fn normals<'py>(
     if let Some(map) = map_units(units, pixel_size)? {
         opts = opts.with_units(map.units(None, heights.shape()[0]).map_err(to_py_err)?);
     }
+    let opts = opts.with_nodata(nodata);
     let output = output_kind(py, dtype)?;
+    if nodata.is_some() && !matches!(output, OutputKind::F32) {
+        return Err(PyValueError::new_err(
+            "nodata needs dtype float32: a missing texel's normal is NaN, which integers cannot hold",
+        ));
+    }
     let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)?, window: None };
     fit_call(heights, kind, output, &call)
 }
@@ -925,6 +946,11 @@ struct ConversionSummary {
     tiling: Option<Py<TilingReport>>,
     /// Warnings, one line each (a wrap that draws a seam, …).
     warnings: Vec<String>,
+    /// The nodata value used (``nodata=``, else a GeoTIFF's GDAL_NODATA
+    /// tag), or None: the map then has an alpha of validity.
+    nodata: Option<f64>,
+    /// Missing texels (alpha 0 in the map); 0 without a nodata value.
+    missing: usize,
 }
 
 #[pymethods]
@@ -946,7 +972,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -974,8 +1000,10 @@ fn convert(
     size: Option<&Bound<'_, PyAny>>,
     byte_order: Option<&str>,
     decode: Option<&str>,
+    nodata: Option<f64>,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let opts = opts.with_nodata(nodata);
     let map_units = map_units(units, pixel_size)?;
     let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?;
     let format = format.map(parse_named::<OutputFormat>).transpose()?;
@@ -1005,6 +1033,8 @@ fn convert(
         streamed: summary.streamed,
         tiling: summary.tiling.map(|r| tiling_report_object(py, &r, summary.width, summary.height)).transpose()?,
         warnings: summary.warnings.iter().map(ToString::to_string).collect(),
+        nodata: summary.nodata,
+        missing: summary.missing,
     })
 }
 

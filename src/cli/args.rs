@@ -149,6 +149,9 @@ pub struct ConvertArgs {
     pub terrain: TerrainArgs,
 
     #[command(flatten)]
+    pub holes: HolesArgs,
+
+    #[command(flatten)]
     pub units: UnitsArgs,
 
     /// Appended to each input's stem to name its output. Files whose stem
@@ -288,6 +291,9 @@ pub struct ShadeArgs {
 
     #[command(flatten)]
     pub units: UnitsArgs,
+
+    #[command(flatten)]
+    pub holes: HolesArgs,
 
     #[command(flatten)]
     pub batch: BatchArgs,
@@ -476,6 +482,25 @@ impl TerrainArgs {
         }
         opts
     }
+}
+
+/// Holes (docs/terrain.md, "Holes"): `convert` and `shade`.
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Terrain")]
+pub struct HolesArgs {
+    /// Texels whose stored value is V (a 16-bit PNG's integer, a DEM's
+    /// metres), and NaN or infinite ones, are holes: each patch is fitted
+    /// to its valid points, and a texel that is a hole or whose points make
+    /// no plane is missing (alpha 0; grey 0 in `shade`). Default: a
+    /// GeoTIFF's GDAL_NODATA tag; `nan` marks only NaN and infinities.
+    /// Without either, a NaN height is an error.
+    #[arg(long, value_name = "V", value_parser = parse_nodata, allow_hyphen_values = true)]
+    pub nodata: Option<f64>,
+}
+
+/// `--nodata V`: a number, or nan, inf, -inf.
+fn parse_nodata(s: &str) -> Result<f64, String> {
+    s.trim().parse::<f64>().map_err(|_| format!("'{s}' is not a number (or nan)"))
 }
 
 /// Fits in real-world units (docs/terrain.md), for `convert` and `shade`.

@@ -47,7 +47,7 @@ pub fn run(args: ConvertArgs) -> Result<usize, Failure> {
 
 impl Plan {
     fn from_args(args: &ConvertArgs, many: bool) -> Result<Plan, Failure> {
-        let fit = fitting::options(&args.fit)?;
+        let fit = fitting::options(&args.fit)?.with_nodata(args.holes.nodata);
         stdin_at_most_once(&args.inputs)?;
         let destination = Destination::for_batch(args.output.as_deref(), many)?;
         let layout = Layout::from_parts(args.channels.channels, args.channels.alpha)
@@ -119,7 +119,20 @@ impl Plan {
         let observer = JobObserver { turn, input, quiet: self.quiet };
         let written = opened.write(&target.encoding, normals, residual, &observer);
         match written {
-            Ok(_) => Ok(Outcome::Done),
+            Ok(summary) => {
+                if let Some(nodata) = summary.nodata
+                    && !self.quiet
+                {
+                    fitting::report_missing(
+                        input,
+                        summary.missing,
+                        summary.width * summary.height,
+                        Some(nodata),
+                        "alpha",
+                    );
+                }
+                Ok(Outcome::Done)
+            }
             Err(e) if target.path.is_none() && e.place == Place::Output && pipe_closed(&e) => Ok(Outcome::PipeClosed),
             Err(ConvertError { place, error }) => Err(Failure::file(
                 match place {

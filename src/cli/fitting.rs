@@ -27,6 +27,16 @@ pub fn strength(scale: f64, relief: Option<f64>) -> Strength {
     relief.map_or(Strength::Scale(scale), Strength::Relief)
 }
 
+/// Prints the count of missing texels of an input with holes: the
+/// summary of its conversion (`what`: where the map marks them).
+pub fn report_missing(input: &Input, missing: usize, texels: usize, nodata: Option<f64>, what: &str) {
+    let nodata = nodata.map(|v| format!(" (nodata {v})")).unwrap_or_default();
+    report::print_line(&format!(
+        "normalfit: {}: {missing} of {texels} texels missing{nodata}: {what} 0",
+        input.name().display()
+    ));
+}
+
 /// Prints a conversion's warning about `input`; a seam drawn by a wrap
 /// says which `--border` avoids it.
 pub fn warn(warning: &Warning, input: &Input) {

@@ -32,7 +32,7 @@ struct Plan {
 /// Shades every input (files, and the images of folders); returns the
 /// failures (already reported).
 pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
-    let fit = fitting::options(&args.fit)?;
+    let fit = fitting::options(&args.fit)?.with_nodata(args.holes.nodata);
     stdin_at_most_once(&args.inputs)?;
     let words = Words { done: "shaded", purpose: "to shade" };
     let batch = Batch::gather(&args.inputs, &args.batch, SUFFIX, words);
@@ -89,13 +89,21 @@ impl Plan {
         {
             if !self.quiet {
                 done.warnings.iter().for_each(|w| fitting::warn(w, input));
+                if done.missing > 0 || self.lit.fit.nodata.is_some() {
+                    let texels = done.width * done.height;
+                    fitting::report_missing(input, done.missing, texels, self.lit.fit.nodata, "grey");
+                }
             }
             return Ok(Outcome::Done);
         }
         let raster = read_input(input, &self.read)?;
+        let texels = raster.width * raster.height;
         let view = lit_view_owned(raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
         if !self.quiet {
             view.warnings.iter().for_each(|w| fitting::warn(w, input));
+            if view.missing > 0 || self.lit.fit.nodata.is_some() {
+                fitting::report_missing(input, view.missing, texels, self.lit.fit.nodata, "grey");
+            }
         }
         match &target {
             Some(path) => {

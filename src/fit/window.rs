@@ -175,8 +175,8 @@ fn fit_window<H: Sample, T: FromNormal>(
     }
     let rows = |v: isize| {
         let at = if held_y.contains(&v) { v } else { plan.borders.y.map(v, ih) as isize };
-        RowRef { values: &heights[(at - held_y.start) as usize * hw..][..hw], x0: held_x.start }
+        RowRef { values: &heights[(at - held_y.start) as usize * hw..][..hw], x0: held_x.start, holes: false }
     };
-    plan.fit_rows(&rows, H::UNIT, (oy, ox..ox + w), out, residual);
+    plan.fit_rows(&rows, H::UNIT, (oy, ox..ox + w), out, residual, None);
     Ok(())
 }

@@ -124,6 +124,12 @@ pub enum Layout {
     /// R, G, B and an opaque alpha (1), for pipelines that want four
     /// channels.
     RgbOpaque,
+    /// R, G, B and an alpha that says which texels have a normal: 1 (the
+    /// sample's largest value) where the texel has one, 0 where it is
+    /// missing, a hole (docs/terrain.md, "Holes"; a missing texel's RGB is
+    /// the flat normal). What a conversion with a nodata value writes in
+    /// place of RGB or an opaque alpha.
+    RgbValid,
     /// The normal's x and y alone, for two-channel (BC5) pipelines whose
     /// shaders rebuild z = √(1 − x² − y²). An EXR holds channels R and G; a
     /// PNG, which has no red-green type, stays RGB with B = 0, which BC5
@@ -182,7 +188,7 @@ impl Layout {
     pub(crate) fn png_samples(self) -> usize {
         match self {
             Layout::Rgb | Layout::Rg => 3,
-            Layout::RgbHeight | Layout::RgbOpaque => 4,
+            Layout::RgbHeight | Layout::RgbOpaque | Layout::RgbValid => 4,
         }
     }
 
@@ -190,15 +196,27 @@ impl Layout {
     pub(crate) fn exr_channels(self) -> &'static [&'static str] {
         match self {
             Layout::Rgb => &["R", "G", "B"],
-            Layout::RgbHeight | Layout::RgbOpaque => &["R", "G", "B", "A"],
+            Layout::RgbHeight | Layout::RgbOpaque | Layout::RgbValid => &["R", "G", "B", "A"],
             Layout::Rg => &["R", "G"],
         }
     }
 
-    /// Whether the texels' heights are needed.
+    /// Whether the texels' heights are needed (for [`Layout::RgbValid`],
+    /// the texels' validity in their place: 1 or 0).
     #[must_use]
     pub fn needs_heights(self) -> bool {
-        self == Layout::RgbHeight
+        matches!(self, Layout::RgbHeight | Layout::RgbValid)
+    }
+
+    /// The layout of a map with holes: an alpha of validity in place of
+    /// none or an opaque one; an alpha of heights, and red-green alone,
+    /// stay as asked.
+    #[must_use]
+    pub fn with_holes(self) -> Layout {
+        match self {
+            Layout::Rgb | Layout::RgbOpaque => Layout::RgbValid,
+            other => other,
+        }
     }
 }
 
@@ -252,7 +270,7 @@ pub(crate) fn lay_out<S: Sample>(
 ) {
     match (layout, container) {
         (Layout::Rgb, _) => out.extend_from_slice(normals.as_flattened()),
-        (Layout::RgbHeight, _) => {
+        (Layout::RgbHeight | Layout::RgbValid, _) => {
             out.extend(normals.iter().zip(heights).flat_map(|(&[r, g, b], &h)| [r, g, b, S::from_height(h)]));
         }
         (Layout::RgbOpaque, _) => out.extend(normals.iter().flat_map(|&[r, g, b]| [r, g, b, S::ONE])),

@@ -13,7 +13,7 @@ use exr::meta::BlockDescription;
 use exr::meta::attribute::{ChannelList, SampleType as ExrSample};
 use exr::prelude::{Vec2, f16};
 
-use super::{RowSource, Stages, checked_tail, run};
+use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
 use crate::io::encoding::ExrOptions;
@@ -362,6 +362,19 @@ pub fn convert_exr<W: Write + Seek>(
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<()> {
+    convert_exr_counting(rows, tail, opts, options, visit, out).map(|_| ())
+}
+
+/// [`convert_exr`], returning the count of missing texels (holes, with
+/// [`Options::nodata`]).
+pub(crate) fn convert_exr_counting<W: Write + Seek>(
+    rows: impl RowSource,
+    tail: Option<&[f64]>,
+    opts: &Options,
+    options: impl Into<ExrOptions>,
+    visit: impl FnMut(&[f32]) + Send,
+    out: W,
+) -> Result<usize> {
     let (w, h) = (rows.width(), rows.height());
     let tail = checked_tail(tail, w, h, opts)?;
     let unit = rows.unit();
@@ -376,6 +389,7 @@ pub fn convert_exr<W: Write + Seek>(
             samples
         };
         let consume = |_: usize, samples: Vec<f32>| push(&samples);
-        run(rows, &fit, tail, (false, layout.needs_heights()), visit, Stages { prepare, consume })
-    })
+        run(rows, &fit, tail, (false, Extra::of(layout)), visit, Stages { prepare, consume })
+    })?;
+    Ok(fit.missing())
 }

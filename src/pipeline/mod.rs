@@ -41,10 +41,12 @@ mod tiff;
 use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
+pub(crate) use self::exr::convert_exr_counting;
 pub use self::exr::{ExrRows, convert_exr};
 #[cfg(feature = "tiff")]
 pub(crate) use self::png::shade_png_seekable;
 pub use self::png::{PngRows, convert_png, convert_png_seekable};
+pub(crate) use self::png::{convert_png_counting, convert_png_seekable_counting};
 #[cfg(feature = "tiff")]
 pub use self::tiff::TiffRows;
 pub use crate::io::encoding::{ExrOptions, PngDepth, PngOptions};
@@ -72,6 +74,14 @@ pub trait RowSource: Send {
     /// The height of a row value of 1: 1 / (2^bits − 1) for integer
     /// samples as stored, 1 for floats and heights.
     fn unit(&self) -> f64;
+
+    /// The row value of a stored sample value `v` (a nodata value as a
+    /// file's tag or the user gives it): `v` itself, unless the source
+    /// divides its samples (a TIFF's signed and 32-bit integers, given in
+    /// contract units), and then `v` divided the same way.
+    fn row_value(&self, v: f64) -> f64 {
+        v
+    }
 
     /// Decodes the next row into `out` (`width` values).
     ///
@@ -171,6 +181,30 @@ impl RowValue for f64 {
     }
 }
 
+/// What the fit stage hands `prepare` beside the texels, per texel of the
+/// band.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(super) enum Extra {
+    /// Nothing.
+    None,
+    /// The heights in contract units (an alpha of heights).
+    Heights,
+    /// Whether the texel has a normal, 1 or 0 (an alpha of validity; the
+    /// lit view's nodata grey).
+    Valid,
+}
+
+impl Extra {
+    /// What a normal map of `layout` needs.
+    pub(super) fn of(layout: crate::io::Layout) -> Extra {
+        match layout {
+            crate::io::Layout::RgbHeight => Extra::Heights,
+            crate::io::Layout::RgbValid => Extra::Valid,
+            _ => Extra::None,
+        }
+    }
+}
+
 /// `tail` if it is what a conversion with `opts` of a `w` × `h` image
 /// needs: the last N/2 rows when it wraps in y (where it is required).
 fn checked_tail<'a>(tail: Option<&'a [f64]>, w: usize, h: usize, opts: &Options) -> Result<Option<&'a [f64]>> {
@@ -219,7 +253,7 @@ fn run<S, T, B, Prepare, Consume>(
     rows: S,
     fit: &BandFit,
     tail: Option<&[f64]>,
-    (deferred, needs_heights): (bool, bool),
+    (deferred, needs_heights): (bool, Extra),
     visit: impl FnMut(&[f32]) + Send,
     stages: Stages<Prepare, Consume>,
 ) -> Result<()>
@@ -243,7 +277,7 @@ fn run_as<H, S, T, B, Prepare, Consume>(
     mut rows: S,
     fit: &BandFit,
     tail: Option<&[f64]>,
-    (deferred, needs_heights): (bool, bool),
+    (deferred, needs_heights): (bool, Extra),
     mut visit: impl FnMut(&[f32]) + Send,
     stages: Stages<Prepare, Consume>,
 ) -> Result<()>
@@ -378,8 +412,8 @@ struct Fitting<'a, H> {
     tail: Option<&'a [H]>,
     /// The top band is fitted last, when the image's last rows are in.
     deferred: bool,
-    /// `prepare` takes the band's heights (an alpha of heights).
-    needs_heights: bool,
+    /// What `prepare` takes beside the texels.
+    needs_heights: Extra,
 }
 
 /// Fits each band once the rows it reads are in, prepares it for the
@@ -393,6 +427,7 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
 ) {
     let (w, h, r) = (fit.width(), fit.height(), fit.radius());
     if let Some(tail) = tail
+        && !fit.has_nodata()
         && let Some((x, y)) = first_non_finite(tail, w)
     {
         // The top band reads these last rows first, through the wrap:
@@ -410,6 +445,7 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     let head_rows = (2 * r).min(h);
     let mut head: Vec<H> = Vec::new();
     let mut normals: Vec<T> = Vec::new();
+    let mut valid: Vec<bool> = Vec::new();
     let mut incoming = rx.into_iter();
     let mut bands: Vec<_> = fit.bands().collect();
     if deferred {
@@ -453,9 +489,21 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
         // One buffer for every band's texels, each overwritten whole by the
         // fit: no zeroing per band.
         normals.resize((y1 - y0) * w, T::default());
-        let result = fit.fit_band(rows.clone(), &row, &mut normals).map(|()| {
-            let heights = if needs_heights { heights_of(rows.clone(), &row, unit) } else { Vec::new() };
-            prepare(rows, &mut normals, heights)
+        let fitted = if fit.has_nodata() {
+            valid.resize(normals.len(), false);
+            fit.fit_band_masked(rows.clone(), &row, &mut normals, &mut valid).map(|_| ())
+        } else {
+            valid.clear();
+            fit.fit_band(rows.clone(), &row, &mut normals)
+        };
+        let result = fitted.map(|()| {
+            let extra = match needs_heights {
+                Extra::None => Vec::new(),
+                Extra::Heights => heights_of(rows.clone(), &row, unit),
+                Extra::Valid if valid.is_empty() => vec![1.0; normals.len()],
+                Extra::Valid => valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect(),
+            };
+            prepare(rows, &mut normals, extra)
         });
         let failed = result.is_err();
         if tx.send(result.map(|values| (y0, values))).is_err() || failed {

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use crate::par::prelude::*;
 
-use super::{RowSource, Stages, checked_tail, run};
+use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
 use crate::io::encoding::{PngDepth, PngOptions};
@@ -280,15 +280,28 @@ pub fn convert_png(
     visit: impl FnMut(&[f32]) + Send,
     out: &mut dyn Write,
 ) -> Result<()> {
+    convert_png_counting(rows, tail, opts, output, visit, out).map(|_| ())
+}
+
+/// [`convert_png`], returning the count of missing texels (holes, with
+/// [`Options::nodata`]).
+pub(crate) fn convert_png_counting(
+    rows: impl RowSource,
+    tail: Option<&[f64]>,
+    opts: &Options,
+    output: impl Into<PngOptions>,
+    visit: impl FnMut(&[f32]) + Send,
+    out: &mut dyn Write,
+) -> Result<usize> {
     let tail = checked_tail(tail, rows.width(), rows.height(), opts)?;
     let PngOptions { depth, compression, layout } = output.into();
     let how = Writing { compression, deferred: false, layout };
-    match depth {
+    let (_, missing) = match depth {
         PngDepth::Eight => convert_normals::<u8, _, _>(rows, tail, opts, visit, out, how),
         PngDepth::Sixteen => convert_normals::<u16, _, _>(rows, tail, opts, visit, out, how),
     }?;
     out.flush()?;
-    Ok(())
+    Ok(missing)
 }
 
 /// Like [`convert_png`], in one pass over the input whatever the borders,
@@ -305,14 +318,26 @@ pub fn convert_png_seekable<W: Write + Seek>(
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
 ) -> Result<()> {
+    convert_png_seekable_counting(rows, opts, output, visit, out).map(|_| ())
+}
+
+/// [`convert_png_seekable`], returning the count of missing texels.
+pub(crate) fn convert_png_seekable_counting<W: Write + Seek>(
+    rows: impl RowSource,
+    opts: &Options,
+    output: impl Into<PngOptions>,
+    visit: impl FnMut(&[f32]) + Send,
+    out: &mut W,
+) -> Result<usize> {
     let start = out.stream_position()?;
     let PngOptions { depth, compression, layout } = output.into();
     let how = Writing { compression, deferred: true, layout };
-    let first_idat = match depth {
+    let (first_idat, missing) = match depth {
         PngDepth::Eight => convert_normals::<u8, _, _>(rows, None, opts, visit, out, how),
         PngDepth::Sixteen => convert_normals::<u16, _, _>(rows, None, opts, visit, out, how),
     }?;
-    write_first_idat(out, start, &first_idat)
+    write_first_idat(out, start, &first_idat)?;
+    Ok(missing)
 }
 
 /// Writes the first IDAT chunk into the room kept for it after the
@@ -338,18 +363,22 @@ pub(crate) fn shade_png_seekable<W: Write + Seek>(
     lamp: crate::shade::Lamp,
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
-) -> Result<()> {
+) -> Result<usize> {
     let start = out.stream_position()?;
     // One filter (Avg) for every row: choosing per row was a tenth of a
     // streamed lit view's processor time.
-    let first_idat = convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels { lamp })?;
-    write_first_idat(out, start, &first_idat)
+    let texels = LitTexels { lamp, holes: opts.nodata.is_some() };
+    let (first_idat, missing) = convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), texels)?;
+    write_first_idat(out, start, &first_idat)?;
+    Ok(missing)
 }
 
 /// Normals lit by a lamp: one gray byte a texel.
 #[cfg(feature = "tiff")]
 struct LitTexels {
     lamp: crate::shade::Lamp,
+    /// With holes: missing texels are grey 0 (gdaldem's nodata).
+    holes: bool,
 }
 
 #[cfg(feature = "tiff")]
@@ -361,15 +390,18 @@ impl PngTexels for LitTexels {
     fn samples(&self) -> usize {
         1
     }
-    fn needs_heights(&self) -> bool {
-        false
+    fn needs_heights(&self) -> Extra {
+        if self.holes { Extra::Valid } else { Extra::None }
     }
-    fn raw<'a>(&self, normals: &'a mut [[f32; 3]], _: &[f32]) -> Cow<'a, [u8]> {
+    fn raw<'a>(&self, normals: &'a mut [[f32; 3]], valid: &[f32]) -> Cow<'a, [u8]> {
         let lamp = self.lamp;
         let mut grey = vec![0u8; normals.len()];
         grey.par_chunks_mut(1 << 14)
             .zip(normals.par_chunks(1 << 14))
             .for_each(|(g, n)| g.iter_mut().zip(n).for_each(|(g, &n)| *g = lamp.grey(n)));
+        for (g, _) in grey.iter_mut().zip(valid).filter(|(_, v)| **v == 0.0) {
+            *g = 0;
+        }
         Cow::Owned(grey)
     }
 }
@@ -386,8 +418,8 @@ pub(super) trait PngTexels: Send {
     /// Bits per sample, and samples per texel (the PNG's colour type).
     fn bits(&self) -> u8;
     fn samples(&self) -> usize;
-    /// Whether [`PngTexels::raw`] takes the band's heights.
-    fn needs_heights(&self) -> bool;
+    /// What [`PngTexels::raw`] takes beside the texels.
+    fn needs_heights(&self) -> Extra;
     /// A band's texels (and its heights, when asked for) as the PNG's
     /// unfiltered bytes, row after row.
     fn raw<'a>(&self, normals: &'a mut [Self::Normal], heights: &[f32]) -> Cow<'a, [u8]>;
@@ -410,8 +442,8 @@ where
     fn samples(&self) -> usize {
         self.layout.png_samples()
     }
-    fn needs_heights(&self) -> bool {
-        self.layout.needs_heights()
+    fn needs_heights(&self) -> Extra {
+        Extra::of(self.layout)
     }
     fn raw<'a>(&self, normals: &'a mut [[S; 3]], heights: &[f32]) -> Cow<'a, [u8]> {
         if self.layout == Layout::Rgb {
@@ -432,7 +464,7 @@ fn convert_normals<S: PngSample, R: RowSource, W: Write + ?Sized>(
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
     how: Writing,
-) -> Result<Vec<u8>>
+) -> Result<(Vec<u8>, usize)>
 where
     [S; 3]: FromNormal + Default,
 {
@@ -453,7 +485,7 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     out: &mut W,
     (compression, deferred): (PngCompression, bool),
     texels: P,
-) -> Result<Vec<u8>> {
+) -> Result<(Vec<u8>, usize)> {
     let (w, h) = (rows.width(), rows.height());
     let unit = rows.unit();
     let fit = BandFit::new(w, h, opts)?.with_unit(unit);
@@ -528,7 +560,7 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     idat.buf.extend_from_slice(&trailer.to_be_bytes());
     idat.flush_chunk()?;
     write_chunk(out, b"IEND", &[])?;
-    Ok(first_idat)
+    Ok((first_idat, fit.missing()))
 }
 
 /// PNG filter types (PNG spec §9.2).

@@ -145,6 +145,10 @@ impl RowSource for TiffRows {
         self.band.unit()
     }
 
+    fn row_value(&self, v: f64) -> f64 {
+        self.band.row_value(v)
+    }
+
     fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
         let w = self.width();
         if out.len() != w {

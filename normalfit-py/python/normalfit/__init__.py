@@ -54,6 +54,7 @@ def normals(
     threads: int | None = None,
     units: str = "texels",
     pixel_size: float | tuple[float, float] | None = None,
+    nodata: float | None = None,
 ) -> Any:
     """The normal map of a height map.
 
@@ -97,6 +98,13 @@ def normals(
         column to column, y row to row, in the heights' unit (the command
         line's --pixel-size; implies units="map"). The residual is then in
         the heights' unit.
+    nodata: holes (docs/terrain.md, "Holes"): heights equal to it (as
+        stored: an integer array's own values), and NaN or infinite ones,
+        are missing; each patch is fitted to its valid points. A missing
+        texel (a hole, or one whose patch's valid points are fewer than 3
+        or collinear) is NaN in all three components, and NaN in the
+        residual. float("nan") marks only the non-finite heights. Needs
+        dtype float32. Default None: a NaN height is an error.
 
     Returns a (rows, columns, 3) array of dtype.
 
@@ -107,7 +115,7 @@ def normals(
     """
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
-        None if pixel_size is None else _pair(pixel_size),
+        None if pixel_size is None else _pair(pixel_size), nodata,
     )
 
 
@@ -174,6 +182,7 @@ def convert(
     size: tuple[int, int] | str | None = None,
     byte_order: str | None = None,
     decode: str | None = None,
+    nodata: float | None = None,
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -191,7 +200,9 @@ def convert(
     command line's --max-texels and --layer; units: "texels" or "map"
     (heights as stored, texels as far apart as a GeoTIFF says: slopes in
     real-world units, docs/terrain.md); pixel_size: map units with this
-    spacing, x or (x, y) in the heights' unit (--pixel-size).
+    spacing, x or (x, y) in the heights' unit (--pixel-size); nodata: the
+    stored value of holes (--nodata; default a GeoTIFF's GDAL_NODATA tag):
+    the map then has an alpha, 0 where a texel is missing.
 
     Terrain files (docs/terrain.md), as the command line reads them:
     band: TIFF band K, 1-based as GDAL counts (--band); size: a RAW
@@ -203,13 +214,13 @@ def convert(
     (--decode).
 
     Returns a ConversionSummary (width, height, input_format, borders as
-    used, streamed, tiling, warnings). Raises ValueError for a bad option,
+    used, streamed, tiling, warnings, nodata, missing). Raises ValueError for a bad option,
     OSError naming the file for a file that cannot be read or written.
     """
     return _normalfit.convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
         compression, alpha, channels, residual, max_texels, layer, units,
-        None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode,
+        None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata,
     )
 
 

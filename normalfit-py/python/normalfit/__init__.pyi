@@ -72,6 +72,7 @@ def normals(
     threads: int | None = None,
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | None = None,
+    nodata: float | None = None,
 ) -> Any: ...
 @final
 class ConversionSummary:
@@ -91,6 +92,10 @@ class ConversionSummary:
     def tiling(self) -> TilingReport | None: ...
     @property
     def warnings(self) -> list[str]: ...
+    @property
+    def nodata(self) -> float | None: ...
+    @property
+    def missing(self) -> int: ...
 
 def check_tiling(
     image: _Heights | _Path,
@@ -128,6 +133,7 @@ def convert(
     size: tuple[int, int] | str | None = None,
     byte_order: Literal["little", "le", "big", "be"] | None = None,
     decode: Literal["terrain-rgb", "mapbox", "terrarium"] | None = None,
+    nodata: float | None = None,
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None

@@ -41,6 +41,7 @@ def normals(
     threads: int | None,
     units: str,
     pixel_size: tuple[float, float] | None,
+    nodata: float | None,
 ) -> Any: ...
 def check_tiling(image: Any, threshold: float, kind: str) -> TilingReport: ...
 def check_tiling_file(
@@ -72,6 +73,7 @@ def convert(
     size: Any | None,
     byte_order: str | None,
     decode: str | None,
+    nodata: float | None,
 ) -> ConversionSummary: ...
 def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
 def lit_view(

@@ -107,13 +107,66 @@ impl Raster {
     /// and the fit.
     ///
     /// Errors: as [`Raster::heights`].
-    pub fn into_heights(mut self, channel: Option<Channel>) -> Result<Samples> {
+    pub fn into_heights(self, channel: Option<Channel>) -> Result<Samples> {
+        self.into_heights_checked(channel, true)
+    }
+
+    /// [`Raster::into_heights`], NaN and infinite heights refused (`check`)
+    /// or kept (holes).
+    fn into_heights_checked(mut self, channel: Option<Channel>, check: bool) -> Result<Samples> {
         let heights = match self.select(channel.as_ref())? {
             Source::Plane(i) => self.planes.swap_remove(i).data,
             Source::Luma(rgb) => self.luma(rgb)?,
         };
-        self.check_finite(&heights)?;
+        if check {
+            self.check_finite(&heights)?;
+        }
         Ok(heights)
+    }
+
+    /// The heights with holes (docs/terrain.md, "Holes"): as
+    /// [`Raster::into_stored_heights`] gives them (`stored`) or as
+    /// [`Raster::into_heights`] does, NaN and infinite values kept, and the
+    /// value a nodata value `nodata` (as stored: a DEM's −32768) becomes
+    /// among them. Stored integers that were divided when decoded (signed
+    /// and 32-bit ones, in contract units) cannot be compared with it
+    /// exactly: those equal to it once multiplied back are made NaN, and
+    /// the value returned is NaN.
+    ///
+    /// Errors: as [`Raster::heights`], but no [`Error::NonFiniteHeight`].
+    pub fn into_heights_with_holes(
+        self,
+        channel: Option<Channel>,
+        stored: bool,
+        nodata: f64,
+    ) -> Result<(Samples, f64)> {
+        let scale = self.sample.stored_per_unit();
+        if stored {
+            return Ok((self.into_stored_heights_checked(channel, false)?, nodata));
+        }
+        let heights = self.into_heights_checked(channel, false)?;
+        let divided = |v: &mut f64| {
+            if (*v * scale).round() == nodata {
+                *v = f64::NAN;
+            }
+        };
+        Ok(match heights {
+            Samples::F64(mut values) if scale != 1.0 && nodata.is_finite() => {
+                values.iter_mut().for_each(divided);
+                (Samples::F64(values), f64::NAN)
+            }
+            Samples::F32(mut values) if scale != 1.0 && nodata.is_finite() => {
+                for v in &mut values {
+                    let mut d = f64::from(*v);
+                    divided(&mut d);
+                    if d.is_nan() {
+                        *v = f32::NAN;
+                    }
+                }
+                (Samples::F32(values), f64::NAN)
+            }
+            other => (other, nodata),
+        })
     }
 
     /// The heights as the file stored them, chosen as [`Raster::heights`]
@@ -128,10 +181,14 @@ impl Raster {
     ///
     /// Errors: as [`Raster::heights`].
     pub fn into_stored_heights(self, channel: Option<Channel>) -> Result<Samples> {
+        self.into_stored_heights_checked(channel, true)
+    }
+
+    fn into_stored_heights_checked(self, channel: Option<Channel>, check: bool) -> Result<Samples> {
         let scale = self.sample.stored_per_unit();
         let whole = matches!(self.sample, super::SampleType::Int { bits } | super::SampleType::SignedInt { bits } if bits <= 32)
             && !matches!(self.select(channel.as_ref())?, Source::Luma(_));
-        let heights = self.into_heights(channel)?;
+        let heights = self.into_heights_checked(channel, check)?;
         if scale == 1.0 {
             return Ok(heights);
         }

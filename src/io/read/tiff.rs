@@ -633,6 +633,21 @@ impl<R: Read + Seek> TiffBand<R> {
     /// in `f64`, as `decode_band` gives them: 8- and 16-bit unsigned
     /// integers and floats as stored, other integers divided by
     /// 2^bits − 1 (heights in contract units).
+    /// The row value ([`TiffBand::values`]) of a stored value `v` (a
+    /// nodata value as the GDAL_NODATA tag gives it): divided as the
+    /// samples are, so that equal stored values give equal row values.
+    pub(crate) fn row_value(&self, v: f64) -> f64 {
+        const U32_TOP: f64 = u32::MAX as f64;
+        const U64_TOP: f64 = u64::MAX as f64;
+        match self.kind {
+            TiffGray::U32 | TiffGray::I32 => v / U32_TOP,
+            TiffGray::U64 | TiffGray::I64 => v / U64_TOP,
+            TiffGray::I8 => v / 255.0,
+            TiffGray::I16 => v / 65535.0,
+            _ => v,
+        }
+    }
+
     pub(crate) fn values(&self, bytes: &[u8], out: &mut [f64]) {
         let size = self.kind.bytes();
         for (o, p) in out.iter_mut().zip(bytes.chunks_exact(size)) {
