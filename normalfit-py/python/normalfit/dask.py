@@ -336,12 +336,23 @@ def _read_block(*, store: str, component: str | None, block_info: Any = None) ->
         raise _chunk_error(e, f"{store}: {_describe(index, rows, cols)}") from e
 
 
+def _executing(dask_worker: Any) -> int:
+    """How many tasks a worker's threads are running now (run on each
+    worker by ``Client.run``)."""
+    state = getattr(dask_worker, "state", dask_worker)
+    return len(getattr(state, "executing", ()))
+
+
 def _store(writes: Any) -> None:
     """Runs the writes; when one fails, returns (raising) only once no
     other write of them still runs, so that removing the store after it
     is final. On a distributed Client: the writes are cancelled and their
-    tasks waited for (up to a minute). On Dask's local schedulers, the
-    failure is raised as they raise it."""
+    tasks waited for, up to a minute: a cancelled task leaves the
+    scheduler's lists at once, but a worker's thread runs it to its end,
+    and it may write a chunk then. Dask renames the tasks it fuses, so
+    ours cannot be told from others by key: the wait is for every task
+    the workers are running. On Dask's local schedulers, the failure is
+    raised as they raise it."""
     try:
         from distributed import default_client
 
@@ -353,13 +364,9 @@ def _store(writes: Any) -> None:
     try:
         future.result()
     except BaseException:
-        keys = {str(k) for k in writes.__dask_graph__().keys()}
         client.cancel(future)
         deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            running = client.processing()
-            if not any(str(k) in keys for tasks in running.values() for k in tasks):
-                break
+        while time.monotonic() < deadline and any(client.run(_executing).values()):
             time.sleep(0.05)
         raise
 
