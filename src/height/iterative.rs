@@ -361,48 +361,34 @@ impl pulp::WithSimd for RatioRow<'_> {
     type Output = (f64, f64, f64);
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> (f64, f64, f64) {
+        // Inlined here, so that it is compiled for each instruction set.
         let RatioRow { a, m, gx, gy, out, dir, damping } = self;
-        ratio_row_here(a, m, gx, gy, out, dir, damping)
-    }
-}
-
-/// [`ratio_row`], inlined into the dispatch so that it is compiled for
-/// each instruction set.
-#[inline(always)]
-fn ratio_row_here(
-    a: f64,
-    m: &[[f64; 3]],
-    gx: &[f64],
-    gy: &[f64],
-    out: &mut [f64],
-    dir: &mut [i8],
-    damping: f64,
-) -> (f64, f64, f64) {
-    let (mut largest, mut mismatch, mut worst) = (0.0f64, 0.0, 0.0f64);
-    // Blocks of texels computed without branches (both sides of every
-    // choice, then a select), which the compiler can vectorise; the sums
-    // then run over the block in texel order, as one loop would.
-    const BLOCK: usize = 8;
-    let (mut terms, mut changes, mut offs) = ([0.0f64; BLOCK], [0.0f64; BLOCK], [0.0f64; BLOCK]);
-    let mut start = 0;
-    while start < out.len() {
-        let k = BLOCK.min(out.len() - start);
-        let (m, gx, gy) = (&m[start..][..k], &gx[start..][..k], &gy[start..][..k]);
-        let (o, d) = (&mut out[start..][..k], &mut dir[start..][..k]);
-        for l in 0..k {
-            let (term, change, off) = ratio_texel(a, m[l], gx[l], gy[l], &mut o[l], &mut d[l], damping);
-            terms[l] = term;
-            changes[l] = change;
-            offs[l] = off;
+        let (mut largest, mut mismatch, mut worst) = (0.0f64, 0.0, 0.0f64);
+        // Blocks of texels computed without branches (both sides of every
+        // choice, then a select), which the compiler can vectorise; the sums
+        // then run over the block in texel order, as one loop would.
+        const BLOCK: usize = 8;
+        let (mut terms, mut changes, mut offs) = ([0.0f64; BLOCK], [0.0f64; BLOCK], [0.0f64; BLOCK]);
+        let mut start = 0;
+        while start < out.len() {
+            let k = BLOCK.min(out.len() - start);
+            let (m, gx, gy) = (&m[start..][..k], &gx[start..][..k], &gy[start..][..k]);
+            let (o, d) = (&mut out[start..][..k], &mut dir[start..][..k]);
+            for l in 0..k {
+                let (term, change, off) = ratio_texel(a, m[l], gx[l], gy[l], &mut o[l], &mut d[l], damping);
+                terms[l] = term;
+                changes[l] = change;
+                offs[l] = off;
+            }
+            for l in 0..k {
+                mismatch += terms[l];
+                largest = largest.max(changes[l]);
+                worst = worst.max(offs[l]);
+            }
+            start += k;
         }
-        for l in 0..k {
-            mismatch += terms[l];
-            largest = largest.max(changes[l]);
-            worst = worst.max(offs[l]);
-        }
-        start += k;
+        (largest, mismatch, worst)
     }
-    (largest, mismatch, worst)
 }
 
 /// One texel of [`ratio_row`]: its mismatch of unit normals and the
