@@ -160,7 +160,9 @@ pub fn shade_sun(
 
 /// Every texel's grey under `lamp`.
 fn shade_with(normals: &[[f32; 3]], lamp: Lamp) -> Vec<u8> {
-    normals.iter().map(|&n| lamp.grey(n)).collect()
+    let mut grey = vec![0u8; normals.len()];
+    lamp.grey_row(normals, &mut grey);
+    grey
 }
 
 /// A light resolved for one image: its direction in the fit's frame
@@ -197,18 +199,79 @@ impl Lamp {
         ((AMBIENT + (1.0 - AMBIENT) * cos.max(0.0)) * 255.0).round() as u8
     }
 
+    /// The greys of a row of normals, [`Lamp::grey`] each: under the sun,
+    /// compiled for the widest vectors the processor has
+    /// ([`pulp::Arch::dispatch`]), which round as the baseline's do.
+    pub(crate) fn grey_row(&self, normals: &[[f32; 3]], out: &mut [u8]) {
+        if self.gis {
+            pulp::Arch::new().dispatch(SunRow { lamp: self, normals, out });
+        } else {
+            out.iter_mut().zip(normals).for_each(|(g, &n)| *g = self.grey(n));
+        }
+    }
+
     /// [`Lamp::grey`] under the sun, in `f32` (a grey level is 1/254 of
     /// the range; f32 carries 2^-24) and rounded by adding ½ (the value is
     /// at least 1): `f64::round` is a call into libm on the baseline x86-64
     /// target, and this grey was 40 % of a streamed lit view's processor
     /// time before.
-    #[inline]
-    fn sun_grey(&self, [x, y, z]: [f32; 3]) -> u8 {
-        let [lx, ly, lz] = self.direction.map(|v| v as f32);
-        let len2 = x * x + y * y + z * z;
-        let cos = if len2 > 0.0 && len2.is_finite() { (x * lx + y * ly + z * lz) / len2.sqrt() } else { lz };
-        // NaN compares false: max gives 0 for it.
-        (1.5 + 254.0 * cos.max(0.0)).min(255.0) as u8
+    #[inline(always)]
+    fn sun_grey(&self, n: [f32; 3]) -> u8 {
+        sun_level(self.sun_direction(), n) as u8
+    }
+
+    /// The sun's direction, in `f32`.
+    #[inline(always)]
+    fn sun_direction(&self) -> [f32; 3] {
+        self.direction.map(|v| v as f32)
+    }
+}
+
+/// [`Lamp::sun_grey`] under the sun `[lx, ly, lz]`, before its cast: a
+/// value in [1.5, 255] (or NaN, which the cast makes 0) whose integer part
+/// is the grey.
+#[inline(always)]
+fn sun_level([lx, ly, lz]: [f32; 3], [x, y, z]: [f32; 3]) -> f32 {
+    let len2 = x * x + y * y + z * z;
+    let cos = if len2 > 0.0 && len2.is_finite() { (x * lx + y * ly + z * lz) / len2.sqrt() } else { lz };
+    // NaN compares false: max gives 0 for it.
+    (1.5 + 254.0 * cos.max(0.0)).min(255.0)
+}
+
+/// [`Lamp::grey_row`] under the sun, for [`pulp::Arch::dispatch`].
+struct SunRow<'a> {
+    lamp: &'a Lamp,
+    normals: &'a [[f32; 3]],
+    out: &'a mut [u8],
+}
+
+impl pulp::WithSimd for SunRow<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let SunRow { lamp, normals, out } = self;
+        let sun = lamp.sun_direction();
+        // Blocks of texels split into x, y and z, their greys in f32,
+        // then bytes: one loop per step, which the compiler vectorises (the
+        // texels' stride of three and the byte cast kept one loop scalar).
+        const BLOCK: usize = 16;
+        let len = out.len().min(normals.len());
+        let whole = len - len % BLOCK;
+        let (mut xs, mut ys, mut zs) = ([0.0f32; BLOCK], [0.0f32; BLOCK], [0.0f32; BLOCK]);
+        for (greys, normals) in out[..whole].chunks_exact_mut(BLOCK).zip(normals[..whole].chunks_exact(BLOCK)) {
+            for (k, &[x, y, z]) in normals.iter().enumerate() {
+                (xs[k], ys[k], zs[k]) = (x, y, z);
+            }
+            for k in 0..BLOCK {
+                xs[k] = sun_level(sun, [xs[k], ys[k], zs[k]]);
+            }
+            for (g, &v) in greys.iter_mut().zip(&xs) {
+                *g = v as u8;
+            }
+        }
+        for (g, &n) in out[whole..len].iter_mut().zip(&normals[whole..len]) {
+            *g = lamp.sun_grey(n);
+        }
     }
 }
 

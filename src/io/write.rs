@@ -15,7 +15,7 @@ pub use super::atomic::{write_atomically, write_file_atomically};
 
 use crate::par::prelude::*;
 use exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
-use exr::block::writer::{ChunkWriter, ChunksWriter};
+use exr::block::writer::ChunksWriter;
 use exr::compression::Compression;
 use exr::meta::BlockDescription;
 use exr::meta::attribute::{ChannelDescription, LineOrder, SampleType as ExrSample, Text};
@@ -591,8 +591,8 @@ const EXR_BLOCK_ROWS: usize = 16;
 
 /// Writes an OpenEXR file with the named `channels` (half or float by
 /// `depth`), ZIP compression in blocks of 16 rows, whose samples `fill`
-/// pushes in order, texel after texel with one sample per channel in the
-/// order `channels` names them, any number of whole rows at a time.
+/// pushes, texel after texel (each texel's samples in the order
+/// `channels` names them), any number of whole rows at a time.
 /// Blocks are compressed in parallel as soon as their rows are in, so
 /// memory holds a few blocks, not the image.
 ///
@@ -607,25 +607,30 @@ pub(crate) fn write_exr_rows<W: Write + Seek>(
     channels: &[&str],
     fill: impl FnOnce(&mut dyn FnMut(&[f32]) -> Result<()>) -> Result<()>,
 ) -> Result<()> {
-    if width == 0 || height == 0 {
-        return Err(Error::Encode("image has zero size".into()));
-    }
-    let sample = match depth {
-        ExrDepth::Half => ExrSample::F16,
-        ExrDepth::Float => ExrSample::F32,
-    };
-    // The file lists channels, and stores their samples, sorted by name
-    // (B, G, R): `order` holds the index of each in a texel's samples.
-    let mut order: Vec<usize> = (0..channels.len()).collect();
-    order.sort_by_key(|&k| channels[k]);
-    let descriptions = order.iter().map(|&k| ChannelDescription::named(channels[k], sample));
-    let header = Header::new(Text::from(""), (width, height), SmallVec::from_iter(descriptions))
-        .with_encoding(Compression::ZIP16, BlockDescription::ScanLines, LineOrder::Increasing)
-        .with_attributes(LayerAttributes::default());
+    let mut blocks = ExrBlocks::new(width, height, depth, channels)?;
+    write_exr_blocks(out, &blocks.header(), |write| {
+        fill(&mut |rows| write(blocks.push(rows)?))?;
+        blocks.finish()
+    })
+}
+
+/// Writes an OpenEXR file of `header` ([`ExrBlocks::header`]) whose
+/// blocks `fill` hands over, compressed ([`ExrBlocks::push`]), in order.
+/// Blocks made on other threads, as the streamed conversion makes them,
+/// only need writing here.
+///
+/// Errors: [`Error::Io`] if `out` fails, an [`Error::Encode`] for a block
+/// the file has no room for; any error of `fill`, which stops the writing.
+pub(crate) fn write_exr_blocks<W: Write + Seek>(
+    out: W,
+    header: &Header,
+    fill: impl FnOnce(&mut dyn FnMut(Vec<IndexedChunk>) -> Result<()>) -> Result<()>,
+) -> Result<()> {
     let mut outcome = Ok(());
-    let written = exr::block::write(out, SmallVec::from_elem(header, 1), true, |_, chunks| {
-        let mut blocks = ExrBlocks { chunks, width, height, depth, order: &order, pending: Vec::new(), done: 0 };
-        outcome = fill(&mut |rows| blocks.push(rows)).and_then(|()| blocks.finish());
+    let written = exr::block::write(out, SmallVec::from_elem(header.clone(), 1), true, |_, writer| {
+        outcome = fill(&mut |chunks| {
+            chunks.into_iter().try_for_each(|(index, chunk)| writer.write_chunk(index, chunk).map_err(from_exr_error))
+        });
         // Our own error is kept in `outcome`; this only stops the writer.
         if outcome.is_err() { Err(exr::error::Error::Aborted) } else { Ok(()) }
     });
@@ -633,51 +638,98 @@ pub(crate) fn write_exr_rows<W: Write + Seek>(
     written.map_err(from_exr_error)
 }
 
-/// The rows of an EXR file being written, cut into blocks.
-struct ExrBlocks<'a, W> {
-    chunks: &'a mut ChunkWriter<W>,
+/// A compressed block of an EXR file and its index in the file's blocks.
+pub(crate) type IndexedChunk = (usize, Chunk);
+
+/// The rows of an EXR file being written, cut into compressed blocks.
+pub(crate) struct ExrBlocks {
     width: usize,
     height: usize,
     depth: ExrDepth,
-    /// The index in a texel's samples of each channel, in the file's order.
-    order: &'a [usize],
-    /// Samples of the rows not yet written, from row `done`.
+    /// The channels' names, as a texel's samples come.
+    channels: Vec<String>,
+    /// The index in a texel's samples of each channel, in the file's order
+    /// (sorted by name: B, G, R).
+    order: Vec<usize>,
+    /// Samples of the rows after row `done` that do not fill a block yet.
     pending: Vec<f32>,
     done: usize,
 }
 
-impl<W: Write + Seek> ExrBlocks<'_, W> {
-    /// Takes more rows; writes every block they complete.
-    fn push(&mut self, rows: &[f32]) -> Result<()> {
+impl ExrBlocks {
+    /// The blocks of a `width` × `height` image with `channels` (named as
+    /// a texel's samples come), each `depth`.
+    ///
+    /// Errors: [`Error::Encode`] for a zero size, or more rows than EXR
+    /// can index.
+    pub(crate) fn new(width: usize, height: usize, depth: ExrDepth, channels: &[&str]) -> Result<ExrBlocks> {
+        if width == 0 || height == 0 {
+            return Err(Error::Encode("image has zero size".into()));
+        }
+        if i32::try_from(height).is_err() || i32::try_from(width).is_err() {
+            return Err(Error::Encode(format!("{width} × {height} texels are beyond what EXR can index")));
+        }
+        let mut order: Vec<usize> = (0..channels.len()).collect();
+        order.sort_by_key(|&k| channels[k]);
+        let channels = channels.iter().map(|&c| c.to_owned()).collect();
+        Ok(ExrBlocks { width, height, depth, channels, order, pending: Vec::new(), done: 0 })
+    }
+
+    /// The file's header.
+    pub(crate) fn header(&self) -> Header {
+        let sample = match self.depth {
+            ExrDepth::Half => ExrSample::F16,
+            ExrDepth::Float => ExrSample::F32,
+        };
+        let descriptions = self.order.iter().map(|&k| ChannelDescription::named(self.channels[k].as_str(), sample));
+        Header::new(Text::from(""), (self.width, self.height), SmallVec::from_iter(descriptions))
+            .with_encoding(Compression::ZIP16, BlockDescription::ScanLines, LineOrder::Increasing)
+            .with_attributes(LayerAttributes::default())
+    }
+
+    /// Takes more rows; returns the blocks they complete, compressed in
+    /// parallel. Whole blocks are read from `rows` where they lie; only
+    /// the rows of a block not yet complete are kept.
+    ///
+    /// Errors: [`Error::Encode`] for samples that are not whole rows, or
+    /// rows past the last.
+    pub(crate) fn push(&mut self, mut rows: &[f32]) -> Result<Vec<IndexedChunk>> {
         let row_len = self.width * self.order.len();
-        if !rows.len().is_multiple_of(row_len) || self.done + (self.pending.len() + rows.len()) / row_len > self.height
-        {
+        let pending_rows = self.pending.len() / row_len;
+        if !rows.len().is_multiple_of(row_len) || self.done + pending_rows + rows.len() / row_len > self.height {
             return Err(Error::Encode(format!("{} samples are not whole rows of the image", rows.len())));
         }
-        self.pending.extend_from_slice(rows);
         let block = EXR_BLOCK_ROWS * row_len;
-        let last = self.done + self.pending.len() / row_len == self.height;
-        let ready = if last { self.pending.len() } else { self.pending.len() - self.pending.len() % block };
-        if ready == 0 {
-            return Ok(());
+        let last = self.done + pending_rows + rows.len() / row_len == self.height;
+        // The rows kept from before make a block first, if these complete it.
+        let take = if self.pending.is_empty() { 0 } else { (block - self.pending.len()).min(rows.len()) };
+        self.pending.extend_from_slice(&rows[..take]);
+        rows = &rows[take..];
+        let pending_ready = !self.pending.is_empty() && (self.pending.len() == block || (last && rows.is_empty()));
+        if !self.pending.is_empty() && !pending_ready {
+            return Ok(Vec::new());
         }
-        let (first_row, depth, order) = (self.done, self.depth, self.order);
-        let compressed: Vec<_> = self.pending[..ready]
-            .par_chunks(block)
+        let ready = if last { rows.len() } else { rows.len() - rows.len() % block };
+        let first_row = self.done;
+        let blocks: Vec<&[f32]> =
+            (pending_ready.then_some(&self.pending[..])).into_iter().chain(rows[..ready].chunks(block)).collect();
+        let (depth, order) = (self.depth, &self.order[..]);
+        let chunks = blocks
+            .par_iter()
             .enumerate()
-            .map(|(k, samples)| zip_chunk(samples, row_len, order, first_row + k * EXR_BLOCK_ROWS, depth))
-            .collect();
-        for (k, chunk) in compressed.into_iter().enumerate() {
-            let index = first_row / EXR_BLOCK_ROWS + k;
-            self.chunks.write_chunk(index, chunk?).map_err(from_exr_error)?;
-        }
-        self.pending.drain(..ready);
-        self.done += ready / row_len;
-        Ok(())
+            .map(|(k, samples)| {
+                let y0 = first_row + k * EXR_BLOCK_ROWS;
+                (y0 / EXR_BLOCK_ROWS, zip_chunk(samples, row_len, order, y0, depth))
+            })
+            .collect::<Vec<_>>();
+        self.done += blocks.iter().map(|b| b.len() / row_len).sum::<usize>();
+        self.pending.clear();
+        self.pending.extend_from_slice(&rows[ready..]);
+        Ok(chunks)
     }
 
     /// Checks that every row came.
-    fn finish(&self) -> Result<()> {
+    pub(crate) fn finish(&self) -> Result<()> {
         if self.done == self.height {
             Ok(())
         } else {
@@ -701,33 +753,42 @@ const EXR_ZLIB_LEVEL: u8 = 1;
 /// zlib-rs's 0.44 s to 86 %, and fdeflate (made for PNG's filtered bytes)
 /// 0.07 s to 137 %. A block that does not shrink is stored as it is,
 /// which is how EXR readers tell the two apart.
-fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth: ExrDepth) -> Result<Chunk> {
+fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth: ExrDepth) -> Chunk {
     let raw = exr_block_bytes(samples, row_len, order, depth);
-    let mut split = vec![0u8; raw.len()];
-    let (even, odd) = split.split_at_mut(raw.len().div_ceil(2));
-    for ((e, o), pair) in even.iter_mut().zip(odd.iter_mut()).zip(raw.chunks_exact(2)) {
-        (*e, *o) = (pair[0], pair[1]);
-    }
-    if raw.len() % 2 == 1 {
-        even[even.len() - 1] = raw[raw.len() - 1];
-    }
-    let mut deltas = Vec::with_capacity(split.len());
-    deltas.extend(split.first());
-    deltas.extend(
-        split.iter().zip(&split[1.min(split.len())..]).map(|(&before, &b)| b.wrapping_sub(before).wrapping_add(128)),
-    );
-    let y_coordinate =
-        i32::try_from(y0).map_err(|_| Error::Encode(format!("row {y0} is beyond what EXR can index")))?;
-    let compressed_pixels_le = if incompressible(&deltas) {
+    // `ExrBlocks::new` checked that every row is an i32.
+    let y_coordinate = y0 as i32;
+    // Float normals do not deflate: judged by the first bytes alone, such
+    // a block is stored without its whole split and differences made.
+    let compressed_pixels_le = if incompressible(&zip_predicted(&raw, EXR_PROBE_BYTES)) {
         raw
     } else {
-        let compressed = miniz_oxide::deflate::compress_to_vec_zlib(&deltas, EXR_ZLIB_LEVEL);
+        let compressed = miniz_oxide::deflate::compress_to_vec_zlib(&zip_predicted(&raw, raw.len()), EXR_ZLIB_LEVEL);
         if compressed.len() < raw.len() { compressed } else { raw }
     };
-    Ok(Chunk {
+    Chunk {
         layer_index: 0,
         compressed_block: CompressedBlock::ScanLine(CompressedScanLineBlock { y_coordinate, compressed_pixels_le }),
-    })
+    }
+}
+
+/// The first `len` bytes (at most all) of what EXR's ZIP deflates for the
+/// block `raw`: its even bytes, then its odd ones, each byte replaced by
+/// its difference from the one before, plus 128.
+fn zip_predicted(raw: &[u8], len: usize) -> Vec<u8> {
+    let len = len.min(raw.len());
+    let half = raw.len().div_ceil(2);
+    let mut split = vec![0u8; len];
+    let (even, odd) = split.split_at_mut(half.min(len));
+    for (e, pair) in even.iter_mut().zip(raw.chunks(2)) {
+        *e = pair[0];
+    }
+    for (o, pair) in odd.iter_mut().zip(raw.chunks_exact(2)) {
+        *o = pair[1];
+    }
+    let mut deltas = Vec::with_capacity(len);
+    deltas.extend(split.first());
+    deltas.extend(split.iter().zip(&split[1.min(len)..]).map(|(&before, &b)| b.wrapping_sub(before).wrapping_add(128)));
+    deltas
 }
 
 /// Bytes of a block deflated first, to judge whether the rest is worth it.
@@ -819,5 +880,80 @@ fn from_exr_error(e: exr::error::Error) -> Error {
     match e {
         exr::error::Error::Io(e) => Error::Io(e),
         other => Error::Encode(one_line(&other.to_string()).to_lowercase()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The blocks' bytes, in the file's order.
+    fn blocks_of(chunks: Vec<IndexedChunk>) -> Vec<(usize, i32, Vec<u8>)> {
+        chunks
+            .into_iter()
+            .map(|(index, chunk)| match chunk.compressed_block {
+                CompressedBlock::ScanLine(b) => (index, b.y_coordinate, b.compressed_pixels_le),
+                other => panic!("not a scan-line block: {other:?}"),
+            })
+            .collect()
+    }
+
+    /// However the rows come (one at a time, in bands that straddle
+    /// blocks, all at once), the blocks are the same, and whole.
+    #[test]
+    fn blocks_do_not_depend_on_how_rows_are_pushed() {
+        let (w, h) = (37, 53); // 3 whole blocks and a last one of 5 rows
+        for depth in [ExrDepth::Half, ExrDepth::Float] {
+            // Smooth samples (that deflate) and noisy ones (that do not).
+            let samples: Vec<f32> = (0..w * h * 3)
+                .map(|i| if i % 7 == 0 { (i as f32 * 0.618).fract() } else { (i / 3 % w) as f32 * 0.01 })
+                .collect();
+            let row_len = w * 3;
+            let mut expected = None;
+            for band in [1, 5, 16, 17, 40, h] {
+                let mut blocks = ExrBlocks::new(w, h, depth, &["R", "G", "B"]).unwrap();
+                let mut chunks = Vec::new();
+                for rows in samples.chunks(band * row_len) {
+                    chunks.extend(blocks.push(rows).unwrap());
+                }
+                blocks.finish().unwrap();
+                let got = blocks_of(chunks);
+                let indices: Vec<usize> = got.iter().map(|b| b.0).collect();
+                assert_eq!(indices, [0, 1, 2, 3], "bands of {band}");
+                let ys: Vec<i32> = got.iter().map(|b| b.1).collect();
+                assert_eq!(ys, [0, 16, 32, 48], "bands of {band}");
+                match &expected {
+                    None => expected = Some(got),
+                    Some(e) => assert!(*e == got, "bands of {band} give other blocks"),
+                }
+            }
+        }
+    }
+
+    /// Rows past the last, rows that are not whole, and rows missing at
+    /// the end are errors.
+    #[test]
+    fn blocks_refuse_rows_that_do_not_fit() {
+        let mut blocks = ExrBlocks::new(4, 3, ExrDepth::Float, &["Y"]).unwrap();
+        assert!(blocks.push(&[0.0; 5]).is_err());
+        assert!(blocks.push(&[0.0; 8]).unwrap().is_empty());
+        assert!(blocks.finish().is_err());
+        assert!(blocks.push(&[0.0; 8]).is_err());
+        assert_eq!(blocks.push(&[0.0; 4]).unwrap().len(), 1);
+        blocks.finish().unwrap();
+        assert!(ExrBlocks::new(0, 3, ExrDepth::Float, &["Y"]).is_err());
+    }
+
+    /// The predicted bytes are EXR's: even bytes, then odd ones, each the
+    /// difference from the one before plus 128; a prefix is the prefix.
+    #[test]
+    fn zip_prediction_is_exrs() {
+        let raw = [10u8, 20, 13, 25, 7];
+        // Split: 10 13 7 | 20 25; differences + 128.
+        let whole = [10u8, 131, 122, 141, 133];
+        assert_eq!(zip_predicted(&raw, raw.len()), whole);
+        assert_eq!(zip_predicted(&raw, 3), whole[..3]);
+        assert_eq!(zip_predicted(&raw, 99), whole);
+        assert!(zip_predicted(&[], 4).is_empty());
     }
 }

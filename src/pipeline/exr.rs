@@ -22,7 +22,7 @@ use crate::io::read::{
     Channel, EXR_MAGIC, InputFormat, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer,
     exr_parts, from_exr_error, select_channel,
 };
-use crate::io::write::{Container, lay_out, write_exr_rows};
+use crate::io::write::{Container, ExrBlocks, IndexedChunk, Layout, lay_out, write_exr_blocks};
 use crate::options::Options;
 use crate::samples::luma;
 
@@ -381,15 +381,26 @@ pub(crate) fn convert_exr_counting<W: Write + Seek>(
     let fit = BandFit::new(w, h, opts)?.with_unit(unit);
     let options: ExrOptions = options.into();
     let ExrOptions { depth, layout, .. } = options;
-    write_exr_rows(out, w, h, depth, layout.exr_channels(), |push| {
+    // Blocks are laid out and compressed on the fit's side, in parallel,
+    // into buffers kept from band to band; the caller's thread only writes
+    // them.
+    let mut blocks = ExrBlocks::new(w, h, depth, layout.exr_channels())?;
+    let header = blocks.header();
+    let mut samples = Vec::new();
+    write_exr_blocks(out, &header, |write| {
         let prepare = |_: Range<usize>, normals: &mut [[f32; 3]], heights: Vec<f32>| {
             options.store_all(normals);
-            let mut samples = Vec::with_capacity(normals.len() * layout.exr_channels().len());
+            if layout == Layout::Rgb {
+                // The normals are the samples, in order.
+                return vec![blocks.push(normals.as_flattened())];
+            }
+            samples.clear();
             lay_out(normals, &heights, layout, Container::Exr, &mut samples);
-            samples
+            vec![blocks.push(&samples)]
         };
-        let consume = |_: usize, samples: Vec<f32>| push(&samples);
-        run(rows, &fit, tail, (false, Extra::of(layout)), visit, Stages { prepare, consume })
+        let consume = |_: usize, chunks: Vec<Result<Vec<IndexedChunk>>>| chunks.into_iter().try_for_each(|c| write(c?));
+        run(rows, &fit, tail, (false, Extra::of(layout)), visit, Stages { prepare, consume })?;
+        blocks.finish()
     })?;
     Ok(fit.missing())
 }

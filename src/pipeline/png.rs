@@ -396,9 +396,7 @@ impl PngTexels for LitTexels {
     fn raw<'a>(&self, normals: &'a mut [[f32; 3]], valid: &[f32]) -> Cow<'a, [u8]> {
         let lamp = self.lamp;
         let mut grey = vec![0u8; normals.len()];
-        grey.par_chunks_mut(1 << 14)
-            .zip(normals.par_chunks(1 << 14))
-            .for_each(|(g, n)| g.iter_mut().zip(n).for_each(|(g, &n)| *g = lamp.grey(n)));
+        grey.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
         for (g, _) in grey.iter_mut().zip(valid).filter(|(_, v)| **v == 0.0) {
             *g = 0;
         }

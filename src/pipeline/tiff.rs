@@ -2,12 +2,12 @@
 //! tiles at a time.
 
 use std::fs::File;
-use std::io::{BufReader, Read};
+use std::io::Read;
 use std::path::Path;
 
 use super::RowSource;
 use crate::error::{Error, Result};
-use crate::io::read::{Channel, Georef, ReadOptions, SampleType, TiffBand, raw_layout_for};
+use crate::io::read::{Channel, Georef, ReadOptions, SampleType, SeekableBufReader, TiffBand, raw_layout_for};
 
 /// The rows of one band of a TIFF file, top to bottom, as heights: the
 /// band [`crate::io::read`] decodes with the `tiff` crate (float, half,
@@ -21,7 +21,7 @@ use crate::io::read::{Channel, Georef, ReadOptions, SampleType, TiffBand, raw_la
 /// a single strip is a single chunk, and is held whole. The values, and
 /// so the normals, are the whole-image reader's, bit for bit.
 pub struct TiffRows {
-    band: TiffBand<BufReader<File>>,
+    band: TiffBand<SeekableBufReader<File>>,
     /// The samples of the current row of chunks, packed.
     current: Vec<u8>,
     /// Its first row.
@@ -81,7 +81,7 @@ impl TiffRows {
         if file.read_exact(&mut magic).is_err() || !TIFF_MAGIC.contains(&magic) {
             return Ok(None);
         }
-        let Some(band) = TiffBand::open(BufReader::with_capacity(1 << 16, File::open(path)?), opts)? else {
+        let Some(band) = TiffBand::open(SeekableBufReader::with_capacity(1 << 16, File::open(path)?)?, opts)? else {
             return Ok(None);
         };
         let per = band.rows_per_chunk();

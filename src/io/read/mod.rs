@@ -45,6 +45,8 @@
 //! reads). A new format is an entry in the registry and, if `image` does
 //! not read it, a decoder beside the others.
 
+#[cfg(feature = "tiff")]
+mod buffered;
 mod channel;
 pub(crate) mod exr;
 pub mod formats;
@@ -60,6 +62,8 @@ use std::path::Path;
 
 use crate::par::prelude::*;
 
+#[cfg(feature = "tiff")]
+pub(crate) use self::buffered::SeekableBufReader;
 pub use self::channel::Channel;
 pub(crate) use self::channel::{Source, select_channel};
 // The paths the streaming readers (`io/stream`) take these by.
