@@ -217,7 +217,7 @@ impl Lamp {
     /// time before.
     #[inline(always)]
     fn sun_grey(&self, n: [f32; 3]) -> u8 {
-        sun_level(self.sun_direction(), n) as u8
+        grey_of(sun_level(self.sun_direction(), n))
     }
 
     /// The sun's direction, in `f32`.
@@ -238,6 +238,14 @@ fn sun_level([lx, ly, lz]: [f32; 3], [x, y, z]: [f32; 3]) -> f32 {
     (1.5 + 254.0 * cos.max(0.0)).min(255.0)
 }
 
+/// The grey of a level from [`sun_level`]: its integer part, as `as u8`
+/// gives it (NaN gives 0), from the low byte of floor + 2^23, which is
+/// exact for integers below 2^23 (a NaN stays NaN, whose low byte is 0).
+#[inline(always)]
+fn grey_of(level: f32) -> u8 {
+    (level.floor() + 8_388_608.0).to_bits() as u8
+}
+
 /// [`Lamp::grey_row`] under the sun, for [`pulp::Arch::dispatch`].
 struct SunRow<'a> {
     lamp: &'a Lamp,
@@ -251,27 +259,10 @@ impl pulp::WithSimd for SunRow<'_> {
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         let SunRow { lamp, normals, out } = self;
         let sun = lamp.sun_direction();
-        // Blocks of texels split into x, y and z, their greys in f32,
-        // then bytes: one loop per step, which the compiler vectorises (the
-        // texels' stride of three and the byte cast kept one loop scalar).
-        const BLOCK: usize = 16;
-        let len = out.len().min(normals.len());
-        let whole = len - len % BLOCK;
-        let (mut xs, mut ys, mut zs) = ([0.0f32; BLOCK], [0.0f32; BLOCK], [0.0f32; BLOCK]);
-        for (greys, normals) in out[..whole].chunks_exact_mut(BLOCK).zip(normals[..whole].chunks_exact(BLOCK)) {
-            for (k, &[x, y, z]) in normals.iter().enumerate() {
-                (xs[k], ys[k], zs[k]) = (x, y, z);
-            }
-            for k in 0..BLOCK {
-                xs[k] = sun_level(sun, [xs[k], ys[k], zs[k]]);
-            }
-            for (g, &v) in greys.iter_mut().zip(&xs) {
-                *g = v as u8;
-            }
-        }
-        for (g, &n) in out[whole..len].iter_mut().zip(&normals[whole..len]) {
-            *g = lamp.sun_grey(n);
-        }
+        // One loop, which the compiler vectorises: the byte comes from the
+        // level's floor by the bits of floor + 2^23, not by a saturating
+        // cast, which it leaves scalar.
+        out.iter_mut().zip(normals).for_each(|(g, &n)| *g = grey_of(sun_level(sun, n)));
     }
 }
 
