@@ -374,6 +374,46 @@ pub fn tile_2x2(pixels: &[u8], width: usize, height: usize) -> Result<Vec<u8>> {
 mod tests {
     use super::*;
 
+    /// A row of greys under the sun (the vectorised loop) is each texel's
+    /// grey as the plain formula gives it, with its saturating cast: on
+    /// every level, on unnormalised, zero, infinite and NaN normals, and on
+    /// rows of every length (the vector loop's remainders).
+    #[test]
+    fn a_row_of_sun_greys_is_each_texels_grey() {
+        let lamp = Lamp::sun(Sun::new(315.0, 45.0).unwrap(), None, Convention::OpenGl);
+        let sun = lamp.sun_direction();
+        let plain = |[x, y, z]: [f32; 3]| {
+            let [lx, ly, lz] = sun;
+            let len2 = x * x + y * y + z * z;
+            let cos = if len2 > 0.0 && len2.is_finite() { (x * lx + y * ly + z * lz) / len2.sqrt() } else { lz };
+            (1.5 + 254.0 * cos.max(0.0)).min(255.0) as u8
+        };
+        let mut normals: Vec<[f32; 3]> = (0..4000)
+            .map(|k| {
+                let (a, b) = (k as f32 * 0.0123, k as f32 * 0.00071);
+                [a.cos() * b.sin(), a.sin() * b.sin(), b.cos() * (1.0 + (k % 5) as f32)]
+            })
+            .collect();
+        normals.extend([
+            [0.0; 3],
+            [f32::NAN, 0.0, 1.0],
+            [f32::INFINITY, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+            [1e30, 1e30, 1e30],
+            [-sun[0], -sun[1], -sun[2]],
+            sun,
+        ]);
+        for len in [0, 1, 7, 8, 9, 31, normals.len()] {
+            let mut greys = vec![0u8; len];
+            lamp.grey_row(&normals[..len], &mut greys);
+            let expected: Vec<u8> = normals[..len].iter().map(|&n| plain(n)).collect();
+            assert_eq!(greys, expected, "a row of {len}");
+        }
+        let mut all = vec![0u8; normals.len()];
+        lamp.grey_row(&normals, &mut all);
+        assert!(all.iter().any(|&g| g == 255) && all.iter().any(|&g| g == 1), "the extremes are reached");
+    }
+
     fn unit(v: [f64; 3]) -> [f32; 3] {
         let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         v.map(|c| (c / l) as f32)
