@@ -50,8 +50,10 @@ use std::io::{Cursor, Read, Seek, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::io::encoding::{TiffDepth, TiffOptions};
+use crate::io::write::TiffTags;
 use crate::io::{
-    self, Channel, Encoding, ExrDepth, ExrOptions, InputFormat, Layout, OutputFormat, PngCompression, PngDepth,
+    self, Channel, Encoding, ExrDepth, ExrOptions, Georef, InputFormat, Layout, OutputFormat, PngCompression, PngDepth,
     PngOptions, Raster, ReadOptions, SampleType,
 };
 #[cfg(feature = "tiff")]
@@ -701,6 +703,7 @@ impl Opened {
             conversion: &conversion,
             input: path.as_deref(),
             encoding: *encoding,
+            georef: georef.as_ref(),
             observer,
             summary: Summary {
                 width: 0,
@@ -717,9 +720,10 @@ impl Opened {
                 missing: 0,
             },
         };
-        // Beside a PNG file: GDAL reads no EXR here, and a writer has no name.
+        // Beside a PNG file: GDAL reads no EXR here, a TIFF holds its own
+        // tags, and a writer has no name.
         let sidecar_of = match (&normals, encoding) {
-            (Some(Output::File { path, .. }), Encoding::Png(_)) => georef.map(|g| (path.to_path_buf(), g)),
+            (Some(Output::File { path, .. }), Encoding::Png(_)) => georef.as_ref().map(|g| (path.to_path_buf(), g)),
             _ => None,
         };
         match (source, normals) {
@@ -735,7 +739,7 @@ impl Opened {
         }
         if let Some((path, georef)) = sidecar_of {
             job.summary.sidecars =
-                io::sidecar::write_sidecars(&path, &georef).map_err(ConvertError::at(Place::Output))?;
+                io::sidecar::write_sidecars(&path, georef).map_err(ConvertError::at(Place::Output))?;
         }
         Ok(job.summary)
     }
@@ -747,11 +751,19 @@ struct Job<'a> {
     /// The input file, which no output may replace.
     input: Option<&'a Path>,
     encoding: Encoding,
+    /// The input's georeferencing, which a TIFF output keeps.
+    georef: Option<&'a Georef>,
     observer: &'a dyn Observer,
     summary: Summary,
 }
 
 impl Job<'_> {
+    /// What a TIFF output holds besides its samples: the input's
+    /// georeferencing.
+    fn tiff_tags(&self) -> TiffTags<'_> {
+        TiffTags { georef: self.georef, nodata: None }
+    }
+
     fn warn(&mut self, warning: Warning) {
         self.observer.warning(&warning);
         self.summary.warnings.push(warning);
@@ -876,16 +888,16 @@ impl Job<'_> {
             (layout, _) if layout.needs_heights() => heights.into_f32().map_err(&in_failure)?,
             _ => Vec::new(),
         };
-        let encoding = self.encoding;
+        let (encoding, tags) = (self.encoding, self.tiff_tags());
         if let Some(out) = normals {
             self.prepare(&out, Place::Output)?;
-            write_to(out, |w| texels.encode(&heights, width, height, &encoding, w))
+            write_to(out, |w| texels.encode(&heights, (width, height), &encoding, tags, w))
                 .map_err(ConvertError::at(Place::Output))?;
         }
         if let (Some((out, format)), Some(distances)) = (residual, &distances) {
             self.prepare(&out, Place::Residual)?;
             let scale = fit.scale_for_width(width);
-            write_to(out, |w| encode_residual(distances, width, height, scale, format, w))
+            write_to(out, |w| encode_residual(distances, (width, height), scale, (format, tags), w))
                 .map_err(ConvertError::at(Place::Residual))?;
         }
         Ok(())
@@ -966,6 +978,7 @@ impl Job<'_> {
         };
         let (w, h) = (width, height);
         let mut missing = 0;
+        let tags = self.tiff_tags();
         let result = match (out, self.encoding) {
             (Output::File { path, .. }, Encoding::Exr(options)) => io::write_file_atomically(path, |file| {
                 missing = pipeline::convert_exr_counting(rows, tail, &fit, options, visit, file)
@@ -994,6 +1007,27 @@ impl Job<'_> {
                     .inspect_err(&mut on_input)
                     .map(|m| missing = m)
             }
+            #[cfg(feature = "tiff")]
+            (Output::File { path, .. }, Encoding::Tiff(options)) => io::write_file_atomically(path, |file| {
+                missing = pipeline::convert_tiff_counting(rows, tail, &fit, options, tags, visit, file)
+                    .inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            #[cfg(feature = "tiff")]
+            (Output::Writer(writer), Encoding::Tiff(options)) => {
+                // TIFF seeks back to its directory's offset: the file is
+                // assembled first, as an EXR is.
+                let mut bytes = InMemory::default();
+                check_assembly_memory(&self.encoding, w, h)
+                    .and_then(|()| pipeline::convert_tiff_counting(rows, tail, &fit, options, tags, visit, &mut bytes))
+                    .inspect_err(&mut on_input)
+                    .and_then(|m| {
+                        missing = m;
+                        write_all(writer, bytes.0.get_ref())
+                    })
+            }
+            #[cfg(not(feature = "tiff"))]
+            (_, Encoding::Tiff(_)) => Err(io::write::no_tiff()),
         };
         self.summary.missing = missing;
         let place = if input_failed { Place::Input } else { Place::Output };
@@ -1091,16 +1125,32 @@ impl Texels {
             Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => {
                 Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
             }
-            Encoding::Exr(_) => Texels::Float(fitted(heights, w, h, opts, residual, valid)?),
+            Encoding::Exr(_) | Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => {
+                Texels::Float(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => {
+                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => {
+                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
+            }
         })
     }
 
-    /// Encodes the map (`heights` for an alpha of heights).
-    fn encode(&self, heights: &[f32], w: usize, h: usize, encoding: &Encoding, out: &mut dyn WriteSeek) -> Result<()> {
+    /// Encodes the map (`heights` for an alpha of heights; a TIFF with
+    /// `tags`).
+    fn encode(
+        &self,
+        heights: &[f32],
+        size: (usize, usize),
+        encoding: &Encoding,
+        tags: TiffTags<'_>,
+        out: &mut dyn WriteSeek,
+    ) -> Result<()> {
         match self {
-            Texels::Eight(t) => io::encode_normals(t, Some(heights), w, h, encoding, out),
-            Texels::Sixteen(t) => io::encode_normals(t, Some(heights), w, h, encoding, out),
-            Texels::Float(t) => io::encode_normals(t, Some(heights), w, h, encoding, out),
+            Texels::Eight(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+            Texels::Sixteen(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+            Texels::Float(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
         }
     }
 }
@@ -1108,13 +1158,13 @@ impl Texels {
 /// Writes the residual map: the RMS distances (surface units) divided by
 /// the gain |S|, so in height units; 0 where S = 0 (a flat surface). PNG:
 /// 16-bit gray, 65535 · value clamped to [0, 1]; EXR: 32-bit float,
-/// channel Y, the value as it is.
+/// channel Y, the value as it is; TIFF: 32-bit float, the value as it is,
+/// with `tags`.
 fn encode_residual(
     distances: &[f32],
-    w: usize,
-    h: usize,
+    (w, h): (usize, usize),
     scale: f64,
-    format: OutputFormat,
+    (format, tags): (OutputFormat, TiffTags<'_>),
     out: &mut dyn WriteSeek,
 ) -> Result<()> {
     let per_height = if scale == 0.0 { 0.0 } else { 1.0 / scale.abs() };
@@ -1125,10 +1175,14 @@ fn encode_residual(
             stored.iter_mut().zip(values).for_each(|(s, v)| *s = (v.clamp(0.0, 1.0) * 65535.0).round() as u16);
             io::encode_gray(&stored, w, h, &PngOptions::new(PngDepth::Sixteen).into(), out)
         }
-        OutputFormat::Exr => {
+        OutputFormat::Exr | OutputFormat::Tiff => {
             let mut stored = zeroed::<f32>(distances.len())?;
             stored.iter_mut().zip(values).for_each(|(s, v)| *s = v as f32);
-            io::encode_gray(&stored, w, h, &ExrOptions::new(ExrDepth::Float).into(), out)
+            let encoding = match format {
+                OutputFormat::Tiff => TiffOptions::new(TiffDepth::Float).into(),
+                _ => ExrOptions::new(ExrDepth::Float).into(),
+            };
+            io::write::encode_gray_tagged(&stored, (w, h), &encoding, tags, out)
         }
     }
 }
@@ -1167,6 +1221,10 @@ fn check_encode_memory(
             (6, if layout == Layout::Rgb { 0 } else { 2 * c } + 4 * c + 4 * c, 2 * c)
         }
         Encoding::Exr(_) => (12, 0, 4 * c),
+        // Laid out a few hundred rows at a time, unless RGB.
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => (3, 0, c),
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => (6, 0, 2 * c),
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => (12, 0, 4 * c),
     };
     let assembled = if to_writer { raw } else { 0 };
     let per_texel = map + if normals { encode + assembled } else { 0 } + if residual { 4 + 10 } else { 0 };
@@ -1178,13 +1236,15 @@ fn check_encode_memory(
 /// limits leave no room for it (its raw size, which ZIP does not exceed)
 /// beside the stream's own buffers.
 fn check_assembly_memory(encoding: &Encoding, w: usize, h: usize) -> Result<()> {
-    let channels: u64 = match encoding.layout() {
-        Layout::Rg => 2,
-        Layout::Rgb => 3,
+    let channels: u64 = match (encoding.layout(), encoding) {
+        (Layout::Rg, Encoding::Exr(_)) => 2,
+        (Layout::Rg | Layout::Rgb, _) => 3,
         _ => 4,
     };
     let sample = match encoding {
         Encoding::Exr(ExrOptions { depth: ExrDepth::Half, .. }) => 2,
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => 1,
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => 2,
         _ => 4,
     };
     let texels = (w as u64).saturating_mul(h as u64);

@@ -26,8 +26,11 @@ use std::path::{Path, PathBuf};
 use crate::convert::{BorderChoices, Warning};
 use crate::error::{Error, Result};
 use crate::fit::checked_len;
-use crate::io::{self, Affine, Channel, Georef, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
-use crate::options::{Convention, Options};
+use crate::io::encoding::{TiffDepth, TiffOptions};
+use crate::io::{
+    self, Affine, Channel, Georef, OutputFormat, PngCompression, PngDepth, PngOptions, Raster, ReadOptions,
+};
+use crate::options::{Border, Convention, Options};
 use crate::samples::Samples;
 use crate::tiling::{self, ImageKind, KindChoice, TilingOptions};
 use crate::units::MapSpacing;
@@ -686,18 +689,55 @@ impl LitView {
         io::encode_gray(&self.pixels, self.width, self.height, &encoding, out)
     }
 
-    /// Writes the picture to the file `path` ([`LitView::encode`], whole or
-    /// not at all), and beside it the georeferencing sidecars
-    /// ([`io::sidecar`]) when it has any. Returns the sidecars written.
+    /// Writes the picture as an 8-bit grey TIFF: a GeoTIFF with the
+    /// image's georeferencing when it has any, and GDAL's nodata value 0,
+    /// as `gdaldem hillshade` writes (missing texels are grey 0; lit ones
+    /// are at least 1).
     ///
-    /// Errors: those of [`LitView::encode`] and of writing the files.
+    /// Errors: those of [`io::encode_gray`]; [`Error::Unsupported`] in a
+    /// build without the `tiff` feature.
+    pub fn encode_tiff(&self, out: impl Write + Seek) -> Result<()> {
+        let encoding = TiffOptions::new(TiffDepth::Eight).into();
+        let size = (self.width, self.height);
+        io::write::encode_gray_tagged(&self.pixels, size, &encoding, lit_tiff_tags(self.georef.as_ref()), out)
+    }
+
+    /// Writes the picture to the file `path`, whole or not at all, in the
+    /// format [`lit_format`] gives: a TIFF ([`LitView::encode_tiff`]), or
+    /// a PNG ([`LitView::encode`]) and beside it the georeferencing
+    /// sidecars ([`io::sidecar`]) when it has any. Returns the sidecars
+    /// written.
+    ///
+    /// Errors: those of [`lit_format`], of the encoders and of writing the
+    /// files.
     pub fn write_file(&self, path: &Path) -> Result<Vec<PathBuf>> {
+        if lit_format(path)? == OutputFormat::Tiff {
+            io::write_file_atomically(path, |out| self.encode_tiff(out))?;
+            return Ok(Vec::new());
+        }
         io::write_file_atomically(path, |out| self.encode(out))?;
         match &self.georef {
             Some(georef) => io::sidecar::write_sidecars(path, georef),
             None => Ok(Vec::new()),
         }
     }
+}
+
+/// The format of a lit view written to the file `path`: TIFF for a name
+/// ending in `.tif` or `.tiff`, PNG for `.png` or no extension.
+///
+/// Errors: [`Error::Unsupported`] for any other name.
+pub fn lit_format(path: &Path) -> Result<OutputFormat> {
+    match OutputFormat::from_path(path) {
+        Ok(None | Some(OutputFormat::Png)) => Ok(OutputFormat::Png),
+        Ok(Some(OutputFormat::Tiff)) => Ok(OutputFormat::Tiff),
+        _ => Err(Error::Unsupported("a lit view is written as PNG or TIFF: name the output .png or .tif".into())),
+    }
+}
+
+/// A lit view's TIFF tags: the source's georeferencing, and nodata 0.
+fn lit_tiff_tags(georef: Option<&Georef>) -> io::write::TiffTags<'_> {
+    io::write::TiffTags { georef, nodata: Some(0.0) }
 }
 
 /// The lit picture of a decoded image (lit by the sun or the light as
@@ -863,10 +903,26 @@ pub fn lit_file_streamed(
         }
     };
     let mut missing = 0;
+    let tiff = lit_format(output)? == OutputFormat::Tiff;
+    // A TIFF is written in order: a wrap in y reads the last rows first.
+    let tail = match (tiff, fit.borders.y) {
+        (true, Border::Wrap) => {
+            let mut tail = TiffRows::last_rows(input, read, None, fit.patch / 2)?;
+            if restore {
+                StoredRows::new(TiffRows::open(input, read, None)?.ok_or_else(changed)?).restore(&mut tail);
+            }
+            Some(tail)
+        }
+        _ => None,
+    };
+    let tags = lit_tiff_tags(georef.as_ref());
     io::write_file_atomically(output, |file| {
-        missing = match restore {
-            true => crate::pipeline::shade_png_seekable(StoredRows::new(rows), &fit, lamp, visit, file)?,
-            false => crate::pipeline::shade_png_seekable(rows, &fit, lamp, visit, file)?,
+        use crate::pipeline::{shade_png_seekable, shade_tiff};
+        missing = match (tiff, restore) {
+            (true, true) => shade_tiff(StoredRows::new(rows), tail.as_deref(), &fit, lamp, tags, visit, file)?,
+            (true, false) => shade_tiff(rows, tail.as_deref(), &fit, lamp, tags, visit, file)?,
+            (false, true) => shade_png_seekable(StoredRows::new(rows), &fit, lamp, visit, file)?,
+            (false, false) => shade_png_seekable(rows, &fit, lamp, visit, file)?,
         };
         Ok(())
     })?;
@@ -875,9 +931,9 @@ pub fn lit_file_streamed(
         let report = seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?;
         warnings.extend(opts.borders.seams(&report));
     }
-    let sidecars = match &georef {
-        Some(georef) => io::sidecar::write_sidecars(output, georef)?,
-        None => Vec::new(),
+    let sidecars = match (&georef, tiff) {
+        (Some(georef), false) => io::sidecar::write_sidecars(output, georef)?,
+        _ => Vec::new(),
     };
     Ok(Some(LitStreamed { width, height, warnings, sidecars, missing }))
 }
@@ -905,6 +961,24 @@ impl StoredRows<crate::pipeline::TiffRows> {
 }
 
 #[cfg(feature = "tiff")]
+impl<R> StoredRows<R> {
+    /// Row values as the values stored.
+    fn restore(&self, values: &mut [f64]) {
+        let scale = self.scale;
+        match self.whole {
+            true => values.iter_mut().for_each(|v| *v = (*v * scale).round()),
+            false => values.iter_mut().for_each(|v| *v *= scale),
+        }
+    }
+}
+
+/// The error of an input that no longer opens as it did.
+#[cfg(feature = "tiff")]
+fn changed() -> Error {
+    Error::Io(std::io::Error::other("changed while being read"))
+}
+
+#[cfg(feature = "tiff")]
 impl<R: crate::pipeline::RowSource> crate::pipeline::RowSource for StoredRows<R> {
     fn width(&self) -> usize {
         self.rows.width()
@@ -923,11 +997,7 @@ impl<R: crate::pipeline::RowSource> crate::pipeline::RowSource for StoredRows<R>
 
     fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
         self.rows.next_row(out)?;
-        let scale = self.scale;
-        match self.whole {
-            true => out.iter_mut().for_each(|v| *v = (*v * scale).round()),
-            false => out.iter_mut().for_each(|v| *v *= scale),
-        }
+        self.restore(out);
         Ok(())
     }
 }

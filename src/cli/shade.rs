@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::Path;
 
 use normalfit::io::ReadOptions;
-use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_view_owned};
+use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_format, lit_view_owned};
 use normalfit::units::MapSpacing;
 
 use super::args::ShadeArgs;
@@ -38,10 +38,7 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
     let batch = Batch::gather(&args.inputs, &args.batch, SUFFIX, words);
     let destination = Destination::for_batch(args.output.as_deref(), batch.many())?;
     if let Destination::File(path) = &destination {
-        let png = path.extension().is_none_or(|e| e.eq_ignore_ascii_case("png"));
-        if !png {
-            return Err(Failure::file(path, "shade writes PNG: name the output .png"));
-        }
+        lit_format(path).map_err(|e| Failure::file(path, e))?;
     }
     let lit = LitOptions::new().with_fit(fit).with_borders(args.fit.border);
     let lit = match (args.light, args.azimuth, args.altitude) {

@@ -251,6 +251,21 @@ impl HeightConversion {
                     })
                 })
             }),
+            // Float heights, as in the EXR, a float32 one-band TIFF.
+            #[cfg(feature = "tiff")]
+            OutputFormat::Tiff => crate::convert::write_to(output, |file| {
+                let tags = io::write::TiffTags::default();
+                io::geotiff::write_tiff_rows(file, (w, h), 1, tags, |push| {
+                    let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
+                    values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
+                        stored.clear();
+                        stored.extend(rows.iter().map(|&v| v as f32));
+                        push(&stored)
+                    })
+                })
+            }),
+            #[cfg(not(feature = "tiff"))]
+            OutputFormat::Tiff => Err(io::write::no_tiff()),
             OutputFormat::Png => {
                 let span = hi - lo;
                 let mut stored: Vec<u16> = try_vec(values.len()).map_err(fail_out)?;

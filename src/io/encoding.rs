@@ -10,7 +10,7 @@ use super::write::{ExrDepth, Layout, PngCompression};
 use crate::error::{Error, Result};
 use crate::options::named_values;
 
-/// The two file formats normal maps are written in.
+/// The file formats normal maps are written in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum OutputFormat {
@@ -18,9 +18,13 @@ pub enum OutputFormat {
     Png,
     /// OpenEXR: half or float samples, (n + 1)/2 or n itself.
     Exr,
+    /// TIFF: 8- or 16-bit samples as PNG stores them, or float samples as
+    /// EXR does; a GeoTIFF when the input is one (its georeferencing tags
+    /// copied), so the map overlays its source in GIS tools.
+    Tiff,
 }
 
-named_values!(OutputFormat, "format", { Png => "png", Exr => "exr" });
+named_values!(OutputFormat, "format", { Png => "png", Exr => "exr", Tiff => "tiff" | "tif" });
 
 impl OutputFormat {
     /// The format a file name's extension names (`.png`, `.exr`, in any
@@ -33,7 +37,10 @@ impl OutputFormat {
         match ext.to_string_lossy().to_ascii_lowercase().as_str() {
             "png" => Ok(Some(OutputFormat::Png)),
             "exr" => Ok(Some(OutputFormat::Exr)),
-            other => Err(Error::Unsupported(format!("cannot write .{other} files: name the output .png or .exr"))),
+            "tif" | "tiff" => Ok(Some(OutputFormat::Tiff)),
+            other => {
+                Err(Error::Unsupported(format!("cannot write .{other} files: name the output .png, .exr or .tif")))
+            }
         }
     }
 
@@ -76,6 +83,7 @@ impl OutputFormat {
         match self {
             OutputFormat::Png => "png",
             OutputFormat::Exr => "exr",
+            OutputFormat::Tiff => "tif",
         }
     }
 }
@@ -186,6 +194,59 @@ impl From<ExrDepth> for ExrOptions {
     }
 }
 
+/// A TIFF normal map's sample type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TiffDepth {
+    /// 8-bit unsigned integers, as an 8-bit PNG stores them.
+    Eight,
+    /// 16-bit unsigned integers, as a 16-bit PNG stores them.
+    Sixteen,
+    /// 32-bit floats, as a float EXR stores them.
+    Float,
+}
+
+/// A TIFF normal map's sample type, encoding and channels: uncompressed,
+/// a row a strip (GDAL's own default for striped files), so it is
+/// written at the speed of the disk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub struct TiffOptions {
+    /// Bits and type of a sample.
+    pub depth: TiffDepth,
+    /// Float samples only: store n itself, in [−1, 1], instead of
+    /// (n + 1)/2. Default: off.
+    pub signed: bool,
+    /// Which channels: RGB, RGBA (an unassociated alpha of heights, of 1,
+    /// or of validity), or red-green (B = 0, as in PNG). Default: RGB.
+    pub layout: Layout,
+}
+
+impl TiffOptions {
+    /// `depth`, (n + 1)/2, RGB.
+    #[must_use]
+    pub fn new(depth: TiffDepth) -> TiffOptions {
+        TiffOptions { depth, signed: false, layout: Layout::Rgb }
+    }
+
+    /// Storing n itself (`true`) or (n + 1)/2; float samples only.
+    #[must_use]
+    pub fn with_signed(self, signed: bool) -> TiffOptions {
+        TiffOptions { signed, ..self }
+    }
+
+    /// With these channels.
+    #[must_use]
+    pub fn with_layout(self, layout: Layout) -> TiffOptions {
+        TiffOptions { layout, ..self }
+    }
+}
+
+impl From<TiffDepth> for TiffOptions {
+    fn from(depth: TiffDepth) -> Self {
+        TiffOptions::new(depth)
+    }
+}
+
 /// How a normal map (or a one-channel map) is encoded: the format and its
 /// options.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -195,6 +256,8 @@ pub enum Encoding {
     Png(PngOptions),
     /// OpenEXR.
     Exr(ExrOptions),
+    /// TIFF.
+    Tiff(TiffOptions),
 }
 
 impl Encoding {
@@ -218,8 +281,9 @@ impl Encoding {
 
     /// The encoding of `format` for these options (SPEC §3): `bits` 8 or
     /// 16 for PNG (none: 16 if the input has more than 8 bits a sample,
-    /// else 8), 16 (half) or 32 (float, and none) for EXR; `signed` (n
-    /// itself) for EXR alone.
+    /// else 8), 16 (half) or 32 (float, and none) for EXR, 8, 16 (none:
+    /// as PNG) or 32 (float) for TIFF; `signed` (n itself) for float
+    /// samples alone.
     ///
     /// Errors: [`Error::Unsupported`] for a depth or `signed` the format
     /// cannot hold.
@@ -233,6 +297,7 @@ impl Encoding {
     ) -> Result<Encoding> {
         let png = |depth| Encoding::Png(PngOptions { depth, compression, layout });
         let exr = |depth| Encoding::Exr(ExrOptions { depth, signed, layout });
+        let tiff = |depth| Encoding::Tiff(TiffOptions { depth, signed, layout });
         let encoding = match (format, bits) {
             (OutputFormat::Png, None) if input.more_than_8_bits() => png(PngDepth::Sixteen),
             (OutputFormat::Png, None | Some(8)) => png(PngDepth::Eight),
@@ -245,9 +310,26 @@ impl Encoding {
             (OutputFormat::Exr, Some(b)) => {
                 return Err(Error::Unsupported(format!("EXR holds 16- or 32-bit floats: {b} bits need PNG output")));
             }
+            (OutputFormat::Tiff, None) if input.more_than_8_bits() => tiff(TiffDepth::Sixteen),
+            (OutputFormat::Tiff, None | Some(8)) => tiff(TiffDepth::Eight),
+            (OutputFormat::Tiff, Some(16)) => tiff(TiffDepth::Sixteen),
+            (OutputFormat::Tiff, Some(32)) => tiff(TiffDepth::Float),
+            (OutputFormat::Tiff, Some(b)) => {
+                return Err(Error::Unsupported(format!("TIFF output holds 8, 16 or 32 (float) bits, not {b}")));
+            }
         };
-        if signed && matches!(encoding, Encoding::Png(_)) {
-            return Err(Error::Unsupported("signed normals need a float output (EXR): PNG stores only [0, 1]".into()));
+        match encoding {
+            Encoding::Png(_) if signed => {
+                return Err(Error::Unsupported(
+                    "signed normals need a float output (EXR): PNG stores only [0, 1]".into(),
+                ));
+            }
+            Encoding::Tiff(o) if signed && o.depth != TiffDepth::Float => {
+                return Err(Error::Unsupported(
+                    "signed normals need float samples (--bits 32): integer TIFF stores only [0, 1]".into(),
+                ));
+            }
+            _ => {}
         }
         Ok(encoding)
     }
@@ -258,6 +340,7 @@ impl Encoding {
         match self {
             Encoding::Png(_) => OutputFormat::Png,
             Encoding::Exr(_) => OutputFormat::Exr,
+            Encoding::Tiff(_) => OutputFormat::Tiff,
         }
     }
 
@@ -267,6 +350,7 @@ impl Encoding {
         match self {
             Encoding::Png(o) => o.layout,
             Encoding::Exr(o) => o.layout,
+            Encoding::Tiff(o) => o.layout,
         }
     }
 
@@ -276,6 +360,7 @@ impl Encoding {
         match self {
             Encoding::Png(o) => Encoding::Png(o.with_layout(layout)),
             Encoding::Exr(o) => Encoding::Exr(o.with_layout(layout)),
+            Encoding::Tiff(o) => Encoding::Tiff(o.with_layout(layout)),
         }
     }
 }
@@ -289,5 +374,11 @@ impl From<PngOptions> for Encoding {
 impl From<ExrOptions> for Encoding {
     fn from(options: ExrOptions) -> Self {
         Encoding::Exr(options)
+    }
+}
+
+impl From<TiffOptions> for Encoding {
+    fn from(options: TiffOptions) -> Self {
+        Encoding::Tiff(options)
     }
 }

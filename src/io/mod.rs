@@ -12,6 +12,8 @@
 
 mod atomic;
 pub mod encoding;
+#[cfg(feature = "tiff")]
+pub(crate) mod geotiff;
 mod memory;
 pub mod read;
 pub mod sidecar;

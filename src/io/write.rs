@@ -24,7 +24,7 @@ use exr::prelude::{LayerAttributes, SmallVec, f16};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder, ImageError};
 
-use super::encoding::{Encoding, ExrOptions, PngDepth, PngOptions};
+use super::encoding::{Encoding, ExrOptions, PngDepth, PngOptions, TiffDepth, TiffOptions};
 use crate::error::{Error, Result, one_line};
 use crate::options::named_values;
 
@@ -340,23 +340,43 @@ fn color_type(bits: u8, channels: usize) -> ExtendedColorType {
 /// PNG); `[f32; 3]` is the normal n itself, stored as the encoding says
 /// (EXR: (n + 1)/2 or n; PNG: quantised as the integer texels are).
 pub trait NormalTexel: crate::FromNormal + sealed::Sealed {
-    /// Encodes `texels` (and `heights`, checked) as `encoding` says.
+    /// Encodes `texels` (and `heights`, checked) as `encoding` says; a
+    /// TIFF with `tags`.
     #[doc(hidden)]
     fn encode<W: Write + Seek>(
         texels: &[Self],
         heights: &[f32],
         size: (usize, usize),
         encoding: &Encoding,
+        tags: TiffTags<'_>,
         out: W,
     ) -> Result<()>;
+}
+
+/// What a TIFF output holds besides its samples (nothing for PNG or EXR).
+/// Public only as an argument of the sealed traits' hidden methods.
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TiffTags<'a> {
+    /// The source's georeferencing, copied as stored.
+    pub(crate) georef: Option<&'a super::read::Georef>,
+    /// GDAL's nodata value (the GDAL_NODATA tag): the value of a missing
+    /// texel, for maps whose values say it (a lit view's 0).
+    pub(crate) nodata: Option<f64>,
 }
 
 /// A value of a one-channel map ([`encode_gray`]): `u8` and `u16` are
 /// stored as they are in a PNG of their depth, `f32` in an EXR's channel Y.
 pub trait GrayValue: Copy + sealed::Sealed {
-    /// Encodes `values` as `encoding` says.
+    /// Encodes `values` as `encoding` says; a TIFF with `tags`.
     #[doc(hidden)]
-    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()>;
+    fn encode<W: Write + Seek>(
+        values: &[Self],
+        size: (usize, usize),
+        encoding: &Encoding,
+        tags: TiffTags<'_>,
+        out: W,
+    ) -> Result<()>;
 }
 
 mod sealed {
@@ -375,6 +395,9 @@ fn mismatch(texels: &str, encoding: &Encoding) -> Error {
         Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => "an 8-bit PNG takes u8 samples",
         Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => "a 16-bit PNG takes u16 samples",
         Encoding::Exr(_) => "an EXR takes f32 samples",
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => "an 8-bit TIFF takes u8 samples",
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => "a 16-bit TIFF takes u16 samples",
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => "a float TIFF takes f32 samples",
     };
     Error::InvalidOption(format!("{texels} samples for this encoding: {wanted}"))
 }
@@ -385,10 +408,14 @@ impl NormalTexel for [u8; 3] {
         heights: &[f32],
         size: (usize, usize),
         encoding: &Encoding,
+        tags: TiffTags<'_>,
         out: W,
     ) -> Result<()> {
         match encoding {
             Encoding::Png(o) if o.depth == PngDepth::Eight => png_normals(texels, heights, size, o, out),
+            Encoding::Tiff(o) if o.depth == TiffDepth::Eight => {
+                tiff_normals(texels, heights, size, (o, None), tags, out)
+            }
             other => Err(mismatch("u8", other)),
         }
     }
@@ -400,10 +427,14 @@ impl NormalTexel for [u16; 3] {
         heights: &[f32],
         size: (usize, usize),
         encoding: &Encoding,
+        tags: TiffTags<'_>,
         out: W,
     ) -> Result<()> {
         match encoding {
             Encoding::Png(o) if o.depth == PngDepth::Sixteen => png_normals(texels, heights, size, o, out),
+            Encoding::Tiff(o) if o.depth == TiffDepth::Sixteen => {
+                tiff_normals(texels, heights, size, (o, None), tags, out)
+            }
             other => Err(mismatch("u16", other)),
         }
     }
@@ -415,6 +446,7 @@ impl NormalTexel for [f32; 3] {
         heights: &[f32],
         size: (usize, usize),
         encoding: &Encoding,
+        tags: TiffTags<'_>,
         out: W,
     ) -> Result<()> {
         fn quantised<T: crate::FromNormal>(texels: &[[f32; 3]]) -> Result<Vec<T>> {
@@ -428,31 +460,63 @@ impl NormalTexel for [f32; 3] {
                 PngDepth::Eight => png_normals(&quantised::<[u8; 3]>(texels)?, heights, size, o, out),
                 PngDepth::Sixteen => png_normals(&quantised::<[u16; 3]>(texels)?, heights, size, o, out),
             },
+            Encoding::Tiff(o) => match o.depth {
+                TiffDepth::Eight => tiff_normals(&quantised::<[u8; 3]>(texels)?, heights, size, (o, None), tags, out),
+                TiffDepth::Sixteen => {
+                    tiff_normals(&quantised::<[u16; 3]>(texels)?, heights, size, (o, None), tags, out)
+                }
+                TiffDepth::Float => {
+                    // n itself, or (n + 1)/2: the rule of EXR's samples.
+                    let store: fn(f32) -> f32 = |c| ExrOptions::new(ExrDepth::Float).stored(c);
+                    tiff_normals(texels, heights, size, (o, (!o.signed).then_some(store)), tags, out)
+                }
+            },
         }
     }
 }
 
 impl GrayValue for u8 {
-    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()> {
+    fn encode<W: Write + Seek>(
+        values: &[Self],
+        size: (usize, usize),
+        encoding: &Encoding,
+        tags: TiffTags<'_>,
+        out: W,
+    ) -> Result<()> {
         match encoding {
             Encoding::Png(o) if o.depth == PngDepth::Eight => png_gray(values, size, o.compression, out),
+            Encoding::Tiff(o) if o.depth == TiffDepth::Eight => tiff_gray(values, size, tags, out),
             other => Err(mismatch("u8", other)),
         }
     }
 }
 
 impl GrayValue for u16 {
-    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()> {
+    fn encode<W: Write + Seek>(
+        values: &[Self],
+        size: (usize, usize),
+        encoding: &Encoding,
+        tags: TiffTags<'_>,
+        out: W,
+    ) -> Result<()> {
         match encoding {
             Encoding::Png(o) if o.depth == PngDepth::Sixteen => png_gray(values, size, o.compression, out),
+            Encoding::Tiff(o) if o.depth == TiffDepth::Sixteen => tiff_gray(values, size, tags, out),
             other => Err(mismatch("u16", other)),
         }
     }
 }
 
 impl GrayValue for f32 {
-    fn encode<W: Write + Seek>(values: &[Self], size: (usize, usize), encoding: &Encoding, out: W) -> Result<()> {
+    fn encode<W: Write + Seek>(
+        values: &[Self],
+        size: (usize, usize),
+        encoding: &Encoding,
+        tags: TiffTags<'_>,
+        out: W,
+    ) -> Result<()> {
         match encoding {
+            Encoding::Tiff(o) if o.depth == TiffDepth::Float => tiff_gray(values, size, tags, out),
             Encoding::Exr(o) => {
                 let (width, height) = size;
                 check_buffer(values.len(), width, height)?;
@@ -490,9 +554,21 @@ pub fn encode_normals<T: NormalTexel>(
     encoding: &Encoding,
     out: impl Write + Seek,
 ) -> Result<()> {
+    encode_normals_tagged(texels, heights, (width, height), encoding, TiffTags::default(), out)
+}
+
+/// [`encode_normals`], a TIFF with `tags`.
+pub(crate) fn encode_normals_tagged<T: NormalTexel>(
+    texels: &[T],
+    heights: Option<&[f32]>,
+    (width, height): (usize, usize),
+    encoding: &Encoding,
+    tags: TiffTags<'_>,
+    out: impl Write + Seek,
+) -> Result<()> {
     check_buffer(texels.len(), width, height)?;
     let heights = checked_heights(heights, encoding.layout(), texels.len())?;
-    T::encode(texels, heights, (width, height), encoding, out)
+    T::encode(texels, heights, (width, height), encoding, tags, out)
 }
 
 /// Writes a one-channel map of `width` × `height` values, row-major: a
@@ -509,8 +585,102 @@ pub fn encode_gray<V: GrayValue>(
     encoding: &Encoding,
     out: impl Write + Seek,
 ) -> Result<()> {
+    encode_gray_tagged(values, (width, height), encoding, TiffTags::default(), out)
+}
+
+/// [`encode_gray`], a TIFF with `tags`.
+pub(crate) fn encode_gray_tagged<V: GrayValue>(
+    values: &[V],
+    (width, height): (usize, usize),
+    encoding: &Encoding,
+    tags: TiffTags<'_>,
+    out: impl Write + Seek,
+) -> Result<()> {
     check_buffer(values.len(), width, height)?;
-    V::encode(values, (width, height), encoding, out)
+    V::encode(values, (width, height), encoding, tags, out)
+}
+
+/// Rows of a TIFF handed to its writer at a time, from an image in memory.
+const TIFF_BAND_ROWS: usize = 256;
+
+/// A TIFF normal map: its samples laid out as in a PNG (red-green maps
+/// with B = 0), each normal component changed by `store` if given (float
+/// samples: (n + 1)/2).
+#[cfg(feature = "tiff")]
+fn tiff_normals<S: super::geotiff::TiffSample + Sample>(
+    texels: &[[S; 3]],
+    heights: &[f32],
+    size: (usize, usize),
+    (options, store): (&TiffOptions, Option<fn(S) -> S>),
+    tags: TiffTags<'_>,
+    out: impl Write + Seek,
+) -> Result<()>
+where
+    [S]: tiff::encoder::TiffValue,
+{
+    let layout = options.layout;
+    let channels = layout.png_samples();
+    // Red-green maps' B is 0 as stored, not a component to store.
+    let components = if layout == Layout::Rg { 2 } else { 3 };
+    let rows = size.0.saturating_mul(TIFF_BAND_ROWS).max(1);
+    super::geotiff::write_tiff_rows(out, size, channels, tags, |push| {
+        if layout == Layout::Rgb && store.is_none() {
+            // Written as they are: no copy of the image.
+            return texels.as_flattened().chunks(rows * 3).try_for_each(push);
+        }
+        let mut samples = Vec::new();
+        texels.chunks(rows).enumerate().try_for_each(|(k, chunk)| {
+            let band_heights = if heights.is_empty() { heights } else { &heights[k * rows..][..chunk.len()] };
+            samples.clear();
+            lay_out(chunk, band_heights, layout, Container::Png, &mut samples);
+            if let Some(store) = &store {
+                for texel in samples.chunks_exact_mut(channels) {
+                    texel[..components].iter_mut().for_each(|c| *c = store(*c));
+                }
+            }
+            push(&samples)
+        })
+    })
+}
+
+/// TIFF output in a build without the `tiff` feature.
+#[cfg(not(feature = "tiff"))]
+fn tiff_normals<S>(
+    _: &[[S; 3]],
+    _: &[f32],
+    _: (usize, usize),
+    _: (&TiffOptions, Option<fn(S) -> S>),
+    _: TiffTags<'_>,
+    _: impl Write + Seek,
+) -> Result<()> {
+    Err(no_tiff())
+}
+
+/// A one-channel TIFF.
+#[cfg(feature = "tiff")]
+fn tiff_gray<S: super::geotiff::TiffSample>(
+    values: &[S],
+    size: (usize, usize),
+    tags: TiffTags<'_>,
+    out: impl Write + Seek,
+) -> Result<()>
+where
+    [S]: tiff::encoder::TiffValue,
+{
+    let rows = size.0.saturating_mul(TIFF_BAND_ROWS).max(1);
+    super::geotiff::write_tiff_rows(out, size, 1, tags, |push| values.chunks(rows).try_for_each(push))
+}
+
+/// TIFF output in a build without the `tiff` feature.
+#[cfg(not(feature = "tiff"))]
+fn tiff_gray<S>(_: &[S], _: (usize, usize), _: TiffTags<'_>, _: impl Write + Seek) -> Result<()> {
+    Err(no_tiff())
+}
+
+/// The error of TIFF output in a build without the `tiff` feature.
+#[cfg(not(feature = "tiff"))]
+pub(crate) fn no_tiff() -> Error {
+    Error::Unsupported("TIFF output needs normalfit built with its `tiff` feature".into())
 }
 
 /// A one-channel PNG of `u8` or `u16` values.

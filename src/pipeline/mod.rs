@@ -34,6 +34,8 @@
 //! seek, so [`RowSource::read_tail`] decodes it once more.
 
 mod exr;
+#[cfg(feature = "tiff")]
+mod geotiff;
 mod png;
 #[cfg(feature = "tiff")]
 mod tiff;
@@ -43,6 +45,8 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 pub(crate) use self::exr::convert_exr_counting;
 pub use self::exr::{ExrRows, convert_exr};
+#[cfg(feature = "tiff")]
+pub(crate) use self::geotiff::{convert_tiff_counting, shade_tiff};
 #[cfg(feature = "tiff")]
 pub(crate) use self::png::shade_png_seekable;
 pub use self::png::{PngRows, convert_png, convert_png_seekable};
@@ -315,6 +319,17 @@ where
         }
         Ok(())
     })
+}
+
+/// The greys of a band's normals under `lamp` (in parallel), 0 where
+/// `valid` (one per texel, or empty without holes) is 0: gdaldem's nodata.
+#[cfg(feature = "tiff")]
+fn lit_greys(lamp: crate::shade::Lamp, normals: &[[f32; 3]], valid: &[f32], grey: &mut [u8]) {
+    use crate::par::prelude::*;
+    grey.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
+    for (g, _) in grey.iter_mut().zip(valid).filter(|(_, v)| **v == 0.0) {
+        *g = 0;
+    }
 }
 
 /// Refuses a streamed conversion whose bands do not fit in the memory the

@@ -394,12 +394,8 @@ impl PngTexels for LitTexels {
         if self.holes { Extra::Valid } else { Extra::None }
     }
     fn raw<'a>(&self, normals: &'a mut [[f32; 3]], valid: &[f32]) -> Cow<'a, [u8]> {
-        let lamp = self.lamp;
         let mut grey = vec![0u8; normals.len()];
-        grey.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
-        for (g, _) in grey.iter_mut().zip(valid).filter(|(_, v)| **v == 0.0) {
-            *g = 0;
-        }
+        super::lit_greys(self.lamp, normals, valid, &mut grey);
         Cow::Owned(grey)
     }
 }

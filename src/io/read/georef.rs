@@ -22,6 +22,8 @@ pub(crate) mod tags {
     pub const MODEL_TIEPOINT: u16 = 33922;
     pub const MODEL_TRANSFORMATION: u16 = 34264;
     pub const GEO_KEY_DIRECTORY: u16 = 34735;
+    pub const GEO_DOUBLE_PARAMS: u16 = 34736;
+    pub const GEO_ASCII_PARAMS: u16 = 34737;
     pub const GDAL_NODATA: u16 = 42113;
 }
 
@@ -106,6 +108,21 @@ pub struct Georef {
     /// GDAL_NODATA (tag 42113), parsed: the stored value that marks a
     /// missing texel (NaN when the tag says "nan").
     pub nodata: Option<f64>,
+    /// The georeferencing tags as stored, which a GeoTIFF written from
+    /// this raster copies: every key (a user-defined coordinate system's
+    /// parameters too) stays as the source had it.
+    pub(crate) stored: StoredGeoTags,
+}
+
+/// A GeoTIFF's georeferencing tags, as stored (empty when absent).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct StoredGeoTags {
+    pub(crate) pixel_scale: Vec<f64>,
+    pub(crate) tiepoints: Vec<f64>,
+    pub(crate) transformation: Vec<f64>,
+    pub(crate) key_directory: Vec<u16>,
+    pub(crate) double_params: Vec<f64>,
+    pub(crate) ascii_params: String,
 }
 
 /// The raster-to-model map of a georeferenced raster:

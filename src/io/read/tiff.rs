@@ -345,10 +345,22 @@ fn read_georef<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>) -> Resul
     let scale = doubles(decoder, georef_tags::MODEL_PIXEL_SCALE, "ModelPixelScale")?;
     let tiepoints = doubles(decoder, georef_tags::MODEL_TIEPOINT, "ModelTiepoint")?;
     let transformation = doubles(decoder, georef_tags::MODEL_TRANSFORMATION, "ModelTransformation")?;
+    georef.stored.pixel_scale = scale.clone().unwrap_or_default();
+    georef.stored.tiepoints = tiepoints.clone().unwrap_or_default();
+    georef.stored.transformation = transformation.clone().unwrap_or_default();
     super::georef::apply_model_tags(&mut georef, scale, tiepoints, transformation)?;
     if let Some(keys) = tag(decoder, georef_tags::GEO_KEY_DIRECTORY, "GeoKeyDirectory")? {
         let keys = keys.into_u16_vec().map_err(|e| tag_error("GeoKeyDirectory", e))?;
         super::georef::apply_key_directory(&mut georef, &keys)?;
+        georef.stored.key_directory = keys;
+        // The parameters the keys point into, kept for a GeoTIFF written
+        // from this one; only the keys above are read here.
+        if let Some(params) = doubles(decoder, georef_tags::GEO_DOUBLE_PARAMS, "GeoDoubleParams")? {
+            georef.stored.double_params = params;
+        }
+        if let Some(text) = tag(decoder, georef_tags::GEO_ASCII_PARAMS, "GeoAsciiParams")? {
+            georef.stored.ascii_params = text.into_string().map_err(|e| tag_error("GeoAsciiParams", e))?;
+        }
     }
     if let Some(text) = tag(decoder, georef_tags::GDAL_NODATA, "GDAL_NODATA")? {
         let text = text.into_string().map_err(|e| tag_error("GDAL_NODATA", e))?;

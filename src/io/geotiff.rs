@@ -1,0 +1,182 @@
+//! TIFF output: normal maps, lit views and one-channel maps as TIFF, a
+//! GeoTIFF when the source was one, so the result overlays its source in
+//! QGIS and every GDAL-based tool without sidecar files.
+//!
+//! The files are what GDAL writes by default: uncompressed, striped (one
+//! row a strip), samples interleaved. Uncompressed, a TIFF is written at
+//! the speed of the disk, like `gdaldem`'s own outputs; `gdal_translate
+//! -co COMPRESS=DEFLATE` compresses one when space matters more. The
+//! georeferencing tags (ModelPixelScale, ModelTiepoint,
+//! ModelTransformation, the GeoKey directory and its double and ASCII
+//! parameters) are copied from the source as stored, so a user-defined
+//! coordinate system survives too. Files beyond 4 GiB are BigTIFF.
+
+use std::io::{Seek, Write};
+
+use tiff::encoder::colortype::{
+    ColorType, Gray8, Gray16, Gray32Float, RGB8, RGB16, RGB32Float, RGBA8, RGBA16, RGBA32Float,
+};
+use tiff::encoder::{TiffEncoder, TiffKind, TiffKindBig, TiffKindStandard, TiffValue};
+use tiff::tags::Tag;
+
+use super::read::georef::tags;
+use super::write::TiffTags;
+use crate::error::{Error, Result};
+
+/// A sample type TIFF output stores: `u8` and `u16` (unsigned integers)
+/// and `f32` (IEEE floats), in one, three (RGB) or four (RGB and an
+/// unassociated alpha) channels.
+pub(crate) trait TiffSample: Copy + Send + Sync + 'static
+where
+    [Self]: TiffValue,
+{
+    /// Runs `write_image` with the colour type of `channels` such samples.
+    fn write<W: Write + Seek, K: TiffKind, F: Fill<Self>>(
+        encoder: &mut TiffEncoder<W, K>,
+        size: (u32, u32),
+        channels: usize,
+        tags: TiffTags<'_>,
+        fill: F,
+    ) -> Result<()>;
+}
+
+/// What hands the rows of an image to the writer: it calls its argument
+/// with whole rows, top to bottom, any number at a time.
+pub(crate) trait Fill<S>: FnOnce(&mut dyn FnMut(&[S]) -> Result<()>) -> Result<()> {}
+
+impl<S, F: FnOnce(&mut dyn FnMut(&[S]) -> Result<()>) -> Result<()>> Fill<S> for F {}
+
+macro_rules! tiff_sample {
+    ($sample:ty, $gray:ty, $rgb:ty, $rgba:ty) => {
+        impl TiffSample for $sample {
+            fn write<W: Write + Seek, K: TiffKind, F: Fill<Self>>(
+                encoder: &mut TiffEncoder<W, K>,
+                size: (u32, u32),
+                channels: usize,
+                tags: TiffTags<'_>,
+                fill: F,
+            ) -> Result<()> {
+                match channels {
+                    1 => write_image::<$gray, W, K, F>(encoder, size, tags, fill),
+                    3 => write_image::<$rgb, W, K, F>(encoder, size, tags, fill),
+                    4 => write_image::<$rgba, W, K, F>(encoder, size, tags, fill),
+                    n => Err(Error::Encode(format!("a TIFF is written with 1, 3 or 4 channels, not {n}"))),
+                }
+            }
+        }
+    };
+}
+
+tiff_sample!(u8, Gray8, RGB8, RGBA8);
+tiff_sample!(u16, Gray16, RGB16, RGBA16);
+tiff_sample!(f32, Gray32Float, RGB32Float, RGBA32Float);
+
+/// Writes a `width` × `height` TIFF of `channels` samples a texel, whose
+/// rows `fill` pushes (texel after texel, each texel's samples in order),
+/// any number of whole rows at a time: a row is written as soon as it
+/// comes, so memory holds none of the image. A BigTIFF when the samples
+/// take more than a classic TIFF can address.
+///
+/// Errors: [`Error::Encode`] for a zero size, rows that are not whole or
+/// not all there, or a size TIFF cannot hold; [`Error::Io`] if `out`
+/// fails; any error of `fill`, which stops the writing.
+pub(crate) fn write_tiff_rows<S: TiffSample, W: Write + Seek>(
+    out: W,
+    (width, height): (usize, usize),
+    channels: usize,
+    tags: TiffTags<'_>,
+    fill: impl Fill<S>,
+) -> Result<()>
+where
+    [S]: TiffValue,
+{
+    let too_large = || Error::Encode(format!("{width} × {height} texels are beyond what TIFF can hold"));
+    let size = (u32::try_from(width).map_err(|_| too_large())?, u32::try_from(height).map_err(|_| too_large())?);
+    if width == 0 || height == 0 {
+        return Err(Error::Encode("image has zero size".into()));
+    }
+    // Classic TIFF addresses 4 GiB; the strip tables and tags need room
+    // beside the samples.
+    let bytes = (width as u64 * height as u64 * channels as u64 * size_of::<S>() as u64)
+        .saturating_add(16 * height as u64 + (1 << 20));
+    if bytes <= u64::from(u32::MAX) {
+        let mut encoder = TiffEncoder::<W, TiffKindStandard>::new_generic(out).map_err(from_tiff_error)?;
+        S::write(&mut encoder, size, channels, tags, fill)
+    } else {
+        let mut encoder = TiffEncoder::<W, TiffKindBig>::new_generic(out).map_err(from_tiff_error)?;
+        S::write(&mut encoder, size, channels, tags, fill)
+    }
+}
+
+/// [`write_tiff_rows`] for the colour type `C`.
+fn write_image<C: ColorType, W: Write + Seek, K: TiffKind, F: Fill<C::Inner>>(
+    encoder: &mut TiffEncoder<W, K>,
+    (width, height): (u32, u32),
+    tags: TiffTags<'_>,
+    fill: F,
+) -> Result<()>
+where
+    [C::Inner]: TiffValue,
+{
+    let channels = C::BITS_PER_SAMPLE.len();
+    let mut image = encoder.new_image::<C>(width, height).map_err(from_tiff_error)?;
+    // One row a strip, as GDAL writes striped files: every row goes out
+    // as it comes.
+    image.rows_per_strip(1).map_err(from_tiff_error)?;
+    let dir = image.encoder();
+    if channels == 4 {
+        // The fourth sample is an unassociated alpha.
+        dir.write_tag(Tag::ExtraSamples, &[2u16][..]).map_err(from_tiff_error)?;
+    }
+    if let Some(georef) = tags.georef {
+        let stored = &georef.stored;
+        let doubles = [
+            (tags::MODEL_PIXEL_SCALE, &stored.pixel_scale),
+            (tags::MODEL_TIEPOINT, &stored.tiepoints),
+            (tags::MODEL_TRANSFORMATION, &stored.transformation),
+            (tags::GEO_DOUBLE_PARAMS, &stored.double_params),
+        ];
+        for (code, values) in doubles.into_iter().filter(|(_, v)| !v.is_empty()) {
+            dir.write_tag(Tag::from_u16_exhaustive(code), &values[..]).map_err(from_tiff_error)?;
+        }
+        if !stored.key_directory.is_empty() {
+            let keys = &stored.key_directory[..];
+            dir.write_tag(Tag::from_u16_exhaustive(tags::GEO_KEY_DIRECTORY), keys).map_err(from_tiff_error)?;
+        }
+        if !stored.ascii_params.is_empty() {
+            let text = stored.ascii_params.as_str();
+            dir.write_tag(Tag::from_u16_exhaustive(tags::GEO_ASCII_PARAMS), text).map_err(from_tiff_error)?;
+        }
+    }
+    if let Some(nodata) = tags.nodata {
+        // GDAL's own spelling: the shortest text that reads back.
+        let text = if nodata.is_nan() { "nan".to_owned() } else { format!("{nodata:?}") };
+        let text = text.strip_suffix(".0").unwrap_or(&text);
+        dir.write_tag(Tag::from_u16_exhaustive(tags::GDAL_NODATA), text).map_err(from_tiff_error)?;
+    }
+    let row_len = width as usize * channels;
+    let mut rows_written = 0usize;
+    fill(&mut |rows| {
+        if !rows.len().is_multiple_of(row_len) || rows_written + rows.len() / row_len > height as usize {
+            return Err(Error::Encode(format!("{} samples are not whole rows of the image", rows.len())));
+        }
+        for row in rows.chunks_exact(row_len) {
+            image.write_strip(row).map_err(from_tiff_error)?;
+        }
+        rows_written += rows.len() / row_len;
+        Ok(())
+    })?;
+    if rows_written != height as usize {
+        return Err(Error::Encode(format!("only {rows_written} of {height} rows were written")));
+    }
+    image.finish().map_err(from_tiff_error)
+}
+
+/// An encoder's error as ours: the writer's I/O errors as they are, the
+/// rest (sizes and limits of the format) as encoding errors.
+fn from_tiff_error(e: tiff::TiffError) -> Error {
+    match e {
+        tiff::TiffError::IoError(e) => Error::Io(e),
+        other => Error::Encode(format!("tiff: {other}")),
+    }
+}
