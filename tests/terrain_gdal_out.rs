@@ -1,7 +1,8 @@
 //! What normalfit writes from a GeoTIFF, checked by GDAL (Debian's
-//! `gdal-bin`): the PNG normal map and the lit view of a GDAL GeoTIFF
-//! read back in GDAL (`gdalinfo -json`) with the GeoTIFF's geotransform
-//! and EPSG code, PixelIsArea and PixelIsPoint alike; and the lit view's
+//! `gdal-bin`): the normal map and the lit view of a GDAL GeoTIFF, PNG
+//! with sidecars and GeoTIFF, read back in GDAL (`gdalinfo -json`) with
+//! the GeoTIFF's geotransform and EPSG code, PixelIsArea and PixelIsPoint
+//! alike; and the lit view's
 //! sun matches `gdaldem hillshade` on planes within one grey level.
 //! Ignored where GDAL is absent: CI installs `gdal-bin` and runs ignored
 //! tests (.ci/run).
@@ -91,6 +92,21 @@ fn normal_maps_and_lit_views_overlay_the_geotiff_in_gdal() {
         let view = lit_view(&read_path(&tif, &ReadOptions::default()).unwrap(), &opts).unwrap();
         assert_eq!(view.write_file(&whole).unwrap().len(), 2);
         assert_same_transform(&gdalinfo(&whole).0, &source, &format!("{name}: whole lit view"));
+
+        // GeoTIFF outputs hold the georeferencing themselves.
+        let normals = dir.path().join(format!("{name}_normal.tif"));
+        let summary = Conversion::new().convert_file(&tif, &normals).unwrap();
+        assert!(summary.streamed && summary.sidecars.is_empty(), "{name}: {summary:?}");
+        let lit = dir.path().join(format!("{name}_lit.tif"));
+        lit_file_streamed(&tif, &ReadOptions::default(), &opts, &lit).unwrap().expect("streams");
+        let whole = dir.path().join(format!("{name}_whole.tif"));
+        assert!(view.write_file(&whole).unwrap().is_empty());
+        for path in [&normals, &lit, &whole] {
+            let what = format!("{name}: {}", path.display());
+            let (got, epsg) = gdalinfo(path);
+            assert_same_transform(&got, &source, &what);
+            assert_eq!(epsg, Some(32633), "{what}");
+        }
     }
 }
 
