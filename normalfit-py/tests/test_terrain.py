@@ -182,3 +182,25 @@ def test_lit_view_in_map_units_and_of_terrain_files_is_the_clis(cli: Path, tmp_p
     assert np.array_equal(ours, read_png(tmp_path / "r.png"))
     with pytest.raises(OSError, match="map units need the texel spacing"):
         normalfit.lit_view(raw, size=(64, 32), units="map")
+
+
+def test_convert_and_height_write_tiff_as_the_cli(cli: Path, tmp_path: Path) -> None:
+    src = tmp_path / "dem.tif"
+    write_float_tiff(src, hills(30, 44) * 100.0)
+    for kwargs, args in (
+        ({"scale": 0.1}, ["-s", "0.1"]),
+        ({"scale": 0.1, "bits": 32, "signed": True}, ["-s", "0.1", "--bits", "32", "--signed"]),
+    ):
+        same_output(src, kwargs, args, cli, tmp_path, "tif")
+    assert (tmp_path / "ours.tif").read_bytes()[:4] == b"II*\0"
+    # format= names it when the extension does not.
+    normalfit.convert(src, tmp_path / "n.out", format="tiff", scale=0.1)
+    assert (tmp_path / "n.out").read_bytes() == (tmp_path / "ours.tif").read_bytes()
+    with pytest.raises(ValueError, match="TIFF output holds 8, 16 or 32"):
+        normalfit.convert(src, tmp_path / "bad.tif", bits=12)
+    # The heights of a normal map, as float32 TIFF.
+    normals = tmp_path / "n.exr"
+    normalfit.convert(src, normals, scale=0.1)
+    normalfit.height_file(normals, tmp_path / "h.tif", scale=0.1)
+    run_cli(cli, "height", normals, "-o", tmp_path / "h_cli.tif", "-s", "0.1")
+    assert (tmp_path / "h.tif").read_bytes() == (tmp_path / "h_cli.tif").read_bytes()

@@ -119,16 +119,19 @@ pub struct ConvertArgs {
     pub channel: Option<Channel>,
 
     /// Bits per output channel: 8 or 16 for PNG, 16 (half) or 32 (float) for
-    /// EXR. Default: 16 for inputs of more than 8 bits, else 8; 32 for EXR.
+    /// EXR, 8, 16 or 32 (float) for TIFF. Default: 16 for inputs of more
+    /// than 8 bits, else 8; 32 for EXR.
     #[arg(long, value_name = "BITS", value_parser = parse_bits)]
     pub bits: Option<u8>,
 
-    /// Output format; default: the output file's extension, else the input's
-    /// format (PNG for integer images, EXR for float ones).
+    /// Output format; default: the output file's extension (.png, .exr, .tif),
+    /// else the input's format (PNG for integer images, EXR for float ones).
+    /// TIFF from a GeoTIFF is a GeoTIFF: its georeferencing tags copied.
     #[arg(long, value_parser = named::<OutputFormat>(OutputFormat::ALL))]
     pub format: Option<OutputFormat>,
 
-    /// Write the normal's components in [−1, 1] instead of (n + 1)/2 (EXR only).
+    /// Write the normal's components in [−1, 1] instead of (n + 1)/2 (float
+    /// outputs only: EXR, 32-bit TIFF).
     #[arg(long)]
     pub signed: bool,
 
@@ -237,8 +240,9 @@ pub struct ShadeArgs {
     #[arg(required = true, value_name = "INPUT", help = inputs_help("Normal maps or height maps"))]
     pub inputs: Vec<PathBuf>,
 
-    /// Output PNG, or folder for many inputs (or folders of them, whose
-    /// layout it keeps); `-` writes standard output. Default:
+    /// Output PNG, or TIFF (.tif: a GeoTIFF from a GeoTIFF, nodata 0, as
+    /// gdaldem writes), or folder for many inputs (or folders of them, whose
+    /// layout it keeps); `-` writes standard output (PNG). Default:
     /// `<stem>_lit.png` beside each input (standard output for standard
     /// input). Files named `*_lit.*` are skipped when folders are searched.
     #[arg(short, long, value_name = "OUTPUT")]
@@ -310,8 +314,8 @@ pub struct HeightArgs {
     #[arg(required = true, value_name = "INPUT", help = inputs_help("Normal maps to turn into heights"))]
     pub inputs: Vec<PathBuf>,
 
-    /// Output file (.exr: float heights, the default; .png: 16-bit,
-    /// normalised to [0, 1]), or folder for many inputs (or folders of
+    /// Output file (.exr: float heights, the default; .tif: float heights;
+    /// .png: 16-bit, normalised to [0, 1]), or folder for many inputs (or folders of
     /// them, whose layout it keeps); `-` writes standard output. Default:
     /// `<stem>_height.exr` beside each input (standard output for standard
     /// input). Files named `*_height.*` are skipped when folders are

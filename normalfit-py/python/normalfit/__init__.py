@@ -186,15 +186,17 @@ def convert(
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
-    map file to a normal map file, through the library's conversion. PNG
-    and scan-line EXR inputs stream (memory grows with the width, not the
-    height); the output appears whole or not at all, and never replaces
-    the input. The GIL is released while it works.
+    map file to a normal map file, through the library's conversion. PNG,
+    scan-line EXR and GeoTIFF inputs stream (memory grows with the width,
+    not the height); the output appears whole or not at all, and never
+    replaces the input. The GIL is released while it works.
 
     The fit options are normals()'s. channel: luma, r, g, b, a or an
-    OpenEXR channel's name; bits: 8 or 16 (PNG), 16 or 32 (EXR), default by
-    the input; format: "png" or "exr" when dst's extension does not say;
-    signed: EXR holds n, not (n + 1)/2; compression: "fast" or "small";
+    OpenEXR channel's name; bits: 8 or 16 (PNG), 16 or 32 (EXR), 8, 16 or
+    32 (TIFF), default by the input; format: "png", "exr" or "tiff" when
+    dst's extension (.png, .exr, .tif) does not say (a TIFF from a GeoTIFF
+    keeps its georeferencing tags); signed: a float output (EXR, 32-bit
+    TIFF) holds n, not (n + 1)/2; compression: "fast" or "small";
     alpha: "none", "height" or "one"; channels: "rgb" or "rg"; residual:
     also write <dst stem>_residual.<ext>; max_texels, layer: as the
     command line's --max-texels and --layer; units: "texels" or "map"
@@ -355,8 +357,9 @@ def height_file(
     layer: str | None = None,
 ) -> HeightInfo:
     """``normalfit height SRC -o DST`` with these options: a normal map
-    file to heights, an EXR of float heights (channel Y) or, for a .png
-    dst (or format="png"), a 16-bit gray PNG normalised to [0, 1] whose
+    file to heights, an EXR of float heights (channel Y), for a .tif dst
+    (or format="tiff") a float32 TIFF of them, or, for a .png dst (or
+    format="png"), a 16-bit gray PNG normalised to [0, 1] whose
     range is the result's png_range; its png_scale is the gain with which
     ``normalfit convert`` of that PNG makes the normals again (the gain
     times the range's span). signed: a float map holds n itself.
