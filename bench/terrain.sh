@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Times normalfit on a float32 GeoTIFF against GDAL's DEM tools, in one
-# run: normals (`convert`, to an 8-bit PNG and to a float EXR) against
-# `gdaldem slope`, and the lit view (`shade`, gdaldem's sun) against
-# `gdaldem hillshade`. Each command 3 times, in turn with its GDAL
+# run: normals (`convert`, to PNG, EXR and GeoTIFF) against `gdaldem
+# slope`, and the lit view (`shade`, gdaldem's sun, to PNG and GeoTIFF)
+# against `gdaldem hillshade`, which write uncompressed GeoTIFF. Each command 3 times, in turn with its GDAL
 # counterpart; the best wall time and the highest peak RSS (/usr/bin/time).
 # Prints a Markdown table with the ratios and the load average: the
 # machine may be shared, so compare ratios from one run.
@@ -65,7 +65,13 @@ row "convert -s 0.1 --border clamp → float EXR" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.exr" -s 0.1 --border clamp
 row "convert -s 0.1 (wrap, the default) → 8-bit PNG" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --bits 8
-row "shade -s 0.1 --border clamp (sun 315°, 45°)" "hillshade" "$hillshade" \
+row "convert -s 0.1 --border clamp → float GeoTIFF" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.tif" -s 0.1 --border clamp --bits 32
+row "convert -s 0.1 --border clamp → 8-bit GeoTIFF" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.tif" -s 0.1 --border clamp --bits 8
+row "shade -s 0.1 --border clamp (sun 315°, 45°) → PNG" "hillshade" "$hillshade" \
   "$bin" shade "$dem" -o "$work/lit.png" -s 0.1 --border clamp
+row "shade -s 0.1 --border clamp (sun 315°, 45°) → GeoTIFF" "hillshade" "$hillshade" \
+  "$bin" shade "$dem" -o "$work/lit.tif" -s 0.1 --border clamp
 echo
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"

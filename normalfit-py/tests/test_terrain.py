@@ -193,9 +193,10 @@ def test_convert_and_height_write_tiff_as_the_cli(cli: Path, tmp_path: Path) -> 
     ):
         same_output(src, kwargs, args, cli, tmp_path, "tif")
     assert (tmp_path / "ours.tif").read_bytes()[:4] == b"II*\0"
-    # format= names it when the extension does not.
-    normalfit.convert(src, tmp_path / "n.out", format="tiff", scale=0.1)
-    assert (tmp_path / "n.out").read_bytes() == (tmp_path / "ours.tif").read_bytes()
+    # format= names it when the name has no extension.
+    normalfit.convert(src, tmp_path / "normals", format="tiff", scale=0.1)
+    normalfit.convert(src, tmp_path / "named.tif", scale=0.1)
+    assert (tmp_path / "normals").read_bytes() == (tmp_path / "named.tif").read_bytes()
     with pytest.raises(ValueError, match="TIFF output holds 8, 16 or 32"):
         normalfit.convert(src, tmp_path / "bad.tif", bits=12)
     # The heights of a normal map, as float32 TIFF.
