@@ -978,6 +978,7 @@ impl Job<'_> {
         };
         let (w, h) = (width, height);
         let mut missing = 0;
+        #[cfg(feature = "tiff")]
         let tags = self.tiff_tags();
         let result = match (out, self.encoding) {
             (Output::File { path, .. }, Encoding::Exr(options)) => io::write_file_atomically(path, |file| {

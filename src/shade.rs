@@ -30,7 +30,7 @@ use crate::io::encoding::{TiffDepth, TiffOptions};
 use crate::io::{
     self, Affine, Channel, Georef, OutputFormat, PngCompression, PngDepth, PngOptions, Raster, ReadOptions,
 };
-use crate::options::{Border, Convention, Options};
+use crate::options::{Convention, Options};
 use crate::samples::Samples;
 use crate::tiling::{self, ImageKind, KindChoice, TilingOptions};
 use crate::units::MapSpacing;
@@ -414,7 +414,7 @@ mod tests {
         }
         let mut all = vec![0u8; normals.len()];
         lamp.grey_row(&normals, &mut all);
-        assert!(all.iter().any(|&g| g == 255) && all.iter().any(|&g| g == 1), "the extremes are reached");
+        assert!(all.contains(&255) && all.contains(&1), "the extremes are reached");
     }
 
     fn unit(v: [f64; 3]) -> [f32; 3] {
@@ -906,7 +906,7 @@ pub fn lit_file_streamed(
     let tiff = lit_format(output)? == OutputFormat::Tiff;
     // A TIFF is written in order: a wrap in y reads the last rows first.
     let tail = match (tiff, fit.borders.y) {
-        (true, Border::Wrap) => {
+        (true, crate::Border::Wrap) => {
             let mut tail = TiffRows::last_rows(input, read, None, fit.patch / 2)?;
             if restore {
                 StoredRows::new(TiffRows::open(input, read, None)?.ok_or_else(changed)?).restore(&mut tail);

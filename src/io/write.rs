@@ -357,6 +357,7 @@ pub trait NormalTexel: crate::FromNormal + sealed::Sealed {
 /// Public only as an argument of the sealed traits' hidden methods.
 #[doc(hidden)]
 #[derive(Clone, Copy, Debug, Default)]
+#[cfg_attr(not(feature = "tiff"), allow(dead_code))]
 pub struct TiffTags<'a> {
     /// The source's georeferencing, copied as stored.
     pub(crate) georef: Option<&'a super::read::Georef>,
@@ -413,9 +414,7 @@ impl NormalTexel for [u8; 3] {
     ) -> Result<()> {
         match encoding {
             Encoding::Png(o) if o.depth == PngDepth::Eight => png_normals(texels, heights, size, o, out),
-            Encoding::Tiff(o) if o.depth == TiffDepth::Eight => {
-                tiff_normals(texels, heights, size, (o, None), tags, out)
-            }
+            Encoding::Tiff(o) if o.depth == TiffDepth::Eight => tiff_normals(texels, heights, size, o, None, tags, out),
             other => Err(mismatch("u8", other)),
         }
     }
@@ -433,7 +432,7 @@ impl NormalTexel for [u16; 3] {
         match encoding {
             Encoding::Png(o) if o.depth == PngDepth::Sixteen => png_normals(texels, heights, size, o, out),
             Encoding::Tiff(o) if o.depth == TiffDepth::Sixteen => {
-                tiff_normals(texels, heights, size, (o, None), tags, out)
+                tiff_normals(texels, heights, size, o, None, tags, out)
             }
             other => Err(mismatch("u16", other)),
         }
@@ -461,14 +460,12 @@ impl NormalTexel for [f32; 3] {
                 PngDepth::Sixteen => png_normals(&quantised::<[u16; 3]>(texels)?, heights, size, o, out),
             },
             Encoding::Tiff(o) => match o.depth {
-                TiffDepth::Eight => tiff_normals(&quantised::<[u8; 3]>(texels)?, heights, size, (o, None), tags, out),
-                TiffDepth::Sixteen => {
-                    tiff_normals(&quantised::<[u16; 3]>(texels)?, heights, size, (o, None), tags, out)
-                }
+                TiffDepth::Eight => tiff_normals(&quantised::<[u8; 3]>(texels)?, heights, size, o, None, tags, out),
+                TiffDepth::Sixteen => tiff_normals(&quantised::<[u16; 3]>(texels)?, heights, size, o, None, tags, out),
                 TiffDepth::Float => {
                     // n itself, or (n + 1)/2: the rule of EXR's samples.
                     let store: fn(f32) -> f32 = |c| ExrOptions::new(ExrDepth::Float).stored(c);
-                    tiff_normals(texels, heights, size, (o, (!o.signed).then_some(store)), tags, out)
+                    tiff_normals(texels, heights, size, o, (!o.signed).then_some(store), tags, out)
                 }
             },
         }
@@ -601,6 +598,7 @@ pub(crate) fn encode_gray_tagged<V: GrayValue>(
 }
 
 /// Rows of a TIFF handed to its writer at a time, from an image in memory.
+#[cfg(feature = "tiff")]
 const TIFF_BAND_ROWS: usize = 256;
 
 /// A TIFF normal map: its samples laid out as in a PNG (red-green maps
@@ -611,7 +609,8 @@ fn tiff_normals<S: super::geotiff::TiffSample + Sample>(
     texels: &[[S; 3]],
     heights: &[f32],
     size: (usize, usize),
-    (options, store): (&TiffOptions, Option<fn(S) -> S>),
+    options: &TiffOptions,
+    store: Option<fn(S) -> S>,
     tags: TiffTags<'_>,
     out: impl Write + Seek,
 ) -> Result<()>
@@ -649,7 +648,8 @@ fn tiff_normals<S>(
     _: &[[S; 3]],
     _: &[f32],
     _: (usize, usize),
-    _: (&TiffOptions, Option<fn(S) -> S>),
+    _: &TiffOptions,
+    _: Option<fn(S) -> S>,
     _: TiffTags<'_>,
     _: impl Write + Seek,
 ) -> Result<()> {
