@@ -123,8 +123,8 @@ fn bad_input_is_one_line_naming_the_file_and_writes_nothing() {
     assert!(line.contains(s(&gray)) && line.contains("R, G and B"), "{line}");
     let line = error_line(&run(&["height", s(&gray), "--border", "auto"]));
     assert!(line.contains("--border"), "{line}");
-    let line = error_line(&run(&["height", s(&gray), "-o", s(&dir.path().join("out.tif"))]));
-    assert!(line.contains("out.tif"), "{line}");
+    let line = error_line(&run(&["height", s(&gray), "-o", s(&dir.path().join("out.jpg"))]));
+    assert!(line.contains("out.jpg"), "{line}");
     let names: Vec<_> = fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(names.len(), 2, "nothing written, no temporary file left: {names:?}");
 }

@@ -123,7 +123,10 @@ fn the_output_format_comes_from_the_name_the_options_then_the_input() {
     assert_eq!(OutputFormat::choose(None, None, tiff_float).unwrap(), OutputFormat::Exr);
     assert_eq!(OutputFormat::choose(None, None, (&InputFormat::Exr, SampleType::Float)).unwrap(), OutputFormat::Exr);
     let e = OutputFormat::choose(p("a.jpg"), None, png16).unwrap_err();
-    assert!(matches!(&e, Error::Unsupported(m) if m.contains(".jpg") && m.contains(".png or .exr")), "{e}");
+    assert!(matches!(&e, Error::Unsupported(m) if m.contains(".jpg") && m.contains(".png, .exr or .tif")), "{e}");
+    assert_eq!(OutputFormat::choose(p("a.tif"), None, png16).unwrap(), OutputFormat::Tiff);
+    assert_eq!(OutputFormat::choose(p("a.TIFF"), None, png16).unwrap(), OutputFormat::Tiff);
+    assert_eq!(OutputFormat::choose(p("a"), Some(OutputFormat::Tiff), png16).unwrap(), OutputFormat::Tiff);
     let e = OutputFormat::choose(p("a.png"), Some(OutputFormat::Exr), png16).unwrap_err();
     assert!(matches!(&e, Error::InvalidOption(m) if m.contains("png") && m.contains("exr")), "{e}");
 
@@ -133,6 +136,7 @@ fn the_output_format_comes_from_the_name_the_options_then_the_input() {
     let depth = |e: Encoding| match e {
         Encoding::Png(o) => format!("png {:?}", o.depth),
         Encoding::Exr(o) => format!("exr {:?} signed {}", o.depth, o.signed),
+        Encoding::Tiff(o) => format!("tiff {:?} signed {}", o.depth, o.signed),
         _ => unreachable!(),
     };
     assert_eq!(depth(choose(OutputFormat::Png, None, false, int8).unwrap()), "png Eight");
@@ -140,9 +144,17 @@ fn the_output_format_comes_from_the_name_the_options_then_the_input() {
     assert_eq!(depth(choose(OutputFormat::Png, Some(16), false, int8).unwrap()), "png Sixteen");
     assert_eq!(depth(choose(OutputFormat::Exr, None, false, int8).unwrap()), "exr Float signed false");
     assert_eq!(depth(choose(OutputFormat::Exr, Some(16), true, int8).unwrap()), "exr Half signed true");
-    for (format, bits, signed) in
-        [(OutputFormat::Png, Some(32), false), (OutputFormat::Exr, Some(8), false), (OutputFormat::Png, None, true)]
-    {
+    // TIFF: PNG's integer depths, EXR's float one.
+    assert_eq!(depth(choose(OutputFormat::Tiff, None, false, int8).unwrap()), "tiff Eight signed false");
+    assert_eq!(depth(choose(OutputFormat::Tiff, None, false, SampleType::Float).unwrap()), "tiff Sixteen signed false");
+    assert_eq!(depth(choose(OutputFormat::Tiff, Some(32), true, int8).unwrap()), "tiff Float signed true");
+    for (format, bits, signed) in [
+        (OutputFormat::Png, Some(32), false),
+        (OutputFormat::Exr, Some(8), false),
+        (OutputFormat::Png, None, true),
+        (OutputFormat::Tiff, Some(12), false),
+        (OutputFormat::Tiff, Some(16), true),
+    ] {
         let e = choose(format, bits, signed, int8).unwrap_err();
         assert!(matches!(e, Error::Unsupported(_)), "{format:?} {bits:?} {signed}: {e}");
     }
@@ -479,7 +491,8 @@ fn border_choices_parse_as_the_command_line_spells_them() {
 fn output_and_check_options_parse_by_the_names_every_front_end_uses() {
     use normalfit::io::{Alpha, OutputChannels};
     assert_eq!("EXR".parse::<OutputFormat>().unwrap(), OutputFormat::Exr);
-    assert_eq!(OutputFormat::ALL.iter().map(|f| f.to_string()).collect::<Vec<_>>(), ["png", "exr"]);
+    assert_eq!(OutputFormat::ALL.iter().map(|f| f.to_string()).collect::<Vec<_>>(), ["png", "exr", "tiff"]);
+    assert_eq!("tif".parse::<OutputFormat>().unwrap(), OutputFormat::Tiff);
     assert_eq!("small".parse::<PngCompression>().unwrap(), PngCompression::Default);
     assert_eq!("fast".parse::<PngCompression>().unwrap(), PngCompression::Fast);
     let e = "best".parse::<PngCompression>().unwrap_err();

@@ -10,8 +10,9 @@ use crate::error::Result;
 use crate::fit::{BandFit, FromNormal};
 use crate::io::encoding::{ExrOptions, TiffDepth, TiffOptions};
 use crate::io::geotiff::{TiffSample, write_tiff_rows};
-use crate::io::write::{Container, ExrDepth, Layout, Sample, TiffTags, lay_out};
+use crate::io::write::{Container, ExrDepth, Sample, TiffTags, lay_out};
 use crate::options::Options;
+use crate::par::prelude::*;
 
 /// Converts a height map's rows to a TIFF normal map as `options` says,
 /// with `tags`: the samples [`crate::io::encode_normals`] writes for the
@@ -35,23 +36,27 @@ pub(crate) fn convert_tiff_counting<W: Write + Seek>(
     let fit = BandFit::new(w, h, opts)?.with_unit(rows.unit());
     let job = (&fit, tail, options, tags);
     match options.depth {
-        TiffDepth::Eight => stream_normals::<u8, _>(rows, job, None, visit, out)?,
-        TiffDepth::Sixteen => stream_normals::<u16, _>(rows, job, None, visit, out)?,
+        TiffDepth::Eight => stream_normals::<u8, _>(rows, job, |_| (), visit, out)?,
+        TiffDepth::Sixteen => stream_normals::<u16, _>(rows, job, |_| (), visit, out)?,
         TiffDepth::Float => {
-            // n itself, or (n + 1)/2: the rule of EXR's samples.
-            let store: fn(f32) -> f32 = |c| ExrOptions::new(ExrDepth::Float).stored(c);
-            stream_normals::<f32, _>(rows, job, (!options.signed).then_some(store), visit, out)?;
+            // n itself, or (n + 1)/2: the rule of EXR's samples, in place
+            // before the layout (a red-green map's B is then written 0).
+            let rule = ExrOptions::new(ExrDepth::Float).with_signed(options.signed);
+            let store = |normals: &mut [[f32; 3]]| {
+                normals.par_chunks_mut(1 << 14).for_each(|chunk| rule.store_all(chunk));
+            };
+            stream_normals::<f32, _>(rows, job, store, visit, out)?;
         }
     }
     Ok(fit.missing())
 }
 
-/// [`convert_tiff_counting`] with samples of type `S`, each normal
-/// component changed by `store` if given.
+/// [`convert_tiff_counting`] with samples of type `S`, a band's normals
+/// stored by `store` (in place) before they are laid out.
 fn stream_normals<S, W: Write + Seek>(
     rows: impl RowSource,
     (fit, tail, options, tags): (&BandFit, Option<&[f64]>, TiffOptions, TiffTags<'_>),
-    store: Option<fn(S) -> S>,
+    store: impl Fn(&mut [[S; 3]]) + Send,
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<()>
@@ -62,21 +67,25 @@ where
 {
     let layout = options.layout;
     let channels = layout.png_samples();
-    // Red-green maps' B is 0 as stored, not a component to store.
-    let components = if layout == Layout::Rg { 2 } else { 3 };
     let (w, h) = (fit.width(), fit.height());
+    // A band's samples, once written, go back to be filled again: a new
+    // buffer for each band cost its page faults (a float band is 6 MiB at
+    // 4096 wide), as much processor time as the rest of the writing.
+    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<S>>(2);
     write_tiff_rows(out, (w, h), channels, tags, |push| {
-        let prepare = |_: Range<usize>, normals: &mut [[S; 3]], heights: Vec<f32>| {
-            let mut samples = Vec::with_capacity(normals.len() * channels);
+        let prepare = move |_: Range<usize>, normals: &mut [[S; 3]], heights: Vec<f32>| {
+            store(normals);
+            let mut samples = spare_rx.try_recv().unwrap_or_default();
+            samples.clear();
             lay_out(normals, &heights, layout, Container::Png, &mut samples);
-            if let Some(store) = store {
-                for texel in samples.chunks_exact_mut(channels) {
-                    texel[..components].iter_mut().for_each(|c| *c = store(*c));
-                }
-            }
             samples
         };
-        let consume = |_: usize, samples: Vec<S>| push(&samples);
+        let consume = |_: usize, samples: Vec<S>| {
+            push(&samples)?;
+            // Dropped when two are waiting already.
+            let _ = spare_tx.try_send(samples);
+            Ok(())
+        };
         run(rows, fit, tail, (false, Extra::of(layout)), visit, Stages { prepare, consume })
     })
 }
