@@ -792,14 +792,27 @@ impl Plan {
         Some(StripHoles { mask: MaskSums::new(cols), patches: MaskedRow::default(), valid, nodata })
     }
 
-    /// Refits the texels of output row `y` (row `k` of the strip) whose
-    /// patch has a hole, from the valid points' moments (see `masked`),
-    /// over what [`Self::emit`] wrote, and marks the missing ones. `v` and
-    /// `gain` are as `emit` took them.
-    #[allow(clippy::too_many_arguments)]
-    fn patch_holes<'a, H: Sample, T: FromNormal>(
+    /// Makes the valid points' sums those of output row `y`, and marks in
+    /// `v` the patches that hold a hole, before [`Self::emit`].
+    fn advance_holes<'a, H: Sample>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
+        y: usize,
+        holes: &mut StripHoles<'_>,
+        v: &mut WindowSums,
+    ) {
+        holes.mask.advance(self, rows, y as isize, holes.nodata);
+        let n2 = (self.n * self.n) as i64;
+        v.with_hole.clear();
+        v.with_hole.extend(holes.mask.c.iter().map(|&c| c != n2));
+    }
+
+    /// Refits the texels of output row `y` (row `k` of the strip) whose
+    /// patch has a hole, from the valid points' moments (see `masked`;
+    /// [`Self::advance_holes`] made them), over what [`Self::emit`] wrote,
+    /// and marks the missing ones. `v` and `gain` are as `emit` took them.
+    fn patch_holes<T: FromNormal>(
+        &self,
         v: &WindowSums,
         gain: f64,
         (y, k): (usize, usize),
@@ -807,8 +820,7 @@ impl Plan {
         out: &mut [T],
         residual: Option<&mut [f32]>,
     ) {
-        let StripHoles { mask, patches, valid, nodata } = holes;
-        mask.advance(self, rows, y as isize, *nodata);
+        let StripHoles { mask, patches, valid, .. } = holes;
         let valid = &mut valid[k];
         valid.fill(true);
         let n2 = (self.n * self.n) as i64;
@@ -942,12 +954,15 @@ impl Plan {
                 v.slide(&ring[p_out % n], &entering, rf, r1);
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
+            if let Some(holes) = holes.as_mut() {
+                self.advance_holes(rows, y0 + k, holes, &mut v);
+            }
             self.emit(&v, gain, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
                 self.emit_residual(&v, gain, y0 + k, residual[k]);
             }
             if let Some(holes) = holes.as_mut() {
-                self.patch_holes(rows, &v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
+                self.patch_holes(&v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
             }
         }
     }
@@ -1016,12 +1031,15 @@ impl Plan {
             }
             let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
             v.sum_rows(&patch_rows);
+            if let Some(holes) = holes.as_mut() {
+                self.advance_holes(rows, y0 + k, holes, &mut v);
+            }
             self.emit(&v, 1.0, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
                 self.emit_residual(&v, 1.0, y0 + k, residual[k]);
             }
             if let Some(holes) = holes.as_mut() {
-                self.patch_holes(rows, &v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
+                self.patch_holes(&v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
             }
         }
     }
@@ -1131,12 +1149,15 @@ impl Plan {
                     v.combine(&suffix[t], &prefix, shift);
                 }
                 let k = block * n + t - y0;
+                if let Some(holes) = holes.as_mut() {
+                    self.advance_holes(rows, y0 + k, holes, &mut v);
+                }
                 self.emit(&v, 1.0, y0 + k, &mut normal, out[k]);
                 if let Some(residual) = residual.as_mut() {
                     self.emit_residual(&v, 1.0, y0 + k, residual[k]);
                 }
                 if let Some(holes) = holes.as_mut() {
-                    self.patch_holes(rows, &v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
+                    self.patch_holes(&v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
                 }
             }
         }
@@ -1292,7 +1313,14 @@ impl Plan {
             // rows (Czz > A) needs the orthogonal fit's division; most
             // chunks have none, and their loop leaves it out (the
             // division took a tenth of the fit), with the same results.
-            let steep = ORTHOGONAL && texels.clone().any(|x| czz_at(x) > self.a);
+            // A patch with a hole (read as 0: a cliff) is refitted after,
+            // whatever this loop gives it, and does not make its chunk steep.
+            let steep = ORTHOGONAL
+                && if v.with_hole.is_empty() {
+                    texels.clone().any(|x| czz_at(x) > self.a)
+                } else {
+                    texels.clone().any(|x| czz_at(x) > self.a && !v.with_hole[x])
+                };
             if steep {
                 for x in texels {
                     let n = normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz_at(x));
@@ -1464,14 +1492,14 @@ fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64) {
 /// to step again. It stays at λ once p(λ) ≤ 0, the slope is not
 /// negative or the step does not rise, and stops after a step below
 /// 1e-17 of the scale.
+// The stops negated rather than the comparisons flipped: a NaN steps on.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
 fn newton_step([a1, a2, b1, b2, c]: [f64; 5], scale: f64, lambda: f64) -> (f64, bool) {
     let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
     let p = p1 * p2 * p3 - b1 * b1 * p2 - b2 * b2 * p1;
     let slope = b1 * b1 + b2 * b2 - (p2 * p3 + p1 * p3 + p1 * p2);
     let next = lambda - p / slope;
-    // Written as the negations of the stops, so that a NaN steps on as
-    // the scalar loop did.
     let rises = !(p <= 0.0) & !(slope >= 0.0) & !(next <= lambda);
     let step = next - lambda;
     (if rises { next } else { lambda }, rises & !(step <= 1e-17 * scale))
@@ -1656,12 +1684,15 @@ struct WindowSums {
     si: Vec<f64>,
     sj: Vec<f64>,
     szz: Vec<f64>,
+    /// Whether each column's patch holds a hole (empty in a strip without
+    /// holes): [`Plan::patch_holes`] refits it after [`Plan::emit`].
+    with_hole: Vec<bool>,
 }
 
 impl WindowSums {
     fn zeros(width: usize) -> Self {
         let z = vec![0.0; width];
-        WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z }
+        WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z, with_hole: Vec::new() }
     }
 
     fn clear(&mut self) {

@@ -265,9 +265,9 @@ pub(super) struct MaskedRow {
     len: usize,
     /// The patch's column in the strip.
     column: Vec<usize>,
-    /// Whether the valid points determine a plane (decided exactly on
-    /// the integers, as [`MaskedRow::push`] says).
-    determined: Vec<bool>,
+    /// The columns whose patch determines no plane (as [`MaskedRow::push`]
+    /// decides), apart: they cost no solve (a nodata region's inside).
+    undetermined: Vec<usize>,
     count: Vec<f64>,
     /// c·Cii, c·Cjj, c·Cij (exact integers, as f64).
     c_cii: Vec<f64>,
@@ -302,7 +302,7 @@ impl MaskedRow {
     pub(super) fn clear(&mut self, width: usize) {
         self.len = 0;
         self.column.resize(width, 0);
-        self.determined.resize(width, false);
+        self.undetermined.clear();
         self.flat.resize(width, false);
         self.stepping.resize(width, false);
         let planes = [&mut self.count, &mut self.c_cii, &mut self.c_cjj, &mut self.c_cij, &mut self.si, &mut self.sj];
@@ -324,10 +324,13 @@ impl MaskedRow {
         let [si, sj, sii, sjj, sij] = m.geometry;
         let (c_cii, c_cjj, c_cij) = (c * sii - si * si, c * sjj - sj * sj, c * sij - si * sj);
         let det = i128::from(c_cii) * i128::from(c_cjj) - i128::from(c_cij) * i128::from(c_cij);
+        if !(centre && c >= 3 && det > 0) {
+            self.undetermined.push(column);
+            return;
+        }
         let k = self.len;
         self.len += 1;
         self.column[k] = column;
-        self.determined[k] = centre && c >= 3 && det > 0;
         self.count[k] = c as f64;
         self.c_cii[k] = c_cii as f64;
         self.c_cjj[k] = c_cjj as f64;
@@ -344,10 +347,10 @@ impl MaskedRow {
         pulp::Arch::new().dispatch(SolveRow { row: self, orthogonal, rho, sigma });
     }
 
-    /// Writes the fitted patches' texels into the strip's row: the normal,
-    /// or (0, 0, 1) and invalid where the points determine no plane (or
-    /// the patch's own texel is missing); and, when asked for, the RMS
-    /// distance of the points from the plane times `sx` (NaN where none).
+    /// Writes the patches' texels into the strip's row: the normal, or
+    /// (0, 0, 1) and invalid where the points determine no plane (or the
+    /// patch's own texel is missing); and, when asked for, the RMS distance
+    /// of the points from the plane times `sx` (NaN where none).
     pub(super) fn store<T: FromNormal>(
         &self,
         out: &mut [T],
@@ -356,19 +359,23 @@ impl MaskedRow {
         sx: f64,
     ) {
         let len = self.len;
-        let (column, determined) = (&self.column[..len], &self.determined[..len]);
+        let column = &self.column[..len];
         let [nx, ny, nz] = &self.normal;
         let (nx, ny, nz) = (&nx[..len], &ny[..len], &nz[..len]);
         for k in 0..len {
-            let normal = if determined[k] { [nx[k], ny[k], nz[k]] } else { [0.0, 0.0, 1.0] };
-            out[column[k]] = T::from_normal(normal);
-            valid[column[k]] = determined[k];
+            out[column[k]] = T::from_normal([nx[k], ny[k], nz[k]]);
+        }
+        for &x in &self.undetermined {
+            out[x] = T::from_normal([0.0, 0.0, 1.0]);
+            valid[x] = false;
         }
         if let Some(residual) = residual {
             let (count, distances) = (&self.count[..len], &self.distances[..len]);
             for k in 0..len {
-                let rms = ((distances[k] / count[k]).sqrt() * sx) as f32;
-                residual[column[k]] = if determined[k] { rms } else { f32::NAN };
+                residual[column[k]] = ((distances[k] / count[k]).sqrt() * sx) as f32;
+            }
+            for &x in &self.undetermined {
+                residual[x] = f32::NAN;
             }
         }
     }
@@ -393,12 +400,11 @@ impl pulp::WithSimd for SolveRow<'_> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         let SolveRow { row, orthogonal, rho, sigma } = self;
-        let MaskedRow { len, column: _, determined, count, c_cii, c_cjj, c_cij, si, sj, z0, zi, zj, zz, .. } = row;
+        let MaskedRow { len, count, c_cii, c_cjj, c_cij, si, sj, z0, zi, zj, zz, .. } = row;
         let MaskedRow { moments, sin, flat, lambda, scale, stepping, work, normal, distances, .. } = row;
         // The patches pushed: each loop runs over the planes' first `len`.
         let len = *len;
-        let (determined, count, c_cii, c_cjj, c_cij) =
-            (&determined[..len], &count[..len], &c_cii[..len], &c_cjj[..len], &c_cij[..len]);
+        let (count, c_cii, c_cjj, c_cij) = (&count[..len], &c_cii[..len], &c_cjj[..len], &c_cij[..len]);
         let (si, sj, z0, zi, zj, zz) = (&si[..len], &sj[..len], &z0[..len], &zi[..len], &zj[..len], &zz[..len]);
         let (sin, flat, lambda, scale) = (&mut sin[..len], &mut flat[..len], &mut lambda[..len], &mut scale[..len]);
         let (stepping, distances) = (&mut stepping[..len], &mut distances[..len]);
@@ -413,7 +419,7 @@ impl pulp::WithSimd for SolveRow<'_> {
         }
         // In place: [Cuu, Cvv, Cuv, Cuz, Cvz] become [a1, a2, cos θ, b1, b2].
         let (a1, a2, cos, b1, b2) = (cuu, cvv, cuv, cuz, cvz);
-        rotate(a1, a2, cos, b1, b2, czz, sin, determined, flat, lambda, scale, stepping);
+        rotate(a1, a2, cos, b1, b2, czz, sin, flat, lambda, scale, stepping);
         newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work);
         orthogonal_normals(a1, a2, b1, b2, czz, cos, sin, lambda, flat, nx, ny, nz, distances);
     }
@@ -425,9 +431,8 @@ impl pulp::WithSimd for SolveRow<'_> {
 // a dozen planes stayed scalar, with branches).
 
 /// The centred moments of every patch (lengths in x spacings, u = i,
-/// v = ρσj), and whether it is flat. A patch that determines no plane is
-/// computed too (its values may be NaN) and never used. Three loops of a
-/// few planes each: as one loop of seventeen it stayed scalar.
+/// v = ρσj), and whether it is flat. Three loops of a few planes each: as
+/// one loop of seventeen it stayed scalar.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn centred_moments(
@@ -548,8 +553,7 @@ fn vertical_normals(
 /// Rotates (u, v) by θ, tan 2θ = 2Cuv / (Cuu − Cvv), to diagonalise the
 /// (u, v) block: a1 = Cuu + t·Cuv, a2 = Cvv − t·Cuv, t = tan θ (in place:
 /// [Cuu, Cvv, Cuv, Cuz, Cvz] become [a1, a2, cos θ, b1, b2]); and the
-/// Newton start. Only the patches that determine a plane and are not flat
-/// step.
+/// Newton start. A flat patch does not step.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn rotate(
@@ -560,7 +564,6 @@ fn rotate(
     b2: &mut [f64],
     czz: &[f64],
     sin: &mut [f64],
-    determined: &[bool],
     flat: &[bool],
     lambda: &mut [f64],
     scale: &mut [f64],
@@ -568,7 +571,7 @@ fn rotate(
 ) {
     let len = stepping.len();
     let (a1, a2, cos, b1, b2) = (&mut a1[..len], &mut a2[..len], &mut cos[..len], &mut b1[..len], &mut b2[..len]);
-    let (czz, sin, determined, flat) = (&czz[..len], &mut sin[..len], &determined[..len], &flat[..len]);
+    let (czz, sin, flat) = (&czz[..len], &mut sin[..len], &flat[..len]);
     let (lambda, scale) = (&mut lambda[..len], &mut scale[..len]);
     for k in 0..len {
         let (cuu, cvv, cuv, cuz, cvz) = (a1[k], a2[k], cos[k], b1[k], b2[k]);
@@ -581,7 +584,7 @@ fn rotate(
         [a1[k], a2[k], b1[k], b2[k]] = rotated;
         (cos[k], sin[k]) = (c, s);
         (lambda[k], scale[k]) = eigen_start(rotated[0], rotated[1], rotated[2], rotated[3], czz[k]);
-        stepping[k] = determined[k] & !flat[k];
+        stepping[k] = !flat[k];
     }
 }
 
@@ -745,7 +748,7 @@ mod tests {
         row.push(0, true, m);
         row.solve(orthogonal, rho, sigma);
         let [nx, ny, nz] = &row.normal;
-        row.determined[0].then(|| ([nx[0], ny[0], nz[0]], row.distances[0]))
+        (row.len == 1).then(|| ([nx[0], ny[0], nz[0]], row.distances[0]))
     }
 
     #[test]
