@@ -400,8 +400,29 @@ impl pulp::WithSimd for SolveRow<'_> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         let SolveRow { row, orthogonal, rho, sigma } = self;
-        let MaskedRow { len, count, c_cii, c_cjj, c_cij, si, sj, z0, zi, zj, zz, .. } = row;
-        let MaskedRow { moments, sin, flat, lambda, scale, stepping, work, normal, distances, .. } = row;
+        let MaskedRow {
+            len,
+            count,
+            c_cii,
+            c_cjj,
+            c_cij,
+            si,
+            sj,
+            z0,
+            zi,
+            zj,
+            zz,
+            moments,
+            sin,
+            flat,
+            lambda,
+            scale,
+            stepping,
+            work,
+            normal,
+            distances,
+            ..
+        } = row;
         // The patches pushed: each loop runs over the planes' first `len`.
         let len = *len;
         let (count, c_cii, c_cjj, c_cij) = (&count[..len], &c_cii[..len], &c_cjj[..len], &c_cij[..len]);
@@ -410,9 +431,9 @@ impl pulp::WithSimd for SolveRow<'_> {
         let (stepping, distances) = (&mut stepping[..len], &mut distances[..len]);
         let [cuu, cvv, cuv, cuz, cvz, czz] = moments.each_mut().map(|plane| &mut plane[..len]);
         let [nx, ny, nz] = normal.each_mut().map(|plane| &mut plane[..len]);
-        #[rustfmt::skip]
-        centred_moments(count, c_cii, c_cjj, c_cij, si, sj, z0, zi, zj, zz, rho, sigma,
-                        cuu, cvv, cuv, cuz, cvz, czz, flat);
+        centred_moments(
+            count, c_cii, c_cjj, c_cij, si, sj, z0, zi, zj, zz, rho, sigma, cuu, cvv, cuv, cuz, cvz, czz, flat,
+        );
         if !orthogonal {
             vertical_normals(cuu, cvv, cuv, cuz, cvz, czz, flat, nx, ny, nz, distances);
             return;
@@ -623,9 +644,16 @@ fn newton(
     }
     let mut steps = 0;
     while len > 0 && steps < NEWTON_STEPS {
-        #[rustfmt::skip]
-        newton_pass(&w1[..len], &w2[..len], &wb1[..len], &wb2[..len], &wc[..len], &work_scale[..len],
-                    &mut work_lambda[..len], &mut work_stepping[..len]);
+        newton_pass(
+            &w1[..len],
+            &w2[..len],
+            &wb1[..len],
+            &wb2[..len],
+            &wc[..len],
+            &work_scale[..len],
+            &mut work_lambda[..len],
+            &mut work_stepping[..len],
+        );
         steps += 1;
         if work_stepping[..len].iter().filter(|&&s| s).count() * 2 > len {
             continue;
