@@ -77,7 +77,7 @@ use crate::samples::Sample;
 mod masked;
 mod window;
 pub(crate) use masked::row_has_hole;
-use masked::{MaskSums, Moments, masked_normal};
+use masked::{MaskSums, MaskedRow, Moments};
 pub use window::{Halo, Window, window_normals_and_residual_into, window_normals_into};
 
 /// A type an output texel can be made from a unit normal.
@@ -601,6 +601,7 @@ const MAX_BLOCK_TEXELS: usize = 1 << 24;
 /// `valid`, and the nodata value.
 struct StripHoles<'t> {
     mask: MaskSums,
+    patches: MaskedRow,
     valid: Vec<&'t mut [bool]>,
     nodata: f64,
 }
@@ -788,26 +789,38 @@ impl Plan {
             valid.iter_mut().for_each(|row| row.fill(true));
             return None;
         }
-        Some(StripHoles { mask: MaskSums::new(cols), valid, nodata })
+        Some(StripHoles { mask: MaskSums::new(cols), patches: MaskedRow::default(), valid, nodata })
+    }
+
+    /// Makes the valid points' sums those of output row `y`, and marks in
+    /// `v` the patches that hold a hole, before [`Self::emit`].
+    fn advance_holes<'a, H: Sample>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        y: usize,
+        holes: &mut StripHoles<'_>,
+        v: &mut WindowSums,
+    ) {
+        holes.mask.advance(self, rows, y as isize, holes.nodata);
+        let n2 = (self.n * self.n) as i64;
+        v.with_hole.clear();
+        v.with_hole.extend(holes.mask.c.iter().map(|&c| c != n2));
     }
 
     /// Refits the texels of output row `y` (row `k` of the strip) whose
-    /// patch has a hole, from the valid points' moments (see `masked`),
-    /// over what [`Self::emit`] wrote, and marks the missing ones. `v` and
-    /// `gain` are as `emit` took them.
-    #[allow(clippy::too_many_arguments)]
-    fn patch_holes<'a, H: Sample, T: FromNormal>(
+    /// patch has a hole, from the valid points' moments (see `masked`;
+    /// [`Self::advance_holes`] made them), over what [`Self::emit`] wrote,
+    /// and marks the missing ones. `v` and `gain` are as `emit` took them.
+    fn patch_holes<T: FromNormal>(
         &self,
-        rows: &SourceRows<'_, 'a, H>,
         v: &WindowSums,
         gain: f64,
         (y, k): (usize, usize),
         holes: &mut StripHoles<'_>,
         out: &mut [T],
-        mut residual: Option<&mut [f32]>,
+        residual: Option<&mut [f32]>,
     ) {
-        let StripHoles { mask, valid, nodata } = holes;
-        mask.advance(self, rows, y as isize, *nodata);
+        let StripHoles { mask, patches, valid, .. } = holes;
         let valid = &mut valid[k];
         valid.fill(true);
         let n2 = (self.n * self.n) as i64;
@@ -816,30 +829,17 @@ impl Plan {
         }
         let ([sx, _], rho) = self.spacing_at(y);
         let g = gain / sx;
-        let orthogonal = self.fit == Fit::Orthogonal;
-        for x in 0..out.len() {
-            let c = mask.c[x];
-            if c == n2 {
-                continue;
-            }
+        patches.clear(out.len());
+        for x in (0..out.len()).filter(|&x| mask.c[x] != n2) {
             let moments = Moments {
-                c,
+                c: mask.c[x],
                 geometry: [mask.si[x], mask.sj[x], mask.sii[x], mask.sjj[x], mask.sij[x]],
                 z: [g * v.s0[x], g * v.si[x], g * v.sj[x], g * g * v.szz[x]],
             };
-            let fitted = if mask.centre[x] { masked_normal(&moments, orthogonal, rho, self.sigma) } else { None };
-            let (normal, distance) = match fitted {
-                Some((normal, sum)) => (normal, ((sum / c as f64).sqrt() * sx) as f32),
-                None => {
-                    valid[x] = false;
-                    ([0.0, 0.0, 1.0], f32::NAN)
-                }
-            };
-            out[x] = T::from_normal(normal);
-            if let Some(residual) = residual.as_deref_mut() {
-                residual[x] = distance;
-            }
+            patches.push(x, mask.centre[x], &moments);
         }
+        patches.solve(self.fit == Fit::Orthogonal, rho, self.sigma);
+        patches.store(out, valid, residual, sx);
     }
 
     /// The source row of padded row p = y + j + r, through the y border.
@@ -954,12 +954,15 @@ impl Plan {
                 v.slide(&ring[p_out % n], &entering, rf, r1);
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
+            if let Some(holes) = holes.as_mut() {
+                self.advance_holes(rows, y0 + k, holes, &mut v);
+            }
             self.emit(&v, gain, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
                 self.emit_residual(&v, gain, y0 + k, residual[k]);
             }
             if let Some(holes) = holes.as_mut() {
-                self.patch_holes(rows, &v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
+                self.patch_holes(&v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
             }
         }
     }
@@ -1028,12 +1031,15 @@ impl Plan {
             }
             let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
             v.sum_rows(&patch_rows);
+            if let Some(holes) = holes.as_mut() {
+                self.advance_holes(rows, y0 + k, holes, &mut v);
+            }
             self.emit(&v, 1.0, y0 + k, &mut normal, out_row);
             if let Some(residual) = residual.as_mut() {
                 self.emit_residual(&v, 1.0, y0 + k, residual[k]);
             }
             if let Some(holes) = holes.as_mut() {
-                self.patch_holes(rows, &v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
+                self.patch_holes(&v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
             }
         }
     }
@@ -1143,12 +1149,15 @@ impl Plan {
                     v.combine(&suffix[t], &prefix, shift);
                 }
                 let k = block * n + t - y0;
+                if let Some(holes) = holes.as_mut() {
+                    self.advance_holes(rows, y0 + k, holes, &mut v);
+                }
                 self.emit(&v, 1.0, y0 + k, &mut normal, out[k]);
                 if let Some(residual) = residual.as_mut() {
                     self.emit_residual(&v, 1.0, y0 + k, residual[k]);
                 }
                 if let Some(holes) = holes.as_mut() {
-                    self.patch_holes(rows, &v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
+                    self.patch_holes(&v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
                 }
             }
         }
@@ -1304,7 +1313,14 @@ impl Plan {
             // rows (Czz > A) needs the orthogonal fit's division; most
             // chunks have none, and their loop leaves it out (the
             // division took a tenth of the fit), with the same results.
-            let steep = ORTHOGONAL && texels.clone().any(|x| czz_at(x) > self.a);
+            // A patch with a hole (read as 0: a cliff) is refitted after,
+            // whatever this loop gives it, and does not make its chunk steep.
+            let steep = ORTHOGONAL
+                && if v.with_hole.is_empty() {
+                    texels.clone().any(|x| czz_at(x) > self.a)
+                } else {
+                    texels.clone().any(|x| czz_at(x) > self.a && !v.with_hole[x])
+                };
             if steep {
                 for x in texels {
                     let n = normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz_at(x));
@@ -1446,52 +1462,78 @@ fn unequal_normal(orthogonal: bool, a: f64, rho: f64, cx: f64, cy: f64, czz: f64
 /// square grid's formula when a1 = a2; the others take over when λ meets
 /// a1 or a2, a patch whose flattest direction is horizontal).
 fn smallest_eigen(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, [f64; 3]) {
+    let (mut lambda, scale) = eigen_start(a1, a2, b1, b2, c);
+    for _ in 0..NEWTON_STEPS {
+        let (next, more) = newton_step([a1, a2, b1, b2, c], scale, lambda);
+        lambda = next;
+        if !more {
+            break;
+        }
+    }
+    (lambda, eigenvector([a1, a2, b1, b2, c], lambda))
+}
+
+/// Newton's steps [`smallest_eigen`] takes at most.
+const NEWTON_STEPS: usize = 200;
+
+/// [`smallest_eigen`]'s start: the lower bound λ₀, and the scale of M
+/// its steps are measured against.
+#[inline(always)]
+fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64) {
     let m = a1.min(a2);
     let tilt2 = b1 * b1 + b2 * b2;
     let d = 0.5 * (m - c);
     let largest = 0.5 * (m + c) + (d * d + tilt2).sqrt();
-    let mut lambda = ((m * c - tilt2) / largest).max(0.0);
-    let scale = a1 + a2 + c;
-    for _ in 0..200 {
-        let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
-        let p = p1 * p2 * p3 - b1 * b1 * p2 - b2 * b2 * p1;
-        let slope = b1 * b1 + b2 * b2 - (p2 * p3 + p1 * p3 + p1 * p2);
-        if p <= 0.0 || slope >= 0.0 {
-            break;
-        }
-        let next = lambda - p / slope;
-        if next <= lambda {
-            break;
-        }
-        let step = next - lambda;
-        lambda = next;
-        if step <= 1e-17 * scale {
-            break;
-        }
-    }
+    (((m * c - tilt2) / largest).max(0.0), a1 + a2 + c)
+}
+
+/// One of [`smallest_eigen`]'s Newton steps from λ, without branches (the
+/// masked fit runs it over arrays of patches): the next λ, and whether
+/// to step again. It stays at λ once p(λ) ≤ 0, the slope is not
+/// negative or the step does not rise, and stops after a step below
+/// 1e-17 of the scale.
+// The stops negated rather than the comparisons flipped: a NaN steps on.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn newton_step([a1, a2, b1, b2, c]: [f64; 5], scale: f64, lambda: f64) -> (f64, bool) {
+    let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
+    let p = p1 * p2 * p3 - b1 * b1 * p2 - b2 * b2 * p1;
+    let slope = b1 * b1 + b2 * b2 - (p2 * p3 + p1 * p3 + p1 * p2);
+    let next = lambda - p / slope;
+    let rises = !(p <= 0.0) & !(slope >= 0.0) & !(next <= lambda);
+    let step = next - lambda;
+    (if rises { next } else { lambda }, rises & !(step <= 1e-17 * scale))
+}
+
+/// [`smallest_eigen`]'s eigenvector for its λ, without branches.
+#[inline(always)]
+fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3] {
     let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
     let candidates =
         [[-b1 * p2, -b2 * p1, p1 * p2], [-b1 * b2, b1 * b1 - p1 * p3, p1 * b2], [p2 * p3 - b2 * b2, b1 * b2, -p2 * b1]];
     let length2 = |v: &[f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
     let mut best = candidates[0];
     for v in &candidates[1..] {
-        if length2(v) > length2(&best) {
-            best = *v;
-        }
+        let longer = length2(v) > length2(&best);
+        best = if longer { *v } else { best };
     }
     // n_z ≥ 0; a vertical plane (n_z = 0 up to rounding, 1e-12 of the
     // vector: a cliff whose heights spread more than the narrower axis's
     // texels) takes n_y ≥ 0, then n_x ≥ 0.
     let tiny = 1e-12 * best[0].abs().max(best[1].abs()).max(best[2].abs());
-    let flip = match best {
-        [_, _, z] if z.abs() > tiny => z < 0.0,
-        [_, y, _] if y.abs() > tiny => y < 0.0,
-        [x, _, _] => x < 0.0,
-    };
-    if flip {
-        best = best.map(|c| -c);
-    }
-    (lambda, best)
+    let [x, y, z] = best;
+    let (z_counts, y_counts) = (z.abs() > tiny, y.abs() > tiny);
+    let flip = (z_counts & (z < 0.0)) | (!z_counts & ((y_counts & (y < 0.0)) | (!y_counts & (x < 0.0))));
+    best.map(|c| select(flip, -c, c))
+}
+
+/// `if take { a } else { b }`, both already computed, chosen by masks:
+/// the compiler cannot move a costly `b` (a division, a square root) into
+/// a branch of its own, so a loop of it stays branch-free and vectorises.
+#[inline(always)]
+fn select(take: bool, a: f64, b: f64) -> f64 {
+    let mask = u64::from(take).wrapping_neg();
+    f64::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
 }
 
 /// The fitted plane's unit normal from the patch sums (see the module
@@ -1642,12 +1684,15 @@ struct WindowSums {
     si: Vec<f64>,
     sj: Vec<f64>,
     szz: Vec<f64>,
+    /// Whether each column's patch holds a hole (empty in a strip without
+    /// holes): [`Plan::patch_holes`] refits it after [`Plan::emit`].
+    with_hole: Vec<bool>,
 }
 
 impl WindowSums {
     fn zeros(width: usize) -> Self {
         let z = vec![0.0; width];
-        WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z }
+        WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z, with_hole: Vec::new() }
     }
 
     fn clear(&mut self) {

@@ -15,8 +15,8 @@
 //! equations [[Cuu, Cuv], [Cuv, Cvv]]·g = [Cuz, Cvz] and n ∝ (−gx, −gy, 1);
 //! the orthogonal fit takes the smallest eigenvector of the 3×3 covariance
 //! [[Cuu, Cuv, Cuz], [Cuv, Cvv, Cvz], [Cuz, Cvz, Czz]]: a rotation in (u, v)
-//! makes its (u, v) block diagonal, and [`smallest_eigen`] (the unequal
-//! spacing's solver) finds it. A texel that is itself missing, or whose
+//! makes its (u, v) block diagonal, and the unequal spacing's solver
+//! ([`smallest_eigen`](super::smallest_eigen)) finds it. A texel that is itself missing, or whose
 //! valid points are fewer than 3 or collinear, is missing.
 //!
 //! # Sums, and why they keep their digits
@@ -41,7 +41,7 @@
 
 use std::ops::Range;
 
-use super::{Plan, RowRef, SourceRows, smallest_eigen};
+use super::{FromNormal, NEWTON_STEPS, Plan, RowRef, SourceRows, eigen_start, eigenvector, newton_step, select};
 use crate::samples::Sample;
 
 /// Whether a value as given is a hole.
@@ -173,19 +173,8 @@ impl MaskSums {
         if self.y == Some(y - 1) {
             self.row_sums(plan, rows(y - 1 - r), nodata, false);
             self.row_sums(plan, rows(y + r), nodata, true);
-            let (rr, r1) = (r as i64, r as i64 + 1);
-            let ([l0, l1, l2], [e0, e1, e2]) = (&self.leaving, &self.entering);
-            for x in 0..w {
-                let s0 = self.c[x] - l0[x] + e0[x];
-                let t = self.sj[x] + rr * l0[x] + r1 * e0[x];
-                self.sjj[x] = self.sjj[x] - rr * rr * l0[x] + r1 * r1 * e0[x] - 2 * t + s0;
-                self.sj[x] = t - s0;
-                let si = self.si[x] - l1[x] + e1[x];
-                self.sij[x] = self.sij[x] + rr * l1[x] + r1 * e1[x] - si;
-                self.si[x] = si;
-                self.sii[x] += e2[x] - l2[x];
-                self.c[x] = s0;
-            }
+            let MaskSums { c, si, sj, sii, sjj, sij, leaving: [l0, l1, l2], entering: [e0, e1, e2], .. } = self;
+            slide_down(r as i64, c, si, sj, sii, sjj, sij, l0, l1, l2, e0, e1, e2);
         } else {
             for plane in [&mut self.c, &mut self.si, &mut self.sj, &mut self.sii, &mut self.sjj, &mut self.sij] {
                 plane.fill(0);
@@ -206,10 +195,47 @@ impl MaskSums {
         }
         self.y = Some(y);
         self.valid_row(plan, rows(y), nodata);
-        let r = plan.r;
-        for (x, centre) in self.centre.iter_mut().enumerate() {
-            *centre = self.valid[x + r] != 0;
-        }
+        let valid = &self.valid[plan.r..plan.r + w];
+        self.centre.iter_mut().zip(valid).for_each(|(centre, &valid)| *centre = valid != 0);
+    }
+}
+
+/// Slides the valid points' moments down one row: the row sums `l` of
+/// the leaving row (offset −r) go, `e` of the entering one (offset r + 1
+/// before the slide) come, and every row's offset j drops by one. The
+/// planes are separate arguments, so that the compiler knows they do not
+/// overlap and vectorises the loop (through `self`, it reloaded every
+/// plane's pointer at every column).
+#[allow(clippy::too_many_arguments)]
+fn slide_down(
+    r: i64,
+    c: &mut [i64],
+    si: &mut [i64],
+    sj: &mut [i64],
+    sii: &mut [i64],
+    sjj: &mut [i64],
+    sij: &mut [i64],
+    l0: &[i64],
+    l1: &[i64],
+    l2: &[i64],
+    e0: &[i64],
+    e1: &[i64],
+    e2: &[i64],
+) {
+    let w = c.len();
+    let (si, sj, sii, sjj, sij) = (&mut si[..w], &mut sj[..w], &mut sii[..w], &mut sjj[..w], &mut sij[..w]);
+    let (l0, l1, l2, e0, e1, e2) = (&l0[..w], &l1[..w], &l2[..w], &e0[..w], &e1[..w], &e2[..w]);
+    let r1 = r + 1;
+    for x in 0..w {
+        let s0 = c[x] - l0[x] + e0[x];
+        let t = sj[x] + r * l0[x] + r1 * e0[x];
+        sjj[x] = sjj[x] - r * r * l0[x] + r1 * r1 * e0[x] - 2 * t + s0;
+        sj[x] = t - s0;
+        let s1 = si[x] - l1[x] + e1[x];
+        sij[x] = sij[x] + r * l1[x] + r1 * e1[x] - s1;
+        si[x] = s1;
+        sii[x] += e2[x] - l2[x];
+        c[x] = s0;
     }
 }
 
@@ -224,67 +250,501 @@ pub(super) struct Moments {
     pub z: [f64; 4],
 }
 
-/// The unit normal of a patch from its valid points' moments, and the
-/// summed squared distance of the points from the plane (perpendicular or
-/// vertical, as the fit measures), or `None` when the points do not
-/// determine a plane (fewer than 3, or collinear).
-pub(super) fn masked_normal(m: &Moments, orthogonal: bool, rho: f64, sigma: f64) -> Option<([f64; 3], f64)> {
-    let c = m.c;
-    if c < 3 {
-        return None;
+/// The patches of one row that hold a hole, as planes (one value per
+/// patch in each `Vec`), so that their fits run as loops without branches
+/// over whole planes, which vectorise, rather than patch by patch (whose
+/// branches and Newton loop took 55 % of a 10 %-holes conversion).
+///
+/// Each patch's fit is [`smallest_eigen`](super::smallest_eigen)'s
+/// arithmetic, in its order: the normals are those of a per-patch solve,
+/// bit for bit.
+#[derive(Default)]
+pub(super) struct MaskedRow {
+    /// The patches pushed: the planes' first `len` values (the planes are
+    /// as long as the strip is wide).
+    len: usize,
+    /// The patch's column in the strip.
+    column: Vec<usize>,
+    /// The columns whose patch determines no plane (as [`MaskedRow::push`]
+    /// decides), apart: they cost no solve (a nodata region's inside).
+    undetermined: Vec<usize>,
+    count: Vec<f64>,
+    /// c·Cii, c·Cjj, c·Cij (exact integers, as f64).
+    c_cii: Vec<f64>,
+    c_cjj: Vec<f64>,
+    c_cij: Vec<f64>,
+    si: Vec<f64>,
+    sj: Vec<f64>,
+    /// Σz, Σiz, Σjz, Σz².
+    z0: Vec<f64>,
+    zi: Vec<f64>,
+    zj: Vec<f64>,
+    zz: Vec<f64>,
+    /// The centred moments [Cuu, Cvv, Cuv, Cuz, Cvz, Czz]; the orthogonal
+    /// fit rotates them in place into [a1, a2, cos θ, b1, b2, Czz] (see
+    /// [`smallest_eigen`](super::smallest_eigen)).
+    moments: [Vec<f64>; 6],
+    sin: Vec<f64>,
+    flat: Vec<bool>,
+    /// The orthogonal fit's Newton state.
+    lambda: Vec<f64>,
+    scale: Vec<f64>,
+    stepping: Vec<bool>,
+    work: NewtonWork,
+    /// The fit: the unit normal, and the summed squared distance of the
+    /// points from the plane.
+    normal: [Vec<f64>; 3],
+    distances: Vec<f64>,
+}
+
+impl MaskedRow {
+    /// Empties the row, and makes room for `width` patches.
+    pub(super) fn clear(&mut self, width: usize) {
+        self.len = 0;
+        self.column.resize(width, 0);
+        self.undetermined.clear();
+        self.flat.resize(width, false);
+        self.stepping.resize(width, false);
+        let planes = [&mut self.count, &mut self.c_cii, &mut self.c_cjj, &mut self.c_cij, &mut self.si, &mut self.sj];
+        let planes = planes.into_iter().chain([&mut self.z0, &mut self.zi, &mut self.zj, &mut self.zz]);
+        let planes = planes.chain([&mut self.sin, &mut self.lambda, &mut self.scale, &mut self.distances]);
+        for plane in planes.chain(self.moments.iter_mut()).chain(self.normal.iter_mut()) {
+            plane.resize(width, 0.0);
+        }
     }
-    let [si, sj, sii, sjj, sij] = m.geometry.map(i128::from);
-    let c128 = i128::from(c);
-    // c·C, exact.
-    let (cii, cjj, cij) = (c128 * sii - si * si, c128 * sjj - sj * sj, c128 * sij - si * sj);
-    if cii * cjj - cij * cij <= 0 {
-        return None;
+
+    /// Adds the patch of `column`, whose own texel is valid when `centre`.
+    /// Whether its points determine a plane (at least 3, not collinear)
+    /// is decided on the integers: c·Cii = c·Σi² − (Σi)² and its like are
+    /// exact in `i64` (below 2^57 for N ≤ 1023), their determinant in
+    /// `i128`, so collinear points give exactly 0.
+    #[inline]
+    pub(super) fn push(&mut self, column: usize, centre: bool, m: &Moments) {
+        let c = m.c;
+        let [si, sj, sii, sjj, sij] = m.geometry;
+        let (c_cii, c_cjj, c_cij) = (c * sii - si * si, c * sjj - sj * sj, c * sij - si * sj);
+        let det = i128::from(c_cii) * i128::from(c_cjj) - i128::from(c_cij) * i128::from(c_cij);
+        if !(centre && c >= 3 && det > 0) {
+            self.undetermined.push(column);
+            return;
+        }
+        let k = self.len;
+        self.len += 1;
+        self.column[k] = column;
+        self.count[k] = c as f64;
+        self.c_cii[k] = c_cii as f64;
+        self.c_cjj[k] = c_cjj as f64;
+        self.c_cij[k] = c_cij as f64;
+        self.si[k] = si as f64;
+        self.sj[k] = sj as f64;
+        [self.z0[k], self.zi[k], self.zj[k], self.zz[k]] = m.z;
     }
-    let cf = c as f64;
-    let [z0, zi, zj, zz] = m.z;
-    let (cii, cjj, cij) = (cii as f64 / cf, cjj as f64 / cf, cij as f64 / cf);
-    let (si, sj) = (si as f64, sj as f64);
-    let ciz = (cf * zi - si * z0) / cf;
-    let cjz = (cf * zj - sj * z0) / cf;
-    let czz = ((cf * zz - z0 * z0) / cf).max(0.0);
-    // u = i, v = ρσj.
+
+    /// Fits every patch pushed: with u = i, v = ρσj, the vertical fit's
+    /// closed form or the orthogonal fit's smallest eigenvector (see the
+    /// module docs).
+    pub(super) fn solve(&mut self, orthogonal: bool, rho: f64, sigma: f64) {
+        pulp::Arch::new().dispatch(SolveRow { row: self, orthogonal, rho, sigma });
+    }
+
+    /// Writes the patches' texels into the strip's row: the normal, or
+    /// (0, 0, 1) and invalid where the points determine no plane (or the
+    /// patch's own texel is missing); and, when asked for, the RMS distance
+    /// of the points from the plane times `sx` (NaN where none).
+    pub(super) fn store<T: FromNormal>(
+        &self,
+        out: &mut [T],
+        valid: &mut [bool],
+        residual: Option<&mut [f32]>,
+        sx: f64,
+    ) {
+        let len = self.len;
+        let column = &self.column[..len];
+        let [nx, ny, nz] = &self.normal;
+        let (nx, ny, nz) = (&nx[..len], &ny[..len], &nz[..len]);
+        for k in 0..len {
+            out[column[k]] = T::from_normal([nx[k], ny[k], nz[k]]);
+        }
+        for &x in &self.undetermined {
+            out[x] = T::from_normal([0.0, 0.0, 1.0]);
+            valid[x] = false;
+        }
+        if let Some(residual) = residual {
+            let (count, distances) = (&self.count[..len], &self.distances[..len]);
+            for k in 0..len {
+                residual[column[k]] = ((distances[k] / count[k]).sqrt() * sx) as f32;
+            }
+            for &x in &self.undetermined {
+                residual[x] = f32::NAN;
+            }
+        }
+    }
+}
+
+/// [`MaskedRow::solve`]'s loops, for [`pulp::Arch::dispatch`]: compiled
+/// for the widest vectors the processor has, as the full patches' `EmitRow`
+/// (the same bits on every processor: nothing fuses a multiply with an
+/// add). Each loop is a function of its planes as separate slices: the
+/// compiler then knows that they do not overlap, and vectorises the loop
+/// (reached through one struct, the loops over a dozen planes stayed
+/// scalar).
+struct SolveRow<'a> {
+    row: &'a mut MaskedRow,
+    orthogonal: bool,
+    rho: f64,
+    sigma: f64,
+}
+
+impl pulp::WithSimd for SolveRow<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let SolveRow { row, orthogonal, rho, sigma } = self;
+        let MaskedRow {
+            len,
+            count,
+            c_cii,
+            c_cjj,
+            c_cij,
+            si,
+            sj,
+            z0,
+            zi,
+            zj,
+            zz,
+            moments,
+            sin,
+            flat,
+            lambda,
+            scale,
+            stepping,
+            work,
+            normal,
+            distances,
+            ..
+        } = row;
+        // The patches pushed: each loop runs over the planes' first `len`.
+        let len = *len;
+        let (count, c_cii, c_cjj, c_cij) = (&count[..len], &c_cii[..len], &c_cjj[..len], &c_cij[..len]);
+        let (si, sj, z0, zi, zj, zz) = (&si[..len], &sj[..len], &z0[..len], &zi[..len], &zj[..len], &zz[..len]);
+        let (sin, flat, lambda, scale) = (&mut sin[..len], &mut flat[..len], &mut lambda[..len], &mut scale[..len]);
+        let (stepping, distances) = (&mut stepping[..len], &mut distances[..len]);
+        let [cuu, cvv, cuv, cuz, cvz, czz] = moments.each_mut().map(|plane| &mut plane[..len]);
+        let [nx, ny, nz] = normal.each_mut().map(|plane| &mut plane[..len]);
+        centred_moments(
+            count, c_cii, c_cjj, c_cij, si, sj, z0, zi, zj, zz, rho, sigma, cuu, cvv, cuv, cuz, cvz, czz, flat,
+        );
+        if !orthogonal {
+            vertical_normals(cuu, cvv, cuv, cuz, cvz, czz, flat, nx, ny, nz, distances);
+            return;
+        }
+        // In place: [Cuu, Cvv, Cuv, Cuz, Cvz] become [a1, a2, cos θ, b1, b2].
+        let (a1, a2, cos, b1, b2) = (cuu, cvv, cuv, cuz, cvz);
+        rotate(a1, a2, cos, b1, b2, czz, sin, flat, lambda, scale, stepping);
+        newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work);
+        orthogonal_normals(a1, a2, b1, b2, czz, cos, sin, lambda, flat, nx, ny, nz, distances);
+    }
+}
+
+// The loops' planes are separate arguments, each cut to the loop's
+// length: the compiler then knows that they neither overlap nor end
+// early, and vectorises the loops (reached through one struct, a loop over
+// a dozen planes stayed scalar, with branches).
+
+/// The centred moments of every patch (lengths in x spacings, u = i,
+/// v = ρσj), and whether it is flat. Three loops of a few planes each: as
+/// one loop of seventeen it stayed scalar.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn centred_moments(
+    count: &[f64],
+    c_cii: &[f64],
+    c_cjj: &[f64],
+    c_cij: &[f64],
+    si: &[f64],
+    sj: &[f64],
+    z0: &[f64],
+    zi: &[f64],
+    zj: &[f64],
+    zz: &[f64],
+    rho: f64,
+    sigma: f64,
+    cuu: &mut [f64],
+    cvv: &mut [f64],
+    cuv: &mut [f64],
+    cuz: &mut [f64],
+    cvz: &mut [f64],
+    czz: &mut [f64],
+    flat: &mut [bool],
+) {
     let rs = rho * sigma;
-    let (cuu, cvv, cuv, cuz, cvz) = (cii, rho * rho * cjj, rs * cij, ciz, rs * cjz);
-    // Flat as the full patches' rule (their A is Cii = Cjj).
-    let flat = ciz * ciz + cjz * cjz <= 1e-20 * (cii.max(cjj) + czz) * (cii.max(cjj) + czz);
-    if !orthogonal {
+    // Cii, Cjj, rs·Cij; Cvv and Cvz hold Cjj and Cjz until the last loop.
+    geometry_moments(count, c_cii, c_cjj, c_cij, rs, cuu, cvv, cuv);
+    z_moments(count, si, sj, z0, zi, zj, zz, cuz, cvz, czz);
+    let len = flat.len();
+    let (cuu, cvv, cuz, cvz, czz) = (&cuu[..len], &mut cvv[..len], &cuz[..len], &mut cvz[..len], &czz[..len]);
+    for k in 0..len {
+        let (cii, cjj, ciz, cjz, czz) = (cuu[k], cvv[k], cuz[k], cvz[k], czz[k]);
+        // Flat as the full patches' rule (their A is Cii = Cjj).
+        flat[k] = ciz * ciz + cjz * cjz <= 1e-20 * (cii.max(cjj) + czz) * (cii.max(cjj) + czz);
+        (cvv[k], cvz[k]) = (rho * rho * cjj, rs * cjz);
+    }
+}
+
+/// Cii, Cjj and rs·Cij from the exact c·C.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn geometry_moments(
+    count: &[f64],
+    c_cii: &[f64],
+    c_cjj: &[f64],
+    c_cij: &[f64],
+    rs: f64,
+    cii: &mut [f64],
+    cjj: &mut [f64],
+    cuv: &mut [f64],
+) {
+    let len = count.len();
+    let (c_cii, c_cjj, c_cij) = (&c_cii[..len], &c_cjj[..len], &c_cij[..len]);
+    let (cii, cjj, cuv) = (&mut cii[..len], &mut cjj[..len], &mut cuv[..len]);
+    for k in 0..len {
+        let cf = count[k];
+        (cii[k], cjj[k], cuv[k]) = (c_cii[k] / cf, c_cjj[k] / cf, rs * (c_cij[k] / cf));
+    }
+}
+
+/// Ciz, Cjz and Czz.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn z_moments(
+    count: &[f64],
+    si: &[f64],
+    sj: &[f64],
+    z0: &[f64],
+    zi: &[f64],
+    zj: &[f64],
+    zz: &[f64],
+    ciz: &mut [f64],
+    cjz: &mut [f64],
+    czz: &mut [f64],
+) {
+    let len = count.len();
+    let (si, sj, z0, zi, zj, zz) = (&si[..len], &sj[..len], &z0[..len], &zi[..len], &zj[..len], &zz[..len]);
+    let (ciz, cjz, czz) = (&mut ciz[..len], &mut cjz[..len], &mut czz[..len]);
+    for k in 0..len {
+        let (cf, z0) = (count[k], z0[k]);
+        ciz[k] = (cf * zi[k] - si[k] * z0) / cf;
+        cjz[k] = (cf * zj[k] - sj[k] * z0) / cf;
+        czz[k] = ((cf * zz[k] - z0 * z0) / cf).max(0.0);
+    }
+}
+
+/// The vertical fit: the 2×2 normal equations' solution, n ∝ (−gx, −gy, 1).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn vertical_normals(
+    cuu: &[f64],
+    cvv: &[f64],
+    cuv: &[f64],
+    cuz: &[f64],
+    cvz: &[f64],
+    czz: &[f64],
+    flat: &[bool],
+    nx: &mut [f64],
+    ny: &mut [f64],
+    nz: &mut [f64],
+    distances: &mut [f64],
+) {
+    let len = flat.len();
+    let (cuu, cvv, cuv, cuz, cvz, czz) = (&cuu[..len], &cvv[..len], &cuv[..len], &cuz[..len], &cvz[..len], &czz[..len]);
+    let (nx, ny, nz, distances) = (&mut nx[..len], &mut ny[..len], &mut nz[..len], &mut distances[..len]);
+    for k in 0..len {
+        let (cuu, cvv, cuv, cuz, cvz, czz) = (cuu[k], cvv[k], cuv[k], cuz[k], cvz[k], czz[k]);
         let det = cuu * cvv - cuv * cuv;
         let gx = (cvv * cuz - cuv * cvz) / det;
         let gy = (cuu * cvz - cuv * cuz) / det;
         let residual = (czz - gx * cuz - gy * cvz).max(0.0);
-        if flat {
-            return Some(([0.0, 0.0, 1.0], czz));
-        }
         let inv = 1.0 / (gx * gx + gy * gy + 1.0).sqrt();
-        return Some(([-gx * inv, -gy * inv, inv], residual));
+        let flat = flat[k];
+        (nx[k], ny[k], nz[k]) = (select(flat, 0.0, -gx * inv), select(flat, 0.0, -gy * inv), select(flat, 1.0, inv));
+        distances[k] = select(flat, czz, residual);
     }
-    if flat {
-        return Some(([0.0, 0.0, 1.0], czz));
-    }
-    // Rotate (u, v) by θ, tan 2θ = 2Cuv / (Cuu − Cvv), to diagonalise the
-    // (u, v) block: a1 = Cuu + t·Cuv, a2 = Cvv − t·Cuv, t = tan θ.
-    let (cos, sin) = if cuv == 0.0 {
-        (1.0, 0.0)
-    } else {
+}
+
+/// Rotates (u, v) by θ, tan 2θ = 2Cuv / (Cuu − Cvv), to diagonalise the
+/// (u, v) block: a1 = Cuu + t·Cuv, a2 = Cvv − t·Cuv, t = tan θ (in place:
+/// [Cuu, Cvv, Cuv, Cuz, Cvz] become [a1, a2, cos θ, b1, b2]); and the
+/// Newton start. A flat patch does not step.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn rotate(
+    a1: &mut [f64],
+    a2: &mut [f64],
+    cos: &mut [f64],
+    b1: &mut [f64],
+    b2: &mut [f64],
+    czz: &[f64],
+    sin: &mut [f64],
+    flat: &[bool],
+    lambda: &mut [f64],
+    scale: &mut [f64],
+    stepping: &mut [bool],
+) {
+    let len = stepping.len();
+    let (a1, a2, cos, b1, b2) = (&mut a1[..len], &mut a2[..len], &mut cos[..len], &mut b1[..len], &mut b2[..len]);
+    let (czz, sin, flat) = (&czz[..len], &mut sin[..len], &flat[..len]);
+    let (lambda, scale) = (&mut lambda[..len], &mut scale[..len]);
+    for k in 0..len {
+        let (cuu, cvv, cuv, cuz, cvz) = (a1[k], a2[k], cos[k], b1[k], b2[k]);
         let tau = (cvv - cuu) / (2.0 * cuv);
         let t = tau.signum() / (tau.abs() + (1.0 + tau * tau).sqrt());
-        let t = if tau == 0.0 { 1.0 } else { t };
-        let cos = 1.0 / (1.0 + t * t).sqrt();
-        (cos, t * cos)
-    };
-    let a1 = cuu - (sin / cos) * cuv;
-    let a2 = cvv + (sin / cos) * cuv;
-    let b1 = cos * cuz - sin * cvz;
-    let b2 = sin * cuz + cos * cvz;
-    let (lambda, e) = smallest_eigen(a1, a2, b1, b2, czz);
-    let n = [cos * e[0] + sin * e[1], -sin * e[0] + cos * e[1], e[2]];
-    let inv = 1.0 / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    Some((n.map(|v| v * inv), lambda.max(0.0)))
+        let t = select(tau == 0.0, 1.0, t);
+        let cos_t = 1.0 / (1.0 + t * t).sqrt();
+        let (c, s) = (select(cuv == 0.0, 1.0, cos_t), select(cuv == 0.0, 0.0, t * cos_t));
+        let rotated = [cuu - (s / c) * cuv, cvv + (s / c) * cuv, c * cuz - s * cvz, s * cuz + c * cvz];
+        [a1[k], a2[k], b1[k], b2[k]] = rotated;
+        (cos[k], sin[k]) = (c, s);
+        (lambda[k], scale[k]) = eigen_start(rotated[0], rotated[1], rotated[2], rotated[3], czz[k]);
+        stepping[k] = !flat[k];
+    }
+}
+
+/// The orthogonal fit's Newton steps, all patches at once: a pass over
+/// the planes is one step of every patch still stepping. Most patches
+/// take a few steps, some (two close eigenvalues) dozens: whenever half
+/// the patches in the pass have stopped, the others are moved together
+/// (`work`), so that a pass costs what the patches still stepping do.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn newton(
+    a1: &[f64],
+    a2: &[f64],
+    b1: &[f64],
+    b2: &[f64],
+    czz: &[f64],
+    scale: &[f64],
+    lambda: &mut [f64],
+    stepping: &[bool],
+    work: &mut NewtonWork,
+) {
+    let NewtonWork { index, matrix, scale: work_scale, lambda: work_lambda, stepping: work_stepping } = work;
+    index.clear();
+    index.extend((0..stepping.len()).filter(|&k| stepping[k]));
+    let mut len = index.len();
+    // Grown, never shrunk: a row's planes are not filled afresh.
+    for plane in matrix.iter_mut().chain([&mut *work_scale, &mut *work_lambda]) {
+        plane.resize(plane.len().max(len), 0.0);
+    }
+    work_stepping.resize(work_stepping.len().max(len), true);
+    work_stepping[..len].fill(true);
+    let [w1, w2, wb1, wb2, wc] = matrix;
+    for (j, &k) in index.iter().enumerate() {
+        (w1[j], w2[j], wb1[j], wb2[j], wc[j]) = (a1[k], a2[k], b1[k], b2[k], czz[k]);
+        (work_scale[j], work_lambda[j]) = (scale[k], lambda[k]);
+    }
+    let mut steps = 0;
+    while len > 0 && steps < NEWTON_STEPS {
+        newton_pass(
+            &w1[..len],
+            &w2[..len],
+            &wb1[..len],
+            &wb2[..len],
+            &wc[..len],
+            &work_scale[..len],
+            &mut work_lambda[..len],
+            &mut work_stepping[..len],
+        );
+        steps += 1;
+        if work_stepping[..len].iter().filter(|&&s| s).count() * 2 > len {
+            continue;
+        }
+        // Half have stopped: their λ is final; the others move down.
+        let mut kept = 0;
+        for j in 0..len {
+            if !work_stepping[j] {
+                lambda[index[j]] = work_lambda[j];
+                continue;
+            }
+            index[kept] = index[j];
+            (w1[kept], w2[kept], wb1[kept], wb2[kept], wc[kept]) = (w1[j], w2[j], wb1[j], wb2[j], wc[j]);
+            (work_scale[kept], work_lambda[kept], work_stepping[kept]) = (work_scale[j], work_lambda[j], true);
+            kept += 1;
+        }
+        len = kept;
+    }
+    for j in 0..len {
+        lambda[index[j]] = work_lambda[j];
+    }
+}
+
+/// One Newton step of every patch still stepping.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn newton_pass(
+    a1: &[f64],
+    a2: &[f64],
+    b1: &[f64],
+    b2: &[f64],
+    czz: &[f64],
+    scale: &[f64],
+    lambda: &mut [f64],
+    stepping: &mut [bool],
+) {
+    let len = stepping.len();
+    let (a1, a2, b1, b2, czz) = (&a1[..len], &a2[..len], &b1[..len], &b2[..len], &czz[..len]);
+    let (scale, lambda) = (&scale[..len], &mut lambda[..len]);
+    for k in 0..len {
+        let (next, more) = newton_step([a1[k], a2[k], b1[k], b2[k], czz[k]], scale[k], lambda[k]);
+        lambda[k] = select(stepping[k], next, lambda[k]);
+        stepping[k] &= more;
+    }
+}
+
+/// [`newton`]'s planes of the patches still stepping, and each one's
+/// place in the row.
+#[derive(Default)]
+pub(super) struct NewtonWork {
+    index: Vec<usize>,
+    /// a1, a2, b1, b2, Czz.
+    matrix: [Vec<f64>; 5],
+    scale: Vec<f64>,
+    lambda: Vec<f64>,
+    stepping: Vec<bool>,
+}
+
+/// The orthogonal fit's normals from the converged λ: the eigenvector,
+/// rotated back to (u, v).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn orthogonal_normals(
+    a1: &[f64],
+    a2: &[f64],
+    b1: &[f64],
+    b2: &[f64],
+    czz: &[f64],
+    cos: &[f64],
+    sin: &[f64],
+    lambda: &[f64],
+    flat: &[bool],
+    nx: &mut [f64],
+    ny: &mut [f64],
+    nz: &mut [f64],
+    distances: &mut [f64],
+) {
+    let len = flat.len();
+    let (a1, a2, b1, b2, czz) = (&a1[..len], &a2[..len], &b1[..len], &b2[..len], &czz[..len]);
+    let (cos, sin, lambda) = (&cos[..len], &sin[..len], &lambda[..len]);
+    let (nx, ny, nz, distances) = (&mut nx[..len], &mut ny[..len], &mut nz[..len], &mut distances[..len]);
+    for k in 0..len {
+        let e = eigenvector([a1[k], a2[k], b1[k], b2[k], czz[k]], lambda[k]);
+        let (cos, sin) = (cos[k], sin[k]);
+        let n = [cos * e[0] + sin * e[1], -sin * e[0] + cos * e[1], e[2]];
+        let inv = 1.0 / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let flat = flat[k];
+        (nx[k], ny[k], nz[k]) =
+            (select(flat, 0.0, n[0] * inv), select(flat, 0.0, n[1] * inv), select(flat, 1.0, n[2] * inv));
+        distances[k] = select(flat, czz[k], lambda[k].max(0.0));
+    }
 }
 
 #[cfg(test)]
@@ -307,6 +767,16 @@ mod tests {
             m.z[3] += z * z;
         }
         m
+    }
+
+    /// One patch's fit, through a row of one.
+    fn masked_normal(m: &Moments, orthogonal: bool, rho: f64, sigma: f64) -> Option<([f64; 3], f64)> {
+        let mut row = MaskedRow::default();
+        row.clear(1);
+        row.push(0, true, m);
+        row.solve(orthogonal, rho, sigma);
+        let [nx, ny, nz] = &row.normal;
+        (row.len == 1).then(|| ([nx[0], ny[0], nz[0]], row.distances[0]))
     }
 
     #[test]
