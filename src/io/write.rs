@@ -536,7 +536,9 @@ impl GrayValue for f32 {
 /// PNG: the adaptive filter, deflate as `compression` says. EXR: ZIP in
 /// blocks of 16 rows, what most tools write by default; its offset table
 /// comes before the pixels and is filled in at the end, so `out` must
-/// seek (a file, or a `Cursor` over a buffer).
+/// seek (a file, or a `Cursor` over a buffer). TIFF: uncompressed, one
+/// row a strip, without georeferencing (a conversion of a GeoTIFF copies
+/// its tags); its directory comes last, so `out` must seek too.
 ///
 /// Errors: [`Error::BufferSize`] if `texels` (or `heights`) does not hold
 /// `width * height`, [`Error::InvalidOption`] for texels the encoding does
@@ -569,9 +571,10 @@ pub(crate) fn encode_normals_tagged<T: NormalTexel>(
 }
 
 /// Writes a one-channel map of `width` × `height` values, row-major: a
-/// picture such as [`shade`](crate::shade::shade) makes (8-bit gray PNG),
-/// or a quantity per texel such as the fit's residual (16-bit gray PNG, or
-/// an EXR with channel Y). The value type goes with the encoding
+/// picture such as [`shade`](crate::shade::shade) makes (8-bit gray PNG
+/// or TIFF), or a quantity per texel such as the fit's residual (16-bit
+/// gray PNG, an EXR with channel Y, or a float TIFF). The value type goes
+/// with the encoding
 /// ([`GrayValue`]); the encoding's layout is not used.
 ///
 /// Errors: as [`encode_normals`].
