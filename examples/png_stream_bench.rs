@@ -5,8 +5,8 @@
 //!
 //! * ours: [`PngRows`] into [`convert_png_seekable`]: one pass over the
 //!   input, the top rows fitted last into room kept after the header,
-//!   rows filtered in parallel on the fit's side and deflated (fdeflate)
-//!   on the caller's;
+//!   rows filtered and deflated (fdeflate, in pieces) in parallel on the
+//!   fit's side;
 //! * png: what `StreamWriter` needs, rows in order: a first pass for the
 //!   wrap's tail rows ([`RowSource::read_tail`]), a second that decodes
 //!   the rows, the fit band by band ([`BandFit`]), each band written to
@@ -133,7 +133,9 @@ fn main() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
     for (k, name) in
-        ["ours (one pass, parallel filters)", "png StreamWriter, Avg", "png StreamWriter, adaptive"].iter().enumerate()
+        ["ours (one pass, parallel filters, deflate)", "png StreamWriter, Avg", "png StreamWriter, adaptive"]
+            .iter()
+            .enumerate()
     {
         println!(
             "{size}²  {name:<34} median {:.3} s of {runs}  {:.1} MiB",

@@ -135,8 +135,10 @@ pub struct ConvertArgs {
     #[arg(long)]
     pub signed: bool,
 
-    /// PNG output: fast (one cheap filter for every row) or small (each
-    /// row's best filter: about 12 % smaller, a little slower).
+    /// PNG output: fast (one cheap filter for every row; rows that deflate
+    /// would shrink by less than a tenth, as 16-bit ones, are stored) or
+    /// small (each row's best filter, always deflated: about 12 % smaller,
+    /// a little slower).
     #[arg(long, default_value_t = PngCompression::Fast, value_parser = named::<PngCompression>(PngCompression::NAMED))]
     pub compression: PngCompression,
 

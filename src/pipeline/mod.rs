@@ -19,8 +19,8 @@
 //!
 //! Three stages run at once: a thread decodes rows into bands of heights;
 //! a thread fits each band (its row tiles in parallel on rayon's pool) and
-//! prepares it for the encoder (PNG filtering, in parallel too); the
-//! caller's thread compresses and writes it. The pixels are the same, bit
+//! prepares it for the encoder (PNG filtering and deflate, EXR blocks, in
+//! parallel too); the caller's thread writes it. The pixels are the same, bit
 //! for bit, as decoding the whole image and calling
 //! [`normals_into`](crate::normals_into): the fit is cut into the same
 //! tiles either way ([`BandFit`]).

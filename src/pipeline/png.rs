@@ -1,28 +1,31 @@
 //! PNG rows in ([`PngRows`]) and a PNG encoder fed band by band: the
-//! rows PNG-filtered in parallel on the fit thread, deflated on the
-//! caller's.
+//! rows PNG-filtered and deflated in pieces ([`deflate`]) in parallel on
+//! the fit's side, written on the caller's thread.
 //!
 //! Why not the `png` crate's `StreamWriter`: it takes rows in order, so a
 //! wrap in y (the default border) needs the image's last rows before its
 //! first, a whole first pass over the input; ours writes the top rows
-//! last, into room kept after the header, in one pass, and filters rows
-//! in parallel while the next band is fitted. Measured on a 4096² 16-bit
-//! PNG, 8-bit output, wrap, fast setting, medians of 7 alternating runs on
-//! 2 cores (`cargo run --release --example png_stream_bench -- 4096 7`):
-//! ours 0.62 s, StreamWriter with the same filter (Avg) and deflate
-//! (fdeflate) 0.89 s, with its adaptive filter 0.90 s; the same 10.1 MiB,
-//! the same texels. The format is small and pinned by this module's tests
+//! last, into room kept after the header, in one pass, and filters and
+//! deflates rows in parallel while the next band is fitted. Measured on a
+//! 4096² 16-bit PNG, 8-bit output, wrap, fast setting, medians of 7
+//! alternating runs on 2 cores (`cargo run --release --example
+//! png_stream_bench -- 4096 7`): ours 0.200 s, StreamWriter with the same
+//! filter (Avg) and deflate (fdeflate) 0.485 s, with its adaptive filter
+//! 0.521 s; the same 10.1 MiB (9.7 MiB adaptive), the same texels. The format is small and pinned by this module's tests
 //! (decoded by the `png` crate at every depth, layout and filter setting,
 //! chunk CRCs, IDAT splits, the stored top rows).
 
 use std::borrow::Cow;
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Seek, Write};
+use std::io::{BufReader, Read, Seek, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use crate::par::prelude::*;
 
+mod deflate;
+
+use self::deflate::{Checksum, FINAL_BLOCK, Piece, ZLIB_HEADER, stored_len};
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
@@ -492,16 +495,17 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     if deferred {
         // Room for the first IDAT chunk: zlib header and the top rows as
         // stored blocks, filled in at the end.
-        let room = 12 + 2 + stored_len(top_len);
+        let room = 12 + ZLIB_HEADER.len() + stored_len(top_len);
         std::io::copy(&mut std::io::repeat(0).take(room as u64), out)?;
     }
-    let mut idat = Idat { out: &mut *out, buf: Vec::new(), skip: if deferred { 2 } else { 0 } };
-    // The compressor writes 8 bytes at a time: through a buffer, each is a
-    // copy inlined in its loop rather than a call into `Idat` (3 % of a
-    // 4096² conversion's processor time).
-    let mut compressor = fdeflate::Compressor::new(BufWriter::with_capacity(1 << 16, &mut idat))?;
-    let mut fed = 0u64;
-    let mut top = Vec::new();
+    let mut idat = Idat { out: &mut *out, buf: Vec::new() };
+    if !deferred {
+        idat.push(&ZLIB_HEADER)?;
+    }
+    // The checksum of the rows written in order, and the top rows when
+    // deferred.
+    let mut rest = Checksum::EMPTY;
+    let mut top = None;
 
     // Deflate is fdeflate's at every setting: on filtered normal maps it is
     // as small as zlib's levels (measured on a 4096² map, adaptive filters:
@@ -511,47 +515,49 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     // The last row of the band before, which the next band's first row is
     // filtered against.
     let mut prior: Option<Vec<u8>> = None;
-    // A band's filtered bytes, once compressed, go back to be filled again
-    // by the next band's filtering: a new buffer each band would be zeroed
-    // first (1 to 2 % of a 32768² conversion).
-    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<u8>>(1);
+    // The filtered rows, filled again band after band: a new buffer each
+    // band would be zeroed first (1 to 2 % of a 32768² conversion).
+    let mut filtered = Vec::new();
     let needs_heights = texels.needs_heights();
-    let prepare = move |rows: Range<usize>, normals: &mut [P::Normal], heights: Vec<f32>| -> Vec<u8> {
+    let prepare = move |rows: Range<usize>, normals: &mut [P::Normal], heights: Vec<f32>| -> Vec<Piece> {
         let raw = texels.raw(normals, &heights);
         if deferred && rows.start == 0 {
             // Stored as they are: filter type 0 before each row.
-            raw.chunks_exact(stride).flat_map(|row| std::iter::once(0).chain(row.iter().copied())).collect()
+            let rows: Vec<u8> =
+                raw.chunks_exact(stride).flat_map(|row| std::iter::once(0).chain(row.iter().copied())).collect();
+            vec![Piece::stored(&rows, Vec::new())]
         } else {
-            let spare = spare_rx.try_recv().unwrap_or_default();
-            let filtered = filter_rows(&raw, stride, texel_bytes, prior.as_deref(), adaptive, spare);
+            filtered =
+                filter_rows(&raw, stride, texel_bytes, prior.as_deref(), adaptive, std::mem::take(&mut filtered));
             prior = Some(raw[raw.len() - stride..].to_vec());
-            filtered
+            Piece::deflated(&filtered, !adaptive)
         }
     };
-    let consume = |y0: usize, bytes: Vec<u8>| -> Result<()> {
-        if deferred && y0 == 0 {
-            top = bytes;
-        } else {
-            compressor.write_data(&bytes)?;
-            fed += bytes.len() as u64;
-            // Dropped when a spare is waiting already.
-            let _ = spare_tx.try_send(bytes);
+    let consume = |y0: usize, pieces: Vec<Piece>| -> Result<()> {
+        for piece in pieces {
+            if deferred && y0 == 0 {
+                top = Some(piece);
+            } else {
+                idat.push(&piece.bytes)?;
+                rest = rest.then(piece.sum);
+            }
         }
         Ok(())
     };
     run(rows, &fit, tail, (deferred, needs_heights), visit, Stages { prepare, consume })?;
-    compressor.finish()?.into_inner().map_err(|e| Error::Io(e.into_error()))?;
-    let mut trailer = idat.take_trailer()?;
     let mut first_idat = Vec::new();
-    if deferred {
-        if top.len() != top_len {
-            return Err(Error::Encode("the top rows were not fitted".into()));
-        }
-        trailer = adler32_combine(adler32(&top), trailer, fed);
-        first_idat.extend_from_slice(&[0x78, 0x01]);
-        put_stored(&top, &mut first_idat);
-    }
-    idat.buf.extend_from_slice(&trailer.to_be_bytes());
+    let adler = if deferred {
+        let top: Piece = top
+            .filter(|t| t.sum.len == top_len as u64)
+            .ok_or_else(|| Error::Encode("the top rows were not fitted".into()))?;
+        first_idat.extend_from_slice(&ZLIB_HEADER);
+        first_idat.extend_from_slice(&top.bytes);
+        top.sum.then(rest).adler
+    } else {
+        rest.adler
+    };
+    idat.push(&FINAL_BLOCK)?;
+    idat.push(&adler.to_be_bytes())?;
     idat.flush_chunk()?;
     write_chunk(out, b"IEND", &[])?;
     Ok((first_idat, fit.missing()))
@@ -700,120 +706,55 @@ fn write_signature_and_header<W: Write + ?Sized>(
 
 /// One PNG chunk: length, type, data, CRC of type and data.
 fn write_chunk<W: Write + ?Sized>(out: &mut W, kind: &[u8; 4], data: &[u8]) -> Result<()> {
-    let len = u32::try_from(data.len()).map_err(|_| Error::Encode("chunk too large".into()))?;
+    write_chunk_of(out, kind, &[data])
+}
+
+/// One PNG chunk whose data is `parts`, one after the other.
+fn write_chunk_of<W: Write + ?Sized>(out: &mut W, kind: &[u8; 4], parts: &[&[u8]]) -> Result<()> {
+    let len = u32::try_from(parts.iter().map(|p| p.len()).sum::<usize>())
+        .map_err(|_| Error::Encode("chunk too large".into()))?;
     let mut crc = crc32fast::Hasher::new();
     crc.update(kind);
-    crc.update(data);
+    parts.iter().for_each(|p| crc.update(p));
     out.write_all(&len.to_be_bytes())?;
     out.write_all(kind)?;
-    out.write_all(data)?;
+    for part in parts {
+        out.write_all(part)?;
+    }
     out.write_all(&crc.finalize().to_be_bytes())?;
     Ok(())
 }
 
-/// IDAT chunks of the compressor's output: drops its first `skip` bytes
-/// (its zlib header, when ours comes first) and holds back its last four
-/// (the checksum, which may need replacing).
+/// IDAT chunks of a zlib stream given in pieces: each chunk holds at
+/// least [`IDAT_BYTES`] but the last.
 struct Idat<'a, W: ?Sized> {
     out: &'a mut W,
+    /// The start of the next chunk, until it is long enough.
     buf: Vec<u8>,
-    skip: usize,
 }
 
 /// IDAT chunks of about this many bytes.
 const IDAT_BYTES: usize = 1 << 20;
 
-impl<W: Write + ?Sized> Write for &mut Idat<'_, W> {
-    fn write(&mut self, data: &[u8]) -> std::io::Result<usize> {
-        let dropped = self.skip.min(data.len());
-        self.skip -= dropped;
-        self.buf.extend_from_slice(&data[dropped..]);
-        if self.buf.len() >= IDAT_BYTES + 4 {
-            let cut = self.buf.len() - 4;
-            // The writer's own error as it is, so that its kind (a closed
-            // pipe, a full disk) reaches the caller.
-            write_chunk(self.out, b"IDAT", &self.buf[..cut]).map_err(|e| match e {
-                Error::Io(e) => e,
-                other => std::io::Error::other(other),
-            })?;
-            self.buf.drain(..cut);
+impl<W: Write + ?Sized> Idat<'_, W> {
+    /// Adds `data` to the stream: a chunk of what is held and `data` once
+    /// they are long enough (not copied first), else held.
+    fn push(&mut self, data: &[u8]) -> Result<()> {
+        if self.buf.len() + data.len() < IDAT_BYTES {
+            self.buf.extend_from_slice(data);
+            return Ok(());
         }
-        Ok(data.len())
-    }
-
-    fn flush(&mut self) -> std::io::Result<()> {
+        write_chunk_of(self.out, b"IDAT", &[&self.buf, data])?;
+        self.buf.clear();
         Ok(())
     }
-}
 
-impl<W: Write + ?Sized> Idat<'_, W> {
-    /// Takes the checksum the compressor wrote last.
-    fn take_trailer(&mut self) -> Result<u32> {
-        let n = self.buf.len();
-        if n < 4 {
-            return Err(Error::Encode("deflate stream without its checksum".into()));
-        }
-        let t = u32::from_be_bytes([self.buf[n - 4], self.buf[n - 3], self.buf[n - 2], self.buf[n - 1]]);
-        self.buf.truncate(n - 4);
-        Ok(t)
-    }
-
-    /// Writes what is buffered as the last IDAT chunk.
+    /// Writes what is held as the last IDAT chunk.
     fn flush_chunk(&mut self) -> Result<()> {
         write_chunk(self.out, b"IDAT", &self.buf)?;
         self.buf.clear();
         Ok(())
     }
-}
-
-/// Bytes of `len` bytes of data as deflate stored blocks.
-fn stored_len(len: usize) -> usize {
-    len + 5 * len.div_ceil(STORED_MAX).max(1)
-}
-
-const STORED_MAX: usize = 65535;
-
-/// Appends `data` as non-final deflate stored blocks, starting on a byte
-/// boundary (after the zlib header).
-fn put_stored(data: &[u8], out: &mut Vec<u8>) {
-    let mut blocks = data.chunks(STORED_MAX).peekable();
-    if blocks.peek().is_none() {
-        out.extend_from_slice(&[0, 0, 0, 0xff, 0xff]);
-    }
-    for block in blocks {
-        let len = block.len() as u16;
-        out.push(0); // BFINAL 0, BTYPE 00 (stored), then padding to the byte
-        out.extend_from_slice(&len.to_le_bytes());
-        out.extend_from_slice(&(!len).to_le_bytes());
-        out.extend_from_slice(block);
-    }
-}
-
-/// Adler-32 of `data`, as zlib computes it.
-fn adler32(data: &[u8]) -> u32 {
-    let (mut a, mut b) = (1u32, 0u32);
-    // 5552 bytes is the most that can be summed before b overflows.
-    for chunk in data.chunks(5552) {
-        for &x in chunk {
-            a += u32::from(x);
-            b += a;
-        }
-        a %= 65521;
-        b %= 65521;
-    }
-    (b << 16) | a
-}
-
-/// The Adler-32 of two byte strings one after the other, from theirs and
-/// the second one's length (zlib's adler32_combine).
-fn adler32_combine(first: u32, second: u32, second_len: u64) -> u32 {
-    const BASE: u64 = 65521;
-    let rem = second_len % BASE;
-    let (a1, b1) = (u64::from(first & 0xffff), u64::from(first >> 16));
-    let (a2, b2) = (u64::from(second & 0xffff), u64::from(second >> 16));
-    let a = (a1 + a2 + BASE - 1) % BASE;
-    let b = (rem * a1 % BASE + b1 + b2 + BASE - rem) % BASE;
-    ((b << 16) | a) as u32
 }
 
 #[cfg(test)]
@@ -1026,32 +967,6 @@ mod tests {
             // More than one filter, one of them looking at the row above.
             let looks_up = used.iter().any(|&f| matches!(f, UP | AVG | PAETH));
             assert!(used.len() >= 2 && looks_up && used.iter().all(|&f| f <= PAETH), "way {way}: filters {used:?}");
-        }
-    }
-
-    #[test]
-    fn adler32_and_its_combination_match_the_definition() {
-        // Adler-32 of "Wikipedia", the usual worked example.
-        assert_eq!(adler32(b"Wikipedia"), 0x11e6_0398);
-        assert_eq!(adler32(b""), 1);
-        let data: Vec<u8> = (0..20000u32).map(|k| (k * 7 % 251) as u8).collect();
-        for cut in [0, 1, 5552, 11111, 20000] {
-            let (a, b) = data.split_at(cut);
-            assert_eq!(adler32_combine(adler32(a), adler32(b), b.len() as u64), adler32(&data), "cut {cut}");
-        }
-    }
-
-    #[test]
-    fn stored_blocks_inflate_to_their_data() {
-        for len in [0, 1, STORED_MAX, STORED_MAX + 1, 3 * STORED_MAX + 17] {
-            let data: Vec<u8> = (0..len).map(|k| (k % 253) as u8).collect();
-            let mut stream = vec![0x78, 0x01];
-            put_stored(&data, &mut stream);
-            assert_eq!(stream.len(), 2 + stored_len(len), "len {len}");
-            // A final empty stored block and the checksum close the stream.
-            stream.extend_from_slice(&[1, 0, 0, 0xff, 0xff]);
-            stream.extend_from_slice(&adler32(&data).to_be_bytes());
-            assert_eq!(fdeflate::decompress_to_vec(&stream).unwrap(), data, "len {len}");
         }
     }
 }
