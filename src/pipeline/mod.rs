@@ -294,7 +294,7 @@ where
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     let Stages { prepare, mut consume } = stages;
-    check_stream_memory::<H, T, B>(fit, tail.map_or(0, <[f64]>::len))?;
+    check_stream_memory::<H, T>(fit, tail.map_or(0, <[f64]>::len))?;
     let tail: Option<Vec<H>> = tail.map(|t| t.iter().map(|&v| H::from_f64(v)).collect());
     let tail = tail.as_deref();
     // Two bands in flight between stages keep every stage busy without
@@ -341,16 +341,17 @@ fn lit_greys(lamp: crate::shade::Lamp, normals: &[[f32; 3]], valid: &[f32], grey
 /// What is held at once, per texel of a band: the heights (`H`) of the
 /// band being decoded, two queued, two that the fit reads (the band and
 /// the rows above it) and one given back to the decoder; the normals (`T`)
-/// and what the encoder takes (`B`, counted as one more `T` and 4 bytes)
-/// of the band being fitted, two queued, the one being written and one
-/// given back to be filled again. Besides, a copy of the first 2r rows,
-/// the tail and a row of heights for `visit`.
-fn check_stream_memory<H, T, B>(fit: &BandFit, tail_len: usize) -> Result<()> {
+/// and what the encoder takes (counted as one more `T` and 4 bytes: a
+/// band's samples, or its bytes deflated or stored, never more) of the
+/// band being fitted, two queued, the one being written and one given
+/// back to be filled again. Besides, a copy of the first 2r rows, the
+/// tail and a row of heights for `visit`.
+fn check_stream_memory<H, T>(fit: &BandFit, tail_len: usize) -> Result<()> {
     let (w, h, r, band) = (fit.width() as u64, fit.height() as u64, fit.radius() as u64, fit.band_rows() as u64);
     // No more rows than the image has.
     let height_rows = (6 * band).min(h);
     let output_rows = (5 * band).min(h);
-    let output_bytes = (2 * size_of::<T>() as u64 + 4).max(size_of::<B>() as u64);
+    let output_bytes = 2 * size_of::<T>() as u64 + 4;
     let head_rows = (2 * r).min(h);
     let height_bytes = size_of::<H>() as u64;
     let bytes = (height_rows + head_rows) * w * height_bytes
