@@ -4,6 +4,10 @@
 # slope`, and the lit view (`shade`, gdaldem's sun, to PNG and GeoTIFF)
 # against `gdaldem hillshade`, which write uncompressed GeoTIFF. Each command 3 times, in turn with its GDAL
 # counterpart; the best wall time and the highest peak RSS (/usr/bin/time).
+# Every output (and sidecar) is removed before each run, for both tools:
+# replacing a file makes the file system free the old one's blocks first
+# (50 ms for a 201 MB float output on this machine), which is not the
+# conversion's work.
 # Prints a Markdown table with the ratios and the load average: the
 # machine may be shared, so compare ratios from one run.
 #
@@ -35,6 +39,7 @@ dem=$work/dem$size.tif
 measure() {
   local best=999999 peak=0 t m
   for _ in 1 2 3; do
+    rm -f "$work"/n.* "$work"/lit.* "$work"/slope.tif "$work"/hillshade.tif
     /usr/bin/time -f '%e %M' -o "$work/time.txt" "$@" >/dev/null 2>"$work/stderr.txt" || { cat "$work/stderr.txt" >&2; exit 1; }
     read -r t m < "$work/time.txt"
     best=$(python3 -c "print(min($best, $t))")
@@ -45,15 +50,20 @@ measure() {
 
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
 echo
-echo "| ${size}² float32 GeoTIFF, 10 m | wall (best of 3) | peak RSS | GDAL | GDAL wall | GDAL RSS | speed-up |"
-echo "|---|---|---|---|---|---|---|"
+echo "| ${size}² float32 GeoTIFF, 10 m | wall (best of 3) | peak RSS | output | GDAL | GDAL wall | GDAL RSS | speed-up |"
+echo "|---|---|---|---|---|---|---|---|"
 row() {
   local label=$1 gdal_label=$2 gdal_cmd=$3; shift 3
   read -r t m < <(measure "$@")
+  # The output's size, from the argument after -o.
+  local out="" prev="" arg
+  for arg in "$@"; do [ "$prev" = "-o" ] && out=$arg; prev=$arg; done
+  local mb
+  mb=$(python3 -c "print(f'{$(stat -c %s "$out") / 1e6:.1f} MB')")
   # shellcheck disable=SC2086
   read -r tg mg < <(measure $gdal_cmd)
   ratio=$(python3 -c "print(f'{$tg / $t:.2f}×')")
-  echo "| $label | $t s | $m MiB | $gdal_label | $tg s | $mg MiB | $ratio |"
+  echo "| $label | $t s | $m MiB | $mb | $gdal_label | $tg s | $mg MiB | $ratio |"
 }
 slope="gdaldem slope -q $dem $work/slope.tif"
 hillshade="gdaldem hillshade -q $dem $work/hillshade.tif"
@@ -73,5 +83,13 @@ row "shade -s 0.1 --border clamp (sun 315°, 45°) → PNG" "hillshade" "$hillsh
   "$bin" shade "$dem" -o "$work/lit.png" -s 0.1 --border clamp
 row "shade -s 0.1 --border clamp (sun 315°, 45°) → GeoTIFF" "hillshade" "$hillshade" \
   "$bin" shade "$dem" -o "$work/lit.tif" -s 0.1 --border clamp
+echo
+# normalfit syncs every output to disk before putting it in place (an
+# output appears whole or not at all, after a crash too); gdaldem does
+# not. What that costs for a float normal map's bytes, on this disk:
+mib=$(( (size * size * 12 + (1 << 20) - 1) >> 20 ))
+read -r t _ < <(measure dd if=/dev/zero of="$work/n.dd" bs=1M count=$mib conv=fdatasync)
+echo "writing $mib MiB (a ${size}² float normal map's size) and syncing it, dd conv=fdatasync: $t s (best of 3)"
+rm -f "$work/n.dd"
 echo
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -463,8 +463,11 @@ impl NormalTexel for [f32; 3] {
                 TiffDepth::Eight => tiff_normals(&quantised::<[u8; 3]>(texels)?, heights, size, o, None, tags, out),
                 TiffDepth::Sixteen => tiff_normals(&quantised::<[u16; 3]>(texels)?, heights, size, o, None, tags, out),
                 TiffDepth::Float => {
-                    // n itself, or (n + 1)/2: the rule of EXR's samples.
-                    let store: fn(f32) -> f32 = |c| ExrOptions::new(ExrDepth::Float).stored(c);
+                    // n itself, or (n + 1)/2: the rule of EXR's samples,
+                    // as the streamed writer applies it.
+                    let rule = ExrOptions::new(ExrDepth::Float).with_signed(o.signed);
+                    let store = |texels: &mut [[f32; 3]]| rule.store_all(texels);
+                    let store: StoreInPlace<'_, f32> = &store;
                     tiff_normals(texels, heights, size, o, (!o.signed).then_some(store), tags, out)
                 }
             },
@@ -600,20 +603,24 @@ pub(crate) fn encode_gray_tagged<V: GrayValue>(
     V::encode(values, (width, height), encoding, tags, out)
 }
 
+/// A change made to a band of normals in place before they are written
+/// (a float TIFF's (n + 1)/2).
+type StoreInPlace<'a, S> = &'a (dyn Fn(&mut [[S; 3]]) + Sync);
+
 /// Rows of a TIFF handed to its writer at a time, from an image in memory.
 #[cfg(feature = "tiff")]
 const TIFF_BAND_ROWS: usize = 256;
 
 /// A TIFF normal map: its samples laid out as in a PNG (red-green maps
-/// with B = 0), each normal component changed by `store` if given (float
-/// samples: (n + 1)/2).
+/// with B = 0), each band's normals changed in place by `store` if given
+/// (float samples: (n + 1)/2), in parallel, before they are laid out.
 #[cfg(feature = "tiff")]
 fn tiff_normals<S: super::geotiff::TiffSample + Sample>(
     texels: &[[S; 3]],
     heights: &[f32],
     size: (usize, usize),
     options: &TiffOptions,
-    store: Option<fn(S) -> S>,
+    store: Option<StoreInPlace<'_, S>>,
     tags: TiffTags<'_>,
     out: impl Write + Seek,
 ) -> Result<()>
@@ -622,24 +629,26 @@ where
 {
     let layout = options.layout;
     let channels = layout.png_samples();
-    // Red-green maps' B is 0 as stored, not a component to store.
-    let components = if layout == Layout::Rg { 2 } else { 3 };
     let rows = size.0.saturating_mul(TIFF_BAND_ROWS).max(1);
     super::geotiff::write_tiff_rows(out, size, channels, tags, |push| {
         if layout == Layout::Rgb && store.is_none() {
             // Written as they are: no copy of the image.
             return texels.as_flattened().chunks(rows * 3).try_for_each(push);
         }
-        let mut samples = Vec::new();
-        texels.chunks(rows).enumerate().try_for_each(|(k, chunk)| {
-            let band_heights = if heights.is_empty() { heights } else { &heights[k * rows..][..chunk.len()] };
-            samples.clear();
-            lay_out(chunk, band_heights, layout, Container::Png, &mut samples);
-            if let Some(store) = &store {
-                for texel in samples.chunks_exact_mut(channels) {
-                    texel[..components].iter_mut().for_each(|c| *c = store(*c));
+        let (mut stored, mut samples) = (Vec::new(), Vec::new());
+        texels.chunks(rows).enumerate().try_for_each(|(k, band)| {
+            let band_heights = if heights.is_empty() { heights } else { &heights[k * rows..][..band.len()] };
+            let band = match store {
+                Some(store) => {
+                    stored.clear();
+                    stored.extend_from_slice(band);
+                    stored.par_chunks_mut(1 << 14).for_each(store);
+                    &stored[..]
                 }
-            }
+                None => band,
+            };
+            samples.clear();
+            lay_out(band, band_heights, layout, Container::Png, &mut samples);
             push(&samples)
         })
     })
@@ -652,7 +661,7 @@ fn tiff_normals<S>(
     _: &[f32],
     _: (usize, usize),
     _: &TiffOptions,
-    _: Option<fn(S) -> S>,
+    _: Option<StoreInPlace<'_, S>>,
     _: TiffTags<'_>,
     _: impl Write + Seek,
 ) -> Result<()> {

@@ -10,7 +10,7 @@ use crate::error::Result;
 use crate::fit::{BandFit, FromNormal};
 use crate::io::encoding::{ExrOptions, TiffDepth, TiffOptions};
 use crate::io::geotiff::{TiffSample, write_tiff_rows};
-use crate::io::write::{Container, ExrDepth, Sample, TiffTags, lay_out};
+use crate::io::write::{Container, ExrDepth, Layout, Sample, TiffTags, lay_out};
 use crate::options::Options;
 use crate::par::prelude::*;
 
@@ -31,63 +31,29 @@ pub(crate) fn convert_tiff_counting<W: Write + Seek>(
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<usize> {
-    let (w, h) = (rows.width(), rows.height());
-    let tail = checked_tail(tail, w, h, opts)?;
-    let fit = BandFit::new(w, h, opts)?.with_unit(rows.unit());
-    let job = (&fit, tail, options, tags);
+    let layout = options.layout;
+    let shape = (layout.png_samples(), Extra::of(layout));
     match options.depth {
-        TiffDepth::Eight => stream_normals::<u8, _>(rows, job, |_| (), visit, out)?,
-        TiffDepth::Sixteen => stream_normals::<u16, _>(rows, job, |_| (), visit, out)?,
+        TiffDepth::Eight => stream_tiff(rows, tail, opts, shape, tags, laid_out::<u8>(layout), visit, out),
+        TiffDepth::Sixteen => stream_tiff(rows, tail, opts, shape, tags, laid_out::<u16>(layout), visit, out),
         TiffDepth::Float => {
             // n itself, or (n + 1)/2: the rule of EXR's samples, in place
             // before the layout (a red-green map's B is then written 0).
             let rule = ExrOptions::new(ExrDepth::Float).with_signed(options.signed);
-            let store = |normals: &mut [[f32; 3]]| {
+            let mut lay_out = laid_out::<f32>(layout);
+            let samples = move |normals: &mut [[f32; 3]], heights: &[f32], samples: &mut Vec<f32>| {
                 normals.par_chunks_mut(1 << 14).for_each(|chunk| rule.store_all(chunk));
+                lay_out(normals, heights, samples);
             };
-            stream_normals::<f32, _>(rows, job, store, visit, out)?;
+            stream_tiff(rows, tail, opts, shape, tags, samples, visit, out)
         }
     }
-    Ok(fit.missing())
 }
 
-/// [`convert_tiff_counting`] with samples of type `S`, a band's normals
-/// stored by `store` (in place) before they are laid out.
-fn stream_normals<S, W: Write + Seek>(
-    rows: impl RowSource,
-    (fit, tail, options, tags): (&BandFit, Option<&[f64]>, TiffOptions, TiffTags<'_>),
-    store: impl Fn(&mut [[S; 3]]) + Send,
-    visit: impl FnMut(&[f32]) + Send,
-    out: W,
-) -> Result<()>
-where
-    S: TiffSample + Sample,
-    [S]: tiff::encoder::TiffValue,
-    [S; 3]: FromNormal + Default,
-{
-    let layout = options.layout;
-    let channels = layout.png_samples();
-    let (w, h) = (fit.width(), fit.height());
-    // A band's samples, once written, go back to be filled again: a new
-    // buffer for each band cost its page faults (a float band is 6 MiB at
-    // 4096 wide), as much processor time as the rest of the writing.
-    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<S>>(2);
-    write_tiff_rows(out, (w, h), channels, tags, |push| {
-        let prepare = move |_: Range<usize>, normals: &mut [[S; 3]], heights: Vec<f32>| {
-            store(normals);
-            let mut samples = spare_rx.try_recv().unwrap_or_default();
-            samples.clear();
-            lay_out(normals, &heights, layout, Container::Png, &mut samples);
-            samples
-        };
-        let consume = |_: usize, samples: Vec<S>| {
-            push(&samples)?;
-            // Dropped when two are waiting already.
-            let _ = spare_tx.try_send(samples);
-            Ok(())
-        };
-        run(rows, fit, tail, (false, Extra::of(layout)), visit, Stages { prepare, consume })
-    })
+/// A band's normals (and heights) appended in `layout`, as a PNG holds
+/// them.
+fn laid_out<S: Sample>(layout: Layout) -> impl FnMut(&mut [[S; 3]], &[f32], &mut Vec<S>) + Send {
+    move |normals, heights, samples| lay_out(normals, heights, layout, Container::Png, samples)
 }
 
 /// A height map's lit view, an 8-bit grey TIFF with `tags` (see
@@ -106,17 +72,58 @@ pub(crate) fn shade_tiff<W: Write + Seek>(
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<usize> {
+    let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
+    let greys = move |normals: &mut [[f32; 3]], valid: &[f32], grey: &mut Vec<u8>| {
+        grey.resize(normals.len(), 0);
+        super::lit_greys(lamp, normals, valid, grey);
+    };
+    stream_tiff(rows, tail, opts, (1, extra), tags, greys, visit, out)
+}
+
+/// Fits `rows` band by band into a TIFF of `channels` samples `S` a
+/// texel, with `tags`: `samples` turns a band's texels `T` (and what
+/// `extra` asks for beside them) into its samples, appended to a buffer
+/// that is written on the caller's thread as it comes. Returns the count
+/// of missing texels.
+///
+/// `tail` (the image's last rows) is needed for a wrap in y, as for
+/// [`super::convert_exr`].
+#[expect(clippy::too_many_arguments, reason = "the conversion's parts, as its callers take them")]
+fn stream_tiff<S, T, W: Write + Seek>(
+    rows: impl RowSource,
+    tail: Option<&[f64]>,
+    opts: &Options,
+    (channels, extra): (usize, Extra),
+    tags: TiffTags<'_>,
+    mut samples: impl FnMut(&mut [T], &[f32], &mut Vec<S>) + Send,
+    visit: impl FnMut(&[f32]) + Send,
+    out: W,
+) -> Result<usize>
+where
+    S: TiffSample + Send,
+    [S]: tiff::encoder::TiffValue,
+    T: FromNormal + Default,
+{
     let (w, h) = (rows.width(), rows.height());
     let tail = checked_tail(tail, w, h, opts)?;
     let fit = BandFit::new(w, h, opts)?.with_unit(rows.unit());
-    let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
-    write_tiff_rows(out, (w, h), 1, tags, |push| {
-        let prepare = |_: Range<usize>, normals: &mut [[f32; 3]], valid: Vec<f32>| {
-            let mut grey = vec![0u8; normals.len()];
-            super::lit_greys(lamp, normals, &valid, &mut grey);
-            grey
+    // A band's samples, once written, go back to be filled again: a new
+    // buffer for each band cost its page faults (a float band is 6 MiB at
+    // 4096 wide), as much processor time as the rest of the writing.
+    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<S>>(2);
+    write_tiff_rows(out, (w, h), channels, tags, |push| {
+        let prepare = move |_: Range<usize>, texels: &mut [T], extra: Vec<f32>| {
+            let mut band = spare_rx.try_recv().unwrap_or_default();
+            band.clear();
+            samples(texels, &extra, &mut band);
+            band
         };
-        let consume = |_: usize, grey: Vec<u8>| push(&grey);
+        let consume = |_: usize, band: Vec<S>| {
+            push(&band)?;
+            // Dropped when two are waiting already.
+            let _ = spare_tx.try_send(band);
+            Ok(())
+        };
         run(rows, &fit, tail, (false, extra), visit, Stages { prepare, consume })
     })?;
     Ok(fit.missing())

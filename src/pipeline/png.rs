@@ -25,7 +25,7 @@ use crate::par::prelude::*;
 
 mod deflate;
 
-use self::deflate::{Checksum, FINAL_BLOCK, Piece, ZLIB_HEADER, stored_len};
+use self::deflate::{Checksum, FINAL_BLOCK, Piece, Pieces, ZLIB_HEADER, stored_len};
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
@@ -518,6 +518,10 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     // The filtered rows, filled again band after band: a new buffer each
     // band would be zeroed first (1 to 2 % of a 32768² conversion).
     let mut filtered = Vec::new();
+    let mut pieces = Pieces::new(!adaptive);
+    // Pieces' buffers, once written, come back to be filled again (their
+    // pages mapped already), a few bands' worth at most.
+    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<u8>>(32);
     let needs_heights = texels.needs_heights();
     let prepare = move |rows: Range<usize>, normals: &mut [P::Normal], heights: Vec<f32>| -> Vec<Piece> {
         let raw = texels.raw(normals, &heights);
@@ -530,7 +534,7 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
             filtered =
                 filter_rows(&raw, stride, texel_bytes, prior.as_deref(), adaptive, std::mem::take(&mut filtered));
             prior = Some(raw[raw.len() - stride..].to_vec());
-            Piece::deflated(&filtered, !adaptive)
+            pieces.push(&filtered, rows.end == h, || spare_rx.try_recv().ok())
         }
     };
     let consume = |y0: usize, pieces: Vec<Piece>| -> Result<()> {
@@ -540,6 +544,8 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
             } else {
                 idat.push(&piece.bytes)?;
                 rest = rest.then(piece.sum);
+                // Dropped when enough are waiting already.
+                let _ = spare_tx.try_send(piece.bytes);
             }
         }
         Ok(())
@@ -967,6 +973,32 @@ mod tests {
             // More than one filter, one of them looking at the row above.
             let looks_up = used.iter().any(|&f| matches!(f, UP | AVG | PAETH));
             assert!(used.len() >= 2 && looks_up && used.iter().all(|&f| f <= PAETH), "way {way}: filters {used:?}");
+        }
+    }
+
+    /// The file's bytes, not only its texels, do not depend on the number
+    /// of threads, which sets the rows of a band: deflate's pieces lie at
+    /// fixed places of the stream.
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn the_bytes_do_not_depend_on_the_number_of_threads() {
+        // Rows of 3 · 6 · 1500 bytes: a 16-bit band of 2 × 64 rows holds
+        // several pieces, and pieces cross bands.
+        let (w, h) = (1500, 300);
+        let heights = heights(w, h, 40);
+        let opts = Options::new().with_patch(5).with_strength(crate::options::Strength::Scale(30.0));
+        for depth in [PngDepth::Eight, PngDepth::Sixteen] {
+            for compression in [PngCompression::Fast, PngCompression::Default] {
+                let png = PngOptions::new(depth).with_compression(compression);
+                let run = |threads: usize| {
+                    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                    pool.install(|| both_ways(&heights, w, &opts, png))
+                };
+                let serial = run(1);
+                for threads in [2, 3, 5] {
+                    assert!(run(threads) == serial, "{depth:?} {compression:?}, {threads} threads");
+                }
+            }
         }
     }
 }

@@ -69,25 +69,67 @@ impl Piece {
         put_stored(data, &mut bytes);
         Piece { bytes, sum: Checksum::of(data) }
     }
+}
 
-    /// `data` deflated in pieces of about `data.len()` / (2 × threads)
-    /// bytes (at least [`MIN_PIECE`]) on rayon's pool, in order. With
-    /// `probe`, data whose first [`PROBE`] bytes deflate shrinks by less
-    /// than a tenth is stored instead: deflating it would cost more time
-    /// than it saves bytes (16-bit normal maps, whose low bytes are noise).
-    pub fn deflated(data: &[u8], probe: bool) -> Vec<Piece> {
-        let size = data.len().div_ceil(2 * crate::par::current_num_threads()).max(MIN_PIECE);
-        if probe && !worth_deflating(data) {
-            data.par_chunks(size).map(|piece| Piece::stored(piece, Vec::new())).collect()
-        } else {
-            data.par_chunks(size).map(deflate_piece).collect()
+/// A zlib stream's data given part after part (the rows of a band),
+/// deflated in pieces of [`PIECE`] bytes at fixed places from its start,
+/// the last one shorter: the bytes written do not depend on where the
+/// parts end (a band's rows depend on the number of threads). The pieces
+/// a part completes are deflated in parallel on rayon's pool.
+pub(super) struct Pieces {
+    /// The data of the piece not yet complete.
+    pending: Vec<u8>,
+    /// Whether a piece whose first [`PROBE`] bytes deflate shrinks by
+    /// less than a tenth is stored instead: deflating it would cost more
+    /// time than it saves bytes (16-bit normal maps, whose low bytes are
+    /// noise).
+    probe: bool,
+}
+
+/// Bytes of data in a piece. Each costs fdeflate's 54-byte table and 4
+/// to 5 bytes of stored block.
+pub(super) const PIECE: usize = 1 << 18;
+
+impl Pieces {
+    pub fn new(probe: bool) -> Pieces {
+        Pieces { pending: Vec::new(), probe }
+    }
+
+    /// The pieces that `data`, the next part, completes, in order; with
+    /// `last`, every piece left. Each piece's bytes go into a buffer from
+    /// `spare` (one written already, say, whose pages are mapped), or a
+    /// new one.
+    pub fn push(&mut self, mut data: &[u8], last: bool, mut spare: impl FnMut() -> Option<Vec<u8>>) -> Vec<Piece> {
+        if !self.pending.is_empty() {
+            let take = (PIECE - self.pending.len()).min(data.len());
+            self.pending.extend_from_slice(&data[..take]);
+            data = &data[take..];
+            if self.pending.len() < PIECE && !last {
+                return Vec::new();
+            }
         }
+        let whole = if last { data.len() } else { data.len() - data.len() % PIECE };
+        let (now, rest) = data.split_at(whole);
+        let first = (!self.pending.is_empty()).then_some(&self.pending[..]);
+        let parts: Vec<&[u8]> = first.into_iter().chain(now.chunks(PIECE)).collect();
+        let buffers: Vec<Vec<u8>> = parts.iter().map(|_| spare().unwrap_or_default()).collect();
+        let probe = self.probe;
+        let pieces = parts
+            .into_par_iter()
+            .zip(buffers.into_par_iter())
+            .map(|(part, buffer)| {
+                if probe && !worth_deflating(part) { Piece::stored(part, buffer) } else { deflate_piece(part, buffer) }
+            })
+            .collect();
+        self.pending.clear();
+        self.pending.extend_from_slice(rest);
+        pieces
     }
 }
 
-/// Bytes that [`Piece::deflated`] deflates first, to see whether the
+/// Bytes of a piece that [`Pieces`] deflates first, to see whether the
 /// rest is worth it.
-pub(super) const PROBE: usize = 1 << 14;
+pub(super) const PROBE: usize = 1 << 12;
 
 /// Whether deflate shrinks the start of `data` by a tenth or more.
 fn worth_deflating(data: &[u8]) -> bool {
@@ -95,19 +137,38 @@ fn worth_deflating(data: &[u8]) -> bool {
     10 * fdeflate::compress_to_vec(probe).len() <= 9 * probe.len()
 }
 
-/// The smallest piece [`Piece::deflated`] cuts: each costs fdeflate's
-/// 54-byte table and 4 to 5 bytes of stored block.
-pub(super) const MIN_PIECE: usize = 1 << 16;
-
-/// `data` deflated by fdeflate as a piece.
-fn deflate_piece(data: &[u8]) -> Piece {
-    let mut compressor = fdeflate::Compressor::new(Vec::with_capacity(data.len() / 2 + 64)).expect("writing to memory");
+/// `data` deflated by fdeflate as a piece, in `buffer` (its contents
+/// replaced).
+fn deflate_piece(data: &[u8], mut buffer: Vec<u8>) -> Piece {
+    buffer.clear();
+    let body = Body { out: buffer, header: Vec::new() };
+    let mut compressor = fdeflate::Compressor::new(body).expect("writing to memory");
     compressor.write_data(data).expect("writing to memory");
-    let stream = compressor.finish().expect("writing to memory");
-    as_piece(stream, data.len() as u64).unwrap_or_else(|stream| Piece::stored(data, stream))
+    let body = compressor.finish().expect("writing to memory");
+    as_piece(body, data.len() as u64).unwrap_or_else(|out| Piece::stored(data, out))
 }
 
-/// fdeflate's zlib stream of `len` bytes as a piece, in place; the stream
+/// A zlib stream written to memory without its 2-byte header (kept apart,
+/// to be checked): a piece's bytes start where they are to stay.
+struct Body {
+    out: Vec<u8>,
+    header: Vec<u8>,
+}
+
+impl std::io::Write for Body {
+    fn write(&mut self, data: &[u8]) -> std::io::Result<usize> {
+        let to_header = (ZLIB_HEADER.len() - self.header.len()).min(data.len());
+        self.header.extend_from_slice(&data[..to_header]);
+        self.out.extend_from_slice(&data[to_header..]);
+        Ok(data.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// fdeflate's zlib stream of `len` bytes as a piece, in place; its buffer
 /// back if it is not the shape this relies on.
 ///
 /// The shape: the zlib header (2 bytes); one block, final, with its own
@@ -115,15 +176,14 @@ fn deflate_piece(data: &[u8]) -> Piece {
 /// byte), whose end-of-block code (111111110001, sent in that order) ends
 /// in a 1 bit, followed by 0 bits up to the byte boundary; the Adler-32
 /// (4 bytes, big-endian).
-fn as_piece(mut stream: Vec<u8>, len: u64) -> Result<Piece, Vec<u8>> {
+fn as_piece(Body { out: mut stream, header }: Body, len: u64) -> Result<Piece, Vec<u8>> {
     let n = stream.len();
-    if n < 2 + 2 + 4 || stream[..2] != ZLIB_HEADER || stream[2] & 0b111 != 0b101 || stream[n - 5] == 0 {
+    if header != ZLIB_HEADER || n < 2 + 4 || stream[0] & 0b111 != 0b101 || stream[n - 5] == 0 {
         return Err(stream);
     }
     let adler = u32::from_be_bytes([stream[n - 4], stream[n - 3], stream[n - 2], stream[n - 1]]);
     let last = stream[n - 5];
     stream.truncate(n - 4);
-    stream.drain(..2);
     // Not the last block.
     stream[0] &= !1;
     // An empty stored block: its 3 header bits (BFINAL 0, BTYPE 00) are
@@ -159,19 +219,11 @@ fn put_stored(data: &[u8], out: &mut Vec<u8>) {
     }
 }
 
-/// Adler-32 of `data`, as zlib computes it.
+/// Adler-32 of `data`, as zlib computes it (`simd-adler32`'s, which
+/// fdeflate uses too: a loop of a byte at a time here took 7 % of a
+/// 16-bit PNG's processor time).
 fn adler32(data: &[u8]) -> u32 {
-    let (mut a, mut b) = (1u32, 0u32);
-    // 5552 bytes is the most that can be summed before b overflows.
-    for chunk in data.chunks(5552) {
-        for &x in chunk {
-            a += u32::from(x);
-            b += a;
-        }
-        a %= 65521;
-        b %= 65521;
-    }
-    (b << 16) | a
+    simd_adler32::adler32(&data)
 }
 
 /// The Adler-32 of two byte strings one after the other, from theirs and
@@ -189,6 +241,11 @@ fn adler32_combine(first: u32, second: u32, second_len: u64) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// No spare buffers.
+    fn none() -> Option<Vec<u8>> {
+        None
+    }
 
     /// A zlib stream of `pieces`, one after the other.
     fn stream_of(pieces: &[&Piece]) -> Vec<u8> {
@@ -250,7 +307,7 @@ mod tests {
         // ends at every bit of a byte; each is a piece, not stored.
         for len in 0..200 {
             let data = filtered_like(len, len as u64 + 7);
-            let piece = deflate_piece(&data);
+            let piece = deflate_piece(&data, vec![9; 3]);
             let stored = Piece::stored(&data, Vec::new());
             assert_ne!(piece.bytes, stored.bytes, "len {len}: stored, not deflated");
             assert_eq!(piece.sum, Checksum::of(&data), "len {len}");
@@ -260,7 +317,7 @@ mod tests {
 
     #[test]
     fn pieces_joined_inflate_as_one_stream_and_as_the_png_crate_reads_them() {
-        let data = filtered_like(5 * MIN_PIECE + 12345, 42);
+        let data = filtered_like(3 * PIECE + 12345, 42);
         // Pieces of every kind, cut anywhere, in order.
         let cuts = [0, 1, 9, 700, 70_000, 70_003, 200_000, data.len()];
         let pieces: Vec<Piece> = cuts
@@ -268,7 +325,7 @@ mod tests {
             .enumerate()
             .map(|(k, c)| {
                 let part = &data[c[0]..c[1]];
-                if k % 3 == 2 { Piece::stored(part, Vec::new()) } else { deflate_piece(part) }
+                if k % 3 == 2 { Piece::stored(part, Vec::new()) } else { deflate_piece(part, Vec::new()) }
             })
             .collect();
         let stream = stream_of(&pieces.iter().collect::<Vec<_>>());
@@ -276,19 +333,48 @@ mod tests {
         // A second inflater.
         let inflated = miniz_oxide::inflate::decompress_to_vec_zlib(&stream).unwrap();
         assert_eq!(inflated, data);
-        // In parallel, whole: cut into more than one piece, and smaller
-        // than the input.
-        let whole = Piece::deflated(&data, false);
+        // Given in parts cut anywhere: the same pieces as given whole,
+        // several of them, smaller than the data.
+        let whole = Pieces::new(false).push(&data, true, none);
         assert!(whole.len() > 1, "{} pieces", whole.len());
+        let mut pieces = Pieces::new(false);
+        let mut parted = Vec::new();
+        for c in [0, 5, 70_000, 70_001, 600_000, data.len()].windows(2) {
+            parted.extend(pieces.push(&data[c[0]..c[1]], c[1] == data.len(), || Some(vec![7; 100])));
+        }
+        let bytes = |ps: &[Piece]| ps.iter().map(|p| p.bytes.clone()).collect::<Vec<_>>();
+        assert_eq!(bytes(&parted), bytes(&whole));
         let sum = whole.iter().fold(Checksum::EMPTY, |sum, p| sum.then(p.sum));
         assert_eq!(sum, Checksum::of(&data));
-        let bytes: usize = whole.iter().map(|p| p.bytes.len()).sum();
-        assert!(bytes < data.len(), "{bytes} bytes");
+        let size: usize = whole.iter().map(|p| p.bytes.len()).sum();
+        assert!(size < data.len(), "{size} bytes");
         assert_eq!(fdeflate::decompress_to_vec(&stream_of(&whole.iter().collect::<Vec<_>>())).unwrap(), data);
-        let empty = Piece::deflated(&[], false);
-        assert_eq!(
-            fdeflate::decompress_to_vec(&stream_of(&empty.iter().collect::<Vec<_>>())).unwrap(),
-            Vec::<u8>::new()
-        );
+        assert!(Pieces::new(false).push(&[], true, none).is_empty());
+    }
+
+    #[test]
+    fn the_probe_stores_what_deflate_barely_shrinks() {
+        // Noise: stored with the probe, deflated (and larger) without.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let noise: Vec<u8> = (0..PIECE + 100)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state as u8
+            })
+            .collect();
+        let stored: Vec<Vec<u8>> = noise.chunks(PIECE).map(|part| Piece::stored(part, Vec::new()).bytes).collect();
+        let probed = Pieces::new(true).push(&noise, true, none);
+        assert_eq!(probed.iter().map(|p| p.bytes.clone()).collect::<Vec<_>>(), stored);
+        let deflated = Pieces::new(false).push(&noise, true, none);
+        assert!(deflated.iter().zip(&stored).all(|(d, s)| d.bytes.len() > s.len()));
+        // Filtered rows: deflated either way.
+        let rows = filtered_like(PIECE, 3);
+        assert_eq!(Pieces::new(true).push(&rows, true, none)[0].bytes, deflate_piece(&rows, Vec::new()).bytes);
+        for pieces in [probed, deflated] {
+            let stream = stream_of(&pieces.iter().collect::<Vec<_>>());
+            assert_eq!(fdeflate::decompress_to_vec(&stream).unwrap(), noise);
+        }
     }
 }
