@@ -11,9 +11,10 @@
 //! alternating runs on 2 cores (`cargo run --release --example
 //! png_stream_bench -- 4096 7`): ours 0.200 s, StreamWriter with the same
 //! filter (Avg) and deflate (fdeflate) 0.485 s, with its adaptive filter
-//! 0.521 s; the same 10.1 MiB (9.7 MiB adaptive), the same texels. The format is small and pinned by this module's tests
-//! (decoded by the `png` crate at every depth, layout and filter setting,
-//! chunk CRCs, IDAT splits, the stored top rows).
+//! 0.521 s; the same 10.1 MiB (9.7 MiB adaptive), the same texels. The
+//! format is small and pinned by this module's tests (decoded by the `png`
+//! crate at every depth, layout and filter setting, chunk CRCs, IDAT
+//! splits, the stored top rows, the same bytes whatever the threads).
 
 use std::borrow::Cow;
 use std::fs::File;
@@ -520,16 +521,16 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     let mut filtered = Vec::new();
     let mut pieces = Pieces::new(!adaptive);
     // Pieces' buffers, once written, come back to be filled again (their
-    // pages mapped already), a few bands' worth at most.
-    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<u8>>(32);
+    // pages mapped already): 16 at most, 4 MiB.
+    let (spare_tx, spare_rx) = std::sync::mpsc::sync_channel::<Vec<u8>>(16);
     let needs_heights = texels.needs_heights();
     let prepare = move |rows: Range<usize>, normals: &mut [P::Normal], heights: Vec<f32>| -> Vec<Piece> {
         let raw = texels.raw(normals, &heights);
         if deferred && rows.start == 0 {
             // Stored as they are: filter type 0 before each row.
-            let rows: Vec<u8> =
+            let unfiltered: Vec<u8> =
                 raw.chunks_exact(stride).flat_map(|row| std::iter::once(0).chain(row.iter().copied())).collect();
-            vec![Piece::stored(&rows, Vec::new())]
+            vec![Piece::stored(&unfiltered, Vec::new())]
         } else {
             filtered =
                 filter_rows(&raw, stride, texel_bytes, prior.as_deref(), adaptive, std::mem::take(&mut filtered));

@@ -6,7 +6,7 @@
 //! ends its stream: its last block is marked final, its bits stop in the
 //! middle of a byte, and its Adler-32 is its data's only. A [`Piece`] is
 //! made to join others: its block is not final, it ends on a byte boundary
-//! (an empty stored block, as zlib's full flush writes), and it keeps its
+//! (an empty stored block, as zlib's sync flush writes), and it keeps its
 //! Adler-32, which [`adler32_combine`] joins with the others'. Pieces are
 //! then written one after the other, between [`ZLIB_HEADER`] and
 //! [`FINAL_BLOCK`] and the checksum, and inflate as one stream.
@@ -16,10 +16,12 @@
 //! relies on, is checked on every piece (one that is not as expected is
 //! stored instead, never wrong) and pinned by this module's tests.
 //!
-//! Why: deflate was the one part of a streamed PNG on a single thread.
-//! Measured on the 4096² GeoTIFF of `bench/terrain.sh` to a 16-bit PNG,
-//! 2 cores: 0.21 s with deflate on the writing thread, 0.11 s without
-//! deflate at all (an invalid file, for the measure).
+//! Why: deflate was the one part of a streamed PNG on a single thread, and
+//! pieces let a piece that deflate barely shrinks be stored. Measured on
+//! the 4096² GeoTIFF of `bench/terrain.sh` to a 16-bit PNG, 2 cores: 0.21
+//! s with deflate on the writing thread, 0.11 s without deflate at all (an
+//! invalid file, for the measure); with pieces, 0.13–0.14 s (see
+//! docs/speed.md).
 
 use crate::par::prelude::*;
 
