@@ -104,7 +104,7 @@ pub enum PngDepth {
 /// deflate would shrink by less than a tenth (16-bit maps, whose low bytes
 /// are noise: 4 % larger, in 28 % less processor time); `Default` and
 /// `Best` choose each row's filter (19.9 MiB, the filtering taking twice
-/// as long) and always deflate.
+/// as long) and deflate every row, unless that makes it larger.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub struct PngOptions {

@@ -140,14 +140,25 @@ fn worth_deflating(data: &[u8]) -> bool {
 }
 
 /// `data` deflated by fdeflate as a piece, in `buffer` (its contents
-/// replaced).
-fn deflate_piece(data: &[u8], mut buffer: Vec<u8>) -> Piece {
+/// replaced); stored instead if that is smaller (deflate can grow noise by
+/// half, its table being made for filtered rows) or if fdeflate's stream
+/// is not as expected.
+fn deflate_piece(data: &[u8], buffer: Vec<u8>) -> Piece {
+    match fdeflated(data, buffer) {
+        Ok(piece) if piece.bytes.len() <= stored_len(data.len()) => piece,
+        Ok(Piece { bytes, .. }) | Err(bytes) => Piece::stored(data, bytes),
+    }
+}
+
+/// `data` deflated by fdeflate as a piece, in `buffer` (its contents
+/// replaced); the buffer back if fdeflate's stream is not as expected.
+fn fdeflated(data: &[u8], mut buffer: Vec<u8>) -> Result<Piece, Vec<u8>> {
     buffer.clear();
     let body = Body { out: buffer, header: Vec::new() };
     let mut compressor = fdeflate::Compressor::new(body).expect("writing to memory");
     compressor.write_data(data).expect("writing to memory");
     let body = compressor.finish().expect("writing to memory");
-    as_piece(body, data.len() as u64).unwrap_or_else(|out| Piece::stored(data, out))
+    as_piece(body, data.len() as u64)
 }
 
 /// A zlib stream written to memory without its 2-byte header (kept apart,
@@ -309,9 +320,7 @@ mod tests {
         // ends at every bit of a byte; each is a piece, not stored.
         for len in 0..200 {
             let data = filtered_like(len, len as u64 + 7);
-            let piece = deflate_piece(&data, vec![9; 3]);
-            let stored = Piece::stored(&data, Vec::new());
-            assert_ne!(piece.bytes, stored.bytes, "len {len}: stored, not deflated");
+            let piece = fdeflated(&data, vec![9; 3]).expect("fdeflate's stream as expected");
             assert_eq!(piece.sum, Checksum::of(&data), "len {len}");
             assert_eq!(fdeflate::decompress_to_vec(&stream_of(&[&piece])).unwrap(), data, "len {len}");
         }
@@ -356,7 +365,8 @@ mod tests {
 
     #[test]
     fn the_probe_stores_what_deflate_barely_shrinks() {
-        // Noise: stored with the probe, deflated (and larger) without.
+        // Noise: stored with the probe without deflating it, and stored
+        // without the probe too, deflate making it larger.
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let noise: Vec<u8> = (0..PIECE + 100)
             .map(|_| {
@@ -369,11 +379,16 @@ mod tests {
         let stored: Vec<Vec<u8>> = noise.chunks(PIECE).map(|part| Piece::stored(part, Vec::new()).bytes).collect();
         let probed = Pieces::new(true).push(&noise, true, none);
         assert_eq!(probed.iter().map(|p| p.bytes.clone()).collect::<Vec<_>>(), stored);
+        assert!(!worth_deflating(&noise));
         let deflated = Pieces::new(false).push(&noise, true, none);
-        assert!(deflated.iter().zip(&stored).all(|(d, s)| d.bytes.len() > s.len()));
-        // Filtered rows: deflated either way.
+        assert_eq!(deflated.iter().map(|p| p.bytes.clone()).collect::<Vec<_>>(), stored);
+        assert!(fdeflated(&noise[..PIECE], Vec::new()).unwrap().bytes.len() > stored[0].len());
+        // Filtered rows: deflated either way, smaller.
         let rows = filtered_like(PIECE, 3);
-        assert_eq!(Pieces::new(true).push(&rows, true, none)[0].bytes, deflate_piece(&rows, Vec::new()).bytes);
+        assert!(worth_deflating(&rows));
+        let piece = Pieces::new(true).push(&rows, true, none).remove(0);
+        assert_eq!(piece.bytes, fdeflated(&rows, Vec::new()).unwrap().bytes);
+        assert!(piece.bytes.len() < rows.len());
         for pieces in [probed, deflated] {
             let stream = stream_of(&pieces.iter().collect::<Vec<_>>());
             assert_eq!(fdeflate::decompress_to_vec(&stream).unwrap(), noise);
