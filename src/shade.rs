@@ -377,6 +377,27 @@ pub fn tile_2x2(pixels: &[u8], width: usize, height: usize) -> Result<Vec<u8>> {
 mod tests {
     use super::*;
 
+    /// The command line's and Python's rule: a light, a sun angle (the
+    /// other the default's), or neither; not both, nor an angle out of
+    /// range.
+    #[test]
+    fn the_lighting_chosen_is_a_light_a_sun_or_the_default() {
+        let base = LitOptions::new();
+        let light = Light::new(45.0, 60.0).unwrap();
+        let chosen = |l: Option<Light>, az: Option<f64>, alt: Option<f64>| base.clone().with_lighting(l, az, alt);
+        let none = chosen(None, None, None).unwrap();
+        assert_eq!((none.light, none.sun), (Light::default(), SunChoice::Georeferenced(Sun::default())));
+        let lit = chosen(Some(light), None, None).unwrap();
+        assert_eq!((lit.light, lit.sun), (light, SunChoice::Off));
+        let sun = |az, alt| SunChoice::Always(Sun::new(az, alt).unwrap());
+        assert_eq!(chosen(None, Some(200.0), None).unwrap().sun, sun(200.0, 45.0));
+        assert_eq!(chosen(None, None, Some(30.0)).unwrap().sun, sun(315.0, 30.0));
+        assert_eq!(chosen(None, Some(90.0), Some(10.0)).unwrap().sun, sun(90.0, 10.0));
+        for (l, az, alt) in [(Some(light), Some(1.0), None), (Some(light), None, Some(1.0)), (None, None, Some(95.0))] {
+            assert!(matches!(chosen(l, az, alt), Err(Error::InvalidOption(_))), "{l:?} {az:?} {alt:?}");
+        }
+    }
+
     /// A row of greys under the sun (the vectorised loop) is each texel's
     /// grey as the plain formula gives it, with its saturating cast: on
     /// every level, on unnormalised, zero, infinite and NaN normals, and on
@@ -595,6 +616,35 @@ impl LitOptions {
     pub fn with_sun(mut self, sun: SunChoice) -> LitOptions {
         self.sun = sun;
         self
+    }
+
+    /// With the lighting a caller chose (`normalfit shade`'s `--light`,
+    /// `--azimuth` and `--altitude`; Python's `lit_view`): a `light`, the
+    /// texture view's for every input; else a sun angle, the GIS sun for
+    /// every input (the other angle [`Sun::default`]'s); else neither, the
+    /// default (the sun for georeferenced inputs, the default light for the
+    /// others).
+    ///
+    /// Errors: [`Error::InvalidOption`] for a light and a sun angle both,
+    /// or a sun angle out of range ([`Sun::new`]).
+    pub fn with_lighting(
+        self,
+        light: Option<Light>,
+        azimuth: Option<f64>,
+        altitude: Option<f64>,
+    ) -> Result<LitOptions> {
+        match (light, azimuth, altitude) {
+            (Some(_), Some(_), _) | (Some(_), _, Some(_)) => Err(Error::InvalidOption(
+                "a light (the texture view's) or the sun's azimuth and altitude, not both".into(),
+            )),
+            (Some(light), None, None) => Ok(self.with_light(light)),
+            (None, None, None) => Ok(self),
+            (None, azimuth, altitude) => {
+                let default = Sun::default();
+                let sun = Sun::new(azimuth.unwrap_or(default.azimuth_deg), altitude.unwrap_or(default.altitude_deg))?;
+                Ok(self.with_sun(SunChoice::Always(sun)))
+            }
+        }
     }
 
     /// The lamp for an image placed by `georef` (none: not georeferenced),

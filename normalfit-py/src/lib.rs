@@ -1058,11 +1058,13 @@ fn decode_normals<'py>(
 /// `lit_view` with every argument given (see `normalfit.lit_view`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode))]
+#[pyo3(signature = (path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode))]
 fn lit_view<'py>(
     py: Python<'py>,
     path: PathBuf,
-    light: (f64, f64),
+    light: Option<(f64, f64)>,
+    azimuth: Option<f64>,
+    altitude: Option<f64>,
     tile: bool,
     kind: &str,
     channel: Option<String>,
@@ -1083,12 +1085,13 @@ fn lit_view<'py>(
     byte_order: Option<&str>,
     decode: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let light = Light::new(light.0, light.1).map_err(to_py_err)?;
+    let light = light.map(|(azimuth, elevation)| Light::new(azimuth, elevation)).transpose().map_err(to_py_err)?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let lit = LitOptions::new()
         .with_fit(opts)
         .with_borders(borders)
-        .with_light(light)
+        .with_lighting(light, azimuth, altitude)
+        .map_err(to_py_err)?
         .with_tile(tile)
         .with_kind(parse_named(kind)?)
         .with_channel(parse_channel(channel)?)

@@ -168,11 +168,24 @@ def test_normals_of_arrays_in_map_units_are_the_clis_texels(cli: Path, tmp_path:
 
 
 def test_lit_view_in_map_units_and_of_terrain_files_is_the_clis(cli: Path, tmp_path: Path) -> None:
-    # The shipped DEM in map units, lit by the texture light (lit_view's).
-    ours = normalfit.lit_view(DEM, units="map", border="clamp")
-    run_cli(cli, "shade", DEM, "--units", "map", "--border", "clamp", "--light", "135,35", "-o", tmp_path / "d.png")
-    assert np.array_equal(ours, read_png(tmp_path / "d.png"))
-    assert not np.array_equal(ours, normalfit.lit_view(DEM, border="clamp"))
+    # The shipped DEM in map units: by default lit by the GIS sun, as the
+    # command lights a GeoTIFF; or by a light; or by a sun given.
+    for kwargs, args in (
+        ({}, []),
+        ({"light": (135.0, 35.0)}, ["--light", "135,35"]),
+        ({"azimuth": 200.0}, ["--azimuth", "200"]),
+        ({"azimuth": 90.0, "altitude": 30.0}, ["--azimuth", "90", "--altitude", "30"]),
+    ):
+        ours = normalfit.lit_view(DEM, units="map", border="clamp", **kwargs)  # type: ignore[arg-type]
+        run_cli(cli, "shade", DEM, "--units", "map", "--border", "clamp", *args, "-o", tmp_path / "d.png")
+        assert np.array_equal(ours, read_png(tmp_path / "d.png")), kwargs
+    sun = normalfit.lit_view(DEM, units="map", border="clamp")
+    assert not np.array_equal(sun, normalfit.lit_view(DEM, units="map", border="clamp", light=(135.0, 35.0)))
+    assert not np.array_equal(sun, normalfit.lit_view(DEM, border="clamp"))
+    with pytest.raises(ValueError, match="not both"):
+        normalfit.lit_view(DEM, light=(135.0, 35.0), altitude=30.0)
+    with pytest.raises(ValueError, match="altitude must be from 0 to 90"):
+        normalfit.lit_view(DEM, altitude=95.0)
     # A RAW heightmap with a pixel size.
     heights = np.round(hills(32, 64) * 20).astype(np.uint16)
     raw = tmp_path / "terrain.r16"

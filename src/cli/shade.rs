@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::Path;
 
 use normalfit::io::ReadOptions;
-use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_format, lit_view_owned};
+use normalfit::shade::{LitOptions, lit_file_streamed, lit_format, lit_view_owned};
 use normalfit::units::MapSpacing;
 
 use super::args::ShadeArgs;
@@ -40,18 +40,11 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
     if let Destination::File(path) = &destination {
         lit_format(path).map_err(|e| Failure::file(path, e))?;
     }
-    let lit = LitOptions::new().with_fit(fit).with_borders(args.fit.border);
-    let lit = match (args.light, args.azimuth, args.altitude) {
-        (Some(light), _, _) => lit.with_light(light.0),
-        (None, None, None) => lit,
-        (None, azimuth, altitude) => {
-            let default = Sun::default();
-            let sun = Sun::new(azimuth.unwrap_or(default.azimuth_deg), altitude.unwrap_or(default.altitude_deg))
-                .map_err(|e| Failure::usage(e.to_string()))?;
-            lit.with_sun(SunChoice::Always(sun))
-        }
-    };
-    let lit = lit
+    let lit = LitOptions::new()
+        .with_fit(fit)
+        .with_borders(args.fit.border)
+        .with_lighting(args.light.map(|l| l.0), args.azimuth, args.altitude)
+        .map_err(|e| Failure::usage(e.to_string()))?
         .with_tile(args.tile)
         .with_kind(args.kind)
         .with_channel(args.channel.clone())

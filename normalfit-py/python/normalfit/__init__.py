@@ -252,7 +252,9 @@ def decode_normals(
 def lit_view(
     path: str | os.PathLike[str],
     *,
-    light: tuple[float, float] = (135.0, 35.0),
+    light: tuple[float, float] | None = None,
+    azimuth: float | None = None,
+    altitude: float | None = None,
     tile: bool = False,
     kind: str = "auto",
     channel: str | None = None,
@@ -278,7 +280,13 @@ def lit_view(
 
     light: (azimuth, elevation) in degrees: azimuth counter-clockwise from
         the image's right (135 = top-left), elevation above the surface
-        (0 to 90). tile: repeat 2 x 2 so wrap seams show. kind: "auto",
+        (0 to 90); the texture view's light, for every input (``shade
+        --light``). azimuth, altitude: the GIS sun instead, as ``gdaldem
+        hillshade`` (degrees clockwise from north, above the horizon;
+        315, 45 by default), for every input (``shade --azimuth
+        --altitude``). Neither: the sun for georeferenced inputs (a
+        GeoTIFF), the light (135, 35) for the others, as ``normalfit
+        shade``. tile: repeat 2 x 2 so wrap seams show. kind: "auto",
         "height" or "normal". signed: a float normal map holds n itself.
         units, pixel_size, band, size, byte_order, decode: as convert()'s
         (a height map fitted in map units, terrain files).
@@ -287,7 +295,7 @@ def lit_view(
     side when tiled), the pixels ``normalfit shade`` writes.
     """
     return _normalfit.lit_view(
-        path, light, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
+        path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
         max_texels, layer, units, None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode,
     )
 

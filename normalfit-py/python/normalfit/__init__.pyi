@@ -141,7 +141,9 @@ def decode_normals(
 def lit_view(
     path: _Path,
     *,
-    light: tuple[float, float] = (135.0, 35.0),
+    light: tuple[float, float] | None = None,
+    azimuth: float | None = None,
+    altitude: float | None = None,
     tile: bool = False,
     kind: Literal["auto", "height", "normal"] = "auto",
     channel: str | None = None,

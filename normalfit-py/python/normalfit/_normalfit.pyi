@@ -78,7 +78,9 @@ def convert(
 def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
 def lit_view(
     path: str | os.PathLike[str],
-    light: tuple[float, float],
+    light: tuple[float, float] | None,
+    azimuth: float | None,
+    altitude: float | None,
     tile: bool,
     kind: str,
     channel: str | None,
