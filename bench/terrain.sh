@@ -2,8 +2,9 @@
 # Times normalfit on a float32 GeoTIFF against GDAL's DEM tools, in one
 # run: normals (`convert`, to PNG, EXR and GeoTIFF) against `gdaldem
 # slope`, and the lit view (`shade`, gdaldem's sun, to PNG and GeoTIFF)
-# against `gdaldem hillshade`, which write uncompressed GeoTIFF. Each command 3 times, in turn with its GDAL
-# counterpart; the best wall time and the highest peak RSS (/usr/bin/time).
+# against `gdaldem hillshade`, which write uncompressed GeoTIFF. Each
+# command 5 times, in turn with its GDAL counterpart; the best wall time
+# and the highest peak RSS (/usr/bin/time).
 # Every output (and sidecar) is removed before each run, for both tools:
 # replacing a file makes the file system free the old one's blocks first
 # (50 ms for a 201 MB float output on this machine), which is not the
@@ -35,14 +36,20 @@ dem=$work/dem$size.tif
 [ -f "$dem" ] || gdal_translate -q -ot Float32 -scale 0 65535 0 2000 -a_srs EPSG:32633 \
   -a_ullr 500000 5000000 $((500000 + 10 * size)) $((5000000 - 10 * size)) "$h" "$dem"
 
-# best wall time (s) and highest peak RSS (MiB) of 3 runs of "$@"
+# best wall time (s) and highest peak RSS (MiB) of 5 runs of "$@": a run
+# takes about 0.1 s, and one in three may lose 10 to 20 ms to the machine.
+# The wall time is bash's clock around the run, to the millisecond
+# (/usr/bin/time's is to 10 ms, a tenth of a run); the peak RSS is
+# /usr/bin/time's.
 measure() {
-  local best=999999 peak=0 t m
-  for _ in 1 2 3; do
+  local best=999999 peak=0 t m start end
+  for _ in 1 2 3 4 5; do
     rm -f "$work"/n.* "$work"/lit.* "$work"/slope.tif "$work"/hillshade.tif
-    /usr/bin/time -f '%e %M' -o "$work/time.txt" "$@" >/dev/null 2>"$work/stderr.txt" || { cat "$work/stderr.txt" >&2; exit 1; }
-    read -r t m < "$work/time.txt"
-    best=$(python3 -c "print(min($best, $t))")
+    start=$EPOCHREALTIME
+    /usr/bin/time -f '%M' -o "$work/time.txt" "$@" >/dev/null 2>"$work/stderr.txt" || { cat "$work/stderr.txt" >&2; exit 1; }
+    end=$EPOCHREALTIME
+    read -r m < "$work/time.txt"
+    best=$(python3 -c "print(f'{min($best, $end - $start):.3f}')")
     peak=$(( m > peak ? m : peak ))
   done
   echo "$best $((peak / 1024))"
@@ -50,7 +57,7 @@ measure() {
 
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
 echo
-echo "| ${size}² float32 GeoTIFF, 10 m | wall (best of 3) | peak RSS | output | GDAL | GDAL wall | GDAL RSS | speed-up |"
+echo "| ${size}² float32 GeoTIFF, 10 m | wall (best of 5) | peak RSS | output | GDAL | GDAL wall | GDAL RSS | speed-up |"
 echo "|---|---|---|---|---|---|---|---|"
 row() {
   local label=$1 gdal_label=$2 gdal_cmd=$3; shift 3
@@ -89,7 +96,7 @@ echo
 # not. What that costs for a float normal map's bytes, on this disk:
 mib=$(( (size * size * 12 + (1 << 20) - 1) >> 20 ))
 read -r t _ < <(measure dd if=/dev/zero of="$work/n.dd" bs=1M count=$mib conv=fdatasync)
-echo "writing $mib MiB (a ${size}² float normal map's size) and syncing it, dd conv=fdatasync: $t s (best of 3)"
+echo "writing $mib MiB (a ${size}² float normal map's size) and syncing it, dd conv=fdatasync: $t s (best of 5)"
 rm -f "$work/n.dd"
 echo
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
