@@ -90,7 +90,7 @@ pub(super) struct Pieces {
 
 /// Bytes of data in a piece. Each costs fdeflate's 54-byte table and 4
 /// to 5 bytes of stored block.
-pub(super) const PIECE: usize = 1 << 18;
+const PIECE: usize = 1 << 18;
 
 impl Pieces {
     pub fn new(probe: bool) -> Pieces {
@@ -131,7 +131,7 @@ impl Pieces {
 
 /// Bytes of a piece that [`Pieces`] deflates first, to see whether the
 /// rest is worth it.
-pub(super) const PROBE: usize = 1 << 12;
+const PROBE: usize = 1 << 12;
 
 /// Whether deflate shrinks the start of `data` by a tenth or more.
 fn worth_deflating(data: &[u8]) -> bool {
