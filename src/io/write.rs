@@ -9,20 +9,23 @@
 //! lay texels out with the same code, so both give the same samples.
 
 use std::borrow::Cow;
-use std::io::{Seek, Write};
+use std::cell::RefCell;
+use std::io::{Seek, SeekFrom, Write};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 pub use super::atomic::{write_atomically, write_file_atomically};
 
 use crate::par::prelude::*;
 use exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
-use exr::block::writer::ChunksWriter;
 use exr::compression::Compression;
-use exr::meta::BlockDescription;
 use exr::meta::attribute::{ChannelDescription, LineOrder, SampleType as ExrSample, Text};
 use exr::meta::header::Header;
+use exr::meta::{BlockDescription, MetaData, magic_number};
 use exr::prelude::{LayerAttributes, SmallVec, f16};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder, ImageError};
+use miniz_oxide::DataFormat;
+use miniz_oxide::deflate::core::{CompressorOxide, TDEFLFlush, TDEFLStatus, compress};
 
 use super::encoding::{Encoding, ExrOptions, PngDepth, PngOptions, TiffDepth, TiffOptions};
 use crate::error::{Error, Result, one_line};
@@ -790,34 +793,100 @@ pub(crate) fn write_exr_rows<W: Write + Seek>(
     fill: impl FnOnce(&mut dyn FnMut(&[f32]) -> Result<()>) -> Result<()>,
 ) -> Result<()> {
     let mut blocks = ExrBlocks::new(width, height, depth, channels)?;
-    write_exr_blocks(out, &blocks.header(), |write| {
+    let spares = blocks.spares();
+    write_exr_blocks(out, &blocks.header(), &spares, |write| {
         fill(&mut |rows| write(blocks.push(rows)?))?;
         blocks.finish()
     })
 }
 
 /// Writes an OpenEXR file of `header` ([`ExrBlocks::header`]) whose
-/// blocks `fill` hands over, compressed ([`ExrBlocks::push`]), in order.
-/// Blocks made on other threads, as the streamed conversion makes them,
-/// only need writing here.
+/// blocks `fill` hands over, compressed ([`ExrBlocks::push`]), in any
+/// order; each block's buffer goes back to `spares` once written. Blocks
+/// made on other threads, as the streamed conversion makes them, only
+/// need writing here.
 ///
-/// Errors: [`Error::Io`] if `out` fails, an [`Error::Encode`] for a block
-/// the file has no room for; any error of `fill`, which stops the writing.
+/// The file is what `exr::block::write` makes of the same header and
+/// blocks, byte for byte (a test checks it): the header, the offset
+/// table, filled in at the end, and the blocks. It is written here
+/// because that writer takes each block's buffer and frees it: a new
+/// buffer per block, 786 KB for 16 rows of a 4096-wide float map, cost a
+/// page fault per 4 KiB, a quarter of that conversion's processor time.
+///
+/// Errors: [`Error::Io`] if `out` fails, [`Error::Encode`] for an invalid
+/// header, a block the file has no room for, one written twice or one
+/// missing at the end; any error of `fill`, which stops the writing.
 pub(crate) fn write_exr_blocks<W: Write + Seek>(
-    out: W,
+    mut out: W,
     header: &Header,
+    spares: &ExrSpares,
     fill: impl FnOnce(&mut dyn FnMut(Vec<IndexedChunk>) -> Result<()>) -> Result<()>,
 ) -> Result<()> {
-    let mut outcome = Ok(());
-    let written = exr::block::write(out, SmallVec::from_elem(header.clone(), 1), true, |_, writer| {
-        outcome = fill(&mut |chunks| {
-            chunks.into_iter().try_for_each(|(index, chunk)| writer.write_chunk(index, chunk).map_err(from_exr_error))
-        });
-        // Our own error is kept in `outcome`; this only stops the writer.
-        if outcome.is_err() { Err(exr::error::Error::Aborted) } else { Ok(()) }
-    });
-    outcome?;
-    written.map_err(from_exr_error)
+    let headers = [header.clone()];
+    let requirements = MetaData::validate(&headers, true).map_err(from_exr_error)?;
+    let start = out.stream_position()?;
+    let mut file = Counting { out: &mut out, written: 0 };
+    magic_number::write(&mut file).map_err(from_exr_error)?;
+    requirements.write(&mut file).map_err(from_exr_error)?;
+    Header::write_all(&headers, &mut file, requirements.has_multiple_layers).map_err(from_exr_error)?;
+    // The offset table, zeros until every block's place is known.
+    let table_at = file.written;
+    let mut offsets = vec![0u64; header.chunk_count];
+    file.write_all(&vec![0u8; offsets.len() * 8])?;
+    fill(&mut |chunks| {
+        for (index, chunk) in chunks {
+            let slot = offsets.get_mut(index).ok_or_else(|| Error::Encode(format!("the file has no block {index}")))?;
+            if *slot != 0 {
+                return Err(Error::Encode(format!("block {index} is written twice")));
+            }
+            *slot = file.written;
+            chunk.write(&mut file, 1).map_err(from_exr_error)?;
+            if let CompressedBlock::ScanLine(block) = chunk.compressed_block {
+                spares.give(block.compressed_pixels_le);
+            }
+        }
+        Ok(())
+    })?;
+    if let Some(missing) = offsets.iter().position(|&at| at == 0) {
+        return Err(Error::Encode(format!("block {missing} of {} was not written", offsets.len())));
+    }
+    out.seek(SeekFrom::Start(start + table_at))?;
+    out.write_all(&offsets.iter().flat_map(|at| at.to_le_bytes()).collect::<Vec<u8>>())?;
+    out.flush()?;
+    Ok(())
+}
+
+/// A writer that counts the bytes it passes on: the places of an EXR
+/// file's blocks, for its offset table.
+struct Counting<'a, W> {
+    out: &'a mut W,
+    written: u64,
+}
+
+impl<W: Write> Write for Counting<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.out.write(buf)?;
+        self.written += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
+}
+
+/// Where the buffers of written EXR blocks go back to their
+/// [`ExrBlocks`], to hold the next blocks: their pages stay mapped (see
+/// [`write_exr_blocks`]). A few are kept; the rest are freed.
+#[derive(Clone)]
+pub(crate) struct ExrSpares(SyncSender<Vec<u8>>);
+
+impl ExrSpares {
+    /// Gives a written block's buffer back (or frees it, if enough are
+    /// waiting already).
+    fn give(&self, buffer: Vec<u8>) {
+        let _ = self.0.try_send(buffer);
+    }
 }
 
 /// A compressed block of an EXR file and its index in the file's blocks.
@@ -836,6 +905,9 @@ pub(crate) struct ExrBlocks {
     /// Samples of the rows after row `done` that do not fill a block yet.
     pending: Vec<f32>,
     done: usize,
+    /// Buffers of written blocks, to fill again, and where they come from.
+    spare: Receiver<Vec<u8>>,
+    spares: ExrSpares,
 }
 
 impl ExrBlocks {
@@ -854,7 +926,16 @@ impl ExrBlocks {
         let mut order: Vec<usize> = (0..channels.len()).collect();
         order.sort_by_key(|&k| channels[k]);
         let channels = channels.iter().map(|&c| c.to_owned()).collect();
-        Ok(ExrBlocks { width, height, depth, channels, order, pending: Vec::new(), done: 0 })
+        // Enough for the blocks of a band or two (a band is 64 rows or
+        // more, 4 blocks); more would only hold memory.
+        let (give, spare) = sync_channel(32);
+        let spares = ExrSpares(give);
+        Ok(ExrBlocks { width, height, depth, channels, order, pending: Vec::new(), done: 0, spare, spares })
+    }
+
+    /// Where the writer gives written blocks' buffers back.
+    pub(crate) fn spares(&self) -> ExrSpares {
+        self.spares.clone()
     }
 
     /// The file's header.
@@ -896,12 +977,14 @@ impl ExrBlocks {
         let blocks: Vec<&[f32]> =
             (pending_ready.then_some(&self.pending[..])).into_iter().chain(rows[..ready].chunks(block)).collect();
         let (depth, order) = (self.depth, &self.order[..]);
+        let buffers: Vec<Vec<u8>> = blocks.iter().map(|_| self.spare.try_recv().unwrap_or_default()).collect();
         let chunks = blocks
             .par_iter()
+            .zip(buffers)
             .enumerate()
-            .map(|(k, samples)| {
+            .map(|(k, (samples, buffer))| {
                 let y0 = first_row + k * EXR_BLOCK_ROWS;
-                (y0 / EXR_BLOCK_ROWS, zip_chunk(samples, row_len, order, y0, depth))
+                (y0 / EXR_BLOCK_ROWS, zip_chunk(samples, row_len, order, y0, depth, buffer))
             })
             .collect::<Vec<_>>();
         self.done += blocks.iter().map(|b| b.len() / row_len).sum::<usize>();
@@ -934,9 +1017,18 @@ const EXR_ZLIB_LEVEL: u8 = 1;
 /// 0.38 s to 86 % of the size; libdeflate's level 1 0.41 s to 71 %,
 /// zlib-rs's 0.44 s to 86 %, and fdeflate (made for PNG's filtered bytes)
 /// 0.07 s to 137 %. A block that does not shrink is stored as it is,
-/// which is how EXR readers tell the two apart.
-fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth: ExrDepth) -> Chunk {
-    let raw = exr_block_bytes(samples, row_len, order, depth);
+/// which is how EXR readers tell the two apart. The raw bytes are laid
+/// out in `buffer` (a written block's, or a new one).
+fn zip_chunk(
+    samples: &[f32],
+    row_len: usize,
+    order: &[usize],
+    y0: usize,
+    depth: ExrDepth,
+    mut buffer: Vec<u8>,
+) -> Chunk {
+    exr_block_bytes(samples, row_len, order, depth, &mut buffer);
+    let raw = buffer;
     // `ExrBlocks::new` checked that every row is an i32.
     let y_coordinate = y0 as i32;
     // Float normals do not deflate: judged by the first bytes alone, such
@@ -944,8 +1036,10 @@ fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth:
     let compressed_pixels_le = if incompressible(&zip_predicted(&raw, EXR_PROBE_BYTES)) {
         raw
     } else {
-        let compressed = miniz_oxide::deflate::compress_to_vec_zlib(&zip_predicted(&raw, raw.len()), EXR_ZLIB_LEVEL);
-        if compressed.len() < raw.len() { compressed } else { raw }
+        match zlib(&zip_predicted(&raw, raw.len())) {
+            Some(compressed) if compressed.len() < raw.len() => compressed,
+            _ => raw,
+        }
     };
     Chunk {
         layer_index: 0,
@@ -987,38 +1081,74 @@ const EXR_PROBE_BYTES: usize = 16 << 10;
 /// same file.
 fn incompressible(deltas: &[u8]) -> bool {
     let probe = &deltas[..deltas.len().min(EXR_PROBE_BYTES)];
-    probe.len() == EXR_PROBE_BYTES
-        && miniz_oxide::deflate::compress_to_vec_zlib(probe, EXR_ZLIB_LEVEL).len() * 100 > probe.len() * 97
+    probe.len() == EXR_PROBE_BYTES && zlib(probe).is_none_or(|deflated| deflated.len() * 100 > probe.len() * 97)
 }
 
-/// One block's bytes as EXR stores them before compression: row by row,
-/// each channel's samples in the file's order (`order`: the index of each
-/// in a texel's samples), little-endian.
-fn exr_block_bytes(samples: &[f32], row_len: usize, order: &[usize], depth: ExrDepth) -> Vec<u8> {
+/// `data` as zlib at [`EXR_ZLIB_LEVEL`], what miniz_oxide's
+/// `compress_to_vec_zlib` makes of it, by a compressor kept per thread:
+/// that function makes a new one per call, whose 300 KB of tables were
+/// allocated and zeroed for every block's probe, a third of a float EXR
+/// conversion's page faults. `None` if miniz_oxide fails (which that
+/// function would panic on): the block is stored.
+fn zlib(mut data: &[u8]) -> Option<Vec<u8>> {
+    thread_local! {
+        static COMPRESSOR: RefCell<Box<CompressorOxide>> = RefCell::new(Box::default());
+    }
+    COMPRESSOR.with_borrow_mut(|compressor| {
+        compressor.reset();
+        compressor.set_format_and_level(DataFormat::Zlib, EXR_ZLIB_LEVEL);
+        let mut out = vec![0; (data.len() / 2).max(2)];
+        let mut len = 0;
+        loop {
+            let (status, read, written) = compress(compressor, data, &mut out[len..], TDEFLFlush::Finish);
+            len += written;
+            data = &data[read.min(data.len())..];
+            match status {
+                TDEFLStatus::Done => break,
+                TDEFLStatus::Okay if out.len() - len < 30 => out.resize(out.len() * 2, 0),
+                TDEFLStatus::Okay => {}
+                // Only for a wrong argument, which this is not.
+                TDEFLStatus::BadParam | TDEFLStatus::PutBufFailed => return None,
+            }
+        }
+        out.truncate(len);
+        Some(out)
+    })
+}
+
+/// One block's bytes as EXR stores them before compression, in `out`:
+/// row by row, each channel's samples in the file's order (`order`: the
+/// index of each in a texel's samples), little-endian.
+fn exr_block_bytes(samples: &[f32], row_len: usize, order: &[usize], depth: ExrDepth, out: &mut Vec<u8>) {
     match depth {
-        ExrDepth::Half => channel_major(samples, row_len, order, |v| f16::from_f32(v).to_le_bytes()),
-        ExrDepth::Float => channel_major(samples, row_len, order, f32::to_le_bytes),
+        ExrDepth::Half => channel_major(samples, row_len, order, |v| f16::from_f32(v).to_le_bytes(), out),
+        ExrDepth::Float => channel_major(samples, row_len, order, f32::to_le_bytes, out),
     }
 }
 
 /// The samples of each row channel by channel (`order`), each as `bytes`
-/// gives it. Plain loops of fixed-size values: an iterator chain here
-/// (`step_by`, `flat_map`) was once left out of line by the compiler and
-/// took 7 % of an EXR conversion.
+/// gives it, in `out`. `out` is resized, not cleared: a written block's
+/// buffer has the length already, so its bytes are overwritten without
+/// first being zeroed. Plain loops over fixed-size chunks: an iterator
+/// chain here (`step_by`, `flat_map`) was once left out of line by the
+/// compiler and took 7 % of an EXR conversion.
 fn channel_major<const N: usize>(
     samples: &[f32],
     row_len: usize,
     order: &[usize],
     bytes: impl Fn(f32) -> [u8; N],
-) -> Vec<u8> {
+    out: &mut Vec<u8>,
+) {
     let stride = order.len().max(1);
-    let mut data: Vec<[u8; N]> = Vec::with_capacity(samples.len());
-    for row in samples.chunks_exact(row_len) {
-        for &c in order {
-            data.extend(row.chunks_exact(stride).map(|texel| bytes(texel[c])));
+    let plane = row_len / stride * N;
+    out.resize(samples.len() * N, 0);
+    for (row, out_row) in samples.chunks_exact(row_len).zip(out.chunks_exact_mut(row_len * N)) {
+        for (&c, out_plane) in order.iter().zip(out_row.chunks_exact_mut(plane.max(1))) {
+            for (o, texel) in out_plane.chunks_exact_mut(N).zip(row.chunks_exact(stride)) {
+                o.copy_from_slice(&bytes(texel[c]));
+            }
         }
     }
-    data.into_flattened()
 }
 
 /// A PNG encoder with the adaptive filter, which suits smooth gradients.
@@ -1068,6 +1198,7 @@ fn from_exr_error(e: exr::error::Error) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use exr::block::writer::ChunksWriter;
 
     /// The blocks' bytes, in the file's order.
     fn blocks_of(chunks: Vec<IndexedChunk>) -> Vec<(usize, i32, Vec<u8>)> {
@@ -1124,6 +1255,106 @@ mod tests {
         assert_eq!(blocks.push(&[0.0; 4]).unwrap().len(), 1);
         blocks.finish().unwrap();
         assert!(ExrBlocks::new(0, 3, ExrDepth::Float, &["Y"]).is_err());
+    }
+
+    /// Samples of `w` × `h` RGB texels whose blocks differ: smooth rows
+    /// (that deflate) and noisy ones (that do not), by block.
+    fn mixed_samples(w: usize, h: usize) -> Vec<f32> {
+        (0..w * h * 3)
+            .map(|i| {
+                let y = i / (3 * w);
+                if y / 16 % 2 == 1 { (i as f32 * 0.618_034).fract() } else { (i / 3 % w) as f32 * 0.01 }
+            })
+            .collect()
+    }
+
+    /// The file is `exr`'s own writer's, byte for byte, for the same
+    /// header and blocks, whichever order they come in; buffers given
+    /// back and filled again (by a shorter last block, by a deflated
+    /// block's smaller one) leave nothing of their old bytes.
+    #[test]
+    fn exr_files_are_exrs_own_byte_for_byte() {
+        let (w, h) = (29, 16 * 7 + 3);
+        for depth in [ExrDepth::Half, ExrDepth::Float] {
+            let samples = mixed_samples(w, h);
+            let fresh = || {
+                let mut blocks = ExrBlocks::new(w, h, depth, &["R", "G", "B"]).unwrap();
+                let chunks = blocks.push(&samples).unwrap();
+                (blocks.header(), chunks)
+            };
+            for reversed in [false, true] {
+                let (header, mut chunks) = fresh();
+                if reversed {
+                    chunks.reverse();
+                }
+                let mut expected = std::io::Cursor::new(Vec::new());
+                exr::block::write(&mut expected, SmallVec::from_elem(header, 1), true, |_, writer| {
+                    chunks.into_iter().try_for_each(|(index, chunk)| writer.write_chunk(index, chunk))
+                })
+                .unwrap();
+                let mut blocks = ExrBlocks::new(w, h, depth, &["R", "G", "B"]).unwrap();
+                let (header, spares) = (blocks.header(), blocks.spares());
+                let mut got = std::io::Cursor::new(Vec::new());
+                write_exr_blocks(&mut got, &header, &spares, |write| {
+                    let mut all = Vec::new();
+                    // Two rows at a time: blocks are written (and their
+                    // buffers given back) while later ones are made.
+                    for rows in samples.chunks(2 * w * 3) {
+                        let made = blocks.push(rows)?;
+                        if reversed { all.extend(made) } else { write(made)? }
+                    }
+                    all.reverse();
+                    write(all)?;
+                    blocks.finish()
+                })
+                .unwrap();
+                assert!(got.into_inner() == expected.into_inner(), "{depth:?}, reversed: {reversed}");
+            }
+        }
+    }
+
+    /// A block written twice, one the file has no room for, and one
+    /// missing at the end are errors, not a file.
+    #[test]
+    fn exr_files_refuse_blocks_that_do_not_fit() {
+        let (w, h) = (5, 40);
+        let samples = mixed_samples(w, h);
+        let attempt = |edit: &dyn Fn(&mut Vec<IndexedChunk>)| {
+            let mut blocks = ExrBlocks::new(w, h, ExrDepth::Float, &["R", "G", "B"]).unwrap();
+            let (header, spares) = (blocks.header(), blocks.spares());
+            let mut chunks = blocks.push(&samples).unwrap();
+            edit(&mut chunks);
+            write_exr_blocks(std::io::Cursor::new(Vec::new()), &header, &spares, |write| write(chunks))
+        };
+        assert!(attempt(&|_| {}).is_ok());
+        let twice = attempt(&|c| {
+            let copy = (c[0].0, c[0].1.clone());
+            c.push(copy);
+        });
+        assert!(matches!(twice, Err(Error::Encode(m)) if m.contains("twice")));
+        let beyond = attempt(&|c| c[2].0 = 3);
+        assert!(matches!(beyond, Err(Error::Encode(m)) if m.contains("no block 3")));
+        let missing = attempt(&|c| {
+            c.pop();
+        });
+        assert!(matches!(missing, Err(Error::Encode(m)) if m.contains("block 2 of 3 was not written")));
+    }
+
+    /// The compressor kept per thread deflates as a new one does, call
+    /// after call.
+    #[test]
+    fn zlib_is_miniz_oxides_own() {
+        let inputs: Vec<Vec<u8>> = vec![
+            Vec::new(),
+            vec![7],
+            (0..100_000u32).map(|i| (i % 251) as u8).collect(),
+            (0..70_000u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8).collect(),
+            vec![0; 50_000],
+        ];
+        for data in inputs.iter().chain(inputs.iter().rev()) {
+            let expected = miniz_oxide::deflate::compress_to_vec_zlib(data, EXR_ZLIB_LEVEL);
+            assert_eq!(zlib(data).unwrap(), expected, "{} bytes", data.len());
+        }
     }
 
     /// The predicted bytes are EXR's: even bytes, then odd ones, each the

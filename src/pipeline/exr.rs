@@ -385,9 +385,9 @@ pub(crate) fn convert_exr_counting<W: Write + Seek>(
     // into buffers kept from band to band; the caller's thread only writes
     // them.
     let mut blocks = ExrBlocks::new(w, h, depth, layout.exr_channels())?;
-    let header = blocks.header();
+    let (header, spares) = (blocks.header(), blocks.spares());
     let mut samples = Vec::new();
-    write_exr_blocks(out, &header, |write| {
+    write_exr_blocks(out, &header, &spares, |write| {
         let prepare = |_: Range<usize>, normals: &mut [[f32; 3]], heights: Vec<f32>| {
             options.store_all(normals);
             if layout == Layout::Rgb {
