@@ -133,8 +133,10 @@ struct WriteBack {
 }
 
 impl WriteBack {
-    /// How often the file's size is looked at.
-    const INTERVAL: std::time::Duration = std::time::Duration::from_millis(20);
+    /// How often the file's size is looked at. 20 ms let the syncs fall
+    /// a poll's bytes behind: 201 MB float maps were done 5 to 10 ms
+    /// later than with 5 ms (three runs each, on ext4).
+    const INTERVAL: std::time::Duration = std::time::Duration::from_millis(5);
 
     /// Bytes written since the last sync that call for the next.
     const BYTES: u64 = 4 << 20;
