@@ -51,6 +51,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::encoding::{TiffDepth, TiffOptions};
+use crate::io::read::georef::holes_value;
 use crate::io::write::TiffTags;
 use crate::io::{
     self, Channel, Encoding, ExrDepth, ExrOptions, Georef, InputFormat, Layout, OutputFormat, PngCompression, PngDepth,
@@ -693,7 +694,7 @@ impl Opened {
         };
         // Holes: the nodata value given, else the GeoTIFF's own; the map
         // then says which texels are missing in its alpha.
-        let nodata = conversion.fit.nodata.or_else(|| georef.as_ref().and_then(|g| g.nodata));
+        let nodata = holes_value(conversion.fit.nodata, georef.as_ref());
         conversion.fit.nodata = nodata;
         let encoding = &match nodata {
             Some(_) => encoding.with_layout(encoding.layout().with_holes()),

@@ -27,6 +27,7 @@ use crate::convert::{BorderChoices, Warning};
 use crate::error::{Error, Result};
 use crate::fit::checked_len;
 use crate::io::encoding::{TiffDepth, TiffOptions};
+use crate::io::read::georef::holes_value;
 use crate::io::{
     self, Affine, Channel, Georef, OutputFormat, PngCompression, PngDepth, PngOptions, Raster, ReadOptions,
 };
@@ -832,7 +833,7 @@ fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
                 ));
             }
             let fit = opts.fit_for(raster.georef.as_ref(), h)?;
-            let nodata = opts.fit.nodata.or(raster.georef.as_ref().and_then(|g| g.nodata));
+            let nodata = holes_value(opts.fit.nodata, raster.georef.as_ref());
             // Map units fit the heights as stored (a DEM's metres).
             let stored = opts.map_units.is_some();
             let (heights, nodata) = match nodata {
@@ -943,7 +944,7 @@ pub fn lit_file_streamed(
     // does.
     let restore = opts.map_units.is_some() && rows.unit() == 1.0 && rows.sample().stored_per_unit() != 1.0;
     // The nodata value as the fit sees the rows: stored, or the rows' own.
-    let nodata = opts.fit.nodata.or_else(|| georef.as_ref().and_then(|g| g.nodata));
+    let nodata = holes_value(opts.fit.nodata, georef.as_ref());
     let nodata = nodata.map(|v| if restore { v } else { rows.row_value(v) });
     let fit = opts.fit_for(georef.as_ref(), height)?.with_borders(borders).with_nodata(nodata);
     let mut seams = if opts.borders.needs_check() { tiling::HeightSeams::new(width, height).ok() } else { None };

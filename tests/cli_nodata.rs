@@ -244,9 +244,55 @@ fn an_all_missing_image_converts_to_an_all_transparent_map() {
     assert!(image::open(&lit).unwrap().into_luma8().into_raw().iter().all(|&g| g == 0));
 }
 
+/// `--nodata none` ignores a GeoTIFF's GDAL_NODATA tag: its value is a
+/// height like any other, in `convert` (streamed and whole) and `shade`,
+/// and the map has no alpha; the library reads no nodata value either.
 #[test]
-fn nodata_is_a_number() {
-    let out = run(&["convert", "x.png", "--nodata", "none"]);
+fn nodata_none_ignores_the_geotiffs_tag() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (31usize, 22usize);
+    let (bytes, values) = dem_with_nodata(w, h, Kind::F32, -9999.0);
+    let input = dir.path().join("dem.tif");
+    std::fs::write(&input, bytes).unwrap();
+    let read = ReadOptions::default();
+    assert_eq!(read_path(&input, &read).unwrap().georef.unwrap().nodata, Some(-9999.0));
+    assert_eq!(read_path(&input, &read.with_nodata_tag(false)).unwrap().georef.unwrap().nodata, None);
+
+    // The plain fit of every value, −9999 included.
+    let opts =
+        Options::new().with_borders(Borders::both(Border::Clamp)).with_strength(normalfit::Strength::Scale(0.01));
+    let mut want = vec![[0.0f32; 3]; w * h];
+    normalfit::normals_into(&values, w, h, &opts, &mut want).unwrap();
+    let args = ["--border", "clamp", "-s", "0.01", "--signed", "--nodata", "none"];
+    let (streamed, whole, res) = (dir.path().join("a.exr"), dir.path().join("b.exr"), dir.path().join("r.exr"));
+    for (output, extra) in [(&streamed, &[][..]), (&whole, &["--residual", s(&res)][..])] {
+        let out = run(&[&["convert", s(&input), "-o", s(output)][..], &args, extra].concat());
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert!(!stderr(&out).contains("missing"), "{}", stderr(&out));
+        let raster = read_path(output, &ReadOptions::default()).unwrap();
+        assert!(raster.plane("A").is_none(), "no alpha without holes");
+        let plane = |name: &str| raster.plane(name).unwrap().data.to_f32().unwrap();
+        let (r, g, b) = (plane("R"), plane("G"), plane("B"));
+        for k in 0..w * h {
+            let got = [r[k], g[k], b[k]];
+            assert!(got.iter().zip(want[k]).all(|(a, b)| (a - b).abs() < 1e-6), "texel {k}: {got:?} {:?}", want[k]);
+        }
+    }
+    // shade: no texel is missing, so none is grey 0 (gdaldem's 1 + 254·cos).
+    let lit = dir.path().join("lit.png");
+    let out = run(&["shade", s(&input), "-o", s(&lit), "--border", "clamp", "--nodata", "none"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("missing"), "{}", stderr(&out));
+    assert!(image::open(&lit).unwrap().into_luma8().into_raw().iter().all(|&g| g > 0));
+    // Without it, the tag's holes are grey 0.
+    let out = run(&["shade", s(&input), "-o", s(&lit), "--border", "clamp"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(image::open(&lit).unwrap().into_luma8().into_raw().contains(&0));
+}
+
+#[test]
+fn nodata_is_a_number_or_none() {
+    let out = run(&["convert", "x.png", "--nodata", "nothing"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(stderr(&out).contains("'none' is not a number"), "{}", stderr(&out));
+    assert!(stderr(&out).contains("'nothing' is not a number (or nan, or none)"), "{}", stderr(&out));
 }

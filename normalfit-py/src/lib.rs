@@ -972,7 +972,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -1001,11 +1001,13 @@ fn convert(
     byte_order: Option<&str>,
     decode: Option<&str>,
     nodata: Option<f64>,
+    nodata_tag: bool,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let opts = opts.with_nodata(nodata);
     let map_units = map_units(units, pixel_size)?;
-    let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?;
+    let read =
+        terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?.with_nodata_tag(nodata_tag);
     let format = format.map(parse_named::<OutputFormat>).transpose()?;
     let compression = parse_named::<PngCompression>(compression)?;
     let layout = Layout::from_parts(parse_named(channels)?, parse_named(alpha)?).map_err(to_py_err)?;
@@ -1058,7 +1060,7 @@ fn decode_normals<'py>(
 /// `lit_view` with every argument given (see `normalfit.lit_view`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode))]
+#[pyo3(signature = (path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag))]
 fn lit_view<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -1084,11 +1086,13 @@ fn lit_view<'py>(
     size: Option<&Bound<'py, PyAny>>,
     byte_order: Option<&str>,
     decode: Option<&str>,
+    nodata: Option<f64>,
+    nodata_tag: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let light = light.map(|(azimuth, elevation)| Light::new(azimuth, elevation)).transpose().map_err(to_py_err)?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let lit = LitOptions::new()
-        .with_fit(opts)
+        .with_fit(opts.with_nodata(nodata))
         .with_borders(borders)
         .with_lighting(light, azimuth, altitude)
         .map_err(to_py_err)?
@@ -1097,7 +1101,8 @@ fn lit_view<'py>(
         .with_channel(parse_channel(channel)?)
         .with_signed(signed)
         .with_map_units(map_units(units, pixel_size)?);
-    let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?;
+    let read =
+        terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?.with_nodata_tag(nodata_tag);
     let view = py.detach(|| shade::lit_view_of_file(&path, &read, &lit)).map_err(|e| file_error(&path, e, false))?;
     let (w, h) = (view.width, view.height);
     Ok(PyArray1::from_vec(py, view.pixels).reshape([h, w])?.into_any())

@@ -72,11 +72,13 @@ def write_png(path: Path, image: np.ndarray) -> None:
     png.Writer(width, height, greyscale=greyscale, bitdepth=bitdepth).write(open(path, "wb"), rows.tolist())
 
 
-def write_float_tiff(path: Path, heights: np.ndarray) -> None:
+def write_float_tiff(path: Path, heights: np.ndarray, nodata: str | None = None) -> None:
     """A one-channel 32-bit float TIFF, uncompressed, one strip: the float
-    input the command line reads, written with nothing but struct."""
+    input the command line reads, written with nothing but struct; with
+    GDAL's GDAL_NODATA tag when nodata is given."""
     height, width = heights.shape
     data = np.ascontiguousarray(heights, dtype="<f4").tobytes()
+    text = b"" if nodata is None else nodata.encode() + b"\x00"
     entries = [
         (256, 4, 1, width),  # ImageWidth
         (257, 4, 1, height),  # ImageLength
@@ -89,13 +91,15 @@ def write_float_tiff(path: Path, heights: np.ndarray) -> None:
         (279, 4, 1, len(data)),  # StripByteCounts
         (339, 3, 1, 3),  # SampleFormat: IEEE float
     ]
+    if text:
+        entries.append((42113, 2, len(text), 0))  # GDAL_NODATA: ASCII, patched below
     ifd_size = 2 + 12 * len(entries) + 4
-    data_offset = 8 + ifd_size
+    text_offset = 8 + ifd_size
+    data_offset = text_offset + len(text)
     out = bytearray(b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", len(entries)))
     for tag, kind, count, value in entries:
-        if tag == 273:
-            value = data_offset
+        value = {273: data_offset, 42113: text_offset}.get(tag, value)
         packed = struct.pack("<H", value) + b"\x00\x00" if kind == 3 else struct.pack("<I", value)
         out += struct.pack("<HHI", tag, kind, count) + packed
-    out += struct.pack("<I", 0) + data
+    out += struct.pack("<I", 0) + text + data
     path.write_bytes(bytes(out))

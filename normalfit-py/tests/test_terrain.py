@@ -197,6 +197,31 @@ def test_lit_view_in_map_units_and_of_terrain_files_is_the_clis(cli: Path, tmp_p
         normalfit.lit_view(raw, size=(64, 32), units="map")
 
 
+def test_a_geotiffs_nodata_tag_makes_holes_unless_nodata_tag_is_false(cli: Path, tmp_path: Path) -> None:
+    heights = hills(20, 24).astype(np.float32)
+    heights[5, 7] = heights[12, 3] = -9999.0
+    src = tmp_path / "dem.tif"
+    write_float_tiff(src, heights, nodata="-9999")
+    # convert(): the tag's holes (an alpha), or every value a height, as
+    # the command line's default and --nodata none.
+    for kwargs, args in (({}, []), ({"nodata_tag": False}, ["--nodata", "none"])):
+        same_output(src, {"border": "clamp", "scale": 0.01, **kwargs}, ["--border", "clamp", "-s", "0.01", *args], cli, tmp_path, "png")
+    held = normalfit.convert(src, tmp_path / "a.png", border="clamp", scale=0.01)
+    assert held.nodata == -9999.0 and held.missing >= 2
+    plain = normalfit.convert(src, tmp_path / "b.png", border="clamp", scale=0.01, nodata_tag=False)
+    assert plain.nodata is None and plain.missing == 0
+    assert read_png(tmp_path / "b.png").shape == (20, 24, 3)
+    # lit_view(): grey 0 at the holes, none without the tag, and nodata=
+    # as shade --nodata.
+    lit = normalfit.lit_view(src, border="clamp", scale=0.01)
+    assert lit[5, 7] == 0 and lit[12, 3] == 0
+    assert (normalfit.lit_view(src, border="clamp", scale=0.01, nodata_tag=False) > 0).all()
+    for kwargs, args in (({}, []), ({"nodata_tag": False}, ["--nodata", "none"]), ({"nodata": 500.0}, ["--nodata", "500"])):
+        ours = normalfit.lit_view(src, border="clamp", scale=0.01, **kwargs)  # type: ignore[arg-type]
+        run_cli(cli, "shade", src, "--border", "clamp", "-s", "0.01", *args, "-o", tmp_path / "l.png")
+        assert np.array_equal(ours, read_png(tmp_path / "l.png")), kwargs
+
+
 def test_convert_and_height_write_tiff_as_the_cli(cli: Path, tmp_path: Path) -> None:
     src = tmp_path / "dem.tif"
     write_float_tiff(src, hills(30, 44) * 100.0)

@@ -498,15 +498,44 @@ pub struct HolesArgs {
     /// metres), and NaN or infinite ones, are holes: each patch is fitted
     /// to its valid points, and a texel that is a hole or whose points make
     /// no plane is missing (alpha 0; grey 0 in `shade`). Default: a
-    /// GeoTIFF's GDAL_NODATA tag; `nan` marks only NaN and infinities.
-    /// Without either, a NaN height is an error.
-    #[arg(long, value_name = "V", value_parser = parse_nodata, allow_hyphen_values = true)]
-    pub nodata: Option<f64>,
+    /// GeoTIFF's GDAL_NODATA tag; `nan` marks only NaN and infinities;
+    /// `none` ignores the tag (every value is a height). Without a value, a
+    /// NaN height is an error.
+    #[arg(long, value_name = "V|none", value_parser = parse_nodata, allow_hyphen_values = true)]
+    pub nodata: Option<NodataArg>,
 }
 
-/// `--nodata V`: a number, or nan, inf, -inf.
-fn parse_nodata(s: &str) -> Result<f64, String> {
-    s.trim().parse::<f64>().map_err(|_| format!("'{s}' is not a number (or nan)"))
+/// What `--nodata` says.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NodataArg {
+    /// This stored value marks holes.
+    Value(f64),
+    /// No value does, not even the file's tag.
+    None,
+}
+
+impl HolesArgs {
+    /// The fit's nodata value, if one is given.
+    pub fn value(&self) -> Option<f64> {
+        match self.nodata {
+            Some(NodataArg::Value(v)) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// `opts` reading a GeoTIFF's GDAL_NODATA tag, unless `none` is given.
+    pub fn apply(&self, opts: ReadOptions) -> ReadOptions {
+        opts.with_nodata_tag(self.nodata != Some(NodataArg::None))
+    }
+}
+
+/// `--nodata V`: a number, or nan, inf, -inf; or none.
+fn parse_nodata(s: &str) -> Result<NodataArg, String> {
+    let s = s.trim();
+    if s.eq_ignore_ascii_case("none") {
+        return Ok(NodataArg::None);
+    }
+    s.parse::<f64>().map(NodataArg::Value).map_err(|_| format!("'{s}' is not a number (or nan, or none)"))
 }
 
 /// Fits in real-world units (docs/terrain.md), for `convert` and `shade`.

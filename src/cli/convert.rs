@@ -47,7 +47,7 @@ pub fn run(args: ConvertArgs) -> Result<usize, Failure> {
 
 impl Plan {
     fn from_args(args: &ConvertArgs, many: bool) -> Result<Plan, Failure> {
-        let fit = fitting::options(&args.fit)?.with_nodata(args.holes.nodata);
+        let fit = fitting::options(&args.fit)?.with_nodata(args.holes.value());
         stdin_at_most_once(&args.inputs)?;
         let destination = Destination::for_batch(args.output.as_deref(), many)?;
         let layout = Layout::from_parts(args.channels.channels, args.channels.alpha)
@@ -70,7 +70,7 @@ impl Plan {
         let mut conversion = Conversion::new()
             .with_fit(fit)
             .with_borders(args.fit.border)
-            .with_read(args.terrain.apply(args.read.options()))
+            .with_read(args.holes.apply(args.terrain.apply(args.read.options())))
             .with_channel(args.channel.clone())
             .with_format(args.format)
             .with_signed(args.signed)

@@ -32,7 +32,7 @@ struct Plan {
 /// Shades every input (files, and the images of folders); returns the
 /// failures (already reported).
 pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
-    let fit = fitting::options(&args.fit)?.with_nodata(args.holes.nodata);
+    let fit = fitting::options(&args.fit)?.with_nodata(args.holes.value());
     stdin_at_most_once(&args.inputs)?;
     let words = Words { done: "shaded", purpose: "to shade" };
     let batch = Batch::gather(&args.inputs, &args.batch, SUFFIX, words);
@@ -50,7 +50,12 @@ pub fn run(args: ShadeArgs) -> Result<usize, Failure> {
         .with_channel(args.channel.clone())
         .with_signed(args.signed)
         .with_map_units(MapSpacing::choose(args.units.units, args.units.pixel_size));
-    let plan = Plan { lit, read: args.terrain.apply(ReadOptions::default()), destination, quiet: args.batch.quiet };
+    let plan = Plan {
+        lit,
+        read: args.holes.apply(args.terrain.apply(ReadOptions::default())),
+        destination,
+        quiet: args.batch.quiet,
+    };
     Ok(batch.run(|job, turn| plan.shade_one(job, turn)))
 }
 

@@ -183,6 +183,7 @@ def convert(
     byte_order: str | None = None,
     decode: str | None = None,
     nodata: float | None = None,
+    nodata_tag: bool = True,
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -204,7 +205,8 @@ def convert(
     real-world units, docs/terrain.md); pixel_size: map units with this
     spacing, x or (x, y) in the heights' unit (--pixel-size); nodata: the
     stored value of holes (--nodata; default a GeoTIFF's GDAL_NODATA tag):
-    the map then has an alpha, 0 where a texel is missing.
+    the map then has an alpha, 0 where a texel is missing; nodata_tag:
+    False ignores that tag, every value is a height (--nodata none).
 
     Terrain files (docs/terrain.md), as the command line reads them:
     band: TIFF band K, 1-based as GDAL counts (--band); size: a RAW
@@ -222,7 +224,7 @@ def convert(
     return _normalfit.convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
         compression, alpha, channels, residual, max_texels, layer, units,
-        None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata,
+        None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata, nodata_tag,
     )
 
 
@@ -274,6 +276,8 @@ def lit_view(
     size: tuple[int, int] | str | None = None,
     byte_order: str | None = None,
     decode: str | None = None,
+    nodata: float | None = None,
+    nodata_tag: bool = True,
 ) -> Any:
     """``normalfit shade``: a normal map file, or a height map file through
     the fit (normals()'s options), lit by a directional light.
@@ -288,8 +292,9 @@ def lit_view(
         GeoTIFF), the light (135, 35) for the others, as ``normalfit
         shade``. tile: repeat 2 x 2 so wrap seams show. kind: "auto",
         "height" or "normal". signed: a float normal map holds n itself.
-        units, pixel_size, band, size, byte_order, decode: as convert()'s
-        (a height map fitted in map units, terrain files).
+        units, pixel_size, band, size, byte_order, decode, nodata,
+        nodata_tag: as convert()'s (a height map fitted in map units,
+        terrain files, holes: grey 0 where a texel is missing).
 
     Returns the gray picture as a (rows, columns) uint8 array (twice each
     side when tiled), the pixels ``normalfit shade`` writes.
@@ -297,6 +302,7 @@ def lit_view(
     return _normalfit.lit_view(
         path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
         max_texels, layer, units, None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode,
+        nodata, nodata_tag,
     )
 
 

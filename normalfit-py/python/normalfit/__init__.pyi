@@ -134,6 +134,7 @@ def convert(
     byte_order: Literal["little", "le", "big", "be"] | None = None,
     decode: Literal["terrain-rgb", "mapbox", "terrarium"] | None = None,
     nodata: float | None = None,
+    nodata_tag: bool = True,
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None
@@ -163,6 +164,8 @@ def lit_view(
     size: tuple[int, int] | str | None = None,
     byte_order: Literal["little", "le", "big", "be"] | None = None,
     decode: Literal["terrain-rgb", "mapbox", "terrarium"] | None = None,
+    nodata: float | None = None,
+    nodata_tag: bool = True,
 ) -> npt.NDArray[np.uint8]: ...
 @final
 class HeightInfo:

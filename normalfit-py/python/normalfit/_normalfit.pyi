@@ -74,6 +74,7 @@ def convert(
     byte_order: str | None,
     decode: str | None,
     nodata: float | None,
+    nodata_tag: bool,
 ) -> ConversionSummary: ...
 def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
 def lit_view(
@@ -100,6 +101,8 @@ def lit_view(
     size: Any | None,
     byte_order: str | None,
     decode: str | None,
+    nodata: float | None,
+    nodata_tag: bool,
 ) -> Any: ...
 def height(
     normals: Any,

@@ -367,6 +367,16 @@ pub(crate) fn apply_key_directory(georef: &mut Georef, directory: &[u16]) -> Res
     Ok(())
 }
 
+/// The value that marks holes in a raster: the one given (the fit's
+/// [`Options::nodata`](crate::Options::nodata), `--nodata V`), else the
+/// GeoTIFF's GDAL_NODATA tag as read ([`Georef::nodata`], absent when
+/// [`ReadOptions::nodata_tag`](crate::io::ReadOptions::nodata_tag) is
+/// false), else none. The one rule of `convert` and `shade`, whole and
+/// streamed.
+pub(crate) fn holes_value(given: Option<f64>, georef: Option<&Georef>) -> Option<f64> {
+    given.or_else(|| georef.and_then(|g| g.nodata))
+}
+
 /// GDAL_NODATA's text as a number: GDAL writes it with `%.18g` or as
 /// "nan", "inf", "-inf"; spaces around it are allowed.
 #[cfg(feature = "tiff")]

@@ -196,11 +196,18 @@ pub struct ReadOptions {
     /// Heights packed in an 8-bit RGB tile (PNG or WebP), unpacked to float
     /// heights in metres; `None` reads the tile as a picture.
     pub decode: Option<PackedElevation>,
+    /// TIFF: whether the GDAL_NODATA tag is read, as
+    /// [`Georef::nodata`], which makes holes of the texels that hold its
+    /// value unless the fit's own [`Options::nodata`](crate::Options::nodata)
+    /// is given. `false` ignores the tag: every stored value is a height
+    /// (the CLI's `--nodata none`), for a file whose tag is wrong, or whose
+    /// "nodata" value is a real height. Default: `true`.
+    pub nodata_tag: bool,
 }
 
 impl Default for ReadOptions {
     fn default() -> Self {
-        ReadOptions { max_texels: 1 << 30, layer: None, band: None, raw: None, decode: None }
+        ReadOptions { max_texels: 1 << 30, layer: None, band: None, raw: None, decode: None, nodata_tag: true }
     }
 }
 
@@ -242,6 +249,14 @@ impl ReadOptions {
     #[must_use]
     pub fn with_raw(mut self, raw: RawOptions) -> Self {
         self.raw = Some(raw);
+        self
+    }
+
+    /// The same options reading a TIFF's GDAL_NODATA tag, or ignoring it
+    /// (see [`ReadOptions::nodata_tag`]).
+    #[must_use]
+    pub fn with_nodata_tag(mut self, read: bool) -> Self {
+        self.nodata_tag = read;
         self
     }
 

@@ -29,7 +29,7 @@ pub(super) fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let Ok(mut decoder) = tiff::decoder::Decoder::new(Cursor::new(bytes)) else {
         return decode_with_image(bytes, opts, ImageFormat::Tiff, InputFormat::Tiff);
     };
-    let georef = read_georef(&mut decoder)?;
+    let georef = read_georef(&mut decoder, opts.nodata_tag)?;
     let mut raster = match TiffLayout::of(&mut decoder)? {
         Some(layout) if opts.band.is_some() || !layout.image_reads() => decode_band(decoder, layout, opts)?,
         None if opts.band.is_some() => {
@@ -336,8 +336,9 @@ fn format_name(format: SampleFormat) -> String {
 
 /// The georeferencing tags of the first image, checked (a tag of the
 /// wrong length or a GDAL_NODATA that is not a number is an error: read
-/// wrong, it would silently misplace or misfit the terrain).
-fn read_georef<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>) -> Result<Georef> {
+/// wrong, it would silently misplace or misfit the terrain). GDAL_NODATA
+/// is not looked at without `nodata_tag` ([`ReadOptions::nodata_tag`]).
+fn read_georef<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>, nodata_tag: bool) -> Result<Georef> {
     let mut georef = Georef::default();
     let doubles = |decoder: &mut tiff::decoder::Decoder<R>, code: u16, name: &str| {
         tag(decoder, code, name)?.map(|v| v.into_f64_vec().map_err(|e| tag_error(name, e))).transpose()
@@ -362,7 +363,8 @@ fn read_georef<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>) -> Resul
             georef.stored.ascii_params = text.into_string().map_err(|e| tag_error("GeoAsciiParams", e))?;
         }
     }
-    if let Some(text) = tag(decoder, georef_tags::GDAL_NODATA, "GDAL_NODATA")? {
+    if let Some(text) = nodata_tag.then(|| tag(decoder, georef_tags::GDAL_NODATA, "GDAL_NODATA")).transpose()?.flatten()
+    {
         let text = text.into_string().map_err(|e| tag_error("GDAL_NODATA", e))?;
         georef.nodata = Some(super::georef::parse_nodata(&text)?);
     }
@@ -496,7 +498,7 @@ impl<R: Read + Seek> TiffBand<R> {
     /// for a chunk count that does not match the image.
     pub(crate) fn open(reader: R, opts: &ReadOptions) -> Result<Option<Self>> {
         let Ok(mut decoder) = tiff::decoder::Decoder::new(reader) else { return Ok(None) };
-        let georef = read_georef(&mut decoder)?;
+        let georef = read_georef(&mut decoder, opts.nodata_tag)?;
         let Some(layout) = TiffLayout::of(&mut decoder)? else { return Ok(None) };
         if opts.band.is_none() && layout.image_reads() {
             return Ok(None);
