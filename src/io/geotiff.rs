@@ -100,7 +100,7 @@ where
     let bytes = (width as u64 * height as u64 * channels as u64 * size_of::<S>() as u64)
         .saturating_add(16 * height as u64 + (1 << 20));
     // A strip is a row, and a write of its own: to ext4, 4096 writes of
-    // 48 KiB (a 4096-wide float map's rows) took 40 ms more processor
+    // 48 KiB (a 4096-wide float map's rows) took 25 to 40 ms more processor
     // time than the same bytes a mebibyte at a time, more than the copy
     // into this buffer costs.
     let mut buffered = BufWriter::with_capacity(1 << 20, out);

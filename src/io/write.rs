@@ -811,7 +811,8 @@ pub(crate) fn write_exr_rows<W: Write + Seek>(
 /// table, filled in at the end, and the blocks. It is written here
 /// because that writer takes each block's buffer and frees it: a new
 /// buffer per block, 786 KB for 16 rows of a 4096-wide float map, cost a
-/// page fault per 4 KiB, a quarter of that conversion's processor time.
+/// page fault per 4 KiB (35 000 at 4096², 14 % of that conversion's
+/// processor time).
 ///
 /// Errors: [`Error::Io`] if `out` fails, [`Error::Encode`] for an invalid
 /// header, a block the file has no room for, one written twice or one
@@ -1086,10 +1087,11 @@ fn incompressible(deltas: &[u8]) -> bool {
 
 /// `data` as zlib at [`EXR_ZLIB_LEVEL`], what miniz_oxide's
 /// `compress_to_vec_zlib` makes of it, by a compressor kept per thread:
-/// that function makes a new one per call, whose 300 KB of tables were
-/// allocated and zeroed for every block's probe, a third of a float EXR
-/// conversion's page faults. `None` if miniz_oxide fails (which that
-/// function would panic on): the block is stored.
+/// that function makes a new one per call, whose tables were allocated
+/// and zeroed for every block's probe: a float EXR's conversion had 17 000
+/// page faults with it, 7 600 without (4096², 10 % of its processor
+/// time). `None` if miniz_oxide fails (which that function would panic
+/// on): the block is stored.
 fn zlib(mut data: &[u8]) -> Option<Vec<u8>> {
     thread_local! {
         static COMPRESSOR: RefCell<Box<CompressorOxide>> = RefCell::new(Box::default());
