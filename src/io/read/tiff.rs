@@ -671,17 +671,24 @@ impl<R: Read + Seek> TiffBand<R> {
 
     /// [`TiffBand::values`] in `f32`, exact when
     /// [`TiffBand::exact_in_f32`].
+    ///
+    /// The common kinds read chunks of a size the compiler knows, so the
+    /// loops are plain copies and widenings: through the sample size as a
+    /// run-time value (and a byte-by-byte array), the float case was 29 %
+    /// of a lit view's decoding thread.
     pub(crate) fn values_f32(&self, bytes: &[u8], out: &mut [f32]) {
-        fn ne<const N: usize>(p: &[u8]) -> [u8; N] {
-            std::array::from_fn(|i| p[i])
-        }
-        let size = self.kind.bytes();
-        let samples = bytes.chunks_exact(size);
         match self.kind {
-            TiffGray::F32 => out.iter_mut().zip(samples).for_each(|(o, p)| *o = f32::from_ne_bytes(ne(p))),
-            TiffGray::U16 => out.iter_mut().zip(samples).for_each(|(o, p)| *o = f32::from(u16::from_ne_bytes(ne(p)))),
-            TiffGray::U8 => out.iter_mut().zip(samples).for_each(|(o, p)| *o = f32::from(p[0])),
-            kind => out.iter_mut().zip(samples).for_each(|(o, p)| *o = sample_value(kind, p) as f32),
+            TiffGray::F32 => {
+                out.iter_mut().zip(bytes.as_chunks::<4>().0).for_each(|(o, p)| *o = f32::from_ne_bytes(*p))
+            }
+            TiffGray::U16 => {
+                out.iter_mut().zip(bytes.as_chunks::<2>().0).for_each(|(o, p)| *o = f32::from(u16::from_ne_bytes(*p)))
+            }
+            TiffGray::U8 => out.iter_mut().zip(bytes).for_each(|(o, &p)| *o = f32::from(p)),
+            kind => {
+                let samples = bytes.chunks_exact(kind.bytes());
+                out.iter_mut().zip(samples).for_each(|(o, p)| *o = sample_value(kind, p) as f32);
+            }
         }
     }
 }
