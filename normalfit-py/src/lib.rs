@@ -872,14 +872,17 @@ fn map_units(units: &str, pixel_size: Option<(f64, f64)>) -> PyResult<Option<Map
 }
 
 /// How terrain files are read, the CLI's `--band`, `--size`,
-/// `--byte-order` and `--decode` on top of `read`, checked by the library.
+/// `--byte-order`, `--decode` and `--nodata none` (`nodata_tag` false) on
+/// top of `read`, checked by the library.
 fn terrain_read(
     mut read: ReadOptions,
     band: Option<&Bound<'_, PyAny>>,
     size: Option<&Bound<'_, PyAny>>,
     byte_order: Option<&str>,
     decode: Option<&str>,
+    nodata_tag: bool,
 ) -> PyResult<ReadOptions> {
+    read = read.with_nodata_tag(nodata_tag);
     if let Some(band) = band {
         let k = whole(band, "band")?;
         let k = u32::try_from(k).map_err(|_| {
@@ -1006,8 +1009,7 @@ fn convert(
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let opts = opts.with_nodata(nodata);
     let map_units = map_units(units, pixel_size)?;
-    let read =
-        terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?.with_nodata_tag(nodata_tag);
+    let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode, nodata_tag)?;
     let format = format.map(parse_named::<OutputFormat>).transpose()?;
     let compression = parse_named::<PngCompression>(compression)?;
     let layout = Layout::from_parts(parse_named(channels)?, parse_named(alpha)?).map_err(to_py_err)?;
@@ -1101,8 +1103,7 @@ fn lit_view<'py>(
         .with_channel(parse_channel(channel)?)
         .with_signed(signed)
         .with_map_units(map_units(units, pixel_size)?);
-    let read =
-        terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode)?.with_nodata_tag(nodata_tag);
+    let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode, nodata_tag)?;
     let view = py.detach(|| shade::lit_view_of_file(&path, &read, &lit)).map_err(|e| file_error(&path, e, false))?;
     let (w, h) = (view.width, view.height);
     Ok(PyArray1::from_vec(py, view.pixels).reshape([h, w])?.into_any())

@@ -1019,17 +1019,9 @@ const EXR_ZLIB_LEVEL: u8 = 1;
 /// zlib-rs's 0.44 s to 86 %, and fdeflate (made for PNG's filtered bytes)
 /// 0.07 s to 137 %. A block that does not shrink is stored as it is,
 /// which is how EXR readers tell the two apart. The raw bytes are laid
-/// out in `buffer` (a written block's, or a new one).
-fn zip_chunk(
-    samples: &[f32],
-    row_len: usize,
-    order: &[usize],
-    y0: usize,
-    depth: ExrDepth,
-    mut buffer: Vec<u8>,
-) -> Chunk {
-    exr_block_bytes(samples, row_len, order, depth, &mut buffer);
-    let raw = buffer;
+/// out in `raw` (a written block's buffer, or a new one).
+fn zip_chunk(samples: &[f32], row_len: usize, order: &[usize], y0: usize, depth: ExrDepth, mut raw: Vec<u8>) -> Chunk {
+    exr_block_bytes(samples, row_len, order, depth, &mut raw);
     // `ExrBlocks::new` checked that every row is an i32.
     let y_coordinate = y0 as i32;
     // Float normals do not deflate: judged by the first bytes alone, such
