@@ -20,6 +20,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -126,6 +127,16 @@ def main() -> None:
             times["core kept"].append(float(line[1]))
     python_fresh, python_out, core_fresh, core_kept = (statistics.median(times[k]) for k in times)
     one_thread = median_seconds(lambda: normalfit.normals(h, threads=1), max(3, reps // 2))
+    def two_at_once() -> None:
+        # Two Python threads, one call each: the GIL is released in a call,
+        # so with two cores free they take about one call's time.
+        pair = [threading.Thread(target=lambda: normalfit.normals(h, threads=1)) for _ in range(2)]
+        for t in pair:
+            t.start()
+        for t in pair:
+            t.join()
+
+    two_threads = median_seconds(two_at_once, max(3, reps // 2))
     recipe64 = median_seconds(lambda: numpy_recipe(h, np.float64), max(3, reps // 2))
     recipe32 = median_seconds(lambda: numpy_recipe(h, np.float32), max(3, reps // 2))
 
@@ -137,6 +148,8 @@ def main() -> None:
     row("normalfit.normals(h) (Python, new output)", python_fresh, f"{python_fresh / core_fresh:.3f}× the core's time")
     row("Rust core normals() (new, zeroed output)", core_fresh)
     row("normalfit.normals(h, threads=1)", one_thread, "(NumPy runs on one thread)")
+    row("two threads=1 calls at once (two Python threads)", two_threads / 2,
+        f"per call; {two_threads / one_thread:.2f}× one call's wall time")
     row("NumPy recipe, float64 (np.gradient + norm)", recipe64,
         f"normalfit is {recipe64 / python_fresh:.1f}× faster ({recipe64 / one_thread:.1f}× on one thread)")
     row("NumPy recipe, float32", recipe32,

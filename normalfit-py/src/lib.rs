@@ -174,6 +174,18 @@ fn pool(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Borrowed>> {
     Ok(Some(Borrowed { threads: n, pool: Some(pool) }))
 }
 
+/// The sizes of the pools of `threads=` that are kept and free now, one
+/// entry a pool, smallest first: the tests' view of [`POOLS`] (a pool made
+/// while another of its size was in use shows here as a second entry).
+#[pyfunction]
+fn _kept_pools() -> Vec<usize> {
+    let pools = POOLS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut sizes: Vec<usize> =
+        pools.iter().flat_map(|m| m.iter()).flat_map(|(&size, kept)| std::iter::repeat_n(size, kept.len())).collect();
+    sizes.sort_unstable();
+    sizes
+}
+
 /// Runs `work` on the pool of `threads=`, or on rayon's global pool.
 fn on_pool<R: Send>(pool: Option<&ThreadPool>, work: impl FnOnce() -> R + Send) -> R {
     match pool {
@@ -1324,6 +1336,7 @@ fn height_file(
 #[pymodule]
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals, m)?)?;
+    m.add_function(wrap_pyfunction!(_kept_pools, m)?)?;
     m.add_function(wrap_pyfunction!(window_normals, m)?)?;
     m.add_function(wrap_pyfunction!(border_names, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling, m)?)?;

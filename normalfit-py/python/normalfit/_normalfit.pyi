@@ -26,6 +26,8 @@ __all__ = [
 
 __version__: str
 
+def _kept_pools() -> list[int]: ...
+
 def normals(
     heights: Any,
     patch: Any,
