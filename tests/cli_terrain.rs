@@ -200,7 +200,7 @@ fn packed_tiles_convert_as_their_metres_in_a_float_tiff() {
         ok(&["convert", s(&tile), "--decode", name, "-o", s(&a), "-s", "0.05"]);
         ok(&["convert", s(&tif), "-o", s(&b), "-s", "0.05"]);
         // The same texels; not the same bytes: the float TIFF streams, and
-        // the streamed PNG stores its top rows apart (docs/terrain.md).
+        // the streamed PNG stores its top rows apart (docs/terrain-outputs.md).
         let pixels = |p: &std::path::Path| image::open(p).unwrap().into_rgb16().into_raw();
         assert_eq!(pixels(&a), pixels(&b), "{name}");
         let img = image::open(&a).unwrap();

@@ -11,7 +11,7 @@
 //! GDAL (Debian's `gdal-bin`; ignored where it is absent, CI installs it
 //! and runs ignored tests): projected planes within one grey level of
 //! `gdaldem hillshade`, and the shipped DEM, whose differences
-//! docs/terrain.md reports and explains.
+//! docs/terrain-accuracy.md reports and explains.
 
 mod common;
 
@@ -290,7 +290,7 @@ fn spread(mut values: Vec<i32>) -> (i32, i32, i32) {
 /// bench/terrain_page.sh gives it to both tools: warped to UTM zone 16 on
 /// 90 m pixels (cubic) and cut to the window the warp fills. The
 /// differences from `gdaldem hillshade` in grey levels, over the texels
-/// gdaldem computes, are printed (docs/terrain.md has them) and held to
+/// gdaldem computes, are printed (docs/terrain-accuracy.md has them) and held to
 /// bounds a little above what was measured: N = 3 against Horn (gdaldem's
 /// default), N = 3 vertical, N = 5, and against Zevenbergen–Thorne; and
 /// the geographic file itself against gdaldem's `-s 111120`.
@@ -368,7 +368,7 @@ fn the_shipped_dem_against_gdaldem_hillshade() {
         &inside(gw, gh),
     );
 
-    // Bounds a little above the measured figures (docs/terrain.md).
+    // Bounds a little above the measured figures (docs/terrain-accuracy.md).
     assert!(n3.0 <= 1 && n3.1 <= 4 && n3.2 <= 12, "{n3:?}");
     assert!(n3v.0 <= 1 && n3v.1 <= 4 && n3v.2 <= 12, "{n3v:?}");
     // A wider patch smooths more, Zevenbergen–Thorne's 0:1:0 stencil is

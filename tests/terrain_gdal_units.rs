@@ -2,7 +2,7 @@
 //! `gdaldem aspect` (Debian's `gdal-bin`): planes of known slope in
 //! projected coordinates (EPSG 32633, square and unequal pixels) and in
 //! geographic ones (EPSG 4326), and a real DEM (samples/dem/, USGS), whose
-//! differences from GDAL's 3×3 methods docs/terrain.md reports and
+//! differences from GDAL's 3×3 methods docs/terrain-accuracy.md reports and
 //! explains. Ignored where GDAL is absent: CI installs `gdal-bin` and runs
 //! ignored tests (.ci/run).
 //!
@@ -123,7 +123,7 @@ fn projected_planes_match_gdaldem() {
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (12, 9);
     let mut compared = 0;
-    // The largest differences from GDAL, printed for docs/terrain.md.
+    // The largest differences from GDAL, printed for docs/terrain-accuracy.md.
     let (mut slope_gap, mut aspect_gap) = (0.0f64, 0.0f64);
     for (dx, dy) in [(10.0, 10.0), (30.0, 20.0), (5.0, 12.5)] {
         for (p, q) in [(0.3, 0.1), (-0.7, 0.25), (0.0, -1.2), (2.0, 0.0), (-0.02, -0.05), (0.0, 0.0)] {
@@ -248,7 +248,7 @@ fn percentiles(mut values: Vec<f64>) -> (f64, f64) {
 /// The real DEM of samples/dem/ (USGS, 3″, around 36.6° N) against GDAL's
 /// 3×3 methods, Horn's (the default) and Zevenbergen–Thorne's: the
 /// differences in slope and aspect (aspect where GDAL's slope is at least
-/// 2°), median and 99th percentile, printed (docs/terrain.md has them) and
+/// 2°), median and 99th percentile, printed (docs/terrain-accuracy.md has them) and
 /// held to bounds a little above what was measured.
 ///
 /// GDAL 3.6 takes one scale for both axes of a geographic raster and no
@@ -336,7 +336,7 @@ fn a_real_dem_against_gdal_3x3_methods() {
     for line in &report {
         println!("{line}");
     }
-    // Bounds a little above the measured figures (docs/terrain.md).
+    // Bounds a little above the measured figures (docs/terrain-accuracy.md).
     for (name, (median, p99)) in [("vertical/Horn", (v_horn.0, v_horn.1)), ("orthogonal/Horn", (o_horn.0, o_horn.1))] {
         assert!(median < 0.3 && p99 < 1.5, "{name}: {median} {p99}");
     }
