@@ -5,6 +5,9 @@
 //! forward fit, and the properties: flat in → flat out, shifts under wrap,
 //! thread counts, texels without a slope, the convention under auto.
 
+mod common;
+
+use common::reference::source_index;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights};
 use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals};
 
@@ -138,7 +141,7 @@ impl Lcg {
 /// texture as the borders extend it (wrap: the image; mirror: 2(n − 1)
 /// texels, a reflected copy's slope along its axis negated; clamp: the
 /// image), the squared differences of the vertical fit's slopes of z (the
-/// image's texels, read through `Border::map`) and the given slopes;
+/// image's texels, read through the reference's border rule) and the given slopes;
 /// minimum norm over that period (each texel weighted by how often the
 /// period holds it). Solved by its normal equations with a vanishing
 /// Tikhonov term, by Gaussian elimination.
@@ -155,9 +158,10 @@ fn dense_solve(gx: &[f64], gy: &[f64], w: usize, h: usize, n: usize, borders: Bo
     let mut atb = vec![0.0; unknowns];
     let mut weight = vec![0.0; unknowns];
     let reflected = |p: usize, len: usize, b: Border| b == Border::Mirror && len > 2 && p >= len;
+    let map = |k: isize, len: usize, b: Border| source_index(k as i64, len as i64, b) as usize;
     for qy in 0..py {
         for qx in 0..px {
-            let (ix, iy) = (borders.x.map(qx as isize, w), borders.y.map(qy as isize, h));
+            let (ix, iy) = (map(qx as isize, w, borders.x), map(qy as isize, h, borders.y));
             weight[iy * w + ix] += 1.0;
             let sx = if reflected(qx, w, borders.x) { -1.0 } else { 1.0 };
             let sy = if reflected(qy, h, borders.y) { -1.0 } else { 1.0 };
@@ -166,8 +170,8 @@ fn dense_solve(gx: &[f64], gy: &[f64], w: usize, h: usize, n: usize, borders: Bo
             let mut row_y = vec![0.0; unknowns];
             for j in -r..=r {
                 for i in -r..=r {
-                    let tx = borders.x.map(qx as isize + i, w);
-                    let ty = borders.y.map(qy as isize + j, h);
+                    let tx = map(qx as isize + i, w, borders.x);
+                    let ty = map(qy as isize + j, h, borders.y);
                     row_x[ty * w + tx] += i as f64 / a;
                     row_y[ty * w + tx] += j as f64 / a;
                 }

@@ -1,6 +1,10 @@
-//! Holes stay holes: the masked fit against a slow reference written out
-//! here, texel by texel, with no code shared with the library's sums.
+//! Holes stay holes: the masked fit against the slow reference
+//! (`tests/common/reference.rs`), texel by texel, with no code shared with
+//! the library's sums.
 
+mod common;
+
+use common::reference;
 use normalfit::fit::BandFit;
 use normalfit::{Border, Borders, Fit, Options, Spacing, Strength, Units, normals_into, normals_masked_into};
 
@@ -14,138 +18,6 @@ impl Rng {
         self.0 ^= self.0 << 17;
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
-}
-
-/// The border rule, written out: the index of texel k on an axis of n.
-fn border(mode: Border, k: isize, n: usize) -> usize {
-    let n = n as isize;
-    let m = match mode {
-        Border::Wrap => k.rem_euclid(n),
-        Border::Clamp => k.clamp(0, n - 1),
-        Border::Mirror => {
-            if n == 1 {
-                0
-            } else {
-                let p = 2 * (n - 1);
-                let t = k.rem_euclid(p);
-                if t < n { t } else { p - t }
-            }
-        }
-        _ => unreachable!(),
-    };
-    m as usize
-}
-
-/// The smallest eigenvector of a symmetric 3×3 matrix, by Jacobi
-/// rotations until the off-diagonal vanishes.
-fn smallest_eigenvector(mut a: [[f64; 3]; 3]) -> [f64; 3] {
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..100 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
-        if off <= 1e-300 || off <= 1e-18 * scale {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q] == 0.0 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let c = 1.0 / (t * t + 1.0).sqrt();
-            let s = t * c;
-            // a ← Jᵀ a J, v ← v J, J the rotation in the (p, q) plane.
-            for row in &mut a {
-                let (akp, akq) = (row[p], row[q]);
-                row[p] = c * akp - s * akq;
-                row[q] = s * akp + c * akq;
-            }
-            let (ap, aq) = (a[p], a[q]);
-            for k in 0..3 {
-                a[p][k] = c * ap[k] - s * aq[k];
-                a[q][k] = s * ap[k] + c * aq[k];
-            }
-            for row in &mut v {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
-    }
-    let k = (0..3).min_by(|&i, &j| a[i][i].total_cmp(&a[j][j])).unwrap();
-    [v[0][k], v[1][k], v[2][k]]
-}
-
-/// The reference: per texel, the valid points of its N×N patch through
-/// the borders, (i·sx, σ·j·sy, S·h) in the heights' unit, and their
-/// least-squares plane solved outright. `None`: missing.
-#[allow(clippy::too_many_arguments)]
-fn reference(
-    heights: &[f64],
-    valid: &[bool],
-    (w, h): (usize, usize),
-    n: usize,
-    fit: Fit,
-    borders: Borders,
-    (sx, sy): (f64, f64),
-    gain: f64,
-) -> Vec<Option<[f64; 3]>> {
-    let r = (n / 2) as isize;
-    let mut out = Vec::new();
-    for y in 0..h {
-        for x in 0..w {
-            if !valid[y * w + x] {
-                out.push(None);
-                continue;
-            }
-            let mut points = Vec::new();
-            for j in -r..=r {
-                for i in -r..=r {
-                    let k = border(borders.y, y as isize + j, h) * w + border(borders.x, x as isize + i, w);
-                    if valid[k] {
-                        // OpenGL: y up, rows down, so v = −j.
-                        points.push([i as f64 * sx, -(j as f64) * sy, gain * heights[k]]);
-                    }
-                }
-            }
-            let c = points.len() as f64;
-            let mean: Vec<f64> = (0..3).map(|a| points.iter().map(|p| p[a]).sum::<f64>() / c).collect();
-            let mut m = [[0.0; 3]; 3];
-            for p in &points {
-                for a in 0..3 {
-                    for b in 0..3 {
-                        m[a][b] += (p[a] - mean[a]) * (p[b] - mean[b]);
-                    }
-                }
-            }
-            let det = m[0][0] * m[1][1] - m[0][1] * m[0][1];
-            if points.len() < 3 || det <= 1e-9 * (m[0][0] + m[1][1]).powi(2) {
-                out.push(None);
-                continue;
-            }
-            // The contract's rule: a patch without tilt is flat, whichever
-            // plane is nearest (SPEC §2; for full patches A is m00 = m11).
-            let tilt2 = m[0][2] * m[0][2] + m[1][2] * m[1][2];
-            if tilt2 <= 1e-20 * (m[0][0].max(m[1][1]) + m[2][2]).powi(2) {
-                out.push(Some([0.0, 0.0, 1.0]));
-                continue;
-            }
-            let normal = match fit {
-                Fit::Vertical => {
-                    let gx = (m[1][1] * m[0][2] - m[0][1] * m[1][2]) / det;
-                    let gy = (m[0][0] * m[1][2] - m[0][1] * m[0][2]) / det;
-                    [-gx, -gy, 1.0]
-                }
-                _ => {
-                    let e = smallest_eigenvector(m);
-                    if e[2] < 0.0 { e.map(|c| -c) } else { e }
-                }
-            };
-            let l = (normal[0].powi(2) + normal[1].powi(2) + normal[2].powi(2)).sqrt();
-            out.push(Some(normal.map(|c| c / l)));
-        }
-    }
-    out
 }
 
 fn all_borders() -> Vec<Borders> {
@@ -220,7 +92,7 @@ fn masked_fits_match_the_reference_with_random_holes() {
                     let mut got = vec![[0.0f64; 3]; w * h];
                     let mut got_valid = vec![false; w * h];
                     let missing = normals_masked_into(&heights, w, h, &opts, &mut got, &mut got_valid).unwrap();
-                    let expected = reference(&as_f64, &valid, (w, h), n, fit, borders, (sx, sy), 3.0);
+                    let expected = reference::masked_normal_map(&as_f64, Some(&valid), w, h, &opts);
                     let what = format!("N {n} {fit:?} {borders:?} spacing {sx},{sy}");
                     check(&got, &got_valid, &expected, 1e-9, &what);
                     assert_eq!(missing, expected.iter().filter(|e| e.is_none()).count(), "{what}");
@@ -258,7 +130,7 @@ fn sixteen_bit_samples_with_a_nodata_value_match_the_reference() {
                 let mut got = vec![[0.0f64; 3]; w * h];
                 let mut got_valid = vec![false; w * h];
                 normals_masked_into(&heights, w, h, &opts, &mut got, &mut got_valid).unwrap();
-                let expected = reference(&as_f64, &valid, (w, h), n, fit, borders, (1.0, 1.0), 40.0);
+                let expected = reference::masked_normal_map(&as_f64, Some(&valid), w, h, &opts);
                 check(&got, &got_valid, &expected, 1e-9, &format!("u16 N {n} {fit:?} {borders:?}"));
             }
         }

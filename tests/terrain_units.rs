@@ -1,203 +1,25 @@
 //! Fits in real-world units (issue 17, docs/terrain.md): texels of unequal
 //! spacing, per-row spacing of geographic rasters, heights as stored.
 //!
-//! The fast path is checked against a slow reference written out here: for
-//! every texel, the N×N points (sx·i, σ·sy·j, S·h) through the border maps,
-//! then for the vertical fit the ordinary least-squares plane z = a + b·u +
-//! c·v from its 3×3 normal equations, and for the orthogonal fit the
-//! eigenvector of the smallest eigenvalue of the points' 3×3 covariance by
-//! Jacobi rotations. Nothing is shared with the library's sums.
+//! The fast path is checked against the slow reference
+//! (`tests/common/reference.rs`): for every texel, the N×N points
+//! (sx·i, σ·sy·j, S·h) through the border maps at its centre row's
+//! spacing, then for the vertical fit the ordinary least-squares plane
+//! z = a + b·u + c·v from its 3×3 normal equations, and for the orthogonal
+//! fit the eigenvector of the smallest eigenvalue of the points' 3×3
+//! covariance by Jacobi rotations. Nothing is shared with the library's
+//! sums.
 
-// The reference is written as the textbook writes it, with indices.
-#![allow(clippy::needless_range_loop)]
+mod common;
 
 use std::sync::Arc;
 
+use common::reference::{self, unit};
 use normalfit::io::{Georef, ModelType, metres_per_degree};
 use normalfit::units::{MapSpacing, map_spacing, slope_aspect};
 use normalfit::{Border, Borders, Convention, Fit, Options, Spacing, Strength, Units, normals_and_residual_into};
 
 const BORDERS: [Border; 3] = [Border::Wrap, Border::Clamp, Border::Mirror];
-
-/// Index `k` of an axis of `n` texels through `mode`, written out.
-fn source(k: i64, n: i64, mode: Border) -> usize {
-    let m = match mode {
-        Border::Wrap => k.rem_euclid(n),
-        Border::Clamp => k.max(0).min(n - 1),
-        Border::Mirror if n == 1 => 0,
-        Border::Mirror => {
-            let mut k = k;
-            // Reflect until inside: −1 → 1, n → n − 2.
-            while k < 0 || k >= n {
-                k = if k < 0 { -k } else { 2 * (n - 1) - k };
-            }
-            k
-        }
-        _ => unreachable!(),
-    };
-    m as usize
-}
-
-/// The patch points of texel (x, y) in real-world lengths.
-fn points(z: &[f64], w: usize, h: usize, opts: &Options, (sx, sy): (f64, f64), x: usize, y: usize) -> Vec<[f64; 3]> {
-    let r = (opts.patch / 2) as i64;
-    let sigma = if opts.convention == Convention::OpenGl { -1.0 } else { 1.0 };
-    let mut pts = Vec::new();
-    for j in -r..=r {
-        for i in -r..=r {
-            let u = source(x as i64 + i, w as i64, opts.borders.x);
-            let v = source(y as i64 + j, h as i64, opts.borders.y);
-            pts.push([sx * i as f64, sigma * sy * j as f64, z[v * w + u]]);
-        }
-    }
-    pts
-}
-
-/// Solves the 3×3 system m·x = b by Gaussian elimination with pivoting.
-fn solve3(mut m: [[f64; 3]; 3], mut b: [f64; 3]) -> [f64; 3] {
-    for c in 0..3 {
-        let p = (c..3).max_by(|&a, &q| m[a][c].abs().total_cmp(&m[q][c].abs())).unwrap();
-        m.swap(c, p);
-        b.swap(c, p);
-        for r in c + 1..3 {
-            let f = m[r][c] / m[c][c];
-            for k in c..3 {
-                m[r][k] -= f * m[c][k];
-            }
-            b[r] -= f * b[c];
-        }
-    }
-    let mut x = [0.0; 3];
-    for c in (0..3).rev() {
-        let s: f64 = (c + 1..3).map(|k| m[c][k] * x[k]).sum();
-        x[c] = (b[c] - s) / m[c][c];
-    }
-    x
-}
-
-/// The vertical fit: z = a + b·u + c·v by least squares (the normal
-/// equations of the design [1, u, v], whatever its sums), n ∝ (−b, −c, 1).
-fn vertical(pts: &[[f64; 3]]) -> [f64; 3] {
-    let mut m = [[0.0; 3]; 3];
-    let mut rhs = [0.0; 3];
-    for p in pts {
-        let row = [1.0, p[0], p[1]];
-        for a in 0..3 {
-            for b in 0..3 {
-                m[a][b] += row[a] * row[b];
-            }
-            rhs[a] += row[a] * p[2];
-        }
-    }
-    let [_, b, c] = solve3(m, rhs);
-    unit([-b, -c, 1.0])
-}
-
-/// The orthogonal fit: the covariance's eigenvector of the smallest
-/// eigenvalue, by cyclic Jacobi rotations, z ≥ 0; and that eigenvalue.
-fn orthogonal(pts: &[[f64; 3]]) -> ([f64; 3], f64) {
-    let n = pts.len() as f64;
-    let mean: [f64; 3] = std::array::from_fn(|k| pts.iter().map(|p| p[k]).sum::<f64>() / n);
-    let mut a = [[0.0; 3]; 3];
-    for p in pts {
-        for r in 0..3 {
-            for c in 0..3 {
-                a[r][c] += (p[r] - mean[r]) * (p[c] - mean[c]);
-            }
-        }
-    }
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..100 {
-        let off = a[0][1].powi(2) + a[0][2].powi(2) + a[1][2].powi(2);
-        if off < 1e-300 {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q] == 0.0 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
-            // a = Jᵀ a J, v = v J, J the rotation in the (p, q) plane.
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
-            }
-            for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
-            }
-            for row in &mut v {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
-    }
-    let k = (0..3).min_by(|&i, &j| a[i][i].total_cmp(&a[j][j])).unwrap();
-    let e = [v[0][k], v[1][k], v[2][k]];
-    // z ≥ 0; for a vertical plane (z = 0 up to rounding), y ≥ 0, then x ≥ 0.
-    let flip = if e[2].abs() > 1e-12 {
-        e[2] < 0.0
-    } else if e[1].abs() > 1e-12 {
-        e[1] < 0.0
-    } else {
-        e[0] < 0.0
-    };
-    let e = if flip { e.map(|c| -c) } else { e };
-    (unit(e), a[k][k].max(0.0))
-}
-
-fn unit(v: [f64; 3]) -> [f64; 3] {
-    let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    v.map(|c| c / l)
-}
-
-/// The reference normal and RMS residual of texel (x, y), the spacing
-/// `spacing_of(y)` of its centre row.
-fn reference(
-    z: &[f64],
-    w: usize,
-    h: usize,
-    opts: &Options,
-    spacing: (f64, f64),
-    x: usize,
-    y: usize,
-) -> ([f64; 3], f64) {
-    let pts = points(z, w, h, opts, spacing, x, y);
-    let n2 = pts.len() as f64;
-    // The contract's flat rule, in x spacings: a patch without tilt
-    // (Σ i·z and Σ j·z zero up to rounding) has the normal (0, 0, 1).
-    let zs: Vec<f64> = pts.iter().map(|p| p[2] / spacing.0).collect();
-    let mean = zs.iter().sum::<f64>() / n2;
-    let r = (opts.patch / 2) as i64;
-    let offsets = || (-r..=r).flat_map(move |j| (-r..=r).map(move |i| (i as f64, j as f64)));
-    let cx: f64 = offsets().zip(&zs).map(|((i, _), z)| i * z).sum();
-    let cy: f64 = offsets().zip(&zs).map(|((_, j), z)| j * z).sum();
-    let a: f64 = offsets().map(|(i, _)| i * i).sum();
-    let czz: f64 = zs.iter().map(|z| (z - mean).powi(2)).sum();
-    let flat = cx * cx + cy * cy <= 1e-20 * (a + czz).powi(2);
-    match opts.fit {
-        _ if flat => ([0.0, 0.0, 1.0], (czz / n2).sqrt() * spacing.0),
-        Fit::Vertical => {
-            let n = vertical(&pts);
-            // Vertical residual: the distances along z from the plane.
-            let mean: [f64; 3] = std::array::from_fn(|k| pts.iter().map(|p| p[k]).sum::<f64>() / n2);
-            let (b, c) = (-n[0] / n[2], -n[1] / n[2]);
-            let ss: f64 =
-                pts.iter().map(|p| (p[2] - mean[2] - b * (p[0] - mean[0]) - c * (p[1] - mean[1])).powi(2)).sum();
-            (n, (ss / n2).sqrt())
-        }
-        _ => {
-            let (n, lambda) = orthogonal(&pts);
-            (n, (lambda / n2).sqrt())
-        }
-    }
-}
 
 /// Heights in metres: a tilted plane, a bump and hashed noise, so that the
 /// patches are neither planar nor degenerate.
@@ -238,11 +60,11 @@ fn unequal_spacing_fits_as_the_dense_reference() {
                         .with_convention(convention)
                         .with_strength(Strength::Scale(scale))
                         .with_units(Units::Map(Spacing::Uniform { x: sx, y: sy }));
-                    let zs: Vec<f64> = z.iter().map(|v| v * scale).collect();
                     let (got, residual) = fitted(&z, w, h, &opts);
                     for y in 0..h {
                         for x in 0..w {
-                            let (want, rms) = reference(&zs, w, h, &opts, (sx, sy), x, y);
+                            let plane = reference::fit_at(&z, None, w, h, &opts, x, y).unwrap();
+                            let (want, rms) = (plane.normal, plane.residual);
                             let g = got[y * w + x];
                             let err = (0..3).map(|c| (g[c] - want[c]).abs()).fold(0.0, f64::max);
                             assert!(
@@ -449,7 +271,7 @@ fn per_row_spacing_fits_as_the_reference() {
             let got = fitted(&z, w, h, &opts).0;
             for y in 0..h {
                 for x in 0..w {
-                    let (want, _) = reference(&z, w, h, &opts, (rows[y][0], rows[y][1]), x, y);
+                    let want = reference::normal_at(&z, w, h, &opts, x, y);
                     let g = got[y * w + x];
                     let err = (0..3).map(|c| (g[c] - want[c]).abs()).fold(0.0, f64::max);
                     assert!(err < 1e-9, "{fit:?} {border:?} ({x}, {y}): {g:?} against {want:?}");

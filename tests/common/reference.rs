@@ -1,14 +1,22 @@
-//! An independent, slow, obviously-right plane fit for the tests.
+//! An independent, slow, obviously-right plane fit: the one reference the
+//! tests of the fit compare with.
 //!
-//! Written apart from `src/fit.rs` and sharing nothing with it: N² loops in
-//! f64 over the patch's actual points, the full 3×3 covariance (no sums
-//! assumed zero), a Jacobi eigen-solver for the orthogonal fit and the
-//! normal equations solved by Gaussian elimination for the vertical fit.
+//! Written apart from `src/fit.rs` and `src/fit/masked.rs` and sharing
+//! nothing with them: N² loops in f64 over the patch's actual points
+//! (sx·i, σ·sy·j, S·h) through the border rule, the full 3×3 covariance (no
+//! sums assumed zero), a Jacobi eigen-solver for the orthogonal fit and the
+//! normal equations of z = c0 + c1·u + c2·v solved by Gaussian elimination
+//! for the vertical fit. Spacing (SPEC §2, docs/terrain.md): 1 × 1 in
+//! texels, the map's in map units, row y's for the whole patch of texel
+//! (x, y) with a per-row spacing. Holes (docs/terrain.md "Holes"): the
+//! caller says which texels are heights; a hole is left out of every patch,
+//! and a texel is missing when it is a hole or its valid points are fewer
+//! than 3 or on one line.
 #![allow(dead_code)]
 // Matrix code reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
-use normalfit::{Border, Convention, Fit, Options, Strength};
+use normalfit::{Border, Convention, Fit, Options, Spacing, Strength, Units};
 
 /// The index rule of SPEC.md section 2, written out case by case.
 pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
@@ -48,18 +56,41 @@ pub fn gain(opts: &Options, w: usize) -> f64 {
     if opts.invert { -s } else { s }
 }
 
-/// The N² points (u, v, z) of texel (x, y)'s patch.
+/// (sx, sy), the distances between texel centres along a row and down a
+/// column that the patch of a texel in row `y` is fitted with: 1 × 1 in
+/// texels; in map units the map's, or row y's of a per-row spacing.
+pub fn spacing(opts: &Options, y: usize) -> (f64, f64) {
+    match &opts.units {
+        Units::Texels => (1.0, 1.0),
+        Units::Map(Spacing::Uniform { x, y }) => (*x, *y),
+        Units::Map(Spacing::Rows(rows)) => (rows[y][0], rows[y][1]),
+        other => panic!("the reference knows no units {other:?}"),
+    }
+}
+
+/// One point of a patch: its offset (i, j) from the texel, and its place
+/// (u, v, z) = (sx·i, σ·sy·j, S·h).
+struct Point {
+    offset: [i64; 2],
+    place: [f64; 3],
+}
+
+/// The points of texel (x, y)'s N×N patch, each looked up through the
+/// border rule on its axis; a texel that `valid` marks as a hole gives no
+/// point (`valid` None: every texel is a height).
 fn patch_points<H: Copy + Into<f64>>(
     heights: &[H],
+    valid: Option<&[bool]>,
     w: usize,
     h: usize,
     opts: &Options,
     x: usize,
     y: usize,
-) -> Vec<[f64; 3]> {
+) -> Vec<Point> {
     let n = opts.patch as i64;
     let r = n / 2;
     let s = gain(opts, w);
+    let (sx, sy) = spacing(opts, y);
     let sigma = match opts.convention {
         Convention::OpenGl => -1.0,
         Convention::DirectX => 1.0,
@@ -67,43 +98,178 @@ fn patch_points<H: Copy + Into<f64>>(
     let mut pts = Vec::new();
     for j in -r..=r {
         for i in -r..=r {
-            let sx = source_index(x as i64 + i, w as i64, opts.borders.x) as usize;
-            let sy = source_index(y as i64 + j, h as i64, opts.borders.y) as usize;
-            pts.push([i as f64, sigma * j as f64, s * heights[sy * w + sx].into()]);
+            let col = source_index(x as i64 + i, w as i64, opts.borders.x) as usize;
+            let row = source_index(y as i64 + j, h as i64, opts.borders.y) as usize;
+            let k = row * w + col;
+            if valid.is_some_and(|valid| !valid[k]) {
+                continue;
+            }
+            let place = [sx * i as f64, sigma * sy * j as f64, s * heights[k].into()];
+            pts.push(Point { offset: [i, j], place });
         }
     }
     pts
 }
 
-/// The reference residual of texel (x, y): the root-mean-square distance
-/// of the patch's points from the plane the reference fits, measured
-/// point by point. Orthogonal fit: perpendicular distance from the plane
-/// through the points' centroid with the reference normal (the flat
-/// normal's horizontal plane included). Vertical fit: z minus the least
-/// squares plane c0 + c1·u + c2·v, or minus the mean where the contract
-/// calls the patch flat.
-pub fn residual_at<H: Copy + Into<f64>>(heights: &[H], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> f64 {
-    let pts = patch_points(heights, w, h, opts, x, y);
-    let count = pts.len() as f64;
-    let mean = centroid(&pts);
-    let normal = normal_at(heights, w, h, opts, x, y);
-    let flat = normal == [0.0, 0.0, 1.0];
-    let squared: f64 = match opts.fit {
-        Fit::Orthogonal => pts.iter().map(|p| (0..3).map(|k| normal[k] * (p[k] - mean[k])).sum::<f64>().powi(2)).sum(),
-        Fit::Vertical if flat => pts.iter().map(|p| (p[2] - mean[2]).powi(2)).sum(),
-        Fit::Vertical => {
-            let c = least_squares_plane(&pts);
-            pts.iter().map(|p| (p[2] - (c[0] + c[1] * p[0] + c[2] * p[1])).powi(2)).sum()
+/// Whether every point lies on one straight line (in offsets, exactly:
+/// the cross product of each point's offset from the first with the
+/// second's is zero).
+fn collinear(pts: &[Point]) -> bool {
+    let [i0, j0] = pts[0].offset;
+    let [i1, j1] = pts[1].offset;
+    pts.iter().all(|p| (i1 - i0) * (p.offset[1] - j0) - (j1 - j0) * (p.offset[0] - i0) == 0)
+}
+
+/// The reference fit of one texel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    /// The unit normal, n_z ≥ 0.
+    pub normal: [f64; 3],
+    /// The root-mean-square distance of the patch's points from the plane,
+    /// in the heights' unit (times S).
+    pub residual: f64,
+}
+
+/// The reference fit of texel (x, y), or None where the texel is missing:
+/// a hole itself, or its valid points fewer than 3 or on one line.
+/// `valid[k]`: texel k is a height, not a hole (None: there are no holes).
+///
+/// The normal: (0, 0, 1) where the patch has no tilt (SPEC §2's rule, in
+/// x spacings and of the valid points: (Σ(i − ī)(z − z̄))² + (Σ(j − j̄)(z − z̄))²
+/// ≤ 1e-20 · (max(Σ(i − ī)², Σ(j − j̄)²) + Σ(z − z̄)²)², z = S·h / sx);
+/// else the covariance's eigenvector of the smallest eigenvalue
+/// (orthogonal) or (−c1, −c2, 1) of the least-squares plane
+/// z = c0 + c1·u + c2·v (vertical); unit length, n_z ≥ 0 (where n_z is 0
+/// up to 1e-12, n_y ≥ 0, then n_x ≥ 0).
+///
+/// The residual, point by point: perpendicular distance from the plane
+/// through the points' centroid with that normal (orthogonal), z minus
+/// the least-squares plane (vertical), z minus the mean where the patch is
+/// flat.
+pub fn fit_at<H: Copy + Into<f64>>(
+    heights: &[H],
+    valid: Option<&[bool]>,
+    w: usize,
+    h: usize,
+    opts: &Options,
+    x: usize,
+    y: usize,
+) -> Option<Plane> {
+    if valid.is_some_and(|valid| !valid[y * w + x]) {
+        return None;
+    }
+    let pts = patch_points(heights, valid, w, h, opts, x, y);
+    if pts.len() < 3 || collinear(&pts) {
+        return None;
+    }
+    let places: Vec<[f64; 3]> = pts.iter().map(|p| p.place).collect();
+    let count = places.len() as f64;
+    let mean = centroid(&places);
+
+    // The contract's "no tilt" rule, in x spacings.
+    let (sx, _) = spacing(opts, y);
+    let in_x: Vec<[f64; 3]> = pts.iter().map(|p| [p.offset[0] as f64, p.offset[1] as f64, p.place[2] / sx]).collect();
+    let m = covariance(&in_x);
+    let (tilt, spread) = (m[0][2].powi(2) + m[1][2].powi(2), m[0][0].max(m[1][1]) + m[2][2]);
+    let flat = tilt <= 1e-20 * spread * spread;
+
+    let (normal, squared): ([f64; 3], f64) = if flat {
+        ([0.0, 0.0, 1.0], places.iter().map(|p| (p[2] - mean[2]).powi(2)).sum())
+    } else {
+        match opts.fit {
+            Fit::Orthogonal => {
+                let n = orient(unit(smallest_eigenvector(covariance(&places))));
+                let distance = |p: &[f64; 3]| (0..3).map(|k| n[k] * (p[k] - mean[k])).sum::<f64>();
+                (n, places.iter().map(|p| distance(p).powi(2)).sum())
+            }
+            Fit::Vertical => {
+                let c = least_squares_plane(&places);
+                let n = unit([-c[1], -c[2], 1.0]);
+                (n, places.iter().map(|p| (p[2] - (c[0] + c[1] * p[0] + c[2] * p[1])).powi(2)).sum())
+            }
+            other => panic!("the reference knows no fit {other:?}"),
         }
-        other => panic!("the reference knows no fit {other:?}"),
     };
-    (squared / count).sqrt()
+    Some(Plane { normal, residual: (squared / count).sqrt() })
+}
+
+/// The reference normal of texel (x, y), without holes.
+pub fn normal_at<H: Copy + Into<f64>>(
+    heights: &[H],
+    w: usize,
+    h: usize,
+    opts: &Options,
+    x: usize,
+    y: usize,
+) -> [f64; 3] {
+    fit_at(heights, None, w, h, opts, x, y).expect("a whole patch has a plane").normal
+}
+
+/// The reference residual of texel (x, y), without holes.
+pub fn residual_at<H: Copy + Into<f64>>(heights: &[H], w: usize, h: usize, opts: &Options, x: usize, y: usize) -> f64 {
+    fit_at(heights, None, w, h, opts, x, y).expect("a whole patch has a plane").residual
+}
+
+/// The whole reference normal map, without holes.
+pub fn normal_map<H: Copy + Into<f64>>(heights: &[H], w: usize, h: usize, opts: &Options) -> Vec<[f64; 3]> {
+    masked_normal_map(heights, None, w, h, opts).into_iter().map(|n| n.expect("a whole patch has a plane")).collect()
+}
+
+/// The whole reference normal map with holes: None where a texel is
+/// missing.
+pub fn masked_normal_map<H: Copy + Into<f64>>(
+    heights: &[H],
+    valid: Option<&[bool]>,
+    w: usize,
+    h: usize,
+    opts: &Options,
+) -> Vec<Option<[f64; 3]>> {
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            out.push(fit_at(heights, valid, w, h, opts, x, y).map(|plane| plane.normal));
+        }
+    }
+    out
+}
+
+/// `v` over its length.
+pub fn unit(v: [f64; 3]) -> [f64; 3] {
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    v.map(|c| c / len)
+}
+
+/// The unit normal n or −n: n_z ≥ 0; for a vertical plane (n_z zero up to
+/// 1e-12) n_y ≥ 0, then n_x ≥ 0 (SPEC §2).
+fn orient(n: [f64; 3]) -> [f64; 3] {
+    let flip = if n[2].abs() > 1e-12 {
+        n[2] < 0.0
+    } else if n[1].abs() > 1e-12 {
+        n[1] < 0.0
+    } else {
+        n[0] < 0.0
+    };
+    if flip { n.map(|c| -c) } else { n }
 }
 
 /// The mean of the points, coordinate by coordinate.
 fn centroid(pts: &[[f64; 3]]) -> [f64; 3] {
     let count = pts.len() as f64;
     std::array::from_fn(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count)
+}
+
+/// Σ (p − p̄)(p − p̄)ᵀ over the points: the 3×3 scatter matrix.
+fn covariance(pts: &[[f64; 3]]) -> [[f64; 3]; 3] {
+    let mean = centroid(pts);
+    let mut cov = [[0.0f64; 3]; 3];
+    for p in pts {
+        for a in 0..3 {
+            for b in 0..3 {
+                cov[a][b] += (p[a] - mean[a]) * (p[b] - mean[b]);
+            }
+        }
+    }
+    cov
 }
 
 /// (c0, c1, c2) of the plane z = c0 + c1 u + c2 v closest to the points in
@@ -120,55 +286,6 @@ fn least_squares_plane(pts: &[[f64; 3]]) -> [f64; 3] {
         }
     }
     solve3(m)
-}
-
-/// The reference normal of texel (x, y).
-pub fn normal_at<H: Copy + Into<f64>>(
-    heights: &[H],
-    w: usize,
-    h: usize,
-    opts: &Options,
-    x: usize,
-    y: usize,
-) -> [f64; 3] {
-    let pts = patch_points(heights, w, h, opts, x, y);
-    let mean = centroid(&pts);
-    let mut cov = [[0.0f64; 3]; 3];
-    for p in &pts {
-        for a in 0..3 {
-            for b in 0..3 {
-                cov[a][b] += (p[a] - mean[a]) * (p[b] - mean[b]);
-            }
-        }
-    }
-    // The contract's "no tilt" rule, from the same covariance entries.
-    let (a, cx, cy, czz) = (cov[0][0], cov[0][2], cov[1][2], cov[2][2]);
-    if cx * cx + cy * cy <= 1e-20 * (a + czz) * (a + czz) {
-        return [0.0, 0.0, 1.0];
-    }
-    let n = match opts.fit {
-        Fit::Orthogonal => smallest_eigenvector(cov),
-        Fit::Vertical => {
-            // The normal of z = c0 + c1 u + c2 v is (−c1, −c2, 1).
-            let c = least_squares_plane(&pts);
-            [-c[1], -c[2], 1.0]
-        }
-        other => panic!("the reference knows no fit {other:?}"),
-    };
-    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    let sign = if n[2] < 0.0 { -1.0 } else { 1.0 };
-    [sign * n[0] / len, sign * n[1] / len, sign * n[2] / len]
-}
-
-/// The whole reference normal map.
-pub fn normal_map<H: Copy + Into<f64>>(heights: &[H], w: usize, h: usize, opts: &Options) -> Vec<[f64; 3]> {
-    let mut out = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            out.push(normal_at(heights, w, h, opts, x, y));
-        }
-    }
-    out
 }
 
 /// Eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, by
