@@ -1,10 +1,15 @@
 #!/usr/bin/env bash
-# Times normalfit on a float32 GeoTIFF against GDAL's DEM tools, in one
+# Times normalfit on float32 GeoTIFF DEMs against GDAL's DEM tools, in one
 # run: normals (`convert`, to PNG, EXR and GeoTIFF) against `gdaldem
 # slope`, and the lit view (`shade`, gdaldem's sun, to PNG and GeoTIFF)
-# against `gdaldem hillshade`, which write uncompressed GeoTIFF. Each
-# command 5 times, in turn with its GDAL counterpart; the best wall time
-# and the highest peak RSS (/usr/bin/time).
+# against `gdaldem hillshade`, which write uncompressed GeoTIFF. Three
+# DEMs of the same heights: projected in strips of one row (as
+# gdal_translate writes), projected in 256² tiles (-co TILED=YES), and
+# geographic (EPSG:4326, about 10 m texels at 45° N). Each is converted
+# the way GIS users call it, `--units map` (the spacing from the file,
+# heights in metres); the projected strips also with `-s 0.1` (texel
+# units). Each command 5 times, in turn with its GDAL counterpart; the
+# best wall time and the highest peak RSS (/usr/bin/time).
 # Every output (and sidecar) is removed before each run, for both tools:
 # replacing a file makes the file system free the old one's blocks first
 # (50 ms for a 201 MB float output on this machine), which is not the
@@ -35,6 +40,14 @@ dem=$work/dem$size.tif
 # -s 0.1 (metres of height per metre of ground, one texel = 10 m).
 [ -f "$dem" ] || gdal_translate -q -ot Float32 -scale 0 65535 0 2000 -a_srs EPSG:32633 \
   -a_ullr 500000 5000000 $((500000 + 10 * size)) $((5000000 - 10 * size)) "$h" "$dem"
+# The same heights in 256 × 256 tiles.
+tiled=$work/dem${size}_tiled.tif
+[ -f "$tiled" ] || gdal_translate -q -co TILED=YES "$dem" "$tiled"
+# The same heights in degrees: 1/9000° a texel (11.1 m north to south,
+# 7.9 m east to west at 45° N).
+geo=$work/dem${size}_4326.tif
+[ -f "$geo" ] || gdal_translate -q -a_srs EPSG:4326 \
+  -a_ullr 10 45.2 "$(python3 -c "print(10 + $size / 9000)")" "$(python3 -c "print(45.2 - $size / 9000)")" "$dem" "$geo"
 
 # best wall time (s) and highest peak RSS (MiB) of 5 runs of "$@": a run
 # takes about 0.1 s, and one in three may lose 10 to 20 ms to the machine.
@@ -57,7 +70,7 @@ measure() {
 
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
 echo
-echo "| ${size}² float32 GeoTIFF, 10 m | wall (best of 5) | peak RSS | output | GDAL | GDAL wall | GDAL RSS | speed-up |"
+echo "| ${size}² float32 GeoTIFF, 10 m texels | wall (best of 5) | peak RSS | output | GDAL | GDAL wall | GDAL RSS | speed-up |"
 echo "|---|---|---|---|---|---|---|---|"
 row() {
   local label=$1 gdal_label=$2 gdal_cmd=$3; shift 3
@@ -74,22 +87,52 @@ row() {
 }
 slope="gdaldem slope -q $dem $work/slope.tif"
 hillshade="gdaldem hillshade -q $dem $work/hillshade.tif"
+# Projected, strips of one row: map units, as GIS users call it.
+row "convert --units map --border clamp → 8-bit PNG" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.png" --units map --border clamp --bits 8
+row "convert --units map --border clamp → 16-bit PNG (the default for float input)" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.png" --units map --border clamp
+row "convert --units map --border clamp → float EXR" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.exr" --units map --border clamp
+row "convert --units map --border clamp → float GeoTIFF" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.tif" --units map --border clamp --bits 32
+row "convert --units map --border clamp → 8-bit GeoTIFF" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.tif" --units map --border clamp --bits 8
+row "convert --units map (wrap, the default) → 8-bit PNG" "slope" "$slope" \
+  "$bin" convert "$dem" -o "$work/n.png" --units map --bits 8
+row "shade --units map --border clamp (sun 315°, 45°) → PNG" "hillshade" "$hillshade" \
+  "$bin" shade "$dem" -o "$work/lit.png" --units map --border clamp
+row "shade --units map --border clamp (sun 315°, 45°) → GeoTIFF" "hillshade" "$hillshade" \
+  "$bin" shade "$dem" -o "$work/lit.tif" --units map --border clamp
+# The same in texel units: -s 0.1 is map units' geometry for 10 m texels.
 row "convert -s 0.1 --border clamp → 8-bit PNG" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --border clamp --bits 8
-row "convert -s 0.1 --border clamp → 16-bit PNG (the default for float input)" "slope" "$slope" \
+row "convert -s 0.1 --border clamp → 16-bit PNG" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --border clamp
 row "convert -s 0.1 --border clamp → float EXR" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.exr" -s 0.1 --border clamp
-row "convert -s 0.1 (wrap, the default) → 8-bit PNG" "slope" "$slope" \
-  "$bin" convert "$dem" -o "$work/n.png" -s 0.1 --bits 8
 row "convert -s 0.1 --border clamp → float GeoTIFF" "slope" "$slope" \
   "$bin" convert "$dem" -o "$work/n.tif" -s 0.1 --border clamp --bits 32
-row "convert -s 0.1 --border clamp → 8-bit GeoTIFF" "slope" "$slope" \
-  "$bin" convert "$dem" -o "$work/n.tif" -s 0.1 --border clamp --bits 8
 row "shade -s 0.1 --border clamp (sun 315°, 45°) → PNG" "hillshade" "$hillshade" \
   "$bin" shade "$dem" -o "$work/lit.png" -s 0.1 --border clamp
-row "shade -s 0.1 --border clamp (sun 315°, 45°) → GeoTIFF" "hillshade" "$hillshade" \
-  "$bin" shade "$dem" -o "$work/lit.tif" -s 0.1 --border clamp
+# Projected, 256² tiles.
+slope_t="gdaldem slope -q $tiled $work/slope.tif"
+hillshade_t="gdaldem hillshade -q $tiled $work/hillshade.tif"
+row "tiled: convert --units map --border clamp → 16-bit PNG" "slope" "$slope_t" \
+  "$bin" convert "$tiled" -o "$work/n.png" --units map --border clamp
+row "tiled: convert --units map --border clamp → float GeoTIFF" "slope" "$slope_t" \
+  "$bin" convert "$tiled" -o "$work/n.tif" --units map --border clamp --bits 32
+row "tiled: shade --units map --border clamp → GeoTIFF" "hillshade" "$hillshade_t" \
+  "$bin" shade "$tiled" -o "$work/lit.tif" --units map --border clamp
+# Geographic: gdaldem takes -s 111120 (metres per degree) for degrees.
+slope_g="gdaldem slope -q -s 111120 $geo $work/slope.tif"
+hillshade_g="gdaldem hillshade -q -s 111120 $geo $work/hillshade.tif"
+row "EPSG:4326: convert --units map --border clamp → 16-bit PNG" "slope -s 111120" "$slope_g" \
+  "$bin" convert "$geo" -o "$work/n.png" --units map --border clamp
+row "EPSG:4326: convert --units map --border clamp → float GeoTIFF" "slope -s 111120" "$slope_g" \
+  "$bin" convert "$geo" -o "$work/n.tif" --units map --border clamp --bits 32
+row "EPSG:4326: shade --units map --border clamp → PNG" "hillshade -s 111120" "$hillshade_g" \
+  "$bin" shade "$geo" -o "$work/lit.png" --units map --border clamp
 echo
 # normalfit syncs every output to disk before putting it in place (an
 # output appears whole or not at all, after a crash too); gdaldem does

@@ -192,12 +192,15 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod borders;
 pub mod convert;
+pub mod engine;
 pub mod error;
 pub mod fit;
 pub mod height;
 pub mod inspect;
 pub mod io;
+mod light;
 pub mod normal_map;
 pub mod options;
 mod par;

@@ -19,8 +19,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use common::geotiff::{self, GeoTag, Kind, Layout};
+use normalfit::convert::{self, Input};
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::shade::{LitOptions, Sun, lit_file_streamed, lit_view, shade_sun};
+use normalfit::shade::{LitOptions, Sun, lit_file, lit_view, shade_sun};
 use normalfit::units::{MapSpacing, map_spacing};
 use normalfit::{Border, Borders, Options, Units};
 
@@ -93,7 +94,9 @@ fn streamed_and_whole_lit_views_agree_in_map_units() {
                 let fit = Options::new().with_borders(Borders::both(border));
                 let map = LitOptions::new().with_fit(fit).with_map_units(Some(MapSpacing::FromFile));
                 let streamed = dir.path().join("streamed.png");
-                lit_file_streamed(&tif, &ReadOptions::default(), &map, &streamed).unwrap().expect("streams");
+                lit_file(Input::Path(&tif), &ReadOptions::default(), &map, convert::Output::file(&streamed))
+                    .inspect(|done| assert!(done.streamed, "streams"))
+                    .unwrap();
                 let whole = lit_view(&raster, &map).unwrap();
                 let got = greys(&streamed);
                 assert_eq!(got, whole.pixels.iter().map(|&v| i32::from(v)).collect::<Vec<_>>(), "{what} {border:?}");

@@ -10,9 +10,9 @@
 use std::path::Path;
 use std::process::Command;
 
-use normalfit::convert::{BorderChoices, Conversion};
+use normalfit::convert::{BorderChoices, Conversion, Input, Output};
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_view};
+use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file, lit_view};
 use normalfit::{Border, Borders, Options};
 
 const W: usize = 37;
@@ -82,7 +82,9 @@ fn normal_maps_and_lit_views_overlay_the_geotiff_in_gdal() {
 
         let lit = dir.path().join(format!("{name}_lit.png"));
         let opts = LitOptions::new().with_borders(BorderChoices::from(Borders::both(Border::Clamp)));
-        lit_file_streamed(&tif, &ReadOptions::default(), &opts, &lit).unwrap().expect("streams");
+        lit_file(Input::Path(&tif), &ReadOptions::default(), &opts, Output::file(&lit))
+            .inspect(|done| assert!(done.streamed, "streams"))
+            .unwrap();
         let (got, epsg) = gdalinfo(&lit);
         assert_same_transform(&got, &source, &format!("{name}: lit view"));
         assert_eq!(epsg, Some(32633), "{name}: lit view");
@@ -98,7 +100,9 @@ fn normal_maps_and_lit_views_overlay_the_geotiff_in_gdal() {
         let summary = Conversion::new().convert_file(&tif, &normals).unwrap();
         assert!(summary.streamed && summary.sidecars.is_empty(), "{name}: {summary:?}");
         let lit = dir.path().join(format!("{name}_lit.tif"));
-        lit_file_streamed(&tif, &ReadOptions::default(), &opts, &lit).unwrap().expect("streams");
+        lit_file(Input::Path(&tif), &ReadOptions::default(), &opts, Output::file(&lit))
+            .inspect(|done| assert!(done.streamed, "streams"))
+            .unwrap();
         let whole = dir.path().join(format!("{name}_whole.tif"));
         assert!(view.write_file(&whole).unwrap().is_empty());
         for path in [&normals, &lit, &whole] {
@@ -143,7 +147,9 @@ fn hillshade_difference(dir: &Path, (p, q): (f64, f64), sun: Option<Sun>) -> (u8
     let ours = dir.join("ours.png");
     let fit = Options::new().with_borders(Borders::both(Border::Clamp));
     let opts = LitOptions::new().with_fit(fit).with_sun(choice);
-    lit_file_streamed(&tif, &ReadOptions::default(), &opts, &ours).unwrap().expect("streams");
+    lit_file(Input::Path(&tif), &ReadOptions::default(), &opts, Output::file(&ours))
+        .inspect(|done| assert!(done.streamed, "streams"))
+        .unwrap();
     let grey = |path: &Path| -> Vec<f32> {
         let raster = read_path(path, &ReadOptions::default()).unwrap();
         raster.planes[0].data.to_f32().unwrap().iter().map(|v| (v * 255.0).round()).collect()

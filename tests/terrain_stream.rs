@@ -11,9 +11,10 @@ mod common;
 use std::path::Path;
 
 use common::geotiff::{self, GeoTag, Kind, Layout};
-use normalfit::convert::{BorderChoices, Conversion};
+use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Input, Output};
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file_streamed, lit_view};
+use normalfit::shade::{LitOptions, Sun, SunChoice, lit_file, lit_view};
+use normalfit::units::MapSpacing;
 use normalfit::{Border, Borders, Options, Strength};
 
 /// Every layout, as tests/terrain_io.rs reads them: strips of 5 rows (the
@@ -111,6 +112,100 @@ fn every_tiff_layout_and_band_streams_the_whole_image_normals_bit_for_bit() {
     assert!(must > 100 && streamed_layouts >= 4 * must, "{streamed_layouts} conversions streamed, {must} layouts must");
 }
 
+/// [`convert`] in map units (the spacing as `map` says), with `nodata`
+/// for holes and `auto` borders when asked: the output's bytes and
+/// whether it streamed.
+fn convert_in_map_units(
+    input: &Path,
+    output: &Path,
+    read: &ReadOptions,
+    (map, borders, nodata): (MapSpacing, BorderChoices, Option<f64>),
+    whole: bool,
+) -> (Vec<u8>, bool) {
+    let fit = Options::new().with_patch(5).with_nodata(nodata);
+    let conversion = Conversion::new()
+        .with_fit(fit)
+        .with_borders(borders)
+        .with_read(read.clone())
+        .with_signed(true)
+        .with_map_units(Some(map))
+        .with_residual(whole);
+    let summary = conversion.convert_file(input, output).unwrap_or_else(|e| panic!("{}: {e}", input.display()));
+    (std::fs::read(output).unwrap(), summary.streamed)
+}
+
+/// Map units (`--units map`, as GIS users convert a DEM) stream too: the
+/// heights as stored, the spacing from the GeoTIFF, for every sample
+/// type and layout, fixed and `auto` borders, with holes and without: the
+/// float EXR streamed is the whole image's byte for byte.
+#[test]
+fn map_units_stream_the_whole_image_normals_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (37, 23);
+    let mut streamed = 0;
+    for layout in layouts() {
+        let values = values(&layout, w, h);
+        let input = dir.path().join("in.tif");
+        std::fs::write(&input, geotiff::write(w, h, &layout, &values, &geotiff::utm_tags())).unwrap();
+        let read = ReadOptions::default().with_band(1);
+        let hole = values[0][w + 3];
+        let choices = [
+            (BorderChoices::from(Borders::both(Border::Wrap)), None),
+            (BorderChoices::both(BorderChoice::Auto), None),
+            (BorderChoices::from(Borders { x: Border::Clamp, y: Border::Mirror }), Some(hole)),
+        ];
+        for (borders, nodata) in choices {
+            let what = format!("{layout:?}, {borders:?}, nodata {nodata:?}");
+            let how = (MapSpacing::FromFile, borders, nodata);
+            let (a, was_streamed) = convert_in_map_units(&input, &dir.path().join("s.exr"), &read, how, false);
+            assert!(was_streamed, "{what}: a band streams in map units");
+            streamed += 1;
+            let (b, _) = convert_in_map_units(&input, &dir.path().join("w.exr"), &read, how, true);
+            assert!(a == b, "{what}: the streamed output differs from the whole image's");
+        }
+    }
+    assert!(streamed >= 3 * layouts().len(), "{streamed}");
+}
+
+/// PNG (8- and 16-bit gray, 8-bit RGB through luma) and EXR heights in map
+/// units with a given pixel size stream, and give the whole image's bytes.
+#[test]
+fn png_and_exr_in_map_units_stream_the_whole_image_normals() {
+    use normalfit::io::{ExrDepth, ExrOptions, PngDepth, PngOptions, encode_gray, encode_normals};
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (41, 29);
+    let wave = |i: usize| {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        0.5 + 0.4 * (x * 0.3).sin() * (y * 0.2).cos()
+    };
+    let write = |name: &str, encode: &dyn Fn(&mut std::fs::File)| {
+        let path = dir.path().join(name);
+        encode(&mut std::fs::File::create(&path).unwrap());
+        path
+    };
+    let gray8: Vec<u8> = (0..w * h).map(|i| (wave(i) * 255.0).round() as u8).collect();
+    let gray16: Vec<u16> = (0..w * h).map(|i| (wave(i) * 65535.0).round() as u16).collect();
+    let rgb8: Vec<[u8; 3]> = (0..w * h).map(|i| [gray8[i], gray8[(i + 7) % (w * h)], 40]).collect();
+    let floats: Vec<f32> = (0..w * h).map(|i| (300.0 * wave(i)) as f32).collect();
+    let inputs = [
+        write("g8.png", &|f| encode_gray(&gray8, w, h, &PngOptions::new(PngDepth::Eight).into(), f).unwrap()),
+        write("g16.png", &|f| encode_gray(&gray16, w, h, &PngOptions::new(PngDepth::Sixteen).into(), f).unwrap()),
+        write("rgb8.png", &|f| encode_normals(&rgb8, None, w, h, &PngOptions::new(PngDepth::Eight).into(), f).unwrap()),
+        write("f.exr", &|f| encode_gray(&floats, w, h, &ExrOptions::new(ExrDepth::Float).into(), f).unwrap()),
+    ];
+    for input in &inputs {
+        for borders in [Borders::both(Border::Wrap), Borders { x: Border::Mirror, y: Border::Clamp }] {
+            let what = format!("{}, {borders:?}", input.display());
+            let how = (MapSpacing::Given { x: 2.0, y: 3.0 }, BorderChoices::from(borders), None);
+            let read = ReadOptions::default();
+            let (a, streamed) = convert_in_map_units(input, &dir.path().join("s.exr"), &read, how, false);
+            assert!(streamed, "{what}: did not stream");
+            let (b, _) = convert_in_map_units(input, &dir.path().join("w.exr"), &read, how, true);
+            assert!(a == b, "{what}: the streamed output differs from the whole image's");
+        }
+    }
+}
+
 /// A float32 GeoTIFF of `w` × `h` heights, north-up, 10 m texels.
 fn dem(path: &Path, w: usize, h: usize) {
     let layout =
@@ -141,7 +236,9 @@ fn the_lit_view_streams_the_whole_views_greys_and_keeps_the_georeferencing() {
     ] {
         let opts = LitOptions::new().with_fit(fit.clone().with_borders(borders)).with_sun(sun);
         let out = dir.path().join("lit.png");
-        let done = lit_file_streamed(&input, &read, &opts, &out).unwrap().expect("a float GeoTIFF streams");
+        let done = lit_file(Input::Path(&input), &read, &opts, Output::file(&out))
+            .inspect(|done| assert!(done.streamed, "a float GeoTIFF streams"))
+            .unwrap();
         assert_eq!(done.sidecars.len(), 2, "world file and .aux.xml");
         let streamed = read_path(&out, &read).unwrap().heights(None).unwrap();
         let whole = lit_view(&read_path(&input, &read).unwrap(), &opts).unwrap();

@@ -14,9 +14,9 @@ use std::fs::File;
 use std::path::Path;
 
 use common::geotiff::{self, GeoTag, Kind, Layout};
-use normalfit::convert::{BorderChoices, Conversion};
+use normalfit::convert::{BorderChoices, Conversion, Input, Output};
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::shade::{LitOptions, lit_file_streamed, lit_view};
+use normalfit::shade::{LitOptions, lit_file, lit_view};
 use normalfit::{Border, Borders, Options, Strength};
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::tags::Tag;
@@ -192,11 +192,15 @@ fn the_lit_view_in_tiff_is_the_pngs_grey_for_grey_with_nodata_0() {
             let opts = LitOptions::new().with_fit(fit).with_borders(BorderChoices::from(borders));
             let read = ReadOptions::default();
             let png = dir.path().join("lit.png");
-            lit_file_streamed(&input, &read, &opts, &png).unwrap().expect("streams");
+            lit_file(Input::Path(&input), &read, &opts, Output::file(&png))
+                .inspect(|done| assert!(done.streamed, "streams"))
+                .unwrap();
             let expected = samples_of(&png, 255.0);
             assert!(expected.iter().any(|&g| g != expected[0]), "{what}: a picture, not a flat grey");
             let streamed = dir.path().join("lit.tif");
-            let done = lit_file_streamed(&input, &read, &opts, &streamed).unwrap().expect("streams");
+            let done = lit_file(Input::Path(&input), &read, &opts, Output::file(&streamed))
+                .inspect(|done| assert!(done.streamed, "streams"))
+                .unwrap();
             assert!(done.sidecars.is_empty(), "{what}");
             let whole = dir.path().join("whole.tif");
             let view = lit_view(&read_path(&input, &read).unwrap(), &opts).unwrap();

@@ -4,17 +4,17 @@
 //! the output names, the rule that no output replaces an input, and the
 //! messages.
 
-use std::io::Write;
 use std::path::Path;
 
+use normalfit::convert::{self, Output, Place};
 use normalfit::io::ReadOptions;
-use normalfit::shade::{LitOptions, lit_file_streamed, lit_format, lit_view_owned};
+use normalfit::shade::{LitOptions, lit_file, lit_format};
 use normalfit::units::MapSpacing;
 
 use super::args::ShadeArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::fitting;
-use super::input::{Input, read_input, stdin_at_most_once};
+use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
 use super::output::Destination;
 use super::report::Failure;
 
@@ -70,51 +70,57 @@ impl Plan {
         if !turn.wanted(target.as_deref(), input) {
             return Ok(Outcome::Skipped);
         }
-        if let Some(path) = &target
-            && !job.subfolder.as_os_str().is_empty()
-            && let Some(folder) = path.parent()
-        {
-            std::fs::create_dir_all(folder)
-                .map_err(|e| Failure::file(folder, format!("cannot create the output folder: {e}")))?;
-        }
-        // A GeoTIFF's heights stream to a file, band by band.
-        if let (Input::File(file), Some(path)) = (input, &target)
-            && let Some(done) =
-                lit_file_streamed(file, &self.read, &self.lit, path).map_err(|e| Failure::file(input.name(), e))?
-        {
-            if !self.quiet {
-                done.warnings.iter().for_each(|w| fitting::warn(w, input));
-                if done.missing > 0 || self.lit.fit.nodata.is_some() {
-                    let texels = done.width * done.height;
-                    fitting::report_missing(input, done.missing, texels, self.lit.fit.nodata, "grey");
+        let bytes;
+        let source = match input {
+            Input::File(path) => {
+                if path.is_dir() {
+                    return Err(Failure::file(path, "is a folder, not an image"));
                 }
+                check_extension(path)?;
+                convert::Input::Path(path)
             }
-            return Ok(Outcome::Done);
-        }
-        let raster = read_input(input, &self.read)?;
-        let texels = raster.width * raster.height;
-        let view = lit_view_owned(raster, &self.lit).map_err(|e| Failure::file(input.name(), e))?;
-        if !self.quiet {
-            view.warnings.iter().for_each(|w| fitting::warn(w, input));
-            if view.missing > 0 || self.lit.fit.nodata.is_some() {
-                fitting::report_missing(input, view.missing, texels, self.lit.fit.nodata, "grey");
+            Input::Stdin => {
+                bytes = read_stdin()?;
+                convert::Input::Bytes(&bytes)
             }
-        }
-        match &target {
-            Some(path) => {
-                view.write_file(path).map_err(|e| Failure::file(path, e))?;
-            }
+        };
+        let in_subfolder = !job.subfolder.as_os_str().is_empty();
+        // Standard output is locked only by the job that writes there.
+        let mut stdout;
+        let output = match &target {
+            Some(path) => Output::File { path, create_folder: in_subfolder },
             None => {
-                let stdout_name = Path::new("<standard output>");
-                let mut bytes = std::io::Cursor::new(Vec::new());
-                view.encode(&mut bytes).map_err(|e| Failure::file(stdout_name, e))?;
-                let mut stdout = std::io::stdout().lock();
-                match stdout.write_all(bytes.get_ref()).and_then(|()| stdout.flush()) {
-                    Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(Outcome::PipeClosed),
-                    other => other.map_err(|e| Failure::file(stdout_name, e))?,
-                }
+                stdout = std::io::stdout().lock();
+                Output::Writer(&mut stdout)
+            }
+        };
+        let done = match lit_file(source, &self.read, &self.lit, output) {
+            Ok(done) => done,
+            Err(e) if target.is_none() && e.place == Place::Output && pipe_closed(&e.error) => {
+                return Ok(Outcome::PipeClosed);
+            }
+            Err(e) => {
+                let at = match (e.place, &target) {
+                    (Place::Input, _) => input.name(),
+                    (_, Some(path)) => path.as_path(),
+                    (_, None) => Path::new("<standard output>"),
+                };
+                return Err(Failure::file(at, e.error));
+            }
+        };
+        if !self.quiet {
+            done.warnings.iter().for_each(|w| fitting::warn(w, input));
+            if done.missing > 0 || self.lit.fit.nodata.is_some() {
+                let scale = if self.lit.tile { 4 } else { 1 };
+                let texels = done.width * done.height / scale;
+                fitting::report_missing(input, done.missing, texels, self.lit.fit.nodata, "grey");
             }
         }
         Ok(Outcome::Done)
     }
+}
+
+/// Whether the error is a write into a pipe whose reader has gone.
+fn pipe_closed(e: &normalfit::Error) -> bool {
+    matches!(e, normalfit::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
 }

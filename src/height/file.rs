@@ -179,7 +179,7 @@ impl HeightConversion {
         let format = self.output_format(path).map_err(fail_out)?;
         self.options.validate().map_err(fail_in)?;
         if let (Input::Path(input), Output::File { path, .. }) = (&input, &output)
-            && crate::convert::same_file(input, path)
+            && crate::engine::same_file(input, path)
         {
             return Err(fail_out(Error::InvalidOption(
                 "the output is the input (or a link to it): normalfit never writes over an input".into(),
@@ -241,7 +241,7 @@ impl HeightConversion {
         let result = match format {
             // Converted to f32 as the blocks are written: no copy of the
             // heights (67 MB at 4096²).
-            OutputFormat::Exr => crate::convert::write_to(output, |file| {
+            OutputFormat::Exr => crate::engine::write_to(output, |file| {
                 io::write::write_exr_rows(file, w, h, ExrDepth::Float, &["Y"], |push| {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
@@ -253,8 +253,8 @@ impl HeightConversion {
             }),
             // Float heights, as in the EXR, a float32 one-band TIFF.
             #[cfg(feature = "tiff")]
-            OutputFormat::Tiff => crate::convert::write_to(output, |file| {
-                let tags = io::write::TiffTags::default();
+            OutputFormat::Tiff => crate::engine::write_to(output, |file| {
+                let tags = io::encoding::TiffTags::default();
                 io::geotiff::write_tiff_rows(file, (w, h), 1, tags, |push| {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
@@ -272,7 +272,7 @@ impl HeightConversion {
                 let unit = if span > 0.0 { 65535.0 / span } else { 0.0 };
                 stored.extend(values.iter().map(|&v| ((v - lo) * unit).round().clamp(0.0, 65535.0) as u16));
                 drop(values);
-                crate::convert::write_to(output, |file| {
+                crate::engine::write_to(output, |file| {
                     io::encode_gray(&stored, w, h, &PngOptions::new(PngDepth::Sixteen).into(), file)
                 })
             }

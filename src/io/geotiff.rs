@@ -19,8 +19,8 @@ use tiff::encoder::colortype::{
 use tiff::encoder::{TiffEncoder, TiffKind, TiffKindBig, TiffKindStandard, TiffValue};
 use tiff::tags::Tag;
 
+use super::encoding::TiffTags;
 use super::read::georef::tags;
-use super::write::TiffTags;
 use crate::error::{Error, Result};
 
 /// A sample type TIFF output stores: `u8` and `u16` (unsigned integers)

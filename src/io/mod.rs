@@ -5,10 +5,9 @@
 //! [`write`](mod@write) encodes normal maps (SPEC §3) and puts files in place
 //! atomically (SPEC §4). Neither knows about the fit, and the fit knows
 //! nothing of files. [`encoding`] is the one vocabulary of outputs: an
-//! [`Encoding`] (PNG or EXR and their options), chosen from a file name and
-//! the input by its rules. The streaming conversion, which joins reading
-//! and writing through the fit, is [`crate::pipeline`] (also reachable here
-//! as `io::stream`).
+//! [`Encoding`] (PNG, EXR or TIFF and their options, the layout of the
+//! channels), chosen from a file name and the input by its rules. The
+//! engine ([`crate::engine`]) joins reading and writing through a stage.
 
 mod atomic;
 pub mod encoding;
@@ -19,9 +18,9 @@ pub mod read;
 pub mod sidecar;
 pub mod write;
 
-pub use crate::pipeline as stream;
-
-pub use encoding::{Encoding, ExrOptions, OutputFormat, PngDepth, PngOptions};
+pub use encoding::{
+    Alpha, Encoding, ExrDepth, ExrOptions, Layout, OutputChannels, OutputFormat, PngCompression, PngDepth, PngOptions,
+};
 pub use memory::check_memory;
 pub use read::{
     Affine, ByteOrder, Channel, FormatInfo, Georef, InputFormat, ModelType, PackedElevation, Plane, Raster, RasterType,
@@ -31,6 +30,5 @@ pub use read::{
 pub(crate) use read::exr::subsampled as exr_subsampled;
 pub(crate) use read::png::zlib as png_zlib;
 pub use write::{
-    Alpha, ExrDepth, GrayValue, Layout, NormalTexel, OutputChannels, PngCompression, PngSample, Sample, encode_gray,
-    encode_normals, write_atomically, write_file_atomically,
+    GrayValue, NormalTexel, PngSample, Sample, encode_gray, encode_normals, write_atomically, write_file_atomically,
 };

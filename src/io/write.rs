@@ -27,201 +27,10 @@ use image::{ExtendedColorType, ImageEncoder, ImageError};
 use miniz_oxide::DataFormat;
 use miniz_oxide::deflate::core::{CompressorOxide, TDEFLFlush, TDEFLStatus, compress};
 
-use super::encoding::{Encoding, ExrOptions, PngDepth, PngOptions, TiffDepth, TiffOptions};
+use super::encoding::{
+    Encoding, ExrDepth, ExrOptions, Layout, PngCompression, PngDepth, PngOptions, TiffDepth, TiffOptions, TiffTags,
+};
 use crate::error::{Error, Result, one_line};
-use crate::options::named_values;
-
-/// How hard the PNG encoder compresses.
-///
-/// The default is [`PngCompression::Fast`]: normal maps (16-bit ones most
-/// of all) are noisy in their low bits and gain little from slow deflate,
-/// while deflate runs on one thread and would otherwise take longer than
-/// the whole parallel fit. It is also `image`'s own default.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum PngCompression {
-    /// Fast deflate; somewhat larger files.
-    #[default]
-    Fast,
-    /// Balanced speed and size.
-    Default,
-    /// Smallest files, slowest.
-    Best,
-}
-
-impl PngCompression {
-    /// The settings callers choose by name (`--compression`,
-    /// `compression=`): fast and small. [`Best`](Self::Best) is for library
-    /// callers of the whole-image writer alone: the streamed writer makes
-    /// the same file at `Default` and `Best`.
-    pub const NAMED: &'static [PngCompression] = &[PngCompression::Fast, PngCompression::Default];
-
-    /// The setting's name: `fast`, `small` (for `Default`) or `best`.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            PngCompression::Fast => "fast",
-            PngCompression::Default => "small",
-            PngCompression::Best => "best",
-        }
-    }
-
-    /// Other spellings that parse as this setting.
-    #[must_use]
-    pub fn aliases(self) -> &'static [&'static str] {
-        &[]
-    }
-
-    /// The `image` setting this stands for.
-    fn to_image(self) -> CompressionType {
-        match self {
-            PngCompression::Fast => CompressionType::Fast,
-            PngCompression::Default => CompressionType::Default,
-            PngCompression::Best => CompressionType::Best,
-        }
-    }
-}
-
-impl std::fmt::Display for PngCompression {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for PngCompression {
-    type Err = Error;
-
-    /// One of [`NAMED`](Self::NAMED)'s names, ASCII case ignored.
-    fn from_str(s: &str) -> Result<Self> {
-        let s = s.trim();
-        let names: Vec<&str> = PngCompression::NAMED.iter().map(|c| c.name()).collect();
-        PngCompression::NAMED.iter().copied().find(|c| s.eq_ignore_ascii_case(c.name())).ok_or_else(|| {
-            Error::InvalidOption(format!("unknown compression '{s}': use {}", crate::options::one_of(&names)))
-        })
-    }
-}
-
-/// Sample type of an EXR output (SPEC §3: `--bits 16` or `--bits 32`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum ExrDepth {
-    /// 16-bit half floats.
-    Half,
-    /// 32-bit floats, the EXR default.
-    #[default]
-    Float,
-}
-
-/// Which channels a normal map file holds. R, G and B are the normal's
-/// x, y and z, encoded as the contract says (SPEC §3).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum Layout {
-    /// R, G, B. The default.
-    #[default]
-    Rgb,
-    /// R, G, B and an alpha channel holding each texel's height, for
-    /// parallax mapping: the height as the fit read it (SPEC §1 units, not
-    /// scaled by the gain), clamped to [0, 1] in a PNG, as it is in an EXR.
-    RgbHeight,
-    /// R, G, B and an opaque alpha (1), for pipelines that want four
-    /// channels.
-    RgbOpaque,
-    /// R, G, B and an alpha that says which texels have a normal: 1 (the
-    /// sample's largest value) where the texel has one, 0 where it is
-    /// missing, a hole (docs/terrain.md, "Holes"; a missing texel's RGB is
-    /// the flat normal). What a conversion with a nodata value writes in
-    /// place of RGB or an opaque alpha.
-    RgbValid,
-    /// The normal's x and y alone, for two-channel (BC5) pipelines whose
-    /// shaders rebuild z = √(1 − x² − y²). An EXR holds channels R and G; a
-    /// PNG, which has no red-green type, stays RGB with B = 0, which BC5
-    /// encoders ignore and deflate stores almost for free.
-    Rg,
-}
-
-/// What a normal map's alpha channel holds, as callers ask for it: with
-/// [`OutputChannels`], [`Layout::from_parts`] makes the [`Layout`].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum Alpha {
-    /// No alpha channel. The default.
-    #[default]
-    None,
-    /// The texel's height (for parallax mapping).
-    Height,
-    /// An opaque alpha, 1.
-    One,
-}
-
-/// Which components of the normal a map holds, as callers ask for them.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum OutputChannels {
-    /// x, y and z as R, G and B. The default.
-    #[default]
-    Rgb,
-    /// x and y alone, for two-channel (BC5) textures.
-    Rg,
-}
-
-named_values!(Alpha, "alpha", { None => "none", Height => "height", One => "one" });
-named_values!(OutputChannels, "channels", { Rgb => "rgb", Rg => "rg" });
-
-impl Layout {
-    /// The layout of a map with these channels and this alpha: what the
-    /// command line's `--channels` and `--alpha`, and the Python package's
-    /// `channels=` and `alpha=`, ask for together.
-    ///
-    /// Errors: [`Error::InvalidOption`] for an alpha beside red-green
-    /// alone, which has none.
-    pub fn from_parts(channels: OutputChannels, alpha: Alpha) -> Result<Layout> {
-        match (channels, alpha) {
-            (OutputChannels::Rgb, Alpha::None) => Ok(Layout::Rgb),
-            (OutputChannels::Rgb, Alpha::Height) => Ok(Layout::RgbHeight),
-            (OutputChannels::Rgb, Alpha::One) => Ok(Layout::RgbOpaque),
-            (OutputChannels::Rg, Alpha::None) => Ok(Layout::Rg),
-            (OutputChannels::Rg, _) => Err(Error::InvalidOption(format!(
-                "channels rg has no alpha (asked for alpha {alpha}): it is for two-channel (BC5) textures"
-            ))),
-        }
-    }
-
-    /// Samples per texel in a PNG.
-    pub(crate) fn png_samples(self) -> usize {
-        match self {
-            Layout::Rgb | Layout::Rg => 3,
-            Layout::RgbHeight | Layout::RgbOpaque | Layout::RgbValid => 4,
-        }
-    }
-
-    /// The EXR channels, in the order [`lay_out`] gives their samples.
-    pub(crate) fn exr_channels(self) -> &'static [&'static str] {
-        match self {
-            Layout::Rgb => &["R", "G", "B"],
-            Layout::RgbHeight | Layout::RgbOpaque | Layout::RgbValid => &["R", "G", "B", "A"],
-            Layout::Rg => &["R", "G"],
-        }
-    }
-
-    /// Whether the texels' heights are needed (for [`Layout::RgbValid`],
-    /// the texels' validity in their place: 1 or 0).
-    #[must_use]
-    pub fn needs_heights(self) -> bool {
-        matches!(self, Layout::RgbHeight | Layout::RgbValid)
-    }
-
-    /// The layout of a map with holes: an alpha of validity in place of
-    /// none or an opaque one; an alpha of heights, and red-green alone,
-    /// stay as asked.
-    #[must_use]
-    pub fn with_holes(self) -> Layout {
-        match self {
-            Layout::Rgb | Layout::RgbOpaque => Layout::RgbValid,
-            other => other,
-        }
-    }
-}
 
 /// A sample of an encoded normal map: `u8` and `u16` (PNG), `f32` (EXR).
 pub trait Sample: Copy + Default + Send + Sync + 'static {
@@ -356,19 +165,6 @@ pub trait NormalTexel: crate::FromNormal + sealed::Sealed {
     ) -> Result<()>;
 }
 
-/// What a TIFF output holds besides its samples (nothing for PNG or EXR).
-/// Public only as an argument of the sealed traits' hidden methods.
-#[doc(hidden)]
-#[derive(Clone, Copy, Debug, Default)]
-#[cfg_attr(not(feature = "tiff"), allow(dead_code))]
-pub struct TiffTags<'a> {
-    /// The source's georeferencing, copied as stored.
-    pub(crate) georef: Option<&'a super::read::Georef>,
-    /// GDAL's nodata value (the GDAL_NODATA tag): the value of a missing
-    /// texel, for maps whose values say it (a lit view's 0).
-    pub(crate) nodata: Option<f64>,
-}
-
 /// A value of a one-channel map ([`encode_gray`]): `u8` and `u16` are
 /// stored as they are in a PNG of their depth, `f32` in an EXR's channel Y.
 pub trait GrayValue: Copy + sealed::Sealed {
@@ -391,6 +187,15 @@ mod sealed {
     impl Sealed for u8 {}
     impl Sealed for u16 {}
     impl Sealed for f32 {}
+}
+
+/// The `image` setting of a PNG compression.
+fn compression_type(compression: PngCompression) -> CompressionType {
+    match compression {
+        PngCompression::Fast => CompressionType::Fast,
+        PngCompression::Default => CompressionType::Default,
+        PngCompression::Best => CompressionType::Best,
+    }
 }
 
 /// The error of texels that the encoding does not store.
@@ -1147,7 +952,7 @@ fn channel_major<const N: usize>(
 
 /// A PNG encoder with the adaptive filter, which suits smooth gradients.
 fn png_encoder<W: Write>(out: W, compression: PngCompression) -> PngEncoder<W> {
-    PngEncoder::new_with_quality(out, compression.to_image(), FilterType::Adaptive)
+    PngEncoder::new_with_quality(out, compression_type(compression), FilterType::Adaptive)
 }
 
 /// Checks the buffer and the PNG size limits before `image`, which panics

@@ -17,12 +17,13 @@ use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::BandFit;
 use crate::io::encoding::ExrOptions;
+use crate::io::encoding::Layout;
 use crate::io::exr_subsampled::{self, Headers, ScanLines};
 use crate::io::read::{
     Channel, EXR_MAGIC, InputFormat, ReadOptions, Source, check_exr_meta, check_exr_windows, choose_exr_layer,
     exr_parts, from_exr_error, select_channel,
 };
-use crate::io::write::{Container, ExrBlocks, IndexedChunk, Layout, lay_out, write_exr_blocks};
+use crate::io::write::{Container, ExrBlocks, IndexedChunk, lay_out, write_exr_blocks};
 use crate::options::Options;
 use crate::samples::luma;
 

@@ -8,9 +8,9 @@ use std::ops::Range;
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::Result;
 use crate::fit::{BandFit, FromNormal};
-use crate::io::encoding::{ExrOptions, TiffDepth, TiffOptions};
+use crate::io::encoding::{ExrDepth, ExrOptions, Layout, TiffDepth, TiffOptions, TiffTags};
 use crate::io::geotiff::{TiffSample, write_tiff_rows};
-use crate::io::write::{Container, ExrDepth, Layout, Sample, TiffTags, lay_out};
+use crate::io::write::{Container, Sample, lay_out};
 use crate::options::Options;
 use crate::par::prelude::*;
 
@@ -67,7 +67,7 @@ pub(crate) fn shade_tiff<W: Write + Seek>(
     rows: impl RowSource,
     tail: Option<&[f64]>,
     opts: &Options,
-    lamp: crate::shade::Lamp,
+    lamp: crate::light::Lamp,
     tags: TiffTags<'_>,
     visit: impl FnMut(&[f32]) + Send,
     out: W,

@@ -87,6 +87,24 @@ pub trait RowSource: Send {
         v
     }
 
+    /// The stored value of a row value of 1, and whether stored values
+    /// are whole numbers that the division rounded: `(1, false)` for rows
+    /// of the values as stored (a picked channel's integers, floats);
+    /// `(2^bits − 1, false)` for luma, made in contract units; `(2^bits −
+    /// 1, true)` for a TIFF's signed and 32-bit integers, which come
+    /// divided. A fit in map units takes the stored values
+    /// ([`StoredRows`]), as [`crate::io::Raster::into_stored_heights`]
+    /// gives them of the same image read whole.
+    fn stored_scale(&self) -> (f64, bool) {
+        (1.0, false)
+    }
+
+    /// The georeferencing of the file the rows come from, if it has any
+    /// (a GeoTIFF's).
+    fn georef(&self) -> Option<&crate::io::Georef> {
+        None
+    }
+
     /// Decodes the next row into `out` (`width` values).
     ///
     /// Errors: [`Error::Decode`] for corrupt or truncated data, or when all
@@ -137,6 +155,75 @@ pub trait RowSource: Send {
             }
         }
         Ok(tail)
+    }
+}
+
+/// Rows as the values stored, for a fit in map units, which takes the
+/// values as they are (a DEM's metres): each row value times
+/// [`RowSource::stored_scale`], made whole again where the division left
+/// a fraction of an integer (its error is under 2⁻²⁰), exactly as
+/// [`crate::io::Raster::into_stored_heights`] computes them; the tiling
+/// check's heights and an alpha of heights are then stored values too, as
+/// a whole image's are. Rows already stored pass through untouched (in
+/// `f32` where exact).
+pub(crate) struct StoredRows<R> {
+    rows: R,
+    scale: f64,
+    whole: bool,
+}
+
+impl<R: RowSource> StoredRows<R> {
+    pub(crate) fn new(rows: R) -> Self {
+        let (scale, whole) = rows.stored_scale();
+        StoredRows { rows, scale, whole }
+    }
+
+    /// Row values of the wrapped source as the values stored.
+    pub(crate) fn restore(&self, values: &mut [f64]) {
+        let scale = self.scale;
+        match (scale == 1.0, self.whole) {
+            (true, _) => {}
+            (false, true) => values.iter_mut().for_each(|v| *v = (*v * scale).round()),
+            (false, false) => values.iter_mut().for_each(|v| *v *= scale),
+        }
+    }
+}
+
+impl<R: RowSource> RowSource for StoredRows<R> {
+    fn width(&self) -> usize {
+        self.rows.width()
+    }
+
+    fn height(&self) -> usize {
+        self.rows.height()
+    }
+
+    fn unit(&self) -> f64 {
+        1.0
+    }
+
+    fn georef(&self) -> Option<&crate::io::Georef> {
+        self.rows.georef()
+    }
+
+    fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
+        self.rows.next_row(out)?;
+        self.restore(out);
+        Ok(())
+    }
+
+    fn exact_in_f32(&self) -> bool {
+        self.scale == 1.0 && self.rows.exact_in_f32()
+    }
+
+    fn next_row_f32(&mut self, out: &mut [f32]) -> Result<()> {
+        if self.scale == 1.0 {
+            return self.rows.next_row_f32(out);
+        }
+        let mut row = zeroed::<f64>(out.len())?;
+        self.next_row(&mut row)?;
+        out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f32);
+        Ok(())
     }
 }
 
@@ -324,7 +411,7 @@ where
 /// The greys of a band's normals under `lamp` (in parallel), 0 where
 /// `valid` (one per texel, or empty without holes) is 0: gdaldem's nodata.
 #[cfg(feature = "tiff")]
-fn lit_greys(lamp: crate::shade::Lamp, normals: &[[f32; 3]], valid: &[f32], grey: &mut [u8]) {
+fn lit_greys(lamp: crate::light::Lamp, normals: &[[f32; 3]], valid: &[f32], grey: &mut [u8]) {
     use crate::par::prelude::*;
     grey.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
     for (g, _) in grey.iter_mut().zip(valid).filter(|(_, v)| **v == 0.0) {

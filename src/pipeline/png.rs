@@ -30,13 +30,14 @@ use self::deflate::{Checksum, FINAL_BLOCK, Piece, Pieces, ZLIB_HEADER, stored_le
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
+use crate::io::encoding::{Layout, PngCompression};
 use crate::io::encoding::{PngDepth, PngOptions};
 use crate::io::png_zlib::{IdatCount, IdatWatch, decode_options, finish_checked, png_error};
 use crate::io::read::{
     Channel, InputFormat, PNG_SIGNATURE, ReadOptions, Source, check_png_header, check_png_palette, check_size,
     no_layers, select_channel,
 };
-use crate::io::write::{Container, Layout, PngCompression, PngSample, lay_out};
+use crate::io::write::{Container, PngSample, lay_out};
 use crate::options::Options;
 use crate::samples::{Sample, luma};
 
@@ -182,6 +183,16 @@ impl RowSource for PngRows {
             Pick::Luma => {
                 self.decode_row(out, |px| luma(value(px, 0) * unit, value(px, 1) * unit, value(px, 2) * unit))
             }
+        }
+    }
+
+    /// Luma is made in contract units: stored, it is 2^bits − 1 times
+    /// that, as the whole image's luma is ([`RowSource::stored_scale`]).
+    fn stored_scale(&self) -> (f64, bool) {
+        match (self.layout.pick, self.layout.bytes) {
+            (Pick::Channel(_), _) => (1.0, false),
+            (Pick::Luma, 1) => (255.0, false),
+            (Pick::Luma, _) => (65535.0, false),
         }
     }
 
@@ -364,7 +375,7 @@ fn write_first_idat<W: Write + Seek>(out: &mut W, start: u64, first_idat: &[u8])
 pub(crate) fn shade_png_seekable<W: Write + Seek>(
     rows: impl RowSource,
     opts: &Options,
-    lamp: crate::shade::Lamp,
+    lamp: crate::light::Lamp,
     visit: impl FnMut(&[f32]) + Send,
     out: &mut W,
 ) -> Result<usize> {
@@ -380,7 +391,7 @@ pub(crate) fn shade_png_seekable<W: Write + Seek>(
 /// Normals lit by a lamp: one gray byte a texel.
 #[cfg(feature = "tiff")]
 struct LitTexels {
-    lamp: crate::shade::Lamp,
+    lamp: crate::light::Lamp,
     /// With holes: missing texels are grey 0 (gdaldem's nodata).
     holes: bool,
 }

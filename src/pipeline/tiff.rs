@@ -159,6 +159,20 @@ impl RowSource for TiffRows {
         Ok(())
     }
 
+    fn stored_scale(&self) -> (f64, bool) {
+        // Integers given in contract units (signed, 32-bit): value / (2^bits − 1).
+        match self.sample() {
+            sample @ (SampleType::Int { bits } | SampleType::SignedInt { bits }) if self.unit() == 1.0 => {
+                (sample.stored_per_unit(), bits <= 32)
+            }
+            _ => (1.0, false),
+        }
+    }
+
+    fn georef(&self) -> Option<&Georef> {
+        self.band.georef()
+    }
+
     fn exact_in_f32(&self) -> bool {
         self.band.exact_in_f32()
     }

@@ -21,6 +21,7 @@ __all__ = [
     "AxisReport",
     "TilingReport",
     "_HeightSeams",
+    "_kept_pools",
     "__version__",
 ]
 

@@ -69,7 +69,7 @@ pub struct FormatInfo {
     /// usual one first.
     pub extensions: &'static [&'static str],
     /// Whether its rows can stream from the file, through the fit, to the
-    /// output without the whole image in memory (`io::stream`; for
+    /// output without the whole image in memory (the engine's sources; for
     /// OpenEXR, scan-line files only).
     pub streams: bool,
     /// The Cargo feature that builds its decoder; `None` for the formats

@@ -1,0 +1,401 @@
+//! A run under way: the whole image, or its rows as they stream, through
+//! the stage into the sink.
+
+use std::path::Path;
+
+use super::sink::{
+    self, InMemory, Output, Texels, check_assembly_memory, check_encode_memory, encode_residual, fitted, write_all,
+    write_to, zeroed,
+};
+use super::source::{Reopen, Rows};
+use super::{ConvertError, Observer, Place, Settings, Sink, Stage, Summary};
+use crate::borders::{BorderChoice, Warning};
+use crate::error::Error;
+use crate::io::encoding::TiffTags;
+use crate::io::{self, Encoding, Georef, Layout, OutputFormat, Raster};
+use crate::light::Lighting;
+use crate::pipeline::{self, StoredRows};
+use crate::samples::Samples;
+use crate::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport};
+use crate::{Border, Options};
+
+/// One run under way.
+pub(super) struct Job<'a> {
+    pub(super) settings: &'a Settings<'a>,
+    pub(super) stage: Stage,
+    /// The input file, which no output may replace.
+    pub(super) input: Option<&'a Path>,
+    pub(super) encoding: Encoding,
+    /// The input's georeferencing, which a TIFF output keeps.
+    pub(super) georef: Option<&'a Georef>,
+    pub(super) observer: &'a dyn Observer,
+    /// A lit view's pixels, when no file takes them.
+    pub(super) pixels: Option<Vec<u8>>,
+    pub(super) summary: Summary,
+}
+
+impl Job<'_> {
+    /// What a TIFF output holds besides its samples: the input's
+    /// georeferencing.
+    fn tiff_tags(&self) -> TiffTags<'_> {
+        match self.stage {
+            // GDAL's nodata: missing texels are grey 0, lit ones at least 1.
+            Stage::Lit { tile, .. } => TiffTags { georef: if tile { None } else { self.georef }, nodata: Some(0.0) },
+            Stage::Normals(_) => TiffTags { georef: self.georef, nodata: None },
+        }
+    }
+
+    fn warn(&mut self, warning: Warning) {
+        self.observer.warning(&warning);
+        self.summary.warnings.push(warning);
+    }
+
+    /// The streamed tiling check of a `width` × `height` image, or `None`
+    /// with a warning when its memory is not there: the check only warns
+    /// about a wrap that draws a seam. `auto` borders need its verdict, so
+    /// there the lack of memory is an error.
+    fn seam_check(&mut self, width: usize, height: usize) -> Result<Option<HeightSeams>, ConvertError> {
+        match HeightSeams::new(width, height) {
+            Ok(seams) => Ok(Some(seams)),
+            Err(e) if self.settings.borders.any_auto() => Err(ConvertError { place: Place::Input, error: e }),
+            Err(e) => {
+                self.warn(Warning::SeamCheckSkipped(e.to_string()));
+                Ok(None)
+            }
+        }
+    }
+
+    /// Records the tiling check and warns about a wrap that draws a seam.
+    fn judge(&mut self, report: TilingReport) {
+        if let Some(warning) = self.settings.borders.seams(&report) {
+            self.warn(warning);
+        }
+        self.summary.tiling = Some(report);
+    }
+
+    /// Settles the borders (`auto` by the tiling check) and gives the
+    /// fit's options.
+    fn fit_options(&mut self) -> Options {
+        let borders = self.settings.borders.resolve(self.summary.tiling.as_ref());
+        self.summary.borders = borders;
+        self.settings.fit.clone().with_borders(borders)
+    }
+
+    /// Refuses a file output that is the input file, and makes its folder
+    /// if asked to ([`sink::prepare`]).
+    fn prepare(&self, output: &Output<'_>, place: Place) -> Result<(), ConvertError> {
+        sink::prepare(output, self.input).map_err(ConvertError::at(place))
+    }
+
+    /// The whole-image conversion: the heights in memory, fitted straight
+    /// into the output's texel type.
+    fn whole(
+        &mut self,
+        raster: Raster,
+        normals: Option<Output<'_>>,
+        residual: Option<(Output<'_>, OutputFormat)>,
+    ) -> Result<(), ConvertError> {
+        let (width, height) = (raster.width, raster.height);
+        (self.summary.width, self.summary.height) = (width, height);
+        let conversion = self.settings;
+        let in_failure = ConvertError::at(Place::Input);
+        let units = match &conversion.map_units {
+            Some(map) => Some(map.units(raster.georef.as_ref(), height).map_err(&in_failure)?),
+            None => None,
+        };
+        let mut fit_nodata = conversion.fit.nodata;
+        let heights = match (units.is_some(), conversion.fit.nodata) {
+            (stored, Some(nodata)) => {
+                let channel = conversion.channel.clone();
+                let (heights, nodata) = raster.into_heights_with_holes(channel, stored, nodata).map_err(&in_failure)?;
+                fit_nodata = Some(nodata);
+                heights
+            }
+            (true, None) => raster.into_stored_heights(conversion.channel.clone()).map_err(&in_failure)?,
+            // The lit view fits heights in contract units, as f32, as it
+            // always has (its greys are those of that fit).
+            (false, None) if matches!(self.stage, Stage::Lit { .. }) => {
+                Samples::F32(raster.heights(conversion.channel.clone()).map_err(&in_failure)?)
+            }
+            (false, None) => raster.into_heights(conversion.channel.clone()).map_err(&in_failure)?,
+        };
+        let report = match conversion.borders.needs_check() {
+            true => match self.seam_check(width, height)? {
+                Some(mut seams) => {
+                    seams.push_samples(&heights).map_err(&in_failure)?;
+                    Some(seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)).map_err(&in_failure)?)
+                }
+                None => None,
+            },
+            false => None,
+        };
+        if let Some(report) = report {
+            self.judge(report);
+        }
+        let mut fit = self.fit_options().with_nodata(fit_nodata);
+        if let Some(units) = units {
+            fit = fit.with_units(units);
+        }
+        if let Stage::Lit { lighting, tile, .. } = self.stage {
+            return self.lit_whole(&heights, (width, height), &fit, (lighting, tile), normals);
+        }
+        // Named by the first output to be written.
+        let first = if normals.is_some() { Place::Output } else { Place::Residual };
+        let to_writer = matches!(normals, Some(Output::Writer(_)));
+        check_encode_memory(&self.encoding, to_writer, normals.is_some(), residual.is_some(), width, height)
+            .map_err(ConvertError::at(first))?;
+        let mut distances = residual.as_ref().map(|_| zeroed::<f32>(heights.len())).transpose().map_err(&in_failure)?;
+        let mut valid = match fit.nodata {
+            Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
+            None => None,
+        };
+        let texels =
+            Texels::fit(&heights, width, height, &fit, &self.encoding, distances.as_deref_mut(), valid.as_deref_mut())
+                .map_err(&in_failure)?;
+        self.summary.missing = valid.as_ref().map_or(0, |v| v.iter().filter(|&&v| !v).count());
+        // An alpha of heights takes them in contract units, as f32; an
+        // alpha of validity, 1 and 0.
+        let heights = match (self.encoding.layout(), &valid) {
+            (Layout::RgbValid, Some(valid)) => valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect(),
+            (Layout::RgbValid, None) => vec![1.0; width * height],
+            (layout, _) if layout.needs_heights() => heights.into_f32().map_err(&in_failure)?,
+            _ => Vec::new(),
+        };
+        let (encoding, tags) = (self.encoding, self.tiff_tags());
+        if let Some(out) = normals {
+            self.prepare(&out, Place::Output)?;
+            write_to(out, |w| texels.encode(&heights, (width, height), &encoding, tags, w))
+                .map_err(ConvertError::at(Place::Output))?;
+        }
+        if let (Some((out, format)), Some(distances)) = (residual, &distances) {
+            self.prepare(&out, Place::Residual)?;
+            let scale = fit.scale_for_width(width);
+            write_to(out, |w| encode_residual(distances, (width, height), scale, (format, tags), w))
+                .map_err(ConvertError::at(Place::Residual))?;
+        }
+        Ok(())
+    }
+
+    /// A PNG or scan-line EXR file converted without holding the image:
+    /// rows stream from the decoder through the fit to the encoder. One
+    /// pass over the input, but for a wrap in y into an output written in
+    /// order (EXR, or PNG into a writer), which needs the image's last rows
+    /// first: an EXR gives them from its last blocks, a PNG by a first
+    /// pass; and for `auto` borders, whose borders depend on the tiling
+    /// check, which then comes from a first pass too.
+    fn streaming<S: Reopen>(&mut self, rows: S, input: &Path, out: Output<'_>) -> Result<(), ConvertError> {
+        self.prepare(&out, Place::Output)?;
+        self.summary.streamed = true;
+        let conversion = self.settings;
+        let (read, channel) = (&conversion.read, || conversion.channel.clone());
+        let in_failure = ConvertError::at(Place::Input);
+        let (width, height, r) = (rows.width(), rows.height(), conversion.fit.patch / 2);
+        (self.summary.width, self.summary.height) = (width, height);
+        let borders = conversion.borders;
+        let auto = borders.any_auto();
+        let may_wrap_y = matches!(borders.y, BorderChoice::Auto | BorderChoice::Fixed(Border::Wrap));
+        // A PNG file takes its top rows last, in room kept after the header.
+        let png_file = matches!(out, Output::File { .. }) && matches!(self.encoding, Encoding::Png(_));
+        let needs_tail = may_wrap_y && !png_file;
+        let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
+        let cheap_tail = if needs_tail && !auto { S::last_rows(input, read, channel(), r) } else { None };
+        let (report, tail) = match cheap_tail {
+            Some(tail) => (None, Some(tail.map_err(&in_failure)?)),
+            None if auto || needs_tail => {
+                let first = S::reopen(input, read, channel()).map_err(&in_failure)?;
+                let first =
+                    first.ok_or_else(|| in_failure(std::io::Error::other("changed while being read").into()))?;
+                let mut seams = self.seam_check(width, height)?;
+                let tail = first
+                    .read_tail(r, |row| {
+                        // Whole rows from the decoder, at most `height` of
+                        // them: the check takes every one.
+                        if let Some(s) = seams.as_mut() {
+                            let _ = s.push_row(row);
+                        }
+                    })
+                    .map_err(&in_failure)?;
+                (seams.map(|s| s.finish(&check_opts)).transpose().map_err(&in_failure)?, Some(tail))
+            }
+            None => (None, None),
+        };
+        // Without a first pass, the check runs on the rows as they stream
+        // and the warning comes after the output.
+        if let Some(report) = report {
+            self.judge(report);
+        }
+        let mut fit = self.fit_options();
+        if let Some(map) = &conversion.map_units {
+            fit = fit.with_units(map.units(rows.georef(), height).map_err(&in_failure)?);
+        }
+        // The nodata value as the rows hold it.
+        let fit = fit.clone().with_nodata(fit.nodata.map(|v| rows.row_value(v)));
+        let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
+        let mut seams = match self.summary.tiling.is_none() && borders.needs_check() {
+            true => self.seam_check(width, height)?,
+            false => None,
+        };
+        let observer = self.observer;
+        observer.size(width, height);
+        let visit = |row: &[f32]| {
+            observer.row();
+            // Whole rows from the decoder, at most `height` of them: the
+            // check takes every one.
+            if let Some(s) = seams.as_mut() {
+                let _ = s.push_row(row);
+            }
+        };
+        // Decoding and fitting fail on the input; writing, on the output.
+        let mut input_failed = false;
+        let mut on_input = |e: &Error| {
+            if !matches!(e, Error::Io(_) | Error::Encode(_)) {
+                input_failed = true;
+            }
+        };
+        let (w, h) = (width, height);
+        let mut missing = 0;
+        #[cfg(feature = "tiff")]
+        let tags = self.tiff_tags();
+        let lamp = match self.stage {
+            Stage::Lit { lighting, .. } => Some(lighting.lamp(self.georef, fit.convention)),
+            Stage::Normals(_) => None,
+        };
+        let result = match (lamp, out, self.encoding) {
+            // The lit view streams into a file alone ([`Stage::streams_into`]).
+            (Some(lamp), Output::File { path, .. }, Encoding::Png(_)) => io::write_file_atomically(path, |file| {
+                missing = pipeline::shade_png_seekable(rows, &fit, lamp, visit, file).inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            #[cfg(feature = "tiff")]
+            (Some(lamp), Output::File { path, .. }, Encoding::Tiff(_)) => io::write_file_atomically(path, |file| {
+                missing = pipeline::shade_tiff(rows, tail, &fit, lamp, tags, visit, file).inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            (Some(_), _, _) => Err(Error::InvalidOption("a lit view streams into a file only: read it whole".into())),
+            (None, Output::File { path, .. }, Encoding::Exr(options)) => io::write_file_atomically(path, |file| {
+                missing = pipeline::convert_exr_counting(rows, tail, &fit, options, visit, file)
+                    .inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            (None, Output::Writer(writer), Encoding::Exr(options)) => {
+                // EXR seeks back to its offset table: the file is assembled
+                // first, and must leave the stream room to work.
+                let mut bytes = InMemory::default();
+                check_assembly_memory(&self.encoding, w, h)
+                    .and_then(|()| pipeline::convert_exr_counting(rows, tail, &fit, options, visit, &mut bytes))
+                    .inspect_err(&mut on_input)
+                    .and_then(|m| {
+                        missing = m;
+                        write_all(writer, bytes.0.get_ref())
+                    })
+            }
+            (None, Output::File { path, .. }, Encoding::Png(options)) => io::write_file_atomically(path, |file| {
+                missing = pipeline::convert_png_seekable_counting(rows, &fit, options, visit, file)
+                    .inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            (None, Output::Writer(writer), Encoding::Png(options)) => {
+                pipeline::convert_png_counting(rows, tail, &fit, options, visit, writer)
+                    .inspect_err(&mut on_input)
+                    .map(|m| missing = m)
+            }
+            #[cfg(feature = "tiff")]
+            (None, Output::File { path, .. }, Encoding::Tiff(options)) => io::write_file_atomically(path, |file| {
+                missing = pipeline::convert_tiff_counting(rows, tail, &fit, options, tags, visit, file)
+                    .inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            #[cfg(feature = "tiff")]
+            (None, Output::Writer(writer), Encoding::Tiff(options)) => {
+                // TIFF seeks back to its directory's offset: the file is
+                // assembled first, as an EXR is.
+                let mut bytes = InMemory::default();
+                check_assembly_memory(&self.encoding, w, h)
+                    .and_then(|()| pipeline::convert_tiff_counting(rows, tail, &fit, options, tags, visit, &mut bytes))
+                    .inspect_err(&mut on_input)
+                    .and_then(|m| {
+                        missing = m;
+                        write_all(writer, bytes.0.get_ref())
+                    })
+            }
+            #[cfg(not(feature = "tiff"))]
+            (None, _, Encoding::Tiff(_)) => Err(io::write::no_tiff()),
+        };
+        self.summary.missing = missing;
+        let place = if input_failed { Place::Input } else { Place::Output };
+        result.map_err(ConvertError::at(place))?;
+        // A failed write stopped the rows part way: no seams to judge.
+        if let Some(seams) = seams {
+            self.judge(seams.finish(&check_opts).map_err(ConvertError::at(Place::Input))?);
+        }
+        Ok(())
+    }
+
+    /// Runs the stage on `rows` into `sink`: streamed, or whole.
+    pub(super) fn run(&mut self, rows: Rows, sink: Sink<'_, '_>) -> Result<(), ConvertError> {
+        let Sink { main, residual } = sink;
+        let stored = self.settings.map_units.is_some();
+        match (rows, main) {
+            (Rows::Whole(raster), main) => self.whole(*raster, main, residual),
+            (_, None) => {
+                let problem = "nothing to write: no output given";
+                Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) })
+            }
+            // Map units fit the values as stored (a DEM's metres).
+            (Rows::Png(rows, input), Some(out)) if stored => self.streaming(StoredRows::new(*rows), &input, out),
+            (Rows::Png(rows, input), Some(out)) => self.streaming(*rows, &input, out),
+            (Rows::Exr(rows, input), Some(out)) if stored => self.streaming(StoredRows::new(*rows), &input, out),
+            (Rows::Exr(rows, input), Some(out)) => self.streaming(*rows, &input, out),
+            #[cfg(feature = "tiff")]
+            (Rows::Tiff(rows, input), Some(out)) if stored => self.streaming(StoredRows::new(*rows), &input, out),
+            #[cfg(feature = "tiff")]
+            (Rows::Tiff(rows, input), Some(out)) => self.streaming(*rows, &input, out),
+        }
+    }
+
+    /// The lit view of the whole image: its normals lit by the lamp, holes
+    /// grey 0 (as `gdaldem hillshade` writes nodata), tiled 2×2 if asked;
+    /// encoded into `out`, or kept as pixels.
+    fn lit_whole(
+        &mut self,
+        heights: &Samples,
+        (width, height): (usize, usize),
+        fit: &Options,
+        (lighting, tile): (Lighting, bool),
+        out: Option<Output<'_>>,
+    ) -> Result<(), ConvertError> {
+        let in_failure = ConvertError::at(Place::Input);
+        let texels = (width as u64).saturating_mul(height as u64);
+        // The normals (12 bytes a texel), the validity (1), the greys (1),
+        // tiled four times over (4).
+        let per_texel = 12 + 1 + if tile { 5 } else { 1 };
+        io::check_memory("lighting the view", texels.saturating_mul(per_texel)).map_err(&in_failure)?;
+        let mut valid = match fit.nodata {
+            Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
+            None => None,
+        };
+        let normals: Vec<[f32; 3]> =
+            fitted(heights, width, height, fit, None, valid.as_deref_mut()).map_err(&in_failure)?;
+        let lamp = lighting.lamp(self.georef, fit.convention);
+        let mut greys = crate::light::shade_with(&normals, lamp);
+        drop(normals);
+        if let Some(valid) = &valid {
+            for (g, _) in greys.iter_mut().zip(valid).filter(|(_, v)| !**v) {
+                *g = 0;
+                self.summary.missing += 1;
+            }
+        }
+        let (greys, size) = match tile {
+            true => (crate::light::tile_2x2(&greys, width, height).map_err(&in_failure)?, (2 * width, 2 * height)),
+            false => (greys, (width, height)),
+        };
+        let Some(out) = out else {
+            self.pixels = Some(greys);
+            return Ok(());
+        };
+        self.prepare(&out, Place::Output)?;
+        let (encoding, tags) = (self.encoding, self.tiff_tags());
+        write_to(out, |w| io::write::encode_gray_tagged(&greys, size, &encoding, tags, w))
+            .map_err(ConvertError::at(Place::Output))
+    }
+}

@@ -1,0 +1,330 @@
+//! The engine's sinks: a file written atomically (whole or not at all,
+//! never over the input), or any writer (formats that seek assembled in
+//! memory first, within the memory limits); what an encode holds, checked
+//! before it starts.
+
+use std::io::{Cursor, Seek, Write};
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::io::encoding::{TiffDepth, TiffOptions, TiffTags};
+use crate::io::{self, Encoding, ExrDepth, ExrOptions, Layout, OutputFormat, PngDepth, PngOptions};
+use crate::samples::try_vec;
+use crate::{FromNormal, Options, Samples};
+
+/// Where a map goes.
+#[non_exhaustive]
+pub enum Output<'a> {
+    /// A file, written atomically: a new file beside it, given its name
+    /// once complete. Never the input file.
+    File {
+        /// The file.
+        path: &'a Path,
+        /// Create its folder (and those above) if missing.
+        create_folder: bool,
+    },
+    /// Any writer (a pipe, a socket, a buffer): formats that must seek
+    /// (EXR) are assembled in memory first, checked against the memory
+    /// limits.
+    Writer(&'a mut dyn Write),
+}
+
+impl<'a> Output<'a> {
+    /// The file at `path`, in a folder that exists.
+    #[must_use]
+    pub fn file(path: &'a Path) -> Output<'a> {
+        Output::File { path, create_folder: false }
+    }
+
+    pub(crate) fn path(&self) -> Option<&'a Path> {
+        match self {
+            Output::File { path, .. } => Some(path),
+            Output::Writer(_) => None,
+        }
+    }
+}
+
+/// Writes to a file atomically, or assembles the bytes in memory (EXR
+/// seeks while writing) and gives them to a writer.
+pub(crate) fn write_to(out: Output<'_>, encode: impl FnOnce(&mut dyn WriteSeek) -> Result<()>) -> Result<()> {
+    match out {
+        // Into the file itself, which seeks as EXR needs: no copy of the
+        // encoded image in memory.
+        Output::File { path, .. } => io::write_file_atomically(path, |file| encode(file)),
+        Output::Writer(writer) => {
+            let mut bytes = InMemory::default();
+            encode(&mut bytes)?;
+            write_all(writer, bytes.0.get_ref())
+        }
+    }
+}
+
+/// A writer that seeks, as a trait object.
+pub(crate) trait WriteSeek: Write + Seek {}
+impl<T: Write + Seek> WriteSeek for T {}
+
+/// Writes `bytes` and flushes.
+pub(crate) fn write_all(writer: &mut dyn Write, bytes: &[u8]) -> Result<()> {
+    writer.write_all(bytes)?;
+    writer.flush()?;
+    Ok(())
+}
+
+/// Whether `a` and `b` are the same file (through links too).
+pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        #[cfg(unix)]
+        (Ok(a), Ok(b)) => {
+            use std::os::unix::fs::MetadataExt;
+            (a.dev(), a.ino()) == (b.dev(), b.ino())
+        }
+        #[cfg(not(unix))]
+        (Ok(_), Ok(_)) => std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok(),
+        _ => false,
+    }
+}
+
+/// A normal map fitted straight into the output's texel type.
+pub(crate) enum Texels {
+    Eight(Vec<[u8; 3]>),
+    Sixteen(Vec<[u16; 3]>),
+    /// The normals n, stored as the EXR options say when encoded.
+    Float(Vec<[f32; 3]>),
+}
+
+impl Texels {
+    /// Fits the normals for `encoding`; with `residual`, the fit's RMS
+    /// distances too (in surface units).
+    pub(crate) fn fit(
+        heights: &Samples,
+        w: usize,
+        h: usize,
+        opts: &Options,
+        encoding: &Encoding,
+        residual: Option<&mut [f32]>,
+        valid: Option<&mut [bool]>,
+    ) -> Result<Texels> {
+        Ok(match encoding {
+            Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => {
+                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => {
+                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Exr(_) | Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => {
+                Texels::Float(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => {
+                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => {
+                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
+            }
+        })
+    }
+
+    /// Encodes the map (`heights` for an alpha of heights; a TIFF with
+    /// `tags`).
+    pub(crate) fn encode(
+        &self,
+        heights: &[f32],
+        size: (usize, usize),
+        encoding: &Encoding,
+        tags: TiffTags<'_>,
+        out: &mut dyn WriteSeek,
+    ) -> Result<()> {
+        match self {
+            Texels::Eight(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+            Texels::Sixteen(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+            Texels::Float(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+        }
+    }
+}
+
+/// The normals of `heights` fitted straight into texels `T`; with
+/// `residual`, the fit's RMS distances too; with `valid`, a fit with
+/// holes that says which texels have a normal.
+///
+/// Errors: those of the fit; [`Error::Limits`] when the memory is not there.
+pub(crate) fn fitted<T: FromNormal + Default + Clone>(
+    heights: &Samples,
+    w: usize,
+    h: usize,
+    opts: &Options,
+    residual: Option<&mut [f32]>,
+    valid: Option<&mut [bool]>,
+) -> Result<Vec<T>> {
+    let mut texels = zeroed::<T>(heights.len())?;
+    match (residual, valid) {
+        (residual, Some(valid)) => {
+            heights.normals_masked_into((w, h), opts, &mut texels, residual, valid)?;
+        }
+        (Some(r), None) => heights.normals_and_residual_into(w, h, opts, &mut texels, r)?,
+        (None, None) => heights.normals_into(w, h, opts, &mut texels)?,
+    }
+    Ok(texels)
+}
+
+/// Writes the residual map: the RMS distances (surface units) divided by
+/// the gain |S|, so in height units; 0 where S = 0 (a flat surface). PNG:
+/// 16-bit gray, 65535 · value clamped to [0, 1]; EXR: 32-bit float,
+/// channel Y, the value as it is; TIFF: 32-bit float, the value as it is,
+/// with `tags`.
+pub(crate) fn encode_residual(
+    distances: &[f32],
+    (w, h): (usize, usize),
+    scale: f64,
+    (format, tags): (OutputFormat, TiffTags<'_>),
+    out: &mut dyn WriteSeek,
+) -> Result<()> {
+    let per_height = if scale == 0.0 { 0.0 } else { 1.0 / scale.abs() };
+    let values = distances.iter().map(|&d| f64::from(d) * per_height);
+    match format {
+        OutputFormat::Png => {
+            let mut stored = zeroed::<u16>(distances.len())?;
+            stored.iter_mut().zip(values).for_each(|(s, v)| *s = (v.clamp(0.0, 1.0) * 65535.0).round() as u16);
+            io::encode_gray(&stored, w, h, &PngOptions::new(PngDepth::Sixteen).into(), out)
+        }
+        OutputFormat::Exr | OutputFormat::Tiff => {
+            let mut stored = zeroed::<f32>(distances.len())?;
+            stored.iter_mut().zip(values).for_each(|(s, v)| *s = v as f32);
+            let encoding = match format {
+                OutputFormat::Tiff => TiffOptions::new(TiffDepth::Float).into(),
+                _ => ExrOptions::new(ExrDepth::Float).into(),
+            };
+            io::write::encode_gray_tagged(&stored, (w, h), &encoding, tags, out)
+        }
+    }
+}
+
+/// Refuses an encode that the memory limits leave no room for, before it
+/// starts: past our own buffers the encoders allocate as they go, and a
+/// failure there would abort the process. Bytes held per texel, from what
+/// the encoders do:
+/// * the normal map: 3, 6 or 12 (8-bit, 16-bit, float);
+/// * PNG (c samples of s bytes a texel): the samples laid out, unless RGB
+///   (c·s); for 16 bits, the native-endian and `image`'s big-endian
+///   copies (2·c·s); the whole zlib stream, which `png` assembles in
+///   memory, and its stored fallback when deflate does not pay (2·c·s);
+/// * EXR: only a few blocks at a time;
+/// * the residual: its distances (4), and for its one-channel encode no
+///   more than 10;
+/// * for a writer, the encoded file: at most about its raw size.
+pub(crate) fn check_encode_memory(
+    encoding: &Encoding,
+    to_writer: bool,
+    normals: bool,
+    residual: bool,
+    w: usize,
+    h: usize,
+) -> Result<()> {
+    let layout = encoding.layout();
+    let c: u64 = match layout {
+        Layout::Rgb | Layout::Rg => 3,
+        _ => 4,
+    };
+    let (map, encode, raw) = match encoding {
+        Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => {
+            (3, if layout == Layout::Rgb { 0 } else { c } + 2 * c, c)
+        }
+        Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => {
+            (6, if layout == Layout::Rgb { 0 } else { 2 * c } + 4 * c + 4 * c, 2 * c)
+        }
+        Encoding::Exr(_) => (12, 0, 4 * c),
+        // Laid out a few hundred rows at a time, unless RGB.
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => (3, 0, c),
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => (6, 0, 2 * c),
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => (12, 0, 4 * c),
+    };
+    let assembled = if to_writer { raw } else { 0 };
+    let per_texel = map + if normals { encode + assembled } else { 0 } + if residual { 4 + 10 } else { 0 };
+    let texels = (w as u64).saturating_mul(h as u64);
+    io::check_memory("encoding the normal map", texels.saturating_mul(per_texel))
+}
+
+/// Refuses to assemble an EXR for a writer in memory when the memory
+/// limits leave no room for it (its raw size, which ZIP does not exceed)
+/// beside the stream's own buffers.
+pub(crate) fn check_assembly_memory(encoding: &Encoding, w: usize, h: usize) -> Result<()> {
+    let channels: u64 = match (encoding.layout(), encoding) {
+        (Layout::Rg, Encoding::Exr(_)) => 2,
+        (Layout::Rg | Layout::Rgb, _) => 3,
+        _ => 4,
+    };
+    let sample = match encoding {
+        Encoding::Exr(ExrOptions { depth: ExrDepth::Half, .. }) => 2,
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => 1,
+        Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => 2,
+        _ => 4,
+    };
+    let texels = (w as u64).saturating_mul(h as u64);
+    io::check_memory("assembling the output in memory", texels.saturating_mul(channels * sample))
+}
+
+/// A buffer of `len` values, or an error when the memory is not there:
+/// `vec!` would abort the process instead (under `ulimit -v`).
+pub(crate) fn zeroed<T: Clone + Default>(len: usize) -> Result<Vec<T>> {
+    let mut values = try_vec(len).map_err(|_| {
+        let mib = len.saturating_mul(size_of::<T>()) >> 20;
+        Error::Limits(format!("not enough memory for the output ({mib} MiB more)"))
+    })?;
+    values.resize(len, T::default());
+    Ok(values)
+}
+
+/// An encoded file assembled in memory, like `Cursor<Vec<u8>>`, but whose
+/// growth is reserved fallibly: running out of memory is an error, where a
+/// growing `Vec` would abort the process (under `ulimit -v`).
+#[derive(Default)]
+pub(crate) struct InMemory(pub(crate) Cursor<Vec<u8>>);
+
+impl Write for InMemory {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let end = usize::try_from(self.0.position()).unwrap_or(usize::MAX).saturating_add(buf.len());
+        let bytes = self.0.get_mut();
+        if end > bytes.capacity() {
+            // Amortised growth, as `Vec` itself would.
+            bytes.try_reserve(end - bytes.len()).map_err(|_| {
+                let mib = end >> 20;
+                std::io::Error::new(
+                    std::io::ErrorKind::OutOfMemory,
+                    format!("not enough memory to assemble the output ({mib} MiB)"),
+                )
+            })?;
+        }
+        self.0.write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Seek for InMemory {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.0.seek(to)
+    }
+}
+
+/// Refuses a file output that is the input file (or a link to it), and
+/// makes its folder if asked to.
+///
+/// Errors: [`Error::InvalidOption`] for the input; [`Error::Io`] when the
+/// folder cannot be made.
+pub(crate) fn prepare(output: &Output<'_>, input: Option<&Path>) -> Result<()> {
+    let Output::File { path, create_folder } = *output else { return Ok(()) };
+    if let Some(input) = input
+        && same_file(input, path)
+    {
+        return Err(Error::InvalidOption(
+            "the output is the input (or a link to it): normalfit never writes over an input".into(),
+        ));
+    }
+    if let (true, Some(parent)) = (create_folder, path.parent())
+        && !parent.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}"))))?;
+    }
+    Ok(())
+}
