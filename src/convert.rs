@@ -15,7 +15,7 @@
 //!   unless a residual is asked for, which is made from the whole image;
 //!   both give the same bytes;
 //! * the memory checks, before any large buffer or encoder runs
-//!   ([`io::check_memory`]): running out is an error, never an abort;
+//!   ([`crate::io::check_memory`]): running out is an error, never an abort;
 //! * the tiling check that `auto` borders need, and that warns about a
 //!   wrap drawing a seam;
 //! * the promise that a file output appears whole or not at all and never
@@ -84,7 +84,7 @@ pub struct Conversion {
     pub residual: bool,
     /// Fit in real-world units ([`crate::Units::Map`]), the spacing from
     /// the file or given; `None`: the contract's units. The heights are
-    /// then taken as stored ([`Raster::into_stored_heights`]; streamed,
+    /// then taken as stored ([`crate::io::Raster::into_stored_heights`]; streamed,
     /// the same values row by row). The fit's own [`Options::units`] are
     /// replaced by what this gives.
     pub map_units: Option<MapSpacing>,
@@ -199,7 +199,7 @@ impl Conversion {
     /// else read and decoded whole.
     ///
     /// Errors (all [`Place::Input`]): those of reading and decoding
-    /// ([`io::read_path`], [`io::decode`]).
+    /// ([`crate::io::read_path`], [`crate::io::decode`]).
     pub fn open(&self, input: Input<'_>) -> Result<Opened, ConvertError> {
         // A residual map is made from the whole image.
         let source = engine::Source::open(input, &self.read, self.channel.clone(), !self.residual)

@@ -184,12 +184,19 @@ impl Job<'_> {
     /// pass; and for `auto` borders, whose borders depend on the tiling
     /// check, which then comes from a first pass too.
     fn streaming<S: Reopen>(&mut self, rows: S, input: &Path, out: Output<'_>) -> Result<(), ConvertError> {
-        self.prepare(&out, Place::Output)?;
-        self.summary.streamed = true;
         let conversion = self.settings;
         let (read, channel) = (&conversion.read, || conversion.channel.clone());
         let in_failure = ConvertError::at(Place::Input);
         let (width, height, r) = (rows.width(), rows.height(), conversion.fit.patch / 2);
+        // Map units' spacing first: a file without one is refused before
+        // any pass over it and before the output is looked at, as a whole
+        // image is.
+        let units = match &conversion.map_units {
+            Some(map) => Some(map.units(rows.georef(), height).map_err(&in_failure)?),
+            None => None,
+        };
+        self.prepare(&out, Place::Output)?;
+        self.summary.streamed = true;
         (self.summary.width, self.summary.height) = (width, height);
         let borders = conversion.borders;
         let auto = borders.any_auto();
@@ -225,8 +232,8 @@ impl Job<'_> {
             self.judge(report);
         }
         let mut fit = self.fit_options();
-        if let Some(map) = &conversion.map_units {
-            fit = fit.with_units(map.units(rows.georef(), height).map_err(&in_failure)?);
+        if let Some(units) = units {
+            fit = fit.with_units(units);
         }
         // The nodata value as the rows hold it.
         let fit = fit.clone().with_nodata(fit.nodata.map(|v| rows.row_value(v)));

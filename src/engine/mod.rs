@@ -7,7 +7,7 @@
 //!   units, with or without nodata), else decoded whole. The choice is
 //!   made here, once, for every command: a source streams unless the stage
 //!   needs the whole image ([`Source::open`]'s `may_stream`).
-//! * **Stage** ([`Stage`]): what is computed from the heights band by band:
+//! * **Stage**: what is computed from the heights band by band:
 //!   the normal map (its residual from the whole image), or the lit view
 //!   (tiled 2×2 from the whole image). The inverse (normal map → heights,
 //!   [`crate::height`]) needs the whole image and says so: it reads a
@@ -133,7 +133,7 @@ pub struct Summary {
     pub sidecars: Vec<PathBuf>,
     /// The nodata value the conversion used (the fit's, else the
     /// GeoTIFF's GDAL_NODATA tag), if any: the map then has holes, and an
-    /// alpha of validity ([`Layout::RgbValid`]).
+    /// alpha of validity ([`crate::io::Layout::RgbValid`]).
     pub nodata: Option<f64>,
     /// Missing texels (holes, and texels whose valid points do not
     /// determine a plane): alpha 0 in the map. 0 without a nodata value.

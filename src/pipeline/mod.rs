@@ -47,7 +47,6 @@ pub(crate) use self::exr::convert_exr_counting;
 pub use self::exr::{ExrRows, convert_exr};
 #[cfg(feature = "tiff")]
 pub(crate) use self::geotiff::{convert_tiff_counting, shade_tiff};
-#[cfg(feature = "tiff")]
 pub(crate) use self::png::shade_png_seekable;
 pub use self::png::{PngRows, convert_png, convert_png_seekable};
 pub(crate) use self::png::{convert_png_counting, convert_png_seekable_counting};
@@ -93,7 +92,7 @@ pub trait RowSource: Send {
     /// `(2^bits − 1, false)` for luma, made in contract units; `(2^bits −
     /// 1, true)` for a TIFF's signed and 32-bit integers, which come
     /// divided. A fit in map units takes the stored values
-    /// ([`StoredRows`]), as [`crate::io::Raster::into_stored_heights`]
+    /// (`StoredRows`), as [`crate::io::Raster::into_stored_heights`]
     /// gives them of the same image read whole.
     fn stored_scale(&self) -> (f64, bool) {
         (1.0, false)
@@ -410,7 +409,6 @@ where
 
 /// The greys of a band's normals under `lamp` (in parallel), 0 where
 /// `valid` (one per texel, or empty without holes) is 0: gdaldem's nodata.
-#[cfg(feature = "tiff")]
 fn lit_greys(lamp: crate::light::Lamp, normals: &[[f32; 3]], valid: &[f32], grey: &mut [u8]) {
     use crate::par::prelude::*;
     grey.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));

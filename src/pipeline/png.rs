@@ -371,7 +371,6 @@ fn write_first_idat<W: Write + Seek>(out: &mut W, start: u64, first_idat: &[u8])
 /// normals lit by `lamp`, an 8-bit gray PNG written to `out` in one pass,
 /// the top rows last as [`convert_png_seekable`] writes them. The grey of
 /// every texel is the whole-image view's.
-#[cfg(feature = "tiff")]
 pub(crate) fn shade_png_seekable<W: Write + Seek>(
     rows: impl RowSource,
     opts: &Options,
@@ -389,14 +388,12 @@ pub(crate) fn shade_png_seekable<W: Write + Seek>(
 }
 
 /// Normals lit by a lamp: one gray byte a texel.
-#[cfg(feature = "tiff")]
 struct LitTexels {
     lamp: crate::light::Lamp,
     /// With holes: missing texels are grey 0 (gdaldem's nodata).
     holes: bool,
 }
 
-#[cfg(feature = "tiff")]
 impl PngTexels for LitTexels {
     type Normal = [f32; 3];
     fn bits(&self) -> u8 {
