@@ -60,8 +60,8 @@ def test_convert_with_residual(tmp_path: Path, cli: Path) -> None:
 
 def test_convert_in_map_units(tmp_path: Path, cli: Path) -> None:
     """units= and pixel_size= give the command line's --units and
-    --pixel-size bytes; map units of a file without georeferencing are
-    refused, naming it."""
+    --pixel-size bytes, streamed; map units of a file without
+    georeferencing are refused, naming it."""
     dem = ROOT / "samples" / "dem" / "jacksboro_fault_dem.tif"
     for src, kwargs, args in [
         (dem, {"units": "map", "border": "clamp"}, ["--units", "map", "--border", "clamp"]),
@@ -72,7 +72,7 @@ def test_convert_in_map_units(tmp_path: Path, cli: Path) -> None:
         summary = normalfit.convert(src, ours, **kwargs)  # type: ignore[arg-type]
         run_cli(cli, "convert", src, "-o", theirs, *args)
         assert ours.read_bytes() == theirs.read_bytes(), kwargs
-        assert not summary.streamed, "map units read the image whole"
+        assert summary.streamed, "map units and texel spacings stream, as -s does"
     with pytest.raises(OSError, match=r"rock\.png: unsupported: map units need the texel spacing"):
         normalfit.convert(ROCK, tmp_path / "o.png", units="map")
     with pytest.raises(ValueError, match="texel spacing must be finite and positive"):
