@@ -858,10 +858,10 @@ fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
             normals.resize(checked_len(w, h)?, [0.0f32; 3]);
             if nodata.is_some() {
                 let mut mask = vec![false; normals.len()];
-                heights.normals_masked_into((w, h), &fit, &mut normals, None, &mut mask)?;
+                crate::FitRequest::new(&fit).holes(&mut mask).normals_into(&heights, w, h, &mut normals)?;
                 valid = Some(mask);
             } else {
-                heights.normals_into(w, h, &fit, &mut normals)?;
+                crate::FitRequest::new(&fit).normals_into(&heights, w, h, &mut normals)?;
             }
             normals
         }

@@ -34,7 +34,7 @@ use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
 use normalfit::units::MapSpacing;
-use normalfit::{Border, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
+use normalfit::{Border, Convention, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
 use normalfit::{inspect, normal_map};
 use numpy::ndarray::ArrayView2;
 use numpy::{
@@ -331,7 +331,6 @@ where
     };
     let (choices, pool, window) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()), call.window);
     let opts = call.opts;
-    let holes = opts.nodata.is_some();
     py.detach(|| -> Result<(), Error> {
         let copy;
         let heights: &[H] = match in_place {
@@ -341,32 +340,21 @@ where
                 &copy
             }
         };
-        let Some(window) = window else {
-            // `auto` settled by the library's tiling check, as a conversion does.
-            let opts = opts.clone().with_borders(choices.settle(heights, w, h)?);
-            if holes {
-                // Missing texels are NaN (the output is float32).
-                let mut valid = vec![false; w * h];
-                on_pool(pool, || match residual_flat {
-                    Some(r) => {
-                        normalfit::fit::normals_masked_and_residual_into(heights, (w, h), &opts, texels, r, &mut valid)
-                    }
-                    None => normalfit::normals_masked_into(heights, w, h, &opts, texels, &mut valid),
-                })?;
-                let missing = <[E; 3]>::from_normal([f64::NAN; 3]);
-                texels.iter_mut().zip(&valid).filter(|(_, v)| !**v).for_each(|(t, _)| *t = missing);
-                return Ok(());
-            }
-            return on_pool(pool, || match residual_flat {
-                Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
-                None => normalfit::normals_into(heights, w, h, &opts, texels),
-            });
+        // A window's borders are fixed modes; the whole image's `auto` is
+        // settled by the library's tiling check, as a conversion does.
+        let borders = match window {
+            Some(_) => window_borders(choices)?,
+            None => choices.settle(heights, w, h)?,
         };
-        let opts = opts.clone().with_borders(window_borders(choices)?);
-        on_pool(pool, || match residual_flat {
-            Some(r) => normalfit::fit::window_normals_and_residual_into(heights, &window, &opts, texels, r),
-            None => normalfit::fit::window_normals_into(heights, &window, &opts, texels),
-        })
+        // Missing texels (with nodata, whose output is float32) are NaN.
+        let mut request = FitRequest::new(opts).borders(borders).missing([f64::NAN; 3]);
+        if let Some(window) = window {
+            request = request.window(window);
+        }
+        if let Some(r) = residual_flat {
+            request = request.residual(r);
+        }
+        on_pool(pool, || request.normals_into(heights, w, h, texels)).map(|_missing| ())
     })
     .map_err(to_py_err)?;
     drop(out_rw);
@@ -469,7 +457,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 
 /// `window_normals` with every argument given: the normals of a window of
 /// an image, from the window's heights and the halo held around it (the
-/// library's `fit::window_normals_into`; `normalfit.dask` calls it on each
+/// library's `FitRequest` with a `window`; `normalfit.dask` calls it on each
 /// chunk). `heights` is the window and its halo; `image` the whole image's
 /// (width, height), `origin` the window's first (column, row), `halo`
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
