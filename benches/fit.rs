@@ -28,7 +28,7 @@ use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, check};
-use normalfit::{Fit, FromNormal, Options, Strength, normals_into};
+use normalfit::{Fit, FitRequest, FromNormal, Options, Strength};
 
 /// Side of the square height map; `NORMALFIT_BENCH_SIZE` overrides it.
 const SIZE: usize = 4096;
@@ -112,7 +112,7 @@ fn bench_output<T: FromNormal>(c: &mut Criterion, group: &str, heights: &[f32], 
             let opts = options(patch, fit);
             g.bench_with_input(BenchmarkId::new(Fit::name(fit), patch), &opts, |b, opts| {
                 b.iter(|| {
-                    normals_into(black_box(heights), n, n, opts, &mut *out).expect("normals_into");
+                    FitRequest::new(opts).normals_into(black_box(heights), n, n, &mut *out).expect("normals_into");
                     black_box(&mut *out);
                 })
             });
@@ -148,7 +148,8 @@ fn bench_threads(c: &mut Criterion) {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
         g.bench_with_input(BenchmarkId::new("N3-orthogonal-u8", threads), &opts, |b, opts| {
             b.iter(|| {
-                pool.install(|| normals_into(black_box(heights), n, n, opts, &mut out)).expect("normals_into");
+                pool.install(|| FitRequest::new(opts).normals_into(black_box(heights), n, n, &mut out))
+                    .expect("normals_into");
                 black_box(&mut out);
             })
         });

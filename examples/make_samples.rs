@@ -21,7 +21,7 @@ use std::path::Path;
 
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
-use normalfit::{Border, Borders, Options, Strength, normals_into};
+use normalfit::{Border, Borders, FitRequest, Options, Strength};
 
 /// Side of every sample, in texels.
 const SIZE: usize = 512;
@@ -63,7 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // are exactly what `normalfit` gives for the file.
         let h: Vec<f32> = heights.iter().map(|&v| f32::from(v) / 65535.0).collect();
         let mut rgb = vec![[0u8; 3]; h.len()];
-        normals_into(&h, SIZE, SIZE, &opts, &mut rgb)?;
+        FitRequest::new(&opts).normals_into(&h, SIZE, SIZE, &mut rgb)?;
         write_png(&dir.join(format!("{name}_normal.png")), rgb.as_flattened(), SIZE, ExtendedColorType::Rgb8)?;
 
         write_png(

@@ -34,7 +34,7 @@
 //! cost per texel is the same for N = 3 and N = 63, and every texel's sums
 //! are made from its own patch alone, by operations fixed by the image and
 //! N: so threads, the tiles a streaming caller asks for, and windows of the
-//! image computed apart ([`window_normals_into`], a Dask chunk) all give
+//! image computed apart ([`FitRequest::window`], a Dask chunk) all give
 //! the same bits.
 //!
 //! * Stored integers (8 and 16 bits) are summed as they are, unscaled:
@@ -72,13 +72,14 @@ use crate::par::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::options::{Borders, Fit, Options, Spacing, Units};
-use crate::samples::Sample;
+use crate::samples::{Sample, first_non_finite};
 
 mod masked;
+mod request;
 mod window;
-pub(crate) use masked::row_has_hole;
-use masked::{MaskSums, MaskedRow, Moments};
-pub use window::{Halo, Window, window_normals_and_residual_into, window_normals_into};
+use masked::{MaskSums, MaskedRow, Moments, row_has_hole};
+pub use request::{FitRequest, Heights};
+pub use window::{Halo, HaloPlan, Window};
 
 /// A type an output texel can be made from a unit normal.
 ///
@@ -131,7 +132,9 @@ impl FromNormal for [u16; 3] {
 }
 
 /// Unit normals of a `width` × `height` height map, as `[x, y, z]` in
-/// [−1, 1], row-major.
+/// [−1, 1], row-major: a convenience over [`FitRequest`], the fit's one
+/// way in, for the plainest request (the whole image, no residual, a new
+/// buffer of `[f32; 3]`).
 ///
 /// `heights` is row-major, `width * height` long, of any [`Sample`] type:
 /// `f32` and `f64` are heights in the contract's units, `u8` and `u16`
@@ -150,180 +153,12 @@ impl FromNormal for [u16; 3] {
 /// let [nx, ny, nz] = n[w + 3];
 /// assert!(nx < 0.0 && ny.abs() < 1e-6 && nz > 0.0);
 /// ```
+///
+/// Errors: as [`FitRequest::normals_into`].
 pub fn normals<H: Sample>(heights: &[H], width: usize, height: usize, opts: &Options) -> Result<Vec<[f32; 3]>> {
     let mut out = vec![[0.0f32; 3]; checked_len(width, height)?];
-    normals_into(heights, width, height, opts, &mut out)?;
+    FitRequest::new(opts).normals_into(heights, width, height, &mut out)?;
     Ok(out)
-}
-
-/// Like [`normals`], but writes into `out` (`width * height` texels) in
-/// any texel type: `[f32; 3]` for the normal itself, `[u8; 3]` or
-/// `[u16; 3]` for the encoded RGB of the contract.
-pub fn normals_into<H: Sample, T: FromNormal>(
-    heights: &[H],
-    width: usize,
-    height: usize,
-    opts: &Options,
-    out: &mut [T],
-) -> Result<()> {
-    fit_image(heights, width, height, opts, out, None)
-}
-
-/// Like [`normals_into`], and also the fit's residual: `residual[k]` is
-/// the root-mean-square distance of texel k's N² patch points from the
-/// plane fitted to them, in texel widths (the units of the surface
-/// z = S · h, so it grows with the gain S).
-///
-/// The distance is the one the fit minimises: perpendicular to the plane
-/// for [`Fit::Orthogonal`] (√(λ / N²), λ the covariance's smallest
-/// eigenvalue), vertical for [`Fit::Vertical`]. A planar patch gives 0;
-/// bumps, pits and grain finer than the patch give more, so the map is a
-/// hint of cavities and roughness at the patch's scale. Where the normal
-/// is the flat (0, 0, 1) of a tilt-free patch, the residual is the
-/// points' distance from that horizontal plane. It comes from the sums
-/// the fit already has, at the cost of a few operations per texel.
-///
-/// ```
-/// use normalfit::{normals_and_residual_into, Options};
-/// // A plane plus a checkerboard of amplitude 0.1: the plane is found, and
-/// // the points lie about 0.1 from it (exactly 0.1 · √(1 − 1/N⁴), N = 3).
-/// let (w, h) = (16, 16);
-/// let heights: Vec<f32> = (0..w * h)
-///     .map(|k| 0.01 * (k % w) as f32 + if (k % w + k / w) % 2 == 0 { 0.1 } else { -0.1 })
-///     .collect();
-/// let opts = Options::new().with_fit(normalfit::Fit::Vertical)
-///     .with_borders(normalfit::Borders::both(normalfit::Border::Mirror));
-/// let mut normals = vec![[0.0f32; 3]; w * h];
-/// let mut residual = vec![0.0f32; w * h];
-/// normals_and_residual_into(&heights, w, h, &opts, &mut normals, &mut residual)?;
-/// let expected = 0.1 * (1.0f32 - 1.0 / 81.0).sqrt();
-/// assert!((residual[5 * w + 7] - expected).abs() < 1e-5);
-/// # Ok::<(), normalfit::Error>(())
-/// ```
-///
-/// Errors: as [`normals_into`]; [`Error::BufferSize`] also for a
-/// `residual` of the wrong length.
-pub fn normals_and_residual_into<H: Sample, T: FromNormal>(
-    heights: &[H],
-    width: usize,
-    height: usize,
-    opts: &Options,
-    out: &mut [T],
-    residual: &mut [f32],
-) -> Result<()> {
-    fit_image(heights, width, height, opts, out, Some(residual))
-}
-
-/// The whole-image fit behind [`normals_into`] and
-/// [`normals_and_residual_into`].
-fn fit_image<H: Sample, T: FromNormal>(
-    heights: &[H],
-    width: usize,
-    height: usize,
-    opts: &Options,
-    out: &mut [T],
-    residual: Option<&mut [f32]>,
-) -> Result<()> {
-    fit_image_masked(heights, width, height, opts, out, residual, None).map(|_| ())
-}
-
-/// [`fit_image`], with holes when `opts.nodata` is set or `valid` is
-/// asked for (then non-finite heights are holes even without a nodata
-/// value): `valid[k]` tells whether texel k has a normal. Returns the
-/// count of missing texels.
-pub(crate) fn fit_image_masked<H: Sample, T: FromNormal>(
-    heights: &[H],
-    width: usize,
-    height: usize,
-    opts: &Options,
-    out: &mut [T],
-    residual: Option<&mut [f32]>,
-    valid: Option<&mut [bool]>,
-) -> Result<usize> {
-    let plan = Plan::new(width, height, opts)?;
-    let len = width * height;
-    let lens = [heights.len(), out.len()].into_iter().chain(residual.as_ref().map(|r| r.len()));
-    for actual in lens.chain(valid.as_ref().map(|v| v.len())) {
-        if actual != len {
-            return Err(Error::BufferSize { expected: len, actual });
-        }
-    }
-    if plan.nodata.is_none() && valid.is_none() {
-        if let Some((x, y)) = first_non_finite(heights, width) {
-            return Err(Error::NonFiniteHeight { x, y });
-        }
-        let rows = |v: isize| RowRef {
-            values: &heights[plan.borders.y.map(v, height) * width..][..width],
-            x0: 0,
-            holes: false,
-        };
-        plan.fit_rows(&rows, H::UNIT, (0, 0..width), out, residual, None);
-        return Ok(0);
-    }
-    let nodata = plan.nodata.unwrap_or(f64::NAN);
-    let holes: Vec<bool> = heights.chunks_exact(width).map(|row| row_has_hole(row, nodata)).collect();
-    let mut own = if valid.is_none() { vec![false; len] } else { Vec::new() };
-    let valid = match valid {
-        Some(valid) => valid,
-        None => &mut own[..],
-    };
-    let rows = |v: isize| {
-        let y = plan.borders.y.map(v, height);
-        RowRef { values: &heights[y * width..][..width], x0: 0, holes: holes[y] }
-    };
-    plan.fit_rows(&rows, H::UNIT, (0, 0..width), out, residual, Some((&mut *valid, nodata)));
-    Ok(valid.iter().filter(|&&v| !v).count())
-}
-
-/// [`normals_masked_into`] and the residual
-/// ([`normals_and_residual_into`]'s; NaN where a texel is missing).
-///
-/// Errors: as [`normals_masked_into`]; [`Error::BufferSize`] also for a
-/// `residual` of the wrong length.
-pub fn normals_masked_and_residual_into<H: Sample, T: FromNormal>(
-    heights: &[H],
-    (width, height): (usize, usize),
-    opts: &Options,
-    out: &mut [T],
-    residual: &mut [f32],
-    valid: &mut [bool],
-) -> Result<usize> {
-    fit_image_masked(heights, width, height, opts, out, Some(residual), Some(valid))
-}
-
-/// Like [`normals_into`], with holes: texels whose value is
-/// `opts.nodata`, and non-finite ones (whether or not a nodata value is
-/// set), are missing, and each patch is fitted to its valid points alone.
-/// `valid[k]` is set to whether texel k has a normal: it is missing when
-/// it is itself a hole, or when its patch's valid points are fewer than
-/// three or collinear. A missing texel's normal is written flat,
-/// (0, 0, 1). A patch without a hole gives the same bits as
-/// [`normals_into`]. Returns the count of missing texels.
-///
-/// ```
-/// use normalfit::{normals_masked_into, Options};
-/// let (w, h) = (6, 5);
-/// let mut heights: Vec<f32> = (0..w * h).map(|k| 0.1 * (k % w) as f32).collect();
-/// heights[2 * w + 3] = f32::NAN;
-/// let mut normals = vec![[0.0f32; 3]; w * h];
-/// let mut valid = vec![false; w * h];
-/// let missing = normals_masked_into(&heights, w, h, &Options::new(), &mut normals, &mut valid)?;
-/// assert_eq!(missing, 1);
-/// assert!(!valid[2 * w + 3] && valid[2 * w + 2]);
-/// # Ok::<(), normalfit::Error>(())
-/// ```
-///
-/// Errors: as [`normals_into`] (but no [`Error::NonFiniteHeight`]);
-/// [`Error::BufferSize`] also for a `valid` of the wrong length.
-pub fn normals_masked_into<H: Sample, T: FromNormal>(
-    heights: &[H],
-    width: usize,
-    height: usize,
-    opts: &Options,
-    out: &mut [T],
-    valid: &mut [bool],
-) -> Result<usize> {
-    fit_image_masked(heights, width, height, opts, out, None, Some(valid))
 }
 
 /// The fit of an image whose rows arrive in bands, top to bottom, for
@@ -336,7 +171,7 @@ pub fn normals_masked_into<H: Sample, T: FromNormal>(
 /// y, only the top band needs the image's last rows, and a caller can fit
 /// and write every other band first. A band of rows y0 … y1 − 1 reads the
 /// source rows y0 − r … y1 − 1 + r, through the y border. The texels are
-/// the same, bit for bit, as [`normals_into`] gives for the whole image.
+/// the same, bit for bit, as [`FitRequest`] gives for the whole image.
 ///
 /// ```
 /// use normalfit::fit::BandFit;
@@ -443,10 +278,10 @@ impl BandFit {
     }
 
     /// Like [`fit_band`](Self::fit_band), with holes (see
-    /// [`normals_masked_into`]): `valid` (as long as `out`) gets whether
+    /// [`FitRequest::holes`]): `valid` (as long as `out`) gets whether
     /// each texel has a normal. Returns the band's count of missing texels.
     /// The texels and `valid` are the same, bit for bit, as
-    /// [`normals_masked_into`] gives for the whole image.
+    /// [`FitRequest::holes`] gives for the whole image.
     ///
     /// Errors: as [`fit_band`](Self::fit_band), but no
     /// [`Error::NonFiniteHeight`].
@@ -567,18 +402,6 @@ pub(crate) fn checked_len(width: usize, height: usize) -> Result<usize> {
         .ok_or_else(|| Error::InvalidOption(format!("image of {width}×{height} texels is too large")))
 }
 
-/// The first texel (x, y) in row order whose height is NaN or infinite.
-pub(crate) fn first_non_finite<H: Sample>(heights: &[H], width: usize) -> Option<(usize, usize)> {
-    // A loop without an early exit vectorises (a search one value at a time
-    // took 2.5 % of a conversion): it finds whether there is one, and only
-    // then is it looked for.
-    let all_finite = heights.iter().fold(true, |all, h| all & h.is_finite());
-    if all_finite {
-        return None;
-    }
-    heights.iter().position(|h| !h.is_finite()).map(|k| (k % width, k / width))
-}
-
 /// Texels per branch between the two loops of the orthogonal fit's
 /// normals (see [`Plan::emit_with`]).
 const EMIT_CHUNK: usize = 32;
@@ -642,6 +465,8 @@ struct Plan {
     spacing: Option<Spacing>,
     /// [`Options::nodata`].
     nodata: Option<f64>,
+    /// The normal written at a missing texel ([`FitRequest::missing`]).
+    missing: [f64; 3],
 }
 
 impl Plan {
@@ -676,6 +501,7 @@ impl Plan {
             moments: false,
             spacing,
             nodata: opts.nodata,
+            missing: [0.0, 0.0, 1.0],
         })
     }
 
@@ -839,7 +665,7 @@ impl Plan {
             patches.push(x, mask.centre[x], &moments);
         }
         patches.solve(self.fit == Fit::Orthogonal, rho, self.sigma);
-        patches.store(out, valid, residual, sx);
+        patches.store(out, valid, residual, sx, T::from_normal(self.missing));
     }
 
     /// The source row of padded row p = y + j + r, through the y border.

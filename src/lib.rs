@@ -8,7 +8,9 @@
 //! fourth for people to look at the result:
 //!
 //! * [`fit`]: the compute core. Heights in a caller's row-major `f32`
-//!   buffer, [`Options`] in, normals out ([`normals`], [`normals_into`]).
+//!   buffer, [`Options`] in, normals out ([`FitRequest`], the one way in:
+//!   holes, a window of a larger image, the residual, any texel type;
+//!   [`normals`] for the plainest case).
 //!   It knows nothing of files. The cost per texel does not depend on the
 //!   patch size, rows run in parallel on rayon's pool (with the `parallel`
 //!   feature), and the result is the same bit for bit whatever the number
@@ -38,7 +40,7 @@
 //! use std::io::Cursor;
 //!
 //! use normalfit::io::{Encoding, encode_normals};
-//! use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals_into};
+//! use normalfit::{Border, Borders, Convention, FitRequest, Fit, Options, Strength};
 //!
 //! // Heights from anywhere: here a round bump on a 64 × 48 grid, in [0, 1].
 //! let (width, height) = (64, 48);
@@ -60,7 +62,7 @@
 //!
 //! // Encoded straight to 8-bit RGB, c = round(255 (n + 1) / 2).
 //! let mut rgb = vec![[0u8; 3]; width * height];
-//! normals_into(&heights, width, height, &opts, &mut rgb)?;
+//! FitRequest::new(&opts).normals_into(&heights, width, height, &mut rgb)?;
 //! assert!(rgb[24 * width + 36][0] > 128, "right of the bump leans right: red above mid-grey");
 //! assert!(rgb[20 * width + 32][1] > 128, "above the bump leans up (OpenGL): green above mid-grey");
 //! assert_eq!(rgb[0], [128, 128, 255], "far from the bump the map is flat");
@@ -211,7 +213,7 @@ pub mod tiling;
 pub mod units;
 
 pub use error::{Error, Result};
-pub use fit::{FromNormal, normals, normals_and_residual_into, normals_into, normals_masked_into};
+pub use fit::{FitRequest, FromNormal, Heights, normals};
 pub use options::{Border, Borders, Convention, Fit, Options, Spacing, Strength, Units};
 pub use samples::{Sample, Samples};
 

@@ -20,7 +20,7 @@ use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Vec2, WritableImage, f16,
 };
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::{Border, Borders, Fit, Options, Strength, normals, normals_into};
+use normalfit::{Border, Borders, Fit, FitRequest, Options, Strength, normals};
 
 fn os<S: AsRef<OsStr> + ?Sized>(s: &S) -> &OsStr {
     s.as_ref()
@@ -373,7 +373,7 @@ fn a_16_bit_ramp_of_one_step_per_texel_gives_the_slopes_normal() {
 /// binary must write when it reads these heights from a file.
 fn expected_rgb8(heights: &[f32], w: usize, h: usize) -> Vec<[u8; 3]> {
     let mut out = vec![[0u8; 3]; w * h];
-    normals_into(heights, w, h, &Options::default(), &mut out).unwrap();
+    FitRequest::new(&Options::default()).normals_into(heights, w, h, &mut out).unwrap();
     out
 }
 

@@ -11,7 +11,7 @@ use common::geotiff::{self, GeoTag, Kind, Layout};
 use exr::prelude::WritableImage;
 use exr::prelude::{AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Vec2};
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::{Border, Borders, Options, normals_masked_into};
+use normalfit::{Border, Borders, FitRequest, Options};
 
 fn gray16_png(path: &Path, w: u32, h: u32, values: &[u16]) {
     image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, values.to_vec()).unwrap().save(path).unwrap();
@@ -61,7 +61,7 @@ fn nodata_on_a_16_bit_png_gives_an_alpha_of_validity_streamed_and_whole() {
     let opts = Options::new().with_patch(5).with_borders(Borders::both(Border::Clamp)).with_nodata(Some(0.0));
     let mut want = vec![[0u16; 3]; w * h];
     let mut valid = vec![false; w * h];
-    let missing = normals_masked_into(&heights, w, h, &opts, &mut want, &mut valid).unwrap();
+    let missing = FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut want).unwrap();
     assert!(missing > w * h / 10 && missing < w * h / 2, "{missing}");
 
     let streamed = dir.path().join("streamed.png");
@@ -131,7 +131,7 @@ fn nan_in_an_exr_is_a_hole_with_nodata_nan() {
         let opts = Options::new().with_borders(Borders::both(border.parse().unwrap())).with_nodata(Some(f64::NAN));
         let mut want = vec![[0.0f32; 3]; w * h];
         let mut valid = vec![false; w * h];
-        let missing = normals_masked_into(&heights, w, h, &opts, &mut want, &mut valid).unwrap();
+        let missing = FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut want).unwrap();
         assert!(
             stderr(&out).contains(&format!("{missing} of {} texels missing (nodata NaN)", w * h)),
             "{}",
@@ -183,7 +183,7 @@ fn a_geotiff_nodata_tag_makes_holes_in_convert_and_shade() {
             .with_nodata(Some(nodata));
         let mut want = vec![[0.0f32; 3]; w * h];
         let mut valid = vec![false; w * h];
-        let missing = normals_masked_into(&heights, w, h, &opts, &mut want, &mut valid).unwrap();
+        let missing = FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut want).unwrap();
         assert!(stderr(&out).contains(&format!("{missing} of {} texels missing", w * h)), "{}", stderr(&out));
         let raster = read_path(&streamed, &ReadOptions::default()).unwrap();
         let plane = |name: &str| raster.plane(name).unwrap().data.to_f32().unwrap();
@@ -214,7 +214,7 @@ fn a_geotiff_nodata_tag_makes_holes_in_convert_and_shade() {
         let grey = image::open(&lit).unwrap().into_luma8().into_raw();
         let opts = Options::new().with_borders(Borders::both(Border::Clamp)).with_nodata(Some(nodata));
         let mut normals = vec![[0.0f32; 3]; w * h];
-        let missing = normals_masked_into(&heights, w, h, &opts, &mut normals, &mut valid).unwrap();
+        let missing = FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut normals).unwrap();
         assert!(stderr(&out).contains(&format!("{missing} of {} texels missing: grey 0", w * h)), "{}", stderr(&out));
         for k in 0..w * h {
             assert_eq!(grey[k] == 0, !valid[k], "{kind:?} texel {k}: grey {}", grey[k]);
@@ -262,7 +262,7 @@ fn nodata_none_ignores_the_geotiffs_tag() {
     let opts =
         Options::new().with_borders(Borders::both(Border::Clamp)).with_strength(normalfit::Strength::Scale(0.01));
     let mut want = vec![[0.0f32; 3]; w * h];
-    normalfit::normals_into(&values, w, h, &opts, &mut want).unwrap();
+    FitRequest::new(&opts).normals_into(&values, w, h, &mut want).unwrap();
     let args = ["--border", "clamp", "-s", "0.01", "--signed", "--nodata", "none"];
     let (streamed, whole, res) = (dir.path().join("a.exr"), dir.path().join("b.exr"), dir.path().join("r.exr"));
     for (output, extra) in [(&streamed, &[][..]), (&whole, &["--residual", s(&res)][..])] {

@@ -5,9 +5,7 @@
 mod common;
 
 use common::reference;
-use normalfit::{
-    Border, Borders, Convention, Fit, Options, Strength, normals, normals_and_residual_into, normals_into,
-};
+use normalfit::{Border, Borders, Convention, Fit, FitRequest, Options, Strength, normals};
 use proptest::prelude::*;
 
 const BORDERS: [Border; 3] = [Border::Wrap, Border::Clamp, Border::Mirror];
@@ -182,7 +180,7 @@ fn integers_keep_what_f32_heights_lose_at_high_gain() {
 fn residual(heights: &[f32], w: usize, h: usize, opts: &Options) -> (Vec<[f32; 3]>, Vec<f32>) {
     let mut normals = vec![[0.0f32; 3]; w * h];
     let mut residual = vec![0.0f32; w * h];
-    normals_and_residual_into(heights, w, h, opts, &mut normals, &mut residual).unwrap();
+    FitRequest::new(opts).residual(&mut residual).normals_into(heights, w, h, &mut normals).unwrap();
     (normals, residual)
 }
 
@@ -273,7 +271,8 @@ fn residual_buffers_of_the_wrong_size_are_errors() {
     let heights = vec![0.5f32; 12];
     let mut normals = vec![[0.0f32; 3]; 12];
     let mut short = vec![0.0f32; 11];
-    let e = normals_and_residual_into(&heights, 4, 3, &Options::new(), &mut normals, &mut short).unwrap_err();
+    let e =
+        FitRequest::new(&Options::new()).residual(&mut short).normals_into(&heights, 4, 3, &mut normals).unwrap_err();
     assert!(matches!(e, normalfit::Error::BufferSize { expected: 12, actual: 11 }), "{e:?}");
 }
 
@@ -340,7 +339,7 @@ fn bump_lights_red_on_its_right_and_green_above_it() {
 
 fn encoded(heights: &[f32], w: usize, h: usize, opts: &Options) -> Vec<[u8; 3]> {
     let mut out = vec![[0u8; 3]; w * h];
-    normals_into(heights, w, h, opts, &mut out).unwrap();
+    FitRequest::new(opts).normals_into(heights, w, h, &mut out).unwrap();
     out
 }
 
@@ -457,7 +456,7 @@ fn bad_calls_are_errors() {
     assert!(matches!(err, normalfit::Error::NonFiniteHeight { x: 0, y: 1 }), "{err}");
     assert!(normals(&[0.0; 4], 2, 2, &opts.clone().with_patch(4)).is_err());
     let mut short = vec![[0u8; 3]; 3];
-    assert!(normals_into(&[0.0; 4], 2, 2, &opts, &mut short).is_err());
+    assert!(FitRequest::new(&opts).normals_into(&[0.0; 4], 2, 2, &mut short).is_err());
 }
 
 /// Finite heights of extreme size never turn into NaN normals.

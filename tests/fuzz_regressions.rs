@@ -5,7 +5,7 @@
 use normalfit::io::{Raster, ReadOptions, decode};
 use normalfit::pipeline::PngRows;
 use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
-use normalfit::{Border, Borders, Error, Options};
+use normalfit::{Border, Borders, Error, FitRequest, Options};
 #[cfg(feature = "hdr")]
 use normalfit::{Fit, Strength};
 
@@ -26,13 +26,13 @@ fn decode_fit(bytes: &[u8], opts: &Options) -> normalfit::Result<()> {
     let (w, h) = (raster.width, raster.height);
     let heights = raster.into_heights(None)?;
     let mut n = vec![[0.0f32; 3]; w * h];
-    heights.normals_into(w, h, opts, &mut n)?;
+    FitRequest::new(opts).normals_into(&heights, w, h, &mut n)?;
     for v in &n {
         let len = v.iter().map(|c| c * c).sum::<f32>().sqrt();
         assert!(v.iter().all(|c| c.is_finite()) && (len - 1.0).abs() <= 1e-4 && v[2] >= 0.0, "bad normal {v:?}");
     }
     let mut rgb = vec![[0u8; 3]; w * h];
-    heights.normals_into(w, h, opts, &mut rgb)
+    FitRequest::new(opts).normals_into(&heights, w, h, &mut rgb).map(|_| ())
 }
 
 fn assert_finite(r: &TilingReport) {

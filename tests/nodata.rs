@@ -6,7 +6,7 @@ mod common;
 
 use common::reference;
 use normalfit::fit::BandFit;
-use normalfit::{Border, Borders, Fit, Options, Spacing, Strength, Units, normals_into, normals_masked_into};
+use normalfit::{Border, Borders, Fit, FitRequest, Options, Spacing, Strength, Units};
 
 /// A small deterministic generator (xorshift).
 struct Rng(u64);
@@ -91,7 +91,8 @@ fn masked_fits_match_the_reference_with_random_holes() {
                         .with_nodata(Some(-9999.0));
                     let mut got = vec![[0.0f64; 3]; w * h];
                     let mut got_valid = vec![false; w * h];
-                    let missing = normals_masked_into(&heights, w, h, &opts, &mut got, &mut got_valid).unwrap();
+                    let missing =
+                        FitRequest::new(&opts).holes(&mut got_valid).normals_into(&heights, w, h, &mut got).unwrap();
                     let expected = reference::masked_normal_map(&as_f64, Some(&valid), w, h, &opts);
                     let what = format!("N {n} {fit:?} {borders:?} spacing {sx},{sy}");
                     check(&got, &got_valid, &expected, 1e-9, &what);
@@ -129,7 +130,7 @@ fn sixteen_bit_samples_with_a_nodata_value_match_the_reference() {
                     .with_nodata(Some(0.0));
                 let mut got = vec![[0.0f64; 3]; w * h];
                 let mut got_valid = vec![false; w * h];
-                normals_masked_into(&heights, w, h, &opts, &mut got, &mut got_valid).unwrap();
+                FitRequest::new(&opts).holes(&mut got_valid).normals_into(&heights, w, h, &mut got).unwrap();
                 let expected = reference::masked_normal_map(&as_f64, Some(&valid), w, h, &opts);
                 check(&got, &got_valid, &expected, 1e-9, &format!("u16 N {n} {fit:?} {borders:?}"));
             }
@@ -147,12 +148,13 @@ fn full_patches_keep_their_bits() {
         for borders in all_borders() {
             let opts = Options::new().with_patch(n).with_borders(borders).with_strength(Strength::Scale(2.0));
             let mut plain = vec![[0u16; 3]; w * h];
-            normals_into(&heights, w, h, &opts, &mut plain).unwrap();
+            FitRequest::new(&opts).normals_into(&heights, w, h, &mut plain).unwrap();
             let mut masked = vec![[0u16; 3]; w * h];
             let mut valid = vec![false; w * h];
-            let missing =
-                normals_masked_into(&heights, w, h, &opts.clone().with_nodata(Some(-1.0)), &mut masked, &mut valid)
-                    .unwrap();
+            let missing = FitRequest::new(&opts.clone().with_nodata(Some(-1.0)))
+                .holes(&mut valid)
+                .normals_into(&heights, w, h, &mut masked)
+                .unwrap();
             assert_eq!(missing, 0);
             assert!(valid.iter().all(|&v| v));
             assert_eq!(plain, masked, "N {n} {borders:?}");
@@ -162,11 +164,11 @@ fn full_patches_keep_their_bits() {
     let n = 5;
     let opts = Options::new().with_patch(n).with_borders(Borders::both(Border::Clamp));
     let mut plain = vec![[0.0f32; 3]; w * h];
-    normals_into(&heights, w, h, &opts, &mut plain).unwrap();
+    FitRequest::new(&opts).normals_into(&heights, w, h, &mut plain).unwrap();
     heights[10 * w + 20] = f32::NAN;
     let mut masked = vec![[0.0f32; 3]; w * h];
     let mut valid = vec![false; w * h];
-    assert_eq!(normals_masked_into(&heights, w, h, &opts, &mut masked, &mut valid).unwrap(), 1);
+    assert_eq!(FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut masked).unwrap(), 1);
     for y in 0..h {
         for x in 0..w {
             let near = x.abs_diff(20) <= 2 && y.abs_diff(10) <= 2;
@@ -192,7 +194,7 @@ fn too_few_or_collinear_points_are_missing() {
     let opts = Options::new().with_borders(Borders::both(Border::Clamp));
     let mut normals = vec![[0.0f64; 3]; w * h];
     let mut valid = vec![false; w * h];
-    let missing = normals_masked_into(&heights, w, h, &opts, &mut normals, &mut valid).unwrap();
+    let missing = FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut normals).unwrap();
     assert!(valid[3 * w + 3] && valid[3 * w + 4] && valid[4 * w + 3], "three points make a plane");
     assert_eq!(missing, w * h - 3);
     let l = (0.01f64 + 1.0).sqrt();
@@ -202,7 +204,7 @@ fn too_few_or_collinear_points_are_missing() {
     let mut two = vec![f32::NAN; w * h];
     two[3 * w + 3] = 0.5;
     two[3 * w + 4] = 0.7;
-    assert_eq!(normals_masked_into(&two, w, h, &opts, &mut normals, &mut valid).unwrap(), w * h);
+    assert_eq!(FitRequest::new(&opts).holes(&mut valid).normals_into(&two, w, h, &mut normals).unwrap(), w * h);
 
     // A whole row valid, the rest holes: every patch's points are in a line.
     let mut row = vec![f32::NAN; w * h];
@@ -211,7 +213,11 @@ fn too_few_or_collinear_points_are_missing() {
     }
     for fit in [Fit::Orthogonal, Fit::Vertical] {
         let opts = opts.clone().with_fit(fit).with_patch(5);
-        assert_eq!(normals_masked_into(&row, w, h, &opts, &mut normals, &mut valid).unwrap(), w * h, "{fit:?}");
+        assert_eq!(
+            FitRequest::new(&opts).holes(&mut valid).normals_into(&row, w, h, &mut normals).unwrap(),
+            w * h,
+            "{fit:?}"
+        );
     }
     // A diagonal line (wrapping: a clamped corner would add points off it).
     let opts = opts.with_borders(Borders::both(Border::Wrap));
@@ -219,7 +225,7 @@ fn too_few_or_collinear_points_are_missing() {
     for k in 0..w {
         diagonal[k * w + k] = 0.2 * k as f32;
     }
-    assert_eq!(normals_masked_into(&diagonal, w, h, &opts, &mut normals, &mut valid).unwrap(), w * h);
+    assert_eq!(FitRequest::new(&opts).holes(&mut valid).normals_into(&diagonal, w, h, &mut normals).unwrap(), w * h);
 }
 
 #[test]
@@ -229,12 +235,12 @@ fn an_all_missing_image_is_all_missing() {
         let opts = Options::new().with_nodata(Some(-32768.0));
         let mut normals = vec![[0u8; 3]; w * h];
         let mut valid = vec![true; w * h];
-        assert_eq!(normals_masked_into(&heights, w, h, &opts, &mut normals, &mut valid).unwrap(), w * h);
+        assert_eq!(FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut normals).unwrap(), w * h);
         assert!(valid.iter().all(|&v| !v));
         assert!(normals.iter().all(|&n| n == [128, 128, 255]));
         // The plain API with a nodata value: missing texels written flat.
         let mut plain = vec![[0u8; 3]; w * h];
-        normals_into(&heights, w, h, &opts, &mut plain).unwrap();
+        FitRequest::new(&opts).normals_into(&heights, w, h, &mut plain).unwrap();
         assert_eq!(plain, normals);
     }
 }
@@ -251,7 +257,7 @@ fn flat_heights_with_holes_give_flat_normals() {
             let opts = Options::new().with_patch(n).with_fit(fit).with_nodata(Some(-9999.0));
             let mut normals = vec![[0u8; 3]; w * h];
             let mut valid = vec![false; w * h];
-            normals_masked_into(&heights, w, h, &opts, &mut normals, &mut valid).unwrap();
+            FitRequest::new(&opts).holes(&mut valid).normals_into(&heights, w, h, &mut normals).unwrap();
             for (k, normal) in normals.iter().enumerate() {
                 assert_eq!(*normal, [128, 128, 255], "N {n} {fit:?} texel {k}");
             }
@@ -268,11 +274,11 @@ fn parallel_serial_and_bands_give_the_same_bits() {
         let opts = Options::new().with_patch(n).with_nodata(Some(-9999.0));
         let mut whole = vec![[0.0f32; 3]; w * h];
         let mut whole_valid = vec![false; w * h];
-        let missing = normals_masked_into(&heights, w, h, &opts, &mut whole, &mut whole_valid).unwrap();
+        let missing = FitRequest::new(&opts).holes(&mut whole_valid).normals_into(&heights, w, h, &mut whole).unwrap();
         let serial = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let mut one = vec![[0.0f32; 3]; w * h];
         let mut one_valid = vec![false; w * h];
-        serial.install(|| normals_masked_into(&heights, w, h, &opts, &mut one, &mut one_valid).unwrap());
+        serial.install(|| FitRequest::new(&opts).holes(&mut one_valid).normals_into(&heights, w, h, &mut one).unwrap());
         assert!(whole == one && whole_valid == one_valid, "N {n}: serial");
         let fit = BandFit::new(w, h, &opts).unwrap();
         let (mut banded, mut banded_valid, mut count) = (Vec::new(), Vec::new(), 0);
@@ -294,7 +300,7 @@ fn without_a_nodata_value_a_nan_is_still_an_error() {
     heights[5] = f32::NAN;
     let mut out = vec![[0.0f32; 3]; 16];
     assert!(matches!(
-        normals_into(&heights, 4, 4, &Options::new(), &mut out),
+        FitRequest::new(&Options::new()).normals_into(&heights, 4, 4, &mut out),
         Err(normalfit::Error::NonFiniteHeight { x: 1, y: 1 })
     ));
 }

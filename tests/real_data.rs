@@ -13,7 +13,7 @@
 use std::path::Path;
 
 use normalfit::io::{ReadOptions, read_path};
-use normalfit::{Convention, Options, Strength};
+use normalfit::{Convention, FitRequest, Options, Strength};
 
 #[path = "common/shared_data.rs"]
 mod shared_data;
@@ -33,7 +33,7 @@ fn agreement(height: &Path, normal: &Path, convention: Convention) -> (f64, f64)
     let (w, h) = (raster.width, raster.height);
     let heights = raster.into_heights(None).unwrap();
     let mut ours = vec![[0.0f32; 3]; w * h];
-    heights.normals_into(w, h, &fit_options(convention), &mut ours).unwrap();
+    FitRequest::new(&fit_options(convention)).normals_into(&heights, w, h, &mut ours).unwrap();
     let theirs = read_path(normal, &opts).unwrap();
     assert_eq!((theirs.width, theirs.height), (w, h), "{}", normal.display());
     let channel = |name: &str| -> Vec<f64> {
@@ -100,7 +100,7 @@ fn the_other_convention_mirrors_green_texel_by_texel() {
         let samples = raster.into_heights(None).unwrap();
         let encoded = |convention| {
             let mut rgb = vec![[0u8; 3]; w * h];
-            samples.normals_into(w, h, &fit_options(convention), &mut rgb).unwrap();
+            FitRequest::new(&fit_options(convention)).normals_into(&samples, w, h, &mut rgb).unwrap();
             rgb
         };
         let (gl, dx) = (encoded(Convention::OpenGl), encoded(Convention::DirectX));

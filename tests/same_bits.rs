@@ -19,7 +19,7 @@ use corpus::png_gray16;
 use normalfit::convert::{Conversion, Input, Output};
 use normalfit::io::OutputFormat;
 use normalfit::tiling::{TilingOptions, check};
-use normalfit::{Border, Borders, Options, Strength, normals_and_residual_into};
+use normalfit::{Border, Borders, FitRequest, Options, Strength};
 
 const WIDTH: usize = 700;
 const HEIGHT: usize = 150;
@@ -60,7 +60,7 @@ fn the_fit_gives_the_recorded_bits() {
         let opts = Options::new().with_patch(n).with_borders(borders).with_strength(Strength::Scale(20.0));
         let mut normals = vec![[0f32; 3]; WIDTH * HEIGHT];
         let mut residual = vec![0f32; WIDTH * HEIGHT];
-        normals_and_residual_into(&h, WIDTH, HEIGHT, &opts, &mut normals, &mut residual).unwrap();
+        FitRequest::new(&opts).residual(&mut residual).normals_into(&h, WIDTH, HEIGHT, &mut normals).unwrap();
         let bits = normals.iter().flatten().chain(&residual).flat_map(|v| v.to_bits().to_le_bytes());
         let got = fnv(bits);
         assert_eq!(got, want, "{}", fail_message(&format!("n {n}, {borders:?}"), got));

@@ -23,7 +23,7 @@ use normalfit::convert::{self, Input};
 use normalfit::io::{ReadOptions, read_path};
 use normalfit::shade::{LitOptions, Sun, lit_file, lit_view, shade_sun};
 use normalfit::units::{MapSpacing, map_spacing};
-use normalfit::{Border, Borders, Options, Units};
+use normalfit::{Border, Borders, FitRequest, Options, Units};
 
 const BIN: &str = env!("CARGO_BIN_EXE_normalfit");
 
@@ -110,7 +110,9 @@ fn streamed_and_whole_lit_views_agree_in_map_units() {
             let affine = raster.georef.as_ref().and_then(|g| g.affine());
             let heights = raster.clone().into_stored_heights(None).unwrap();
             let mut normals = vec![[0.0f32; 3]; w * h];
-            heights.normals_into(w, h, &clamp().with_units(Units::Map(spacing)), &mut normals).unwrap();
+            FitRequest::new(&clamp().with_units(Units::Map(spacing)))
+                .normals_into(&heights, w, h, &mut normals)
+                .unwrap();
             let want = shade_sun(&normals, w, h, Sun::default(), affine.as_ref(), clamp().convention).unwrap();
             assert_eq!(whole.pixels, want, "{what}");
 

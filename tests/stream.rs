@@ -8,7 +8,7 @@ use std::path::Path;
 use image::{ExtendedColorType, ImageEncoder};
 use normalfit::io::{Channel, Layout, PngCompression, ReadOptions, encode_normals, read_path};
 use normalfit::pipeline::{PngDepth, PngOptions, PngRows, RowSource, convert_png, convert_png_seekable};
-use normalfit::{Border, Borders, Options, Strength};
+use normalfit::{Border, Borders, FitRequest, Options, Strength};
 
 /// Heights with detail in both directions and no symmetry, as 16-bit.
 fn field(w: usize, h: usize, seed: u64) -> Vec<u16> {
@@ -76,12 +76,12 @@ fn whole(path: &Path, channel: Option<Channel>, opts: &Options, depth: PngDepth)
     match depth {
         PngDepth::Eight => {
             let mut out = vec![[0u8; 3]; w * h];
-            heights.normals_into(w, h, opts, &mut out).unwrap();
+            FitRequest::new(opts).normals_into(&heights, w, h, &mut out).unwrap();
             out.as_flattened().iter().map(|&v| u16::from(v)).collect()
         }
         PngDepth::Sixteen => {
             let mut out = vec![[0u16; 3]; w * h];
-            heights.normals_into(w, h, opts, &mut out).unwrap();
+            FitRequest::new(opts).normals_into(&heights, w, h, &mut out).unwrap();
             out.into_flattened()
         }
     }
@@ -142,12 +142,12 @@ fn every_channel_layout_streams_the_whole_image_path_s_samples() {
                     match depth {
                         PngDepth::Eight => {
                             let mut t = vec![[0u8; 3]; w * h];
-                            samples.normals_into(w, h, &opts, &mut t).unwrap();
+                            FitRequest::new(&opts).normals_into(&samples, w, h, &mut t).unwrap();
                             encode_normals(&t, Some(&heights), w, h, &encoding, &mut whole)
                         }
                         PngDepth::Sixteen => {
                             let mut t = vec![[0u16; 3]; w * h];
-                            samples.normals_into(w, h, &opts, &mut t).unwrap();
+                            FitRequest::new(&opts).normals_into(&samples, w, h, &mut t).unwrap();
                             encode_normals(&t, Some(&heights), w, h, &encoding, &mut whole)
                         }
                     }

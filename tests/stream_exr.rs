@@ -11,7 +11,7 @@ use exr::prelude::{
 };
 use normalfit::io::{Channel, ExrDepth, Layout, ReadOptions, encode_normals, read_path};
 use normalfit::pipeline::{ExrOptions, ExrRows, PngDepth, RowSource, convert_exr, convert_png_seekable};
-use normalfit::{Border, Borders, Options, Strength, normals_into};
+use normalfit::{Border, Borders, FitRequest, Options, Strength};
 
 /// Heights with detail in both directions and no symmetry.
 fn field(w: usize, h: usize, seed: u32) -> Vec<f32> {
@@ -128,7 +128,7 @@ fn whole_exr(path: &Path, opts: &Options, depth: ExrDepth, signed: bool) -> Vec<
     let (w, h) = (raster.width, raster.height);
     let heights = raster.heights(None).unwrap();
     let mut texels = vec![[0f32; 3]; w * h];
-    normals_into(&heights, w, h, opts, &mut texels).unwrap();
+    FitRequest::new(opts).normals_into(&heights, w, h, &mut texels).unwrap();
     if !signed {
         texels.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
     }
@@ -207,7 +207,7 @@ fn every_channel_layout_streams_to_the_whole_image_writer_s_bytes() {
             convert_exr(rows, Some(&tail), &opts, format, |_| {}, &mut streamed).unwrap();
 
             let mut texels = vec![[0f32; 3]; w * h];
-            normals_into(&stored, w, h, &opts, &mut texels).unwrap();
+            FitRequest::new(&opts).normals_into(&stored, w, h, &mut texels).unwrap();
             if !signed {
                 texels.iter_mut().for_each(|t| *t = t.map(|c| (c + 1.0) * 0.5));
             }
@@ -253,7 +253,7 @@ fn exr_input_streams_to_png_with_the_whole_image_s_pixels() {
 
     let heights = read_path(&path, &ReadOptions::default()).unwrap().heights(None).unwrap();
     let mut whole = vec![[0u16; 3]; w * h];
-    normals_into(&heights, w, h, &opts, &mut whole).unwrap();
+    FitRequest::new(&opts).normals_into(&heights, w, h, &mut whole).unwrap();
     assert!(decoded == whole.into_flattened());
 }
 

@@ -25,7 +25,7 @@ use std::process::Command;
 
 use normalfit::io::{ReadOptions, metres_per_degree, read_path};
 use normalfit::units::{map_spacing, slope_aspect};
-use normalfit::{Border, Borders, Convention, Fit, Options, Spacing, Units};
+use normalfit::{Border, Borders, Convention, Fit, FitRequest, Options, Spacing, Units};
 
 fn run(program: &str, args: &[&str]) {
     let out = Command::new(program).args(args).output().unwrap_or_else(|e| panic!("{program} runs: {e}"));
@@ -91,7 +91,7 @@ fn ours(dem: &Path, opts: Options, spacing: Option<Spacing>) -> (usize, usize, V
     let opts = opts.with_units(Units::Map(spacing));
     let n: Vec<[f64; 3]> = {
         let mut out = vec![[0.0f64; 3]; w * h];
-        heights.normals_into(w, h, &opts, &mut out).unwrap();
+        FitRequest::new(&opts).normals_into(&heights, w, h, &mut out).unwrap();
         out
     };
     let sa = n.iter().map(|&n| slope_aspect(n, opts.convention)).map(|s| (s.slope, s.aspect)).collect();

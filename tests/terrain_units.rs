@@ -17,7 +17,7 @@ use std::sync::Arc;
 use common::reference::{self, unit};
 use normalfit::io::{Georef, ModelType, metres_per_degree};
 use normalfit::units::{MapSpacing, map_spacing, slope_aspect};
-use normalfit::{Border, Borders, Convention, Fit, Options, Spacing, Strength, Units, normals_and_residual_into};
+use normalfit::{Border, Borders, Convention, Fit, FitRequest, Options, Spacing, Strength, Units};
 
 const BORDERS: [Border; 3] = [Border::Wrap, Border::Clamp, Border::Mirror];
 
@@ -36,7 +36,7 @@ fn terrain(w: usize, h: usize, amplitude: f64) -> Vec<f64> {
 fn fitted(z: &[f64], w: usize, h: usize, opts: &Options) -> (Vec<[f64; 3]>, Vec<f32>) {
     let mut n = vec![[0.0f64; 3]; w * h];
     let mut residual = vec![0.0f32; w * h];
-    normals_and_residual_into(z, w, h, opts, &mut n, &mut residual).unwrap();
+    FitRequest::new(opts).residual(&mut residual).normals_into(z, w, h, &mut n).unwrap();
     (n, residual)
 }
 
@@ -132,8 +132,8 @@ fn equal_spacing_gives_todays_bits() {
                 assert_eq!(a.1, b.1, "N {n} {fit:?} {border:?}: residual");
                 let mut a = vec![[0.0f32; 3]; w * h];
                 let mut b = vec![[0.0f32; 3]; w * h];
-                normalfit::normals_into(&z32, w, h, &texels, &mut a).unwrap();
-                normalfit::normals_into(&z32, w, h, &map, &mut b).unwrap();
+                FitRequest::new(&texels).normals_into(&z32, w, h, &mut a).unwrap();
+                FitRequest::new(&map).normals_into(&z32, w, h, &mut b).unwrap();
                 assert_eq!(a, b, "N {n} {fit:?} {border:?}: f32 heights");
                 // Square pixels of 30 m: the gain over 30.
                 let metres = texels.clone().with_units(Units::Map(Spacing::square(30.0)));

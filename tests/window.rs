@@ -5,8 +5,8 @@
 
 use std::ops::Range;
 
-use normalfit::fit::{Halo, Window, window_normals_and_residual_into, window_normals_into};
-use normalfit::{Border, Borders, Error, Fit, Options, Sample, Strength, normals_and_residual_into, normals_into};
+use normalfit::fit::{Halo, HaloPlan, Heights, Window};
+use normalfit::{Border, Borders, Error, Fit, FitRequest, FromNormal, Options, Sample, Strength};
 
 const BORDERS: [Border; 3] = [Border::Wrap, Border::Clamp, Border::Mirror];
 
@@ -61,6 +61,11 @@ fn cuts(len: usize, rng: &mut Rng) -> Vec<Range<usize>> {
 /// How a window's halo is held.
 #[derive(Clone, Copy, Debug)]
 enum Held {
+    /// As the library plans it ([`HaloPlan`]): r texels beyond the edge of
+    /// an axis that wraps, none beyond the edge of one that clamps or
+    /// mirrors, none on an axis the window spans (what `normalfit.dask`
+    /// holds).
+    Planned,
     /// r texels on every side, those beyond the image's edge filled as the
     /// border gives them (Dask's `periodic` / `nearest`).
     Padded,
@@ -85,8 +90,13 @@ fn held<H: Copy>(
     .collect()
 }
 
-fn window_of(image: (usize, usize), xs: &Range<usize>, ys: &Range<usize>, r: usize, held: Held) -> Window {
+/// The window `xs` × `ys` held as `held` says.
+fn window_of(image: (usize, usize), xs: &Range<usize>, ys: &Range<usize>, opts: &Options, held: Held) -> Window {
+    let r = opts.patch / 2;
     let halo = match held {
+        Held::Planned => {
+            return HaloPlan::new(opts).unwrap().window(image, (xs.start, ys.start), (xs.len(), ys.len()));
+        }
         Held::Padded => Halo::uniform(r),
         Held::Clipped => Halo {
             left: r.min(xs.start),
@@ -108,19 +118,18 @@ fn by_windows<H: Sample>(
     held_as: Held,
 ) -> (Vec<[f32; 3]>, Vec<f32>) {
     let (w, h) = image;
-    let r = opts.patch / 2;
     let mut normals = vec![[f32::NAN; 3]; w * h];
     let mut residual = vec![f32::NAN; w * h];
     for ys in partition.1 {
         for xs in partition.0 {
-            let window = window_of(image, xs, ys, r, held_as);
+            let window = window_of(image, xs, ys, opts, held_as);
             let x0 = xs.start as isize - window.halo.left as isize;
             let y0 = ys.start as isize - window.halo.top as isize;
             let (hw, hh) = window.held_size();
             let values = held(heights, image, opts.borders, x0..x0 + hw as isize, y0..y0 + hh as isize);
             let mut out = vec![[0.0f32; 3]; xs.len() * ys.len()];
             let mut res = vec![0.0f32; xs.len() * ys.len()];
-            window_normals_and_residual_into(&values, &window, opts, &mut out, &mut res)
+            fit_window(&values, &window, opts, &mut out, Some(&mut res))
                 .unwrap_or_else(|e| panic!("window {xs:?} × {ys:?}: {e}"));
             for (k, y) in ys.clone().enumerate() {
                 normals[y * w + xs.start..y * w + xs.end].copy_from_slice(&out[k * xs.len()..][..xs.len()]);
@@ -131,10 +140,26 @@ fn by_windows<H: Sample>(
     (normals, residual)
 }
 
+/// The request's fit of `window` from its held `values`.
+fn fit_window<S: Heights + ?Sized, T: FromNormal>(
+    values: &S,
+    window: &Window,
+    opts: &Options,
+    out: &mut [T],
+    residual: Option<&mut [f32]>,
+) -> normalfit::Result<usize> {
+    let (hw, hh) = window.held_size();
+    let request = FitRequest::new(opts).window(*window);
+    match residual {
+        Some(r) => request.residual(r).normals_into(values, hw, hh, out),
+        None => request.normals_into(values, hw, hh, out),
+    }
+}
+
 fn whole<H: Sample>(heights: &[H], (w, h): (usize, usize), opts: &Options) -> (Vec<[f32; 3]>, Vec<f32>) {
     let mut normals = vec![[0.0f32; 3]; w * h];
     let mut residual = vec![0.0f32; w * h];
-    normals_and_residual_into(heights, w, h, opts, &mut normals, &mut residual).unwrap();
+    FitRequest::new(opts).residual(&mut residual).normals_into(heights, w, h, &mut normals).unwrap();
     (normals, residual)
 }
 
@@ -161,7 +186,7 @@ fn partitions_match<H: Sample>(to_sample: impl Fn(f64) -> H, seed: u64) {
                             .with_borders(Borders { x: bx, y: by })
                             .with_strength(strength);
                         let expected = whole(&heights, (w, h), &opts);
-                        for held_as in [Held::Padded, Held::Clipped] {
+                        for held_as in [Held::Padded, Held::Clipped, Held::Planned] {
                             if matches!(held_as, Held::Clipped) && (bx == Border::Wrap || by == Border::Wrap) {
                                 continue; // a wrap reads the far edge: see `a_wrap_needs_its_halo_beyond_the_edge`
                             }
@@ -177,7 +202,7 @@ fn partitions_match<H: Sample>(to_sample: impl Fn(f64) -> H, seed: u64) {
             }
         }
     }
-    assert_eq!(checked, 3 * 3 * 2 * 3 * 2 + 2 * 2 * 2 * 3 * 2);
+    assert_eq!(checked, 2 * (3 * 3 * 2 * 3 * 2) + 2 * 2 * 2 * 3 * 2);
 }
 
 #[test]
@@ -214,16 +239,16 @@ fn large_patches_and_gains_of_16_bit_heights_match_in_every_texel_type() {
     for n in [33, 63] {
         let opts = Options::new().with_patch(n).with_strength(Strength::Scale(1e5));
         let mut expected = vec![[0u8; 3]; w * h];
-        normals_into(&heights, w, h, &opts, &mut expected).unwrap();
+        FitRequest::new(&opts).normals_into(&heights, w, h, &mut expected).unwrap();
         let (xs, ys) = (cuts(w, &mut rng), cuts(h, &mut rng));
         for ys in &ys {
             for xs in &xs {
-                let window = window_of((w, h), xs, ys, n / 2, Held::Padded);
+                let window = window_of((w, h), xs, ys, &opts, Held::Padded);
                 let (hw, hh) = window.held_size();
                 let (x0, y0) = (xs.start as isize - (n / 2) as isize, ys.start as isize - (n / 2) as isize);
                 let values = held(&heights, (w, h), opts.borders, x0..x0 + hw as isize, y0..y0 + hh as isize);
                 let mut out = vec![[0u8; 3]; xs.len() * ys.len()];
-                window_normals_into(&values, &window, &opts, &mut out).unwrap();
+                fit_window(&values, &window, &opts, &mut out, None).unwrap();
                 for (k, y) in ys.clone().enumerate() {
                     assert_eq!(out[k * xs.len()..][..xs.len()], expected[y * w + xs.start..y * w + xs.end], "N = {n}");
                 }
@@ -237,17 +262,17 @@ fn a_wrap_needs_its_halo_beyond_the_edge() {
     let (w, h) = (12, 8);
     let heights = vec![0.5f32; w * h];
     let opts = Options::new(); // wrap, N = 3
-    let window = window_of((w, h), &(0..4), &(2..5), 1, Held::Clipped);
+    let window = window_of((w, h), &(0..4), &(2..5), &opts, Held::Clipped);
     let (hw, hh) = window.held_size();
     let values = held(&heights, (w, h), opts.borders, 0..hw as isize, 1..1 + hh as isize);
     let mut out = vec![[0.0f32; 3]; 4 * 3];
-    let err = window_normals_into(&values, &window, &opts, &mut out).unwrap_err();
+    let err = fit_window(&values, &window, &opts, &mut out, None).unwrap_err();
     assert!(matches!(&err, Error::InvalidOption(m) if m.contains("column -1")), "{err}");
     // With the column beyond the edge held, as the wrap gives it, it works.
     let window = Window { halo: Halo { left: 1, ..window.halo }, ..window };
     let (hw, hh) = window.held_size();
     let values = held(&heights, (w, h), opts.borders, -1..hw as isize - 1, 1..1 + hh as isize);
-    window_normals_into(&values, &window, &opts, &mut out).unwrap();
+    fit_window(&values, &window, &opts, &mut out, None).unwrap();
     assert!(out.iter().all(|n| *n == [0.0, 0.0, 1.0]), "flat in, flat out");
 }
 
@@ -257,13 +282,13 @@ fn bad_windows_are_errors_naming_the_problem() {
     let heights = vec![0.0f32; 9];
     let mut out = vec![[0.0f32; 3]; 1];
     let outside = Window { image: (4, 4), origin: (4, 0), size: (1, 1), halo: Halo::uniform(1) };
-    let err = window_normals_into(&heights, &outside, &opts, &mut out).unwrap_err();
+    let err = fit_window(&heights, &outside, &opts, &mut out, None).unwrap_err();
     assert!(err.to_string().contains("not inside"), "{err}");
     let short = Window { image: (4, 4), origin: (1, 1), size: (1, 1), halo: Halo::uniform(1) };
-    let err = window_normals_into(&heights[..8], &short, &opts, &mut out).unwrap_err();
+    let err = fit_window(&heights[..8], &short, &opts, &mut out, None).unwrap_err();
     assert!(matches!(err, Error::BufferSize { expected: 9, actual: 8 }), "{err}");
     let mut nan = heights.clone();
     nan[5] = f32::NAN;
-    let err = window_normals_into(&nan, &short, &opts, &mut out).unwrap_err();
+    let err = fit_window(&nan, &short, &opts, &mut out, None).unwrap_err();
     assert!(matches!(err, Error::NonFiniteHeight { x: 2, y: 1 }), "{err}");
 }

@@ -8,6 +8,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use normalfit::FitRequest;
 use normalfit_fuzz::{Case, assert_unit_normal, check_heights, decoded, encode8};
 
 fuzz_target!(|data: &[u8]| {
@@ -17,7 +18,7 @@ fuzz_target!(|data: &[u8]| {
     let Some(heights) = check_heights(raster.into_heights(case.channel.clone()), w * h) else { return };
 
     let mut normals = vec![[0.0f32; 3]; w * h];
-    heights.normals_into(w, h, &case.fit, &mut normals).expect("finite heights and valid options must fit");
+    FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut normals).expect("finite heights and valid options must fit");
     for (k, &n) in normals.iter().enumerate() {
         assert_unit_normal(n, k);
     }
@@ -25,7 +26,7 @@ fuzz_target!(|data: &[u8]| {
     // The same fit into 8-bit texels: the contract's rounding of the float
     // normal, give or take one where the f32 rounding of n crosses a half.
     let mut rgb = vec![[0u8; 3]; w * h];
-    heights.normals_into(w, h, &case.fit, &mut rgb).expect("the same fit into 8 bits");
+    FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut rgb).expect("the same fit into 8 bits");
     for (k, (n, c)) in normals.iter().zip(&rgb).enumerate() {
         for i in 0..3 {
             let d = (i32::from(c[i]) - encode8(n[i])).abs();

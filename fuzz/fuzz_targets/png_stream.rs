@@ -11,6 +11,7 @@
 use std::io::Cursor;
 
 use libfuzzer_sys::fuzz_target;
+use normalfit::FitRequest;
 use normalfit::io::decode;
 use normalfit::pipeline::{PngDepth, PngRows, RowSource, convert_png_seekable};
 use normalfit_fuzz::{Case, assert_clean_error, case_file, read_options, streamed_heights_match};
@@ -46,13 +47,13 @@ fuzz_target!(|data: &[u8]| {
     };
     if case.sixteen {
         let mut rgb = vec![[0u16; 3]; w * h];
-        heights.normals_into(w, h, &case.fit, &mut rgb).expect("finite heights and valid options must fit");
+        FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut rgb).expect("finite heights and valid options must fit");
         for (k, c) in rgb.iter().enumerate() {
             assert_eq!(texel(k), c, "texel {k} of the streamed 16-bit PNG");
         }
     } else {
         let mut rgb = vec![[0u8; 3]; w * h];
-        heights.normals_into(w, h, &case.fit, &mut rgb).expect("finite heights and valid options must fit");
+        FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut rgb).expect("finite heights and valid options must fit");
         for (k, c) in rgb.iter().enumerate() {
             assert_eq!(texel(k), c.map(u16::from), "texel {k} of the streamed 8-bit PNG");
         }

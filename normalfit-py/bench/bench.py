@@ -144,7 +144,7 @@ def main() -> None:
         print(f"  {name:<44} {seconds * 1000:9.1f} ms  {size * size / seconds / 1e6:7.1f} Mtexel/s  {note}")
 
     row("normalfit.normals(h, out=out) (Python)", python_out, f"{python_out / core_kept:.3f}× the core's time")
-    row("Rust core normals_into() (kept output)", core_kept)
+    row("Rust core FitRequest::normals_into() (kept output)", core_kept)
     row("normalfit.normals(h) (Python, new output)", python_fresh, f"{python_fresh / core_fresh:.3f}× the core's time")
     row("Rust core normals() (new, zeroed output)", core_fresh)
     row("normalfit.normals(h, threads=1)", one_thread, "(NumPy runs on one thread)")

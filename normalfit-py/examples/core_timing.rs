@@ -3,12 +3,12 @@
 //!
 //! `core_timing HEIGHTS.u16 WIDTH HEIGHT REPS` reads WIDTH × HEIGHT native-endian
 //! u16 heights, then per repetition: `normals` (a new, zeroed output, as
-//! the Python call allocates one) and `normals_into` a kept buffer (as with
+//! the Python call allocates one) and a `FitRequest` into a kept buffer (as with
 //! `out=`), and prints the median seconds of each on one line.
 
 use std::time::Instant;
 
-use normalfit::{Options, normals, normals_into};
+use normalfit::{FitRequest, Options, normals};
 
 fn main() {
     if let Err(e) = run() {
@@ -38,7 +38,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         fresh.push(start.elapsed().as_secs_f64());
         drop(n);
         let start = Instant::now();
-        normals_into(&heights, width, height, &opts, &mut buffer)?;
+        FitRequest::new(&opts).normals_into(&heights, width, height, &mut buffer)?;
         kept.push(start.elapsed().as_secs_f64());
     }
     println!("{} {}", median(&mut fresh), median(&mut kept));

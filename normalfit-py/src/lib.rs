@@ -24,7 +24,7 @@ use std::sync::Mutex;
 use std::path::{Path, PathBuf};
 
 use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
-use normalfit::fit::{Halo, Window};
+use normalfit::fit::{Halo, HaloPlan, Window};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
 use normalfit::io::{
@@ -34,7 +34,7 @@ use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
 use normalfit::units::MapSpacing;
-use normalfit::{Border, Convention, Error, Fit, FromNormal, Options, Sample, Samples, Strength};
+use normalfit::{Border, Convention, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
 use normalfit::{inspect, normal_map};
 use numpy::ndarray::ArrayView2;
 use numpy::{
@@ -154,11 +154,7 @@ impl Drop for Borrowed {
 
 /// A pool of `threads=` threads, or none (rayon's global pool).
 fn pool(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Borrowed>> {
-    let Some(n) = threads else { return Ok(None) };
-    let n = whole(n, "threads")?;
-    let Some(n) = usize::try_from(n).ok().filter(|n| (1..=MAX_THREADS).contains(n)) else {
-        return Err(PyValueError::new_err(format!("invalid option: threads must be from 1 to {MAX_THREADS}, got {n}")));
-    };
+    let Some(n) = thread_count(threads)? else { return Ok(None) };
     let kept = {
         let mut pools = POOLS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         pools.get_or_insert_with(HashMap::new).get_mut(&n).and_then(Vec::pop)
@@ -172,6 +168,17 @@ fn pool(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Borrowed>> {
             .map_err(|e| PyOSError::new_err(format!("cannot start {n} threads: {e}")))?,
     };
     Ok(Some(Borrowed { threads: n, pool: Some(pool) }))
+}
+
+/// `threads=` checked: a count from 1 to [`MAX_THREADS`], or `None` for
+/// rayon's global pool.
+fn thread_count(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Option<usize>> {
+    let Some(n) = threads else { return Ok(None) };
+    let n = whole(n, "threads")?;
+    match usize::try_from(n).ok().filter(|n| (1..=MAX_THREADS).contains(n)) {
+        Some(n) => Ok(Some(n)),
+        None => Err(PyValueError::new_err(format!("invalid option: threads must be from 1 to {MAX_THREADS}, got {n}"))),
+    }
 }
 
 /// The sizes of the pools of `threads=` that are kept and free now, one
@@ -205,8 +212,12 @@ enum SampleKind {
 
 /// The array's sample type, or the `TypeError` naming what it is.
 fn sample_kind(array: &Bound<'_, PyUntypedArray>, what: &str) -> PyResult<SampleKind> {
-    let py = array.py();
-    let dt = array.dtype();
+    sample_kind_of(&array.dtype(), what)
+}
+
+/// [`sample_kind`] of an array of dtype `dt`.
+fn sample_kind_of(dt: &Bound<'_, PyArrayDescr>, what: &str) -> PyResult<SampleKind> {
+    let py = dt.py();
     for (kind, candidate) in [
         (SampleKind::U8, dtype::<u8>(py)),
         (SampleKind::U16, dtype::<u16>(py)),
@@ -331,7 +342,6 @@ where
     };
     let (choices, pool, window) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()), call.window);
     let opts = call.opts;
-    let holes = opts.nodata.is_some();
     py.detach(|| -> Result<(), Error> {
         let copy;
         let heights: &[H] = match in_place {
@@ -341,32 +351,21 @@ where
                 &copy
             }
         };
-        let Some(window) = window else {
-            // `auto` settled by the library's tiling check, as a conversion does.
-            let opts = opts.clone().with_borders(choices.settle(heights, w, h)?);
-            if holes {
-                // Missing texels are NaN (the output is float32).
-                let mut valid = vec![false; w * h];
-                on_pool(pool, || match residual_flat {
-                    Some(r) => {
-                        normalfit::fit::normals_masked_and_residual_into(heights, (w, h), &opts, texels, r, &mut valid)
-                    }
-                    None => normalfit::normals_masked_into(heights, w, h, &opts, texels, &mut valid),
-                })?;
-                let missing = <[E; 3]>::from_normal([f64::NAN; 3]);
-                texels.iter_mut().zip(&valid).filter(|(_, v)| !**v).for_each(|(t, _)| *t = missing);
-                return Ok(());
-            }
-            return on_pool(pool, || match residual_flat {
-                Some(r) => normalfit::normals_and_residual_into(heights, w, h, &opts, texels, r),
-                None => normalfit::normals_into(heights, w, h, &opts, texels),
-            });
+        // A window's borders are fixed modes; the whole image's `auto` is
+        // settled by the library's tiling check, as a conversion does.
+        let borders = match window {
+            Some(_) => window_borders(choices)?,
+            None => choices.settle(heights, w, h)?,
         };
-        let opts = opts.clone().with_borders(window_borders(choices)?);
-        on_pool(pool, || match residual_flat {
-            Some(r) => normalfit::fit::window_normals_and_residual_into(heights, &window, &opts, texels, r),
-            None => normalfit::fit::window_normals_into(heights, &window, &opts, texels),
-        })
+        // Missing texels (with nodata, whose output is float32) are NaN.
+        let mut request = FitRequest::new(opts).borders(borders).missing([f64::NAN; 3]);
+        if let Some(window) = window {
+            request = request.window(window);
+        }
+        if let Some(r) = residual_flat {
+            request = request.residual(r);
+        }
+        on_pool(pool, || request.normals_into(heights, w, h, texels)).map(|_missing| ())
     })
     .map_err(to_py_err)?;
     drop(out_rw);
@@ -469,7 +468,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 
 /// `window_normals` with every argument given: the normals of a window of
 /// an image, from the window's heights and the halo held around it (the
-/// library's `fit::window_normals_into`; `normalfit.dask` calls it on each
+/// library's `FitRequest` with a `window`; `normalfit.dask` calls it on each
 /// chunk). `heights` is the window and its halo; `image` the whole image's
 /// (width, height), `origin` the window's first (column, row), `halo`
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
@@ -510,6 +509,63 @@ fn window_normals<'py>(
     let window = Window { image, origin, size: (w, h), halo: Halo { left, right, top, bottom } };
     let call = Call { opts: &opts, borders, out: None, residual, pool: pool(threads)?, window: Some(window) };
     fit_call(heights, kind, output, &call)
+}
+
+/// What `normalfit.dask.normals` asks before it makes a graph: the
+/// options of `window_normals` checked as a window's fit checks them,
+/// without fitting (the heights' dtype, every option, the output dtype,
+/// `threads`, border `auto`'s refusal), and the library's halo plan for
+/// them (`fit::HaloPlan`): the radius r a chunk's halo reaches, and
+/// whether along x and along y a chunk at the image's edge holds a halo
+/// beyond it (wrap: Dask's `periodic` boundary; clamp and mirror hold none).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads))]
+fn window_plan(
+    py: Python<'_>,
+    heights_dtype: &Bound<'_, PyAny>,
+    patch: &Bound<'_, PyAny>,
+    fit: &str,
+    border: &Bound<'_, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    dtype: &Bound<'_, PyAny>,
+    threads: Option<&Bound<'_, PyAny>>,
+) -> PyResult<(usize, (bool, bool))> {
+    sample_kind_of(&PyArrayDescr::new(py, heights_dtype)?, "heights")?;
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    output_kind(py, dtype)?;
+    thread_count(threads)?;
+    let borders = window_borders(borders).map_err(to_py_err)?;
+    let plan = HaloPlan::new(&opts.with_borders(borders)).map_err(to_py_err)?;
+    Ok((plan.radius(), plan.beyond_edges()))
+}
+
+/// The halo (left, right, top, bottom) the library plans for the window
+/// of `size` (width, height) at `origin` (column, row) of an image of
+/// `image` (width, height) texels, for a patch of `patch` and `border`'s
+/// modes (`fit::HaloPlan::halo`): what `normalfit.dask` holds around each
+/// chunk.
+#[pyfunction]
+fn window_halo(
+    image: (usize, usize),
+    origin: (usize, usize),
+    size: (usize, usize),
+    patch: &Bound<'_, PyAny>,
+    border: &Bound<'_, PyAny>,
+) -> PyResult<(usize, usize, usize, usize)> {
+    let patch = whole(patch, "patch")?;
+    let Ok(patch) = usize::try_from(patch) else {
+        return Err(PyValueError::new_err(format!(
+            "invalid option: patch size must be odd and at least 3, got {patch}"
+        )));
+    };
+    let borders = window_borders(parse_borders(border)?).map_err(to_py_err)?;
+    let opts = Options::new().with_patch(patch).with_borders(borders);
+    let Halo { left, right, top, bottom } = HaloPlan::new(&opts).map_err(to_py_err)?.halo(image, origin, size);
+    Ok((left, right, top, bottom))
 }
 
 /// `border=` as the library parses it: the (x, y) modes' names, `"auto"`
@@ -1338,6 +1394,8 @@ fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals, m)?)?;
     m.add_function(wrap_pyfunction!(_kept_pools, m)?)?;
     m.add_function(wrap_pyfunction!(window_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(window_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(window_halo, m)?)?;
     m.add_function(wrap_pyfunction!(border_names, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling_file, m)?)?;

@@ -155,13 +155,14 @@ pub(crate) fn fitted<T: FromNormal + Default + Clone>(
     valid: Option<&mut [bool]>,
 ) -> Result<Vec<T>> {
     let mut texels = zeroed::<T>(heights.len())?;
-    match (residual, valid) {
-        (residual, Some(valid)) => {
-            heights.normals_masked_into((w, h), opts, &mut texels, residual, valid)?;
-        }
-        (Some(r), None) => heights.normals_and_residual_into(w, h, opts, &mut texels, r)?,
-        (None, None) => heights.normals_into(w, h, opts, &mut texels)?,
+    let mut request = crate::FitRequest::new(opts);
+    if let Some(residual) = residual {
+        request = request.residual(residual);
     }
+    if let Some(valid) = valid {
+        request = request.holes(valid);
+    }
+    request.normals_into(heights, w, h, &mut texels)?;
     Ok(texels)
 }
 

@@ -51,7 +51,7 @@ pub(super) fn is_hole(v: f64, nodata: f64) -> bool {
 }
 
 /// Whether a row holds a hole.
-pub(crate) fn row_has_hole<H: Sample>(values: &[H], nodata: f64) -> bool {
+pub(super) fn row_has_hole<H: Sample>(values: &[H], nodata: f64) -> bool {
     values.iter().fold(false, |any, &h| any | is_hole(h.to_f64(), nodata))
 }
 
@@ -348,7 +348,8 @@ impl MaskedRow {
     }
 
     /// Writes the patches' texels into the strip's row: the normal, or
-    /// (0, 0, 1) and invalid where the points determine no plane (or the
+    /// `missing` (by default (0, 0, 1)) and invalid where the points
+    /// determine no plane (or the
     /// patch's own texel is missing); and, when asked for, the RMS distance
     /// of the points from the plane times `sx` (NaN where none).
     pub(super) fn store<T: FromNormal>(
@@ -357,6 +358,7 @@ impl MaskedRow {
         valid: &mut [bool],
         residual: Option<&mut [f32]>,
         sx: f64,
+        missing: T,
     ) {
         let len = self.len;
         let column = &self.column[..len];
@@ -366,7 +368,7 @@ impl MaskedRow {
             out[column[k]] = T::from_normal([nx[k], ny[k], nz[k]]);
         }
         for &x in &self.undetermined {
-            out[x] = T::from_normal([0.0, 0.0, 1.0]);
+            out[x] = missing;
             valid[x] = false;
         }
         if let Some(residual) = residual {

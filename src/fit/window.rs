@@ -1,16 +1,17 @@
-//! Normals of a window of a larger image: a chunk of a Dask array, a tile
-//! of a raster too large for one machine's memory. Any partition of an
-//! image into windows gives exactly the whole image's output, bit for bit,
-//! because the fit makes every texel's sums from its own patch alone, in an
-//! order fixed by the image (see the [module docs](super)): a window needs
-//! only its heights and a halo of r = N / 2 texels around them.
+//! Windows of a larger image: a chunk of a Dask array, a tile of a raster
+//! too large for one machine's memory. Any partition of an image into
+//! windows gives exactly the whole image's output, bit for bit, because
+//! the fit makes every texel's sums from its own patch alone, in an order
+//! fixed by the image (see the [module docs](super)): a window needs only
+//! its heights and a halo of r = N / 2 texels around them, which
+//! [`HaloPlan`] says side by side. [`FitRequest::window`](super::FitRequest::window)
+//! fits one.
 
 use std::ops::Range;
 
-use super::{FromNormal, Plan, RowRef, checked_len, first_non_finite};
+use super::{Plan, checked_len};
 use crate::error::{Error, Result};
-use crate::options::Options;
-use crate::samples::Sample;
+use crate::options::{Border, Borders, Options};
 
 /// Texels held around a window, on each side.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -34,6 +35,16 @@ impl Halo {
 }
 
 /// Where a window lies in its image, and what is held around it.
+///
+/// `heights` of a windowed fit hold the window and its halo, row-major:
+/// [`Window::held_size`] columns and rows, from image column
+/// `origin.0 − halo.left` and row `origin.1 − halo.top`. Texels of the halo
+/// beyond the image's edge hold what the border gives there (what Dask's
+/// `periodic` boundary gives for wrap, `nearest` for clamp); or the halo
+/// stops at the edge, and each border maps the patches' reads beyond it
+/// into the texels held (enough for clamp and mirror once the window and
+/// its halo reach r texels into the image). [`HaloPlan::window`] gives a
+/// halo that always suffices.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Window {
     /// The whole image's width and height. The relief gain
@@ -58,125 +69,155 @@ impl Window {
 
     /// Image columns (x) and rows (y) of the heights held; before 0 or
     /// from the image's size on, beyond its edges.
-    fn held(&self) -> (Range<isize>, Range<isize>) {
+    pub(super) fn held(&self) -> (Range<isize>, Range<isize>) {
         let (w, h) = self.held_size();
         let x0 = self.origin.0 as isize - self.halo.left as isize;
         let y0 = self.origin.1 as isize - self.halo.top as isize;
         (x0..x0 + w as isize, y0..y0 + h as isize)
     }
+
+    /// Refuses a window that is empty or outside its image, or heights of
+    /// `held` columns and rows that are not its held size.
+    pub(super) fn check_place(&self, held: (usize, usize)) -> Result<()> {
+        let ((iw, ih), (ox, oy), (w, h)) = (self.image, self.origin, self.size);
+        checked_len(w, h)?;
+        if ox + w > iw || oy + h > ih {
+            return Err(Error::InvalidOption(format!(
+                "window of {w}×{h} at ({ox}, {oy}) is not inside the {iw}×{ih} image"
+            )));
+        }
+        let (hw, hh) = self.held_size();
+        if held != (hw, hh) {
+            return Err(Error::InvalidOption(format!(
+                "heights of {}×{} are not the window's {hw}×{hh} held texels (its size and halo)",
+                held.0, held.1
+            )));
+        }
+        Ok(())
+    }
+
+    /// Refuses a halo that lacks a texel the window's patches read,
+    /// naming it.
+    pub(super) fn check_reads(&self, plan: &Plan) -> Result<()> {
+        let borders = plan.borders;
+        let (held_x, held_y) = self.held();
+        let r = plan.r as isize;
+        let reads = |axis: &str, first: usize, len: usize, held: &Range<isize>, border: Border, n: usize| {
+            let wanted = first as isize - r..(first + len) as isize + r;
+            match wanted.clone().find(|&u| !held.contains(&u) && !held.contains(&(border.map(u, n) as isize))) {
+                Some(u) => Err(Error::InvalidOption(format!(
+                    "the window's patches read {axis} {u}, which the heights held ({axis}s {} to {}) lack: hold a \
+                     halo of {r} beyond the window wherever the image goes on",
+                    held.start,
+                    held.end - 1
+                ))),
+                None => Ok(()),
+            }
+        };
+        reads("column", self.origin.0, self.size.0, &held_x, borders.x, self.image.0)?;
+        reads("row", self.origin.1, self.size.1, &held_y, borders.y, self.image.1)
+    }
 }
 
-/// The normals of `window`, as [`crate::normals_into`] gives them for those
-/// texels of the whole image, bit for bit, in any texel type.
+/// The halo a window of an image needs for given options, planned without
+/// a fit: a patch of N reads r = N / 2 texels on each side of its centre,
+/// and each axis's border says what a window at the image's edge holds
+/// beyond it.
 ///
-/// `heights` holds the window and its halo, row-major:
-/// [`Window::held_size`] columns and rows, from image column
-/// `origin.0 − halo.left` and row `origin.1 − halo.top`. Texels of the halo
-/// beyond the image's edge hold what the border gives there (what Dask's
-/// `periodic` boundary gives for wrap, `nearest` for clamp); or the halo
-/// stops at the edge, and each border maps the patches' reads beyond it
-/// into the texels held (enough for clamp and mirror once the window and
-/// its halo reach r texels into the image). A halo of r = N / 2 on every
-/// side where the image goes on always suffices.
+/// * Wrap: r texels on each side; beyond the image's edge they hold the
+///   far side's (Dask's `periodic` boundary).
+/// * Clamp and mirror: r texels where the image goes on (as many as there
+///   are up to the edge), none beyond it: the fit maps the reads beyond
+///   the edge into the texels held (Dask's boundary `none`).
+/// * None on an axis the window spans whole: every read maps into it.
 ///
 /// ```
-/// use normalfit::fit::{Halo, Window, window_normals_into};
-/// use normalfit::{normals, Options};
+/// use normalfit::fit::{Halo, HaloPlan};
+/// use normalfit::{Border, Borders, Options};
 ///
-/// let (w, h) = (20, 12);
-/// let heights: Vec<f32> = (0..w * h).map(|k| ((k % w) as f32 * 0.4).sin() * (k / w) as f32).collect();
-/// let opts = Options::new().with_patch(5); // wrap on both axes
-/// let whole = normals(&heights, w, h, &opts)?;
-/// // Columns 8..13 of rows 4..7, with r = 2 texels around them.
-/// let window = Window { image: (w, h), origin: (8, 4), size: (5, 3), halo: Halo::uniform(2) };
-/// let image = &heights;
-/// let held: Vec<f32> = (2..9).flat_map(|y| (6..15).map(move |x| image[y * w + x])).collect();
-/// let mut out = vec![[0.0f32; 3]; 5 * 3];
-/// window_normals_into(&held, &window, &opts, &mut out)?;
-/// assert_eq!(out[0], whole[4 * w + 8]);
+/// let opts = Options::new().with_patch(7).with_borders(Borders { x: Border::Wrap, y: Border::Mirror });
+/// let plan = HaloPlan::new(&opts)?;
+/// assert_eq!(plan.radius(), 3);
+/// assert_eq!(plan.beyond_edges(), (true, false));
+/// // Columns 0..10, rows 0..10 of a 100 × 40 image: wrap holds 3 columns
+/// // left of column 0, mirror no row above row 0.
+/// let window = plan.window((100, 40), (0, 0), (10, 10));
+/// assert_eq!(window.halo, Halo { left: 3, right: 3, top: 0, bottom: 3 });
+/// // A window of every row: no rows around it.
+/// assert_eq!(plan.halo((100, 40), (50, 0), (10, 40)), Halo { left: 3, right: 3, top: 0, bottom: 0 });
 /// # Ok::<(), normalfit::Error>(())
 /// ```
-///
-/// Errors: [`Error::InvalidOption`] for invalid options, a window that is
-/// empty or outside the image, or a halo that lacks a texel the patches
-/// read (naming it); [`Error::BufferSize`] for buffers of the wrong
-/// length; [`Error::NonFiniteHeight`] for a NaN or infinite height held
-/// (at its image texel).
-pub fn window_normals_into<H: Sample, T: FromNormal>(
-    heights: &[H],
-    window: &Window,
-    opts: &Options,
-    out: &mut [T],
-) -> Result<()> {
-    fit_window(heights, window, opts, out, None)
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct HaloPlan {
+    radius: usize,
+    borders: Borders,
 }
 
-/// Like [`window_normals_into`], and the fit's residual as
-/// [`crate::normals_and_residual_into`] gives it.
-///
-/// Errors: as [`window_normals_into`]; [`Error::BufferSize`] also for a
-/// `residual` of the wrong length.
-pub fn window_normals_and_residual_into<H: Sample, T: FromNormal>(
-    heights: &[H],
-    window: &Window,
-    opts: &Options,
-    out: &mut [T],
-    residual: &mut [f32],
-) -> Result<()> {
-    fit_window(heights, window, opts, out, Some(residual))
-}
+impl HaloPlan {
+    /// The plan for `opts` (its patch size and borders), checking the
+    /// options as the fit does.
+    ///
+    /// Errors: [`Error::InvalidOption`] for invalid options.
+    pub fn new(opts: &Options) -> Result<HaloPlan> {
+        opts.validate()?;
+        Ok(HaloPlan { radius: opts.patch / 2, borders: opts.borders })
+    }
 
-fn fit_window<H: Sample, T: FromNormal>(
-    heights: &[H],
-    window: &Window,
-    opts: &Options,
-    out: &mut [T],
-    residual: Option<&mut [f32]>,
-) -> Result<()> {
-    let (iw, ih) = window.image;
-    let plan = Plan::new(iw, ih, opts)?;
-    let ((ox, oy), (w, h)) = (window.origin, window.size);
-    checked_len(w, h)?;
-    if ox + w > iw || oy + h > ih {
-        return Err(Error::InvalidOption(format!(
-            "window of {w}×{h} at ({ox}, {oy}) is not inside the {iw}×{ih} image"
-        )));
+    /// The same plan with these borders instead of the options' (as
+    /// [`FitRequest::borders`](super::FitRequest::borders)).
+    #[must_use]
+    pub fn with_borders(self, borders: Borders) -> HaloPlan {
+        HaloPlan { borders, ..self }
     }
-    let (hw, hh) = window.held_size();
-    let expected = [hw * hh, w * h, w * h];
-    let actual = [Some(heights.len()), Some(out.len()), residual.as_ref().map(|r| r.len())];
-    for (expected, actual) in expected.into_iter().zip(actual) {
-        if let Some(actual) = actual
-            && actual != expected
-        {
-            return Err(Error::BufferSize { expected, actual });
+
+    /// r = N / 2: the texels a patch reads on each side of its centre,
+    /// the most a halo holds on a side.
+    #[must_use]
+    pub fn radius(&self) -> usize {
+        self.radius
+    }
+
+    /// The borders planned for.
+    #[must_use]
+    pub fn borders(&self) -> Borders {
+        self.borders
+    }
+
+    /// Whether a window at the image's edge holds a halo beyond it, along
+    /// x and along y: with wrap, the r texels the wrap gives there; with
+    /// clamp and mirror, none.
+    #[must_use]
+    pub fn beyond_edges(&self) -> (bool, bool) {
+        (self.borders.x == Border::Wrap, self.borders.y == Border::Wrap)
+    }
+
+    /// The halo of the window of `size` texels at `origin` in an image of
+    /// `image` texels (widths first), as the [type's docs](Self) say.
+    #[must_use]
+    pub fn halo(&self, image: (usize, usize), origin: (usize, usize), size: (usize, usize)) -> Halo {
+        let (left, right) = self.axis(image.0, origin.0, size.0, self.borders.x);
+        let (top, bottom) = self.axis(image.1, origin.1, size.1, self.borders.y);
+        Halo { left, right, top, bottom }
+    }
+
+    /// The window of `size` texels at `origin` in an image of `image`
+    /// texels, with [`Self::halo`].
+    #[must_use]
+    pub fn window(&self, image: (usize, usize), origin: (usize, usize), size: (usize, usize)) -> Window {
+        Window { image, origin, size, halo: self.halo(image, origin, size) }
+    }
+
+    /// The halo before and after a run of `len` texels from `start` of an
+    /// axis of `n`.
+    fn axis(&self, n: usize, start: usize, len: usize, border: Border) -> (usize, usize) {
+        let r = self.radius;
+        let end = start.saturating_add(len);
+        if start == 0 && end >= n {
+            (0, 0)
+        } else if border == Border::Wrap {
+            (r, r)
+        } else {
+            (r.min(start), r.min(n.saturating_sub(end)))
         }
     }
-    let (held_x, held_y) = window.held();
-    let r = plan.r as isize;
-    let reads = |axis: &str, first: usize, len: usize, held: &Range<isize>, map: &dyn Fn(isize) -> usize| {
-        let wanted = first as isize - r..(first + len) as isize + r;
-        match wanted.clone().find(|&u| !held.contains(&u) && !held.contains(&(map(u) as isize))) {
-            Some(u) => Err(Error::InvalidOption(format!(
-                "the window's patches read {axis} {u}, which the heights held ({axis}s {} to {}) lack: hold a halo of \
-                 {r} beyond the window wherever the image goes on",
-                held.start,
-                held.end - 1
-            ))),
-            None => Ok(()),
-        }
-    };
-    reads("column", ox, w, &held_x, &|u| plan.borders.x.map(u, iw))?;
-    reads("row", oy, h, &held_y, &|v| plan.borders.y.map(v, ih))?;
-    if let Some((x, y)) = first_non_finite(heights, hw) {
-        let x = plan.borders.x.map(held_x.start + x as isize, iw);
-        let y = plan.borders.y.map(held_y.start + y as isize, ih);
-        return Err(Error::NonFiniteHeight { x, y });
-    }
-    let rows = |v: isize| {
-        let at = if held_y.contains(&v) { v } else { plan.borders.y.map(v, ih) as isize };
-        RowRef { values: &heights[(at - held_y.start) as usize * hw..][..hw], x0: held_x.start, holes: false }
-    };
-    plan.fit_rows(&rows, H::UNIT, (oy, ox..ox + w), out, residual, None);
-    Ok(())
 }

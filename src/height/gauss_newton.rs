@@ -38,7 +38,7 @@ use crate::error::Result;
 use crate::par::prelude::*;
 use crate::samples::try_vec;
 
-use super::iterative::{Lists, Patch};
+use super::patch::{Lists, Patch};
 use super::solve::SlopeRows as Slopes;
 use super::solve::Solver;
 

@@ -69,6 +69,7 @@
 
 mod gauss_newton;
 mod iterative;
+mod patch;
 mod solve;
 
 use crate::error::{Error, Result};

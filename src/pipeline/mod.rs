@@ -22,7 +22,7 @@
 //! prepares it for the encoder (PNG filtering and deflate, EXR blocks, in
 //! parallel too); the caller's thread writes it. The pixels are the same, bit
 //! for bit, as decoding the whole image and calling
-//! [`normals_into`](crate::normals_into): the fit is cut into the same
+//! [`FitRequest`](crate::FitRequest): the fit is cut into the same
 //! tiles either way ([`BandFit`]).
 //!
 //! A wrap across the top and bottom needs the image's last rows for the top
@@ -55,8 +55,9 @@ pub use self::tiff::TiffRows;
 pub use crate::io::encoding::{ExrOptions, PngDepth, PngOptions};
 
 use crate::error::{Error, Result};
-use crate::fit::{BandFit, FromNormal, first_non_finite};
+use crate::fit::{BandFit, FromNormal};
 use crate::options::{Border, Options};
+use crate::samples::first_non_finite;
 use crate::samples::{Sample, try_vec};
 
 /// The rows of a height map, top to bottom, decoded as they are asked for.

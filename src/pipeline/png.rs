@@ -782,7 +782,7 @@ mod tests {
     //! whole; the filter byte of every row.
 
     use super::*;
-    use crate::fit::normals_into;
+    use crate::fit::FitRequest;
 
     /// Heights from memory, 16-bit.
     struct Rows {
@@ -873,9 +873,9 @@ mod tests {
         let heights = heights(w, h, 0);
         let opts = Options::new().with_patch(5).with_strength(crate::options::Strength::Scale(2.0));
         let mut want8 = vec![[0u8; 3]; w * h];
-        normals_into(&heights, w, h, &opts, &mut want8).unwrap();
+        FitRequest::new(&opts).normals_into(&heights, w, h, &mut want8).unwrap();
         let mut want16 = vec![[0u16; 3]; w * h];
-        normals_into(&heights, w, h, &opts, &mut want16).unwrap();
+        FitRequest::new(&opts).normals_into(&heights, w, h, &mut want16).unwrap();
         for depth in [PngDepth::Eight, PngDepth::Sixteen] {
             for layout in [Layout::Rgb, Layout::RgbHeight, Layout::RgbOpaque, Layout::Rg] {
                 for compression in [PngCompression::Fast, PngCompression::Default] {

@@ -8,6 +8,8 @@ from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionS
 __all__ = [
     "normals",
     "window_normals",
+    "window_plan",
+    "window_halo",
     "border_names",
     "check_tiling",
     "check_tiling_file",
@@ -152,6 +154,25 @@ def window_normals(
     residual: bool,
     threads: Any | None,
 ) -> Any: ...
+def window_plan(
+    heights_dtype: Any,
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    dtype: Any,
+    threads: Any | None,
+) -> tuple[int, tuple[bool, bool]]: ...
+def window_halo(
+    image: tuple[int, int],
+    origin: tuple[int, int],
+    size: tuple[int, int],
+    patch: Any,
+    border: Any,
+) -> tuple[int, int, int, int]: ...
 def border_names(border: Any) -> tuple[str, str]: ...
 @final
 class _HeightSeams:

@@ -2,8 +2,9 @@
 machine's memory, equal to the whole image's, bit for bit.
 
 Each chunk's normals are computed by the library's window fit
-(``normalfit::fit::window_normals_into``) from the chunk and a halo of
-r = patch // 2 texels that ``dask.array.map_overlap`` gathers around it.
+(``normalfit::FitRequest::window``) from the chunk and the halo the library
+plans (``normalfit::fit::HaloPlan``: r = patch // 2 texels), which
+``dask.array.map_overlap`` gathers around it.
 Every texel's sums come from its own patch alone, so the result is exactly
 ``normalfit.normals`` of the whole array, whatever the chunking.
 
@@ -90,20 +91,17 @@ def _fit_block(
     held: np.ndarray,
     *,
     image: tuple[int, int],
-    depth_hw: tuple[int, int],
-    periodic: tuple[bool, bool],
     options: dict[str, Any],
     block_info: Any = None,
 ) -> np.ndarray:
     """One chunk's normals from the chunk and the halo ``map_overlap``
-    gathered: ``depth_hw`` (rows, columns) on every side that has it."""
+    gathered: the halo the library plans for the chunk."""
     index, rows, cols = _where(block_info)
     try:
-        (w, h) = image
-        halo = []
-        for (start, stop), n, d, wrap in ((cols, w, depth_hw[1], periodic[1]), (rows, h, depth_hw[0], periodic[0])):
-            halo.append((d if wrap or start > 0 else 0, d if wrap or stop < n else 0))
-        (left, right), (top, bottom) = halo
+        size = (cols[1] - cols[0], rows[1] - rows[0])
+        (left, right, top, bottom) = _normalfit.window_halo(
+            image, (cols[0], rows[0]), size, options["patch"], options["border"]
+        )
         expected = (rows[1] - rows[0] + top + bottom, cols[1] - cols[0] + left + right)
         if held.shape != expected:
             raise ValueError(f"the chunk and its halo hold {held.shape} texels, expected {expected}")
@@ -179,19 +177,20 @@ def normals(
         raise TypeError(f"array must be a 2-D dask array of heights, got {array.ndim}-D")
     (h, w) = (int(array.shape[0]), int(array.shape[1]))
     bx, by = _normalfit.border_names(border)
-    # Checked now, by the library, on a 2 x 2 image of the array's dtype:
-    # every option, the dtype, and border auto's refusal.
-    probe = np.zeros((2, 2), array.dtype)
-    _normalfit.window_normals(
-        probe, (2, 2), (0, 0), (0, 0, 0, 0), patch, fit, border, convention, scale, relief, invert, dtype, False,
-        threads,
+    # Checked now, by the library, without a fit: every option, the
+    # array's dtype, the output dtype, and border auto's refusal; and the
+    # halo it plans: r texels, beyond the image's edges along an axis that
+    # wraps (x, y).
+    r, (beyond_x, beyond_y) = _normalfit.window_plan(
+        array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads
     )
     out_dtype = np.dtype(dtype)
-    r = int(patch) // 2
     chunks = tuple(_merged(c, r) for c in array.chunks)
     work = array if chunks == array.chunks else array.rechunk(chunks)
+    # An axis in one chunk takes no halo (the library plans none: every
+    # read maps into the chunk).
     depth = tuple(0 if len(c) == 1 else r for c in chunks)
-    periodic = (by == "wrap" and depth[0] > 0, bx == "wrap" and depth[1] > 0)
+    periodic = (beyond_y and depth[0] > 0, beyond_x and depth[1] > 0)
     options = dict(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
         dtype=out_dtype, residual=residual, threads=threads,
@@ -228,8 +227,6 @@ def _map(
         meta=np.empty((0, 0, 0), dtype),
         name="normalfit-normals-" + dask.base.tokenize(work, depth, periodic, image, sorted(options.items())),
         image=image,
-        depth_hw=depth,
-        periodic=periodic,
         options=options,
     )
 

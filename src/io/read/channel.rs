@@ -95,7 +95,7 @@ impl Raster {
             Source::Luma(rgb) => self.luma(rgb)?.into_f32()?,
         };
         // After the rounding: a double beyond f32's range is infinite here.
-        match crate::fit::first_non_finite(&heights, self.width.max(1)) {
+        match crate::samples::first_non_finite(&heights, self.width.max(1)) {
             None => Ok(heights),
             Some((x, y)) => Err(Error::NonFiniteHeight { x, y }),
         }

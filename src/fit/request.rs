@@ -1,0 +1,312 @@
+//! One fit request: the fit's one way in for heights held in memory.
+
+use super::{FromNormal, Plan, RowRef, Window, checked_len, row_has_hole};
+use crate::error::{Error, Result};
+use crate::options::{Borders, Options};
+use crate::samples::{Sample, Samples, first_non_finite, with_slice};
+
+/// A fit of heights held in memory: [`Options`], and what else the caller
+/// asks for, then [`normals_into`](Self::normals_into) runs it.
+///
+/// * the whole image, or a [`window`](Self::window) of a larger one from
+///   its heights and a halo (a Dask chunk), the whole image's bits;
+/// * the fit's [`residual`](Self::residual);
+/// * holes: texels whose value is [`Options::nodata`], or NaN or infinite
+///   with [`holes`](Self::holes), are missing, and the texels that say
+///   which are; a missing texel's normal is [`missing`](Self::missing);
+/// * the normals in any texel type ([`FromNormal`]: the normal itself, or
+///   the contract's 8- or 16-bit RGB), from heights of any sample type
+///   ([`Heights`]).
+///
+/// Rows are computed in parallel on rayon's current pool; the bits are
+/// the same on any pool, in any window, and from any sample type that
+/// holds the same heights.
+///
+/// ```
+/// use normalfit::{FitRequest, Options};
+///
+/// // A ramp of 16-bit samples: heights v / 65535.
+/// let (w, h) = (16, 12);
+/// let heights: Vec<u16> = (0..w * h).map(|k| (k % w) as u16 * 1000).collect();
+/// let mut rgb = vec![[0u8; 3]; w * h];
+/// FitRequest::new(&Options::new()).normals_into(&heights, w, h, &mut rgb)?;
+/// assert!(rgb[5 * w + 7][0] < 128, "the normal leans towards −x");
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+#[must_use = "a request does nothing until `normals_into` runs it"]
+pub struct FitRequest<'a> {
+    opts: &'a Options,
+    borders: Option<Borders>,
+    window: Option<Window>,
+    residual: Option<&'a mut [f32]>,
+    valid: Option<&'a mut [bool]>,
+    missing: [f64; 3],
+}
+
+impl<'a> FitRequest<'a> {
+    /// A fit with these options, of the whole image, normals only; holes
+    /// only where [`Options::nodata`] is set.
+    pub fn new(opts: &'a Options) -> FitRequest<'a> {
+        FitRequest { opts, borders: None, window: None, residual: None, valid: None, missing: [0.0, 0.0, 1.0] }
+    }
+
+    /// Fits with these borders instead of the options' (a border settled
+    /// after the options were made: `auto`'s tiling check).
+    pub fn borders(mut self, borders: Borders) -> FitRequest<'a> {
+        self.borders = Some(borders);
+        self
+    }
+
+    /// The heights are `window` of a larger image and the halo held around
+    /// it ([`Window`] says how they are laid out; [`HaloPlan`](super::HaloPlan)
+    /// plans a halo that suffices), and the outputs are the window's
+    /// texels: those the whole image's fit gives there, bit for bit.
+    ///
+    /// ```
+    /// use normalfit::fit::{HaloPlan, FitRequest};
+    /// use normalfit::{normals, Options};
+    ///
+    /// let (w, h) = (20, 12);
+    /// let heights: Vec<f32> = (0..w * h).map(|k| ((k % w) as f32 * 0.4).sin() * (k / w) as f32).collect();
+    /// let opts = Options::new().with_patch(5); // wrap on both axes
+    /// let whole = normals(&heights, w, h, &opts)?;
+    /// // Columns 8..13 of rows 4..7, with r = 2 texels around them.
+    /// let window = HaloPlan::new(&opts)?.window((w, h), (8, 4), (5, 3));
+    /// let (hw, hh) = window.held_size();
+    /// let image = &heights;
+    /// let held: Vec<f32> = (2..9).flat_map(|y| (6..15).map(move |x| image[y * w + x])).collect();
+    /// let mut out = vec![[0.0f32; 3]; 5 * 3];
+    /// FitRequest::new(&opts).window(window).normals_into(&held, hw, hh, &mut out)?;
+    /// assert_eq!(out[0], whole[4 * w + 8]);
+    /// # Ok::<(), normalfit::Error>(())
+    /// ```
+    pub fn window(mut self, window: Window) -> FitRequest<'a> {
+        self.window = Some(window);
+        self
+    }
+
+    /// Also the fit's residual, into `residual` (as many texels as the
+    /// normals): the root-mean-square distance of each texel's N² patch
+    /// points from the plane fitted to them, in texel widths (the units
+    /// of the surface z = S · h, so it grows with the gain S); NaN where a
+    /// texel is missing.
+    ///
+    /// The distance is the one the fit minimises: perpendicular to the
+    /// plane for [`Fit::Orthogonal`](crate::Fit::Orthogonal) (√(λ / N²), λ
+    /// the covariance's smallest eigenvalue), vertical for
+    /// [`Fit::Vertical`](crate::Fit::Vertical). A planar patch gives 0;
+    /// bumps, pits and grain finer than the patch give more, so the map is
+    /// a hint of cavities and roughness at the patch's scale. Where the
+    /// normal is the flat (0, 0, 1) of a tilt-free patch, the residual is
+    /// the points' distance from that horizontal plane. It comes from the
+    /// sums the fit already has, at the cost of a few operations per texel.
+    ///
+    /// ```
+    /// use normalfit::{FitRequest, Options};
+    /// // A plane plus a checkerboard of amplitude 0.1: the plane is found, and
+    /// // the points lie about 0.1 from it (exactly 0.1 · √(1 − 1/N⁴), N = 3).
+    /// let (w, h) = (16, 16);
+    /// let heights: Vec<f32> = (0..w * h)
+    ///     .map(|k| 0.01 * (k % w) as f32 + if (k % w + k / w) % 2 == 0 { 0.1 } else { -0.1 })
+    ///     .collect();
+    /// let opts = Options::new().with_fit(normalfit::Fit::Vertical)
+    ///     .with_borders(normalfit::Borders::both(normalfit::Border::Mirror));
+    /// let mut normals = vec![[0.0f32; 3]; w * h];
+    /// let mut residual = vec![0.0f32; w * h];
+    /// FitRequest::new(&opts).residual(&mut residual).normals_into(&heights, w, h, &mut normals)?;
+    /// let expected = 0.1 * (1.0f32 - 1.0 / 81.0).sqrt();
+    /// assert!((residual[5 * w + 7] - expected).abs() < 1e-5);
+    /// # Ok::<(), normalfit::Error>(())
+    /// ```
+    pub fn residual(mut self, residual: &'a mut [f32]) -> FitRequest<'a> {
+        self.residual = Some(residual);
+        self
+    }
+
+    /// Holes, reported: texels whose value is `opts.nodata`, and
+    /// non-finite ones (whether or not a nodata value is set), are
+    /// missing, and each patch is fitted to its valid points alone.
+    /// `valid[k]` (as many texels as the normals) is set to whether texel
+    /// k has a normal: it is missing when it is itself a hole, or when its
+    /// patch's valid points are fewer than three or collinear. A patch
+    /// without a hole gives the same bits as without holes.
+    ///
+    /// Without this call, a fit has holes only when `opts.nodata` is set
+    /// (non-finite heights are then holes too), and a NaN or infinite
+    /// height is otherwise [`Error::NonFiniteHeight`].
+    ///
+    /// ```
+    /// use normalfit::{FitRequest, Options};
+    /// let (w, h) = (6, 5);
+    /// let mut heights: Vec<f32> = (0..w * h).map(|k| 0.1 * (k % w) as f32).collect();
+    /// heights[2 * w + 3] = f32::NAN;
+    /// let mut normals = vec![[0.0f32; 3]; w * h];
+    /// let mut valid = vec![false; w * h];
+    /// let missing = FitRequest::new(&Options::new()).holes(&mut valid).normals_into(&heights, w, h, &mut normals)?;
+    /// assert_eq!(missing, 1);
+    /// assert!(!valid[2 * w + 3] && valid[2 * w + 2]);
+    /// # Ok::<(), normalfit::Error>(())
+    /// ```
+    pub fn holes(mut self, valid: &'a mut [bool]) -> FitRequest<'a> {
+        self.valid = Some(valid);
+        self
+    }
+
+    /// The normal written at a missing texel, through the output's
+    /// [`FromNormal`]; by default (0, 0, 1), flat. `[f64::NAN; 3]` makes
+    /// a float output NaN there (the Python package's missing texels);
+    /// integer texels have no NaN.
+    pub fn missing(mut self, normal: [f64; 3]) -> FitRequest<'a> {
+        self.missing = normal;
+        self
+    }
+
+    /// Runs the fit of `heights` (`width` × `height`, row-major, any
+    /// [`Heights`]: a slice of a [`Sample`] type or [`Samples`]) into
+    /// `out`, in any texel type: `[f32; 3]` for the normal itself,
+    /// `[u8; 3]` or `[u16; 3]` for the encoded RGB of the contract. The
+    /// heights are the whole image, `out` as many texels; with a
+    /// [`window`](Self::window), they are the window's held texels
+    /// ([`Window::held_size`]), `out` the window's.
+    ///
+    /// `f32` and `f64` heights are in the contract's units, `u8` and `u16`
+    /// stored integer values whose heights are v / 255 and v / 65535 (SPEC
+    /// §1): integers are read as they are and 1 / (2^bits − 1) goes into
+    /// the gain, in f64, so no rounding comes between the file and the fit.
+    ///
+    /// Returns the count of missing texels (0 without holes).
+    ///
+    /// Errors: [`Error::InvalidOption`] for invalid options or a zero or
+    /// too large size, a window that is empty, outside its image or not
+    /// the heights' layout, or a halo that lacks a texel the patches read
+    /// (naming it); [`Error::BufferSize`] for a buffer of the wrong length
+    /// (heights, `out`, the residual, `valid`); without holes,
+    /// [`Error::NonFiniteHeight`] for the first NaN or infinite height in
+    /// row order (at its image texel).
+    pub fn normals_into<S: Heights + ?Sized, T: FromNormal>(
+        self,
+        heights: &S,
+        width: usize,
+        height: usize,
+        out: &mut [T],
+    ) -> Result<usize> {
+        heights.fit(self, (width, height), out)
+    }
+
+    /// [`Self::normals_into`] for a slice of one sample type.
+    fn run<H: Sample, T: FromNormal>(
+        self,
+        heights: &[H],
+        (width, height): (usize, usize),
+        out: &mut [T],
+    ) -> Result<usize> {
+        let FitRequest { opts, borders, window, residual, valid, missing } = self;
+        let image = window.map_or((width, height), |w| w.image);
+        let mut plan = Plan::new(image.0, image.1, opts)?;
+        if let Some(borders) = borders {
+            plan.borders = borders;
+        }
+        plan.missing = missing;
+        // The image columns and rows the heights hold, and the texels out.
+        let (held_x, held_y, (ox, oy), (ow, oh)) = match &window {
+            None => (0..width as isize, 0..height as isize, (0, 0), (width, height)),
+            Some(window) => {
+                window.check_place((width, height))?;
+                let (held_x, held_y) = window.held();
+                (held_x, held_y, window.origin, window.size)
+            }
+        };
+        let (held_len, out_len) = (checked_len(width, height)?, ow * oh);
+        let expected = [held_len, out_len, out_len, out_len];
+        let actual =
+            [Some(heights.len()), Some(out.len()), residual.as_ref().map(|r| r.len()), valid.as_ref().map(|v| v.len())];
+        for (expected, actual) in expected.into_iter().zip(actual) {
+            if let Some(actual) = actual
+                && actual != expected
+            {
+                return Err(Error::BufferSize { expected, actual });
+            }
+        }
+        if let Some(window) = &window {
+            window.check_reads(&plan)?;
+        }
+        let masked = plan.nodata.is_some() || valid.is_some();
+        if !masked && let Some((x, y)) = first_non_finite(heights, width) {
+            let x = plan.borders.x.map(held_x.start + x as isize, image.0);
+            let y = plan.borders.y.map(held_y.start + y as isize, image.1);
+            return Err(Error::NonFiniteHeight { x, y });
+        }
+        let nodata = plan.nodata.unwrap_or(f64::NAN);
+        let holes: Vec<bool> = if masked {
+            heights.chunks_exact(width).map(|row| row_has_hole(row, nodata)).collect()
+        } else {
+            Vec::new()
+        };
+        // Source row v of the patches: a row held, or (beyond the rows held)
+        // the one the y border gives.
+        let rows = |v: isize| {
+            let at = if held_y.contains(&v) { v } else { plan.borders.y.map(v, image.1) as isize };
+            let k = (at - held_y.start) as usize;
+            RowRef { values: &heights[k * width..][..width], x0: held_x.start, holes: masked && holes[k] }
+        };
+        let cols = ox..ox + ow;
+        if !masked {
+            plan.fit_rows(&rows, H::UNIT, (oy, cols), out, residual, None);
+            return Ok(0);
+        }
+        let mut own = if valid.is_none() { vec![false; out_len] } else { Vec::new() };
+        let valid = match valid {
+            Some(valid) => valid,
+            None => &mut own[..],
+        };
+        plan.fit_rows(&rows, H::UNIT, (oy, cols), out, residual, Some((&mut *valid, nodata)));
+        Ok(valid.iter().filter(|&&v| !v).count())
+    }
+}
+
+mod sealed {
+    /// Only the crate's height types are [`Heights`](super::Heights).
+    pub trait Sealed {}
+}
+
+/// Heights the fit reads as they are stored: a slice, `Vec` or array of a
+/// [`Sample`] type (`u8`, `u16`, `f32`, `f64`), or [`Samples`] (whichever
+/// type they hold).
+pub trait Heights: sealed::Sealed {
+    /// Runs `request` on these heights (what
+    /// [`FitRequest::normals_into`] calls).
+    #[doc(hidden)]
+    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize>;
+}
+
+impl<H: Sample> sealed::Sealed for [H] {}
+
+impl<H: Sample> Heights for [H] {
+    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+        request.run(self, size, out)
+    }
+}
+
+impl<H: Sample> sealed::Sealed for Vec<H> {}
+
+impl<H: Sample> Heights for Vec<H> {
+    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+        request.run(self.as_slice(), size, out)
+    }
+}
+
+impl<H: Sample, const N: usize> sealed::Sealed for [H; N] {}
+
+impl<H: Sample, const N: usize> Heights for [H; N] {
+    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+        request.run(self.as_slice(), size, out)
+    }
+}
+
+impl sealed::Sealed for Samples {}
+
+impl Heights for Samples {
+    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+        with_slice!(self, s => request.run(s, size, out))
+    }
+}
