@@ -452,6 +452,25 @@ impl Options {
 /// keeps a typo (`-n 30001`) from asking for gigabytes of ring buffers.
 pub const MAX_PATCH: usize = 1023;
 
+/// A patch size N as a caller types it (`-n 9`): a whole number that
+/// [`Options::validate`] accepts (odd, at least 3, at most [`MAX_PATCH`]).
+///
+/// Errors: [`Error::InvalidOption`] for text that is not a whole number,
+/// and for a size the fit does not take, naming the rule.
+///
+/// ```
+/// assert_eq!(normalfit::options::parse_patch("9").unwrap(), 9);
+/// assert!(normalfit::options::parse_patch("4").is_err());
+/// ```
+pub fn parse_patch(s: &str) -> Result<usize, Error> {
+    let n: usize =
+        s.parse().map_err(|_| Error::InvalidOption(format!("patch size must be a whole number, got '{s}'")))?;
+    Options::new().with_patch(n).validate().map_err(|_| {
+        Error::InvalidOption(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"))
+    })?;
+    Ok(n)
+}
+
 /// The largest gain accepted: with heights up to ±3.4e38 (f32's range) the
 /// squared sums stay far inside f64's range, so no normal becomes NaN.
 pub const MAX_GAIN: f64 = 1e30;
@@ -525,6 +544,22 @@ mod tests {
         assert!(Options::new().with_patch(63).validate().is_ok());
         let nan = Options::new().with_strength(Strength::Scale(f64::NAN));
         assert!(nan.validate().is_err());
+    }
+
+    #[test]
+    fn a_patch_size_parses_as_the_fit_takes_it() {
+        for n in [3, 5, 63, MAX_PATCH] {
+            assert_eq!(parse_patch(&n.to_string()).unwrap(), n);
+        }
+        let refused = |s: &str| parse_patch(s).unwrap_err().to_string();
+        let rule = format!("invalid option: patch size must be odd, at least 3 and at most {MAX_PATCH}, got");
+        for n in [0, 1, 2, 4, MAX_PATCH - 1, MAX_PATCH + 2] {
+            assert_eq!(refused(&n.to_string()), format!("{rule} {n}"));
+            assert!(Options::new().with_patch(n).validate().is_err(), "the same rule as validate: {n}");
+        }
+        for s in ["", "3.0", "-3", " 3", "three", "99999999999999999999999"] {
+            assert_eq!(refused(s), format!("invalid option: patch size must be a whole number, got '{s}'"));
+        }
     }
 
     #[test]

@@ -12,7 +12,7 @@ use normalfit::height::{ConventionChoice, Model};
 use normalfit::io::{
     Alpha, ByteOrder, Channel, OutputChannels, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
-use normalfit::options::{MAX_PATCH, UnitsName};
+use normalfit::options::UnitsName;
 use normalfit::shade::Light;
 use normalfit::tiling::KindChoice;
 use normalfit::{Borders, Convention, Fit};
@@ -592,12 +592,9 @@ impl ReadArgs {
     }
 }
 
+/// `-n N`, as the library parses and checks it.
 fn parse_patch(s: &str) -> Result<usize, String> {
-    let n: usize = s.parse().map_err(|_| format!("patch size must be a whole number, got '{s}'"))?;
-    if n < 3 || n.is_multiple_of(2) || n > MAX_PATCH {
-        return Err(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"));
-    }
-    Ok(n)
+    normalfit::options::parse_patch(s).map_err(|e| library_message(&e))
 }
 
 fn parse_suffix(s: &str) -> Result<String, String> {
