@@ -933,14 +933,13 @@ fn raw_size(size: &Bound<'_, PyAny>) -> PyResult<(usize, usize)> {
 }
 
 /// `channel=`: a keyword (luma, r, g, b, a) or an OpenEXR channel's name,
-/// resolved per file by the library's rule, as `--channel` is.
+/// as the library takes it (`Channel::named`, as `--channel` is); its
+/// message names the keyword argument.
 fn parse_channel(channel: Option<String>) -> PyResult<Option<Channel>> {
-    match channel {
-        Some(name) if name.is_empty() => Err(PyValueError::new_err(
-            "invalid option: channel: expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name",
-        )),
-        other => Ok(other.map(Channel::Named)),
-    }
+    channel.as_deref().map(Channel::named).transpose().map_err(|e| match e {
+        Error::InvalidOption(m) => PyValueError::new_err(format!("invalid option: channel: {m}")),
+        other => to_py_err(other),
+    })
 }
 
 /// What a conversion did: `normalfit.convert`'s result.

@@ -622,13 +622,10 @@ fn parse_bits(s: &str) -> Result<u8, String> {
     }
 }
 
-/// `--channel`: a keyword or an EXR channel's name, resolved per file by
-/// the library's rule (exact name first, then the keywords in any case).
+/// `--channel`: a keyword or an EXR channel's name, as the library takes
+/// it (resolved per file: exact name first, then the keywords in any case).
 fn parse_channel(s: &str) -> Result<Channel, String> {
-    if s.is_empty() {
-        return Err("expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name".into());
-    }
-    Ok(Channel::Named(s.to_string()))
+    Channel::named(s).map_err(|e| library_message(&e))
 }
 
 fn parse_finite(s: &str) -> Result<f64, String> {
