@@ -13,7 +13,7 @@ use normalfit::height::file::{HeightConversion, HeightSummary};
 
 use super::args::HeightArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
-use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
+use super::input::{Input, read_stdin, stdin_at_most_once};
 use super::output::Destination;
 use super::report::{Failure, print_line, warn};
 
@@ -84,7 +84,6 @@ impl Plan<'_> {
                 if path.is_dir() {
                     return Err(Failure::file(path, "is a folder, not an image"));
                 }
-                check_extension(path)?;
                 convert::Input::Path(path)
             }
             Input::Stdin => {

@@ -5,7 +5,7 @@ use std::io::Read;
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 
-use normalfit::io::{self, InputFormat, Raster, ReadOptions};
+use normalfit::io::{self, Raster, ReadOptions};
 
 use super::report::Failure;
 
@@ -45,7 +45,6 @@ pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> 
             if p.is_dir() {
                 return Err(Failure::file(p, "is a folder, not an image"));
             }
-            check_extension(p)?;
             io::read_path(p, opts).map_err(fail)
         }
         Input::Stdin => io::decode(&read_stdin()?, opts).map_err(fail),
@@ -96,32 +95,5 @@ impl InputIds {
             Ok(m) if m.is_dir() => Err(Failure::file(output, "is a folder: cannot write the output there")),
             _ => Ok(()),
         }
-    }
-}
-
-/// Refuses a file whose extension names one image format while its first
-/// bytes are another's: in a pipeline that is a mix-up upstream (a file
-/// saved under the wrong name, or a name reused for the wrong output), and
-/// converting it anyway would hide it. Files without an extension, with one
-/// that names no image format, or whose content is not recognised (the
-/// decoder then says what is wrong), and standard input, are read by
-/// content.
-pub fn check_extension(path: &Path) -> Result<(), Failure> {
-    let Some(ext) = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()) else { return Ok(()) };
-    // TGA has no signature to compare with: an extension of .tga says nothing.
-    let Some(named) = InputFormat::from_extension(&ext).filter(|f| f.info().has_signature()) else { return Ok(()) };
-    let mut head = Vec::with_capacity(16);
-    let Ok(file) = std::fs::File::open(path) else { return Ok(()) };
-    if file.take(16).read_to_end(&mut head).is_err() {
-        return Ok(());
-    }
-    match InputFormat::sniff(&head) {
-        Some(found) if found != named => Err(Failure::file(
-            path,
-            format!(
-                "is named .{ext} but its content is {found}: rename it, or pass it on standard input to read it by content"
-            ),
-        )),
-        _ => Ok(()),
     }
 }
