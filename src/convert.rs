@@ -1068,19 +1068,7 @@ fn write_all(writer: &mut dyn Write, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// Whether `a` and `b` are the same file (through links too).
-pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
-    match (std::fs::metadata(a), std::fs::metadata(b)) {
-        #[cfg(unix)]
-        (Ok(a), Ok(b)) => {
-            use std::os::unix::fs::MetadataExt;
-            (a.dev(), a.ino()) == (b.dev(), b.ino())
-        }
-        #[cfg(not(unix))]
-        (Ok(_), Ok(_)) => std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok(),
-        _ => false,
-    }
-}
+pub(crate) use crate::io::same_file;
 
 /// A normal map fitted straight into the output's texel type.
 enum Texels {

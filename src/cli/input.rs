@@ -2,10 +2,9 @@
 //! identities (device, inode) that protect them from being written over.
 
 use std::io::Read;
-use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 
-use normalfit::io::{self, Raster, ReadOptions};
+use normalfit::io::{self, FileId, Raster, ReadOptions};
 
 use super::report::Failure;
 
@@ -76,24 +75,27 @@ pub fn stdin_at_most_once(inputs: &[PathBuf]) -> Result<(), Failure> {
     Ok(())
 }
 
-/// The (device, inode) of every input file, so that no output replaces one,
-/// whether named directly, through a symbolic link or as a hard link.
-pub struct InputIds(Vec<(u64, u64)>);
+/// The identity of every input file (the library's same-file rule,
+/// [`FileId`]), so that no output replaces one, whether named directly,
+/// through a symbolic link or as a hard link.
+pub struct InputIds(Vec<FileId>);
 
 impl InputIds {
     pub fn of(inputs: &[PathBuf]) -> InputIds {
-        InputIds(inputs.iter().filter_map(|p| std::fs::metadata(p).ok()).map(|m| (m.dev(), m.ino())).collect())
+        InputIds(inputs.iter().filter_map(|p| FileId::of(p)).collect())
     }
 
     /// Refuses `output` if it is (or links to) one of the inputs.
     pub fn refuse_overwrite(&self, output: &Path) -> Result<(), Failure> {
-        match std::fs::metadata(output) {
-            Ok(m) if self.0.contains(&(m.dev(), m.ino())) => Err(Failure::file(
+        if FileId::of(output).is_some_and(|id| self.0.contains(&id)) {
+            return Err(Failure::file(
                 output,
                 "is one of the inputs (or a link to one): normalfit never writes over an input",
-            )),
-            Ok(m) if m.is_dir() => Err(Failure::file(output, "is a folder: cannot write the output there")),
-            _ => Ok(()),
+            ));
         }
+        if output.is_dir() {
+            return Err(Failure::file(output, "is a folder: cannot write the output there"));
+        }
+        Ok(())
     }
 }

@@ -14,6 +14,7 @@ mod atomic;
 pub mod encoding;
 #[cfg(feature = "tiff")]
 pub(crate) mod geotiff;
+mod identity;
 mod memory;
 pub mod read;
 pub mod sidecar;
@@ -22,6 +23,7 @@ pub mod write;
 pub use crate::pipeline as stream;
 
 pub use encoding::{Encoding, ExrOptions, OutputFormat, PngDepth, PngOptions};
+pub use identity::{FileId, same_file};
 pub use memory::check_memory;
 pub use read::{
     Affine, ByteOrder, Channel, FormatInfo, Georef, InputFormat, ModelType, PackedElevation, Plane, Raster, RasterType,
