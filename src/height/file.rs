@@ -307,9 +307,10 @@ const EXR_ROWS: usize = 256;
 /// fit's ratios and kept heights (24), the conjugate gradients' vectors
 /// (48, clamp with N ≥ 5), the output's samples (4).
 fn per_texel(options: &HeightOptions, width: usize) -> u64 {
-    let spectra = super::solve::Solver::memory(width, 1, options.borders, options.model);
-    let clamp = options.borders.x == crate::Border::Clamp || options.borders.y == crate::Border::Clamp;
-    let iterative = if clamp && options.patch > 3 { 48 } else { 0 };
-    let orthogonal = if options.fit == crate::Fit::Orthogonal { 24 } else { 0 };
+    let fit = &options.fit;
+    let spectra = super::solve::Solver::memory(width, 1, fit.borders, options.model);
+    let clamp = fit.borders.x == crate::Border::Clamp || fit.borders.y == crate::Border::Clamp;
+    let iterative = if clamp && fit.patch > 3 { 48 } else { 0 };
+    let orthogonal = if fit.fit == crate::Fit::Orthogonal { 24 } else { 0 };
     SlopeField::BYTES_PER_TEXEL + spectra.div_ceil(width.max(1) as u64) + 8 + orthogonal + iterative + 4
 }

@@ -29,7 +29,7 @@ pub(crate) fn exact(
     lambda: f64,
     z: &mut [f64],
 ) -> Result<(usize, bool, f64)> {
-    let solver = Solver::new(w, h, opts.borders, opts.patch, Model::Exact);
+    let solver = Solver::new(w, h, opts.fit.borders, opts.fit.patch, Model::Exact);
     let patch = Patch::new(w, h, opts);
     let mut iterations = 0;
     // One vertical solve: the transform's, else conjugate gradients.
@@ -41,7 +41,7 @@ pub(crate) fn exact(
         }
     };
     let (mut converged, noise_gain) = vertical(slopes, z)?;
-    if opts.fit == Fit::Vertical {
+    if opts.fit.fit == Fit::Vertical {
         return Ok((iterations, converged, noise_gain));
     }
     // The orthogonal fit: vertical slopes g · ρ(z), ρ = (A − λ)/A.
@@ -221,13 +221,13 @@ pub(super) struct Patch {
 
 impl Patch {
     pub(super) fn new(w: usize, h: usize, opts: &HeightOptions) -> Patch {
-        let r = opts.patch / 2;
-        let (bx, by) = (opts.borders.x, opts.borders.y);
+        let r = opts.fit.patch / 2;
+        let (bx, by) = (opts.fit.borders.x, opts.fit.borders.y);
         Patch {
             w,
-            patch: opts.patch,
-            borders: opts.borders,
-            a: (opts.patch * r * (r + 1) * (2 * r + 1)) as f64 / 3.0,
+            patch: opts.fit.patch,
+            borders: opts.fit.borders,
+            a: (opts.fit.patch * r * (r + 1) * (2 * r + 1)) as f64 / 3.0,
             box_x: Lists::correlation(w, bx, r, |_| 1.0),
             ramp_x: Lists::correlation(w, bx, r, |i| i as f64),
             box_y: Lists::correlation(h, by, r, |_| 1.0),
@@ -453,7 +453,7 @@ fn conjugate_gradients(
     let len = z.len();
     let h = len / w;
     // The start: clamp read as a half-sample reflection, exact for N = 3.
-    let start = Solver::nearest(w, h, opts.borders, opts.patch, Model::Exact)
+    let start = Solver::nearest(w, h, opts.fit.borders, opts.fit.patch, Model::Exact)
         .map(|s| s.solve(slopes, lambda, z).map(|st| st.noise_gain))
         .transpose()?
         .unwrap_or(0.0);
@@ -486,8 +486,8 @@ fn conjugate_gradients(
     // the two edge ones twice (the period holds them twice).
     let multiplicity =
         |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
-    let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.borders.x, x)).collect();
-    let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.borders.y, y)).collect();
+    let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.fit.borders.x, x)).collect();
+    let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.fit.borders.y, y)).collect();
     let weigh = |y: usize, rx: &mut [f64], ry: &mut [f64]| {
         for ((gx, gy), m) in rx.iter_mut().zip(ry.iter_mut()).zip(&wx) {
             *gx *= m * wy[y];
