@@ -143,7 +143,8 @@ pub struct HeightOptions {
     /// Exact inverse of the fit, or generic integration. Default: exact.
     pub model: Model,
     /// The step of a stored normal component (2/255 for 8-bit, 2/65535 for
-    /// 16-bit, 0 for exact values). Default: 0.
+    /// 16-bit, 0 for exact values: [`crate::normal_map::Storage::step`]).
+    /// Default: 0.
     pub step: f64,
     /// λ added to every frequency's normal equation; `None`: from
     /// [`step`](Self::step) (q² / texels of the period, q = step/√12).
