@@ -70,6 +70,14 @@ impl Borders {
     }
 }
 
+impl std::fmt::Display for Borders {
+    /// As front ends spell it (`--border`): one mode when both axes have
+    /// it ("wrap"), else x then y ("wrap,clamp").
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.x == self.y { write!(f, "{}", self.x) } else { write!(f, "{},{}", self.x, self.y) }
+    }
+}
+
 /// Which way the normal's green (+Y) component points.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Convention {
@@ -190,9 +198,10 @@ impl Strength {
 }
 
 impl Default for Strength {
-    /// `Scale(1.0)`: the gain of DirectXTex, GIMP's 3×3 filter and Godot.
+    /// `Scale(1.0)` ([`Options::DEFAULT_SCALE`]): the gain of DirectXTex,
+    /// GIMP's 3×3 filter and Godot.
     fn default() -> Self {
-        Strength::Scale(1.0)
+        Strength::Scale(Options::DEFAULT_SCALE)
     }
 }
 
@@ -347,16 +356,22 @@ impl Default for Options {
 }
 
 impl Options {
+    /// The contract's patch size N.
+    pub const DEFAULT_PATCH: usize = 3;
+
+    /// The contract's gain S ([`Strength::Scale`]).
+    pub const DEFAULT_SCALE: f64 = 1.0;
+
     /// The contract's defaults: N = 3, orthogonal fit, wrap on both axes,
     /// OpenGL, scale 1, not inverted.
     #[must_use]
     pub fn new() -> Self {
         Options {
-            patch: 3,
+            patch: Options::DEFAULT_PATCH,
             fit: Fit::Orthogonal,
             borders: Borders::default(),
             convention: Convention::OpenGl,
-            strength: Strength::Scale(1.0),
+            strength: Strength::default(),
             invert: false,
             units: Units::Texels,
             nodata: None,
@@ -521,6 +536,16 @@ mod tests {
             (3, Fit::Orthogonal, Borders::both(Border::Wrap), Convention::OpenGl)
         );
         assert_eq!((o.strength, o.invert), (Strength::Scale(1.0), false));
+        assert_eq!((Options::DEFAULT_PATCH, Options::DEFAULT_SCALE), (3, 1.0));
+        assert_eq!(Strength::default(), Strength::Scale(Options::DEFAULT_SCALE));
+    }
+
+    #[test]
+    fn borders_print_as_front_ends_spell_them() {
+        assert_eq!(Options::default().borders.to_string(), "wrap");
+        assert_eq!(Borders { x: Border::Wrap, y: Border::Clamp }.to_string(), "wrap,clamp");
+        let round_trip: crate::convert::BorderChoices = "mirror,wrap".parse().unwrap();
+        assert_eq!(round_trip.fixed().unwrap().to_string(), "mirror,wrap");
     }
 
     #[test]
