@@ -31,6 +31,18 @@ pub enum Error {
     /// A valid image that normalfit cannot use (a missing channel, a layout
     /// it does not read) or an output it cannot write (8-bit EXR, …).
     Unsupported(String),
+    /// A file whose extension names one image format while its content is
+    /// another's (a PNG named `.exr`): refused rather than read by its
+    /// content, since in a pipeline it is a mix-up upstream
+    /// ([`check_extension`](crate::io::read::formats::check_extension)).
+    /// The same bytes without the name ([`crate::io::decode`], standard
+    /// input) are read by content.
+    Misnamed {
+        /// The file's extension, lower case, without the dot.
+        extension: String,
+        /// The format its content is.
+        content: crate::io::InputFormat,
+    },
     /// The image is larger than the limit set for the read.
     Limits(String),
     /// Encoding the output failed.
@@ -51,6 +63,10 @@ impl fmt::Display for Error {
             }
             Error::Decode(m) => write!(f, "cannot decode: {m}"),
             Error::Unsupported(m) => write!(f, "unsupported: {m}"),
+            Error::Misnamed { extension, content } => write!(
+                f,
+                "is named .{extension} but its content is {content}: rename it, or pass it on standard input to read it by content"
+            ),
             Error::Limits(m) => write!(f, "too large: {m}"),
             Error::Encode(m) => write!(f, "cannot encode: {m}"),
             Error::Io(e) => write!(f, "{}", one_line(&e.to_string())),

@@ -3,14 +3,88 @@
 //!
 //! A normal map stores c = (n + 1)/2 per channel (SPEC §3): integers
 //! divided by their top value, or floats (EXR); a signed float map stores
-//! n itself. [`decode`] undoes either. [`kind_of`] tells the two kinds of
-//! image apart by [`ImageKind::detect`], unless told.
+//! n itself. [`decode`] undoes either; [`Storage`] is that rule for one
+//! stored component, in f64, with the step of its rounding (what the
+//! height inverse reads, from a file or from an array). [`kind_of`] tells
+//! the two kinds of image apart by [`ImageKind::detect`], unless told.
 
 use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::{self, Channel, Raster, ReadOptions, SampleType};
+use crate::samples::{Sample, contract};
 use crate::tiling::{ImageKind, KindChoice};
+
+/// How a normal map's components are stored: integers of `bits` bits hold
+/// c = (n + 1)/2 as c · (2^bits − 1); floats hold (n + 1)/2, or n itself
+/// when `signed` (SPEC §3). What reading them back as normals needs
+/// ([`Storage::normal`]), and the step of their rounding
+/// ([`Storage::step`], the height inverse's
+/// [`HeightOptions::step`](crate::height::HeightOptions::step)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Storage {
+    /// Integers of `bits` bits holding (n + 1)/2.
+    Int {
+        /// Bits per component.
+        bits: u8,
+    },
+    /// Floats of float32's precision or less (float32, half): n itself
+    /// when `signed`, else (n + 1)/2.
+    Float32 {
+        /// They hold n itself.
+        signed: bool,
+    },
+    /// float64, taken as exact: n itself when `signed`, else (n + 1)/2.
+    Float64 {
+        /// They hold n itself.
+        signed: bool,
+    },
+}
+
+impl Storage {
+    /// The components of a decoded file of `sample` type (a file's floats
+    /// are float32 at most, as the readers give them), `signed` when its
+    /// floats hold n itself.
+    ///
+    /// Errors: [`Error::InvalidOption`] for `signed` with integer samples,
+    /// which store (n + 1)/2.
+    pub fn of_file(sample: SampleType, signed: bool) -> Result<Storage> {
+        match sample {
+            SampleType::Float => Ok(Storage::Float32 { signed }),
+            _ if signed => Err(Error::InvalidOption(
+                "signed normal maps are float (EXR); an integer image stores (n + 1)/2".into(),
+            )),
+            SampleType::Int { bits } | SampleType::SignedInt { bits } => Ok(Storage::Int { bits }),
+        }
+    }
+
+    /// The step between neighbouring stored values of a component n:
+    /// 2/(2^bits − 1) for integers (2/255, 2/65535), float32's epsilon,
+    /// 0 for float64 (exact).
+    #[must_use]
+    pub fn step(self) -> f64 {
+        match self {
+            Storage::Int { bits } => 2.0 / ((1u64 << bits.min(63)) - 1) as f64,
+            Storage::Float32 { .. } => f64::from(f32::EPSILON),
+            Storage::Float64 { .. } => 0.0,
+        }
+    }
+
+    /// The normal component n that the stored sample `v` holds (an integer
+    /// as stored, a float as it is): 2c − 1 with c the sample in contract
+    /// units (v / (2^bits − 1) for an integer: [`Sample::UNIT`]), or c
+    /// itself for signed floats.
+    #[inline]
+    #[must_use]
+    pub fn normal<T: Sample>(self, v: T) -> f64 {
+        let c = contract(v);
+        match self {
+            Storage::Float32 { signed: true } | Storage::Float64 { signed: true } => c,
+            _ => 2.0 * c - 1.0,
+        }
+    }
+}
 
 /// The R, G and B planes as stored values in [0, 1] (integers divided by
 /// their top value; floats as they are), when the image has all three.
@@ -52,11 +126,7 @@ pub fn kind_of(raster: &Raster, choice: KindChoice, channel: Option<&Channel>) -
 /// (n + 1)/2; those of [`rgb_planes`].
 pub fn decode(raster: &Raster, signed: bool) -> Result<Vec<[f32; 3]>> {
     let planes = rgb_planes(raster)?.ok_or_else(no_rgb)?;
-    if signed && raster.sample != SampleType::Float {
-        return Err(Error::InvalidOption(
-            "signed normal maps are float (EXR); an integer image stores (n + 1)/2".into(),
-        ));
-    }
+    Storage::of_file(raster.sample, signed)?;
     let stored = |c: f32| if signed { c } else { 2.0 * c - 1.0 };
     let len = raster.width * raster.height;
     let mut normals = crate::samples::try_vec(len)?;
@@ -75,4 +145,36 @@ pub fn read(path: &Path, opts: &ReadOptions, signed: bool) -> Result<(usize, usi
 
 fn no_rgb() -> Error {
     Error::Unsupported("a normal map needs R, G and B channels".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file's sample type gives its storage; the step is 2/(2^bits − 1)
+    /// for integers, float32's epsilon, 0 for float64; a stored component
+    /// reads back as 2c − 1, or c for signed floats.
+    #[test]
+    fn stored_components_read_back_with_their_step() {
+        assert_eq!(Storage::of_file(SampleType::Int { bits: 8 }, false).unwrap(), Storage::Int { bits: 8 });
+        assert_eq!(Storage::of_file(SampleType::SignedInt { bits: 16 }, false).unwrap(), Storage::Int { bits: 16 });
+        assert_eq!(Storage::of_file(SampleType::Float, true).unwrap(), Storage::Float32 { signed: true });
+        let e = Storage::of_file(SampleType::Int { bits: 16 }, true).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "invalid option: signed normal maps are float (EXR); an integer image stores (n + 1)/2"
+        );
+        assert_eq!(Storage::Int { bits: 8 }.step(), 2.0 / 255.0);
+        assert_eq!(Storage::Int { bits: 16 }.step(), 2.0 / 65535.0);
+        assert_eq!(Storage::Int { bits: 32 }.step(), 2.0 / 4294967295.0);
+        assert_eq!(Storage::Float32 { signed: false }.step(), f64::from(f32::EPSILON));
+        assert_eq!(Storage::Float64 { signed: true }.step(), 0.0);
+        let int8 = Storage::Int { bits: 8 };
+        assert_eq!((int8.normal(0u8), int8.normal(255u8)), (-1.0, 1.0));
+        assert_eq!(int8.normal(37u8), 2.0 * (37.0 * (1.0 / 255.0)) - 1.0);
+        assert_eq!(Storage::Int { bits: 16 }.normal(65535u16), 1.0);
+        assert_eq!(Storage::Float32 { signed: false }.normal(0.75f32), 0.5);
+        assert_eq!(Storage::Float32 { signed: true }.normal(-0.25f32), -0.25);
+        assert_eq!(Storage::Float64 { signed: true }.normal(0.1f64), 0.1);
+    }
 }

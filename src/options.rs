@@ -70,6 +70,14 @@ impl Borders {
     }
 }
 
+impl std::fmt::Display for Borders {
+    /// As front ends spell it (`--border`): one mode when both axes have
+    /// it ("wrap"), else x then y ("wrap,clamp").
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.x == self.y { write!(f, "{}", self.x) } else { write!(f, "{},{}", self.x, self.y) }
+    }
+}
+
 /// Which way the normal's green (+Y) component points.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Convention {
@@ -190,9 +198,10 @@ impl Strength {
 }
 
 impl Default for Strength {
-    /// `Scale(1.0)`: the gain of DirectXTex, GIMP's 3×3 filter and Godot.
+    /// `Scale(1.0)` ([`Options::DEFAULT_SCALE`]): the gain of DirectXTex,
+    /// GIMP's 3×3 filter and Godot.
     fn default() -> Self {
-        Strength::Scale(1.0)
+        Strength::Scale(Options::DEFAULT_SCALE)
     }
 }
 
@@ -347,16 +356,22 @@ impl Default for Options {
 }
 
 impl Options {
+    /// The contract's patch size N.
+    pub const DEFAULT_PATCH: usize = 3;
+
+    /// The contract's gain S ([`Strength::Scale`]).
+    pub const DEFAULT_SCALE: f64 = 1.0;
+
     /// The contract's defaults: N = 3, orthogonal fit, wrap on both axes,
     /// OpenGL, scale 1, not inverted.
     #[must_use]
     pub fn new() -> Self {
         Options {
-            patch: 3,
+            patch: Options::DEFAULT_PATCH,
             fit: Fit::Orthogonal,
             borders: Borders::default(),
             convention: Convention::OpenGl,
-            strength: Strength::Scale(1.0),
+            strength: Strength::default(),
             invert: false,
             units: Units::Texels,
             nodata: None,
@@ -452,6 +467,25 @@ impl Options {
 /// keeps a typo (`-n 30001`) from asking for gigabytes of ring buffers.
 pub const MAX_PATCH: usize = 1023;
 
+/// A patch size N as a caller types it (`-n 9`): a whole number that
+/// [`Options::validate`] accepts (odd, at least 3, at most [`MAX_PATCH`]).
+///
+/// Errors: [`Error::InvalidOption`] for text that is not a whole number,
+/// and for a size the fit does not take, naming the rule.
+///
+/// ```
+/// assert_eq!(normalfit::options::parse_patch("9").unwrap(), 9);
+/// assert!(normalfit::options::parse_patch("4").is_err());
+/// ```
+pub fn parse_patch(s: &str) -> Result<usize, Error> {
+    let n: usize =
+        s.parse().map_err(|_| Error::InvalidOption(format!("patch size must be a whole number, got '{s}'")))?;
+    Options::new().with_patch(n).validate().map_err(|_| {
+        Error::InvalidOption(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"))
+    })?;
+    Ok(n)
+}
+
 /// The largest gain accepted: with heights up to ±3.4e38 (f32's range) the
 /// squared sums stay far inside f64's range, so no normal becomes NaN.
 pub const MAX_GAIN: f64 = 1e30;
@@ -502,6 +536,16 @@ mod tests {
             (3, Fit::Orthogonal, Borders::both(Border::Wrap), Convention::OpenGl)
         );
         assert_eq!((o.strength, o.invert), (Strength::Scale(1.0), false));
+        assert_eq!((Options::DEFAULT_PATCH, Options::DEFAULT_SCALE), (3, 1.0));
+        assert_eq!(Strength::default(), Strength::Scale(Options::DEFAULT_SCALE));
+    }
+
+    #[test]
+    fn borders_print_as_front_ends_spell_them() {
+        assert_eq!(Options::default().borders.to_string(), "wrap");
+        assert_eq!(Borders { x: Border::Wrap, y: Border::Clamp }.to_string(), "wrap,clamp");
+        let round_trip: crate::convert::BorderChoices = "mirror,wrap".parse().unwrap();
+        assert_eq!(round_trip.fixed().unwrap().to_string(), "mirror,wrap");
     }
 
     #[test]
@@ -525,6 +569,22 @@ mod tests {
         assert!(Options::new().with_patch(63).validate().is_ok());
         let nan = Options::new().with_strength(Strength::Scale(f64::NAN));
         assert!(nan.validate().is_err());
+    }
+
+    #[test]
+    fn a_patch_size_parses_as_the_fit_takes_it() {
+        for n in [3, 5, 63, MAX_PATCH] {
+            assert_eq!(parse_patch(&n.to_string()).unwrap(), n);
+        }
+        let refused = |s: &str| parse_patch(s).unwrap_err().to_string();
+        let rule = format!("invalid option: patch size must be odd, at least 3 and at most {MAX_PATCH}, got");
+        for n in [0, 1, 2, 4, MAX_PATCH - 1, MAX_PATCH + 2] {
+            assert_eq!(refused(&n.to_string()), format!("{rule} {n}"));
+            assert!(Options::new().with_patch(n).validate().is_err(), "the same rule as validate: {n}");
+        }
+        for s in ["", "3.0", "-3", " 3", "three", "99999999999999999999999"] {
+            assert_eq!(refused(s), format!("invalid option: patch size must be a whole number, got '{s}'"));
+        }
     }
 
     #[test]

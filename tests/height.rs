@@ -46,6 +46,11 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
 }
 
+/// The vertical fit of patch `n` with `borders`.
+fn vertical(n: usize, borders: Borders) -> Options {
+    Options::new().with_fit(Fit::Vertical).with_patch(n).with_borders(borders)
+}
+
 fn demean(v: &[f64]) -> Vec<f64> {
     let mean = v.iter().sum::<f64>() / v.len() as f64;
     v.iter().map(|x| x - mean).collect()
@@ -79,11 +84,13 @@ fn a_single_fourier_mode_comes_back_to_1e_9() {
                             want.push(amp * theta.sin());
                         }
                     }
-                    let opts = HeightOptions::new()
-                        .with_fit(Fit::Vertical)
-                        .with_patch(n)
-                        .with_convention(convention)
-                        .with_strength(Strength::Scale(scale));
+                    let opts = HeightOptions::from_fit(
+                        &Options::new()
+                            .with_fit(Fit::Vertical)
+                            .with_patch(n)
+                            .with_convention(convention)
+                            .with_strength(Strength::Scale(scale)),
+                    );
                     let got = heights(&normals, w, h, &opts).unwrap();
                     let err = max_diff(&got.values, &demean(&want));
                     assert!(err < 1e-9, "{w}×{h} k ({kx}, {ky}) N {n} {convention:?} S {scale}: {err:e}");
@@ -118,8 +125,7 @@ fn a_single_cosine_mode_comes_back_to_1e_9_under_mirror() {
                     want.push(amp * (wx * xf).cos() * (wy * yf).cos());
                 }
             }
-            let opts =
-                HeightOptions::new().with_fit(Fit::Vertical).with_patch(n).with_borders(Borders::both(Border::Mirror));
+            let opts = HeightOptions::from_fit(&vertical(n, Borders::both(Border::Mirror)));
             let got = heights(&normals, w, h, &opts).unwrap();
             let err = max_diff(&got.values, &demean(&want));
             assert!(err < 1e-9, "{w}×{h} k ({kx}, {ky}) N {n}: {err:e}");
@@ -262,7 +268,7 @@ fn the_transforms_match_a_dense_least_squares_solve() {
                     let (gx, gy): (Vec<f64>, Vec<f64>) = (0..len).map(|_| (rng.next(), rng.next())).unzip();
                     let normals: Vec<[f64; 3]> =
                         gx.iter().zip(&gy).map(|(&a, &b)| normal_of(a, b, Convention::OpenGl)).collect();
-                    let opts = HeightOptions::new().with_fit(Fit::Vertical).with_patch(n).with_borders(borders);
+                    let opts = HeightOptions::from_fit(&vertical(n, borders));
                     let got = heights(&normals, w, h, &opts).unwrap();
                     let want = dense_solve(&gx, &gy, w, h, n, borders);
                     let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1.0);
@@ -485,7 +491,8 @@ fn flat_in_is_flat_out() {
         for n in [3, 5] {
             for model in [Model::Exact, Model::Generic] {
                 let flat = vec![[0.0f32, 0.0, 1.0]; 24 * 10];
-                let opts = HeightOptions::new().with_borders(borders).with_patch(n).with_model(model);
+                let fit = Options::new().with_borders(borders).with_patch(n);
+                let opts = HeightOptions::from_fit(&fit).with_model(model);
                 let got = heights(&flat, 24, 10, &opts).unwrap();
                 assert!(got.values.iter().all(|&v| v == 0.0), "{borders:?} N {n} {model:?}");
                 assert_eq!(got.report.range, (0.0, 0.0));
@@ -602,8 +609,9 @@ fn bad_options_and_buffers_are_errors() {
     let n = vec![[0.0f32, 0.0, 1.0]; 12];
     assert!(heights(&n, 4, 4, &HeightOptions::new()).is_err(), "wrong length");
     assert!(heights(&n, 0, 12, &HeightOptions::new()).is_err(), "zero size");
-    assert!(heights(&n, 4, 3, &HeightOptions::new().with_patch(4)).is_err());
-    assert!(heights(&n, 4, 3, &HeightOptions::new().with_strength(Strength::Scale(0.0))).is_err());
+    assert!(heights(&n, 4, 3, &HeightOptions::from_fit(&Options::new().with_patch(4))).is_err());
+    let flat = Options::new().with_strength(Strength::Scale(0.0));
+    assert!(heights(&n, 4, 3, &HeightOptions::from_fit(&flat)).is_err());
     assert!(heights(&n, 4, 3, &HeightOptions::new().with_step(f64::NAN)).is_err());
     assert!("frankot-chellappa".parse::<Model>().unwrap() == Model::Generic);
     assert!("auto".parse::<ConventionChoice>().unwrap() == ConventionChoice::Auto);

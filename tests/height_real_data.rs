@@ -222,7 +222,7 @@ fn real_normal_maps_integrate_to_their_own_heights() {
         let (nw, nh, normals, step) = normal_map(&normal_path);
         assert_eq!((w, h), (nw, nh), "{name}");
         for (label, opts) in [
-            ("exact, N = 3, vertical", HeightOptions::new().with_fit(Fit::Vertical)),
+            ("exact, N = 3, vertical", HeightOptions::from_fit(&Options::new().with_fit(Fit::Vertical))),
             ("exact, N = 3, orthogonal", HeightOptions::new()),
             ("generic (Frankot–Chellappa)", HeightOptions::new().with_model(Model::Generic)),
         ] {

@@ -326,14 +326,25 @@ fn tiff_float_rgb_values_unchanged() {
     assert_eq!(data(&r, "B"), [1000.0, -0.0]);
 }
 
+/// A JPEG named `.png` is refused by its path (the extension names
+/// another format than the content: a mix-up upstream); its bytes, or the
+/// file under a name that names no format, are read by content.
 #[test]
-fn jpeg_named_png_is_read_by_content() {
+fn jpeg_named_png_is_refused_and_its_bytes_read_by_content() {
     let buf = vec![100u8; 16 * 16];
     let bytes = encoded(image::ExtendedColorType::L8, 16, 16, &buf, "jpeg");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("height.png");
     std::fs::write(&path, &bytes).unwrap();
-    let r = read_path(&path, &ReadOptions::default()).unwrap();
+    let e = read_path(&path, &ReadOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, Error::Misnamed { extension, content } if extension == "png" && *content == InputFormat::Jpeg)
+    );
+    assert!(e.to_string().starts_with("is named .png but its content is jpeg: rename it"), "{e}");
+    let unnamed = dir.path().join("height");
+    std::fs::write(&unnamed, &bytes).unwrap();
+    assert_eq!(read_path(&unnamed, &ReadOptions::default()).unwrap(), decode(&bytes, &ReadOptions::default()).unwrap());
+    let r = decode(&bytes, &ReadOptions::default()).unwrap();
     assert_eq!(r.format, InputFormat::Jpeg);
     assert_eq!(r.format.to_string(), "jpeg");
     assert_eq!(names(&r), ["Y"]);

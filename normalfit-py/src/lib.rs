@@ -27,15 +27,16 @@ use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
 use normalfit::fit::{Halo, HaloPlan, Window};
 use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
+use normalfit::inspect;
 use normalfit::io::{
     ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
+use normalfit::normal_map::{self, Storage};
 use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, ImageKind, TilingOptions};
 use normalfit::units::MapSpacing;
 use normalfit::{Border, Convention, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
-use normalfit::{inspect, normal_map};
 use numpy::ndarray::ArrayView2;
 use numpy::{
     Element, PyArray1, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
@@ -906,14 +907,15 @@ fn tiling_report_object(
 }
 
 /// A file API's error. `ValueError` for an option (and for an output the
-/// options cannot make, such as 8-bit EXR), the file named; else `OSError`
+/// options cannot make, such as 8-bit EXR), and for an input whose
+/// extension names another format than its content, the file named; else `OSError`
 /// naming the file: `OSError(errno, message, filename)` when the system
 /// gave an errno (so a missing file is `FileNotFoundError`), else the
 /// library's line after the file's name.
 fn file_error(path: &Path, e: Error, output: bool) -> PyErr {
     let shown = path.display().to_string();
     match &e {
-        Error::InvalidOption(_) => PyValueError::new_err(format!("{shown}: {e}")),
+        Error::InvalidOption(_) | Error::Misnamed { .. } => PyValueError::new_err(format!("{shown}: {e}")),
         Error::Unsupported(_) if output => PyValueError::new_err(format!("{shown}: {e}")),
         Error::Io(io) if io.raw_os_error().is_some() => PyOSError::new_err((io.raw_os_error(), e.to_string(), shown)),
         _ => PyOSError::new_err(format!("{shown}: {e}")),
@@ -989,14 +991,13 @@ fn raw_size(size: &Bound<'_, PyAny>) -> PyResult<(usize, usize)> {
 }
 
 /// `channel=`: a keyword (luma, r, g, b, a) or an OpenEXR channel's name,
-/// resolved per file by the library's rule, as `--channel` is.
+/// as the library takes it (`Channel::named`, as `--channel` is); its
+/// message names the keyword argument.
 fn parse_channel(channel: Option<String>) -> PyResult<Option<Channel>> {
-    match channel {
-        Some(name) if name.is_empty() => Err(PyValueError::new_err(
-            "invalid option: channel: expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name",
-        )),
-        other => Ok(other.map(Channel::Named)),
-    }
+    channel.as_deref().map(Channel::named).transpose().map_err(|e| match e {
+        Error::InvalidOption(m) => PyValueError::new_err(format!("invalid option: channel: {m}")),
+        other => to_py_err(other),
+    })
 }
 
 /// What a conversion did: `normalfit.convert`'s result.
@@ -1199,11 +1200,11 @@ fn check_tiling_file(
 }
 
 /// `height` of an array of normals of component type `T`, read as n by
-/// `to_n` (encoded integers: 2c − 1), `step` the storage's step.
-fn height_typed<T: Element + Copy + Send + Sync>(
+/// the library's rule for their storage (encoded integers: 2c − 1).
+fn height_typed<T: Element + Sample>(
     normals: &Bound<'_, PyUntypedArray>,
     opts: &HeightOptions,
-    to_n: fn(T) -> f64,
+    stored: Storage,
     pool: Option<Borrowed>,
 ) -> PyResult<(Vec<f64>, usize, usize, normalfit::height::HeightReport)> {
     let py = normals.py();
@@ -1218,7 +1219,7 @@ fn height_typed<T: Element + Copy + Send + Sync>(
     py.detach(|| -> Result<_, Error> {
         let row = |y: usize, out: &mut [[f64; 3]]| {
             for (x, o) in out.iter_mut().enumerate() {
-                *o = [to_n(view[[y, x, 0]]), to_n(view[[y, x, 1]]), to_n(view[[y, x, 2]])];
+                *o = [0, 1, 2].map(|c| stored.normal(view[[y, x, c]]));
             }
         };
         let found = on_pool(pool, || heights_of_rows(&row, w, h, opts))?;
@@ -1248,20 +1249,22 @@ fn height<'py>(
     let normals = as_array(normals, "normals", &[3])?;
     let kind = sample_kind(normals, "normals")?;
     let opts = height_options(patch, fit, border, convention, scale, relief, invert, model)?;
-    let stored_step = match kind {
-        SampleKind::U8 => 2.0 / 255.0,
-        SampleKind::U16 => 2.0 / 65535.0,
-        SampleKind::F32 => f64::from(f32::EPSILON),
-        SampleKind::F64 => 0.0,
+    // Integers hold (n + 1)/2, as normals(dtype=...) and PNGs store it;
+    // floats hold n itself, as normals() returns it.
+    let stored = match kind {
+        SampleKind::U8 => Storage::Int { bits: 8 },
+        SampleKind::U16 => Storage::Int { bits: 16 },
+        SampleKind::F32 => Storage::Float32 { signed: true },
+        SampleKind::F64 => Storage::Float64 { signed: true },
     };
-    let opts = opts.with_step(step.unwrap_or(stored_step));
+    let opts = opts.with_step(step.unwrap_or(stored.step()));
     opts.validate().map_err(to_py_err)?;
     let pool = pool(threads)?;
     let (values, w, h, report) = match kind {
-        SampleKind::U8 => height_typed::<u8>(normals, &opts, |c| 2.0 * f64::from(c) / 255.0 - 1.0, pool),
-        SampleKind::U16 => height_typed::<u16>(normals, &opts, |c| 2.0 * f64::from(c) / 65535.0 - 1.0, pool),
-        SampleKind::F32 => height_typed::<f32>(normals, &opts, f64::from, pool),
-        SampleKind::F64 => height_typed::<f64>(normals, &opts, |c| c, pool),
+        SampleKind::U8 => height_typed::<u8>(normals, &opts, stored, pool),
+        SampleKind::U16 => height_typed::<u16>(normals, &opts, stored, pool),
+        SampleKind::F32 => height_typed::<f32>(normals, &opts, stored, pool),
+        SampleKind::F64 => height_typed::<f64>(normals, &opts, stored, pool),
     }?;
     let array = PyArray1::from_vec(py, values).reshape([h, w])?.into_any();
     Ok((array, HeightInfo::from_report(&report, Vec::new(), None, None)))

@@ -116,6 +116,27 @@ def test_convert_errors(tmp_path: Path) -> None:
     assert not (tmp_path / "o.png").exists(), "a failed conversion leaves no output"
 
 
+def test_convert_refuses_an_extension_naming_another_format(tmp_path: Path, cli: Path) -> None:
+    """A file whose extension names another format than its content is
+    refused as the command line refuses it (the library's rule, one
+    message), naming it; with no image extension it is read by content."""
+    misnamed = tmp_path / "rock.exr"
+    misnamed.write_bytes(ROCK.read_bytes())
+    message = "is named .exr but its content is png: rename it"
+    with pytest.raises(ValueError, match=rf"rock\.exr: {message}"):
+        normalfit.convert(misnamed, tmp_path / "o.png")
+    assert not (tmp_path / "o.png").exists()
+    theirs = subprocess.run(
+        [str(cli), "convert", str(misnamed), "-o", str(tmp_path / "c.png")], capture_output=True, text=True, timeout=300
+    )
+    assert theirs.returncode == 2 and f"normalfit: {misnamed}: {message}" in theirs.stderr, theirs.stderr
+    unnamed = tmp_path / "rock"
+    unnamed.write_bytes(ROCK.read_bytes())
+    normalfit.convert(unnamed, tmp_path / "u.png")
+    normalfit.convert(ROCK, tmp_path / "r.png")
+    assert (tmp_path / "u.png").read_bytes() == (tmp_path / "r.png").read_bytes()
+
+
 def test_decode_normals_reads_the_colours_back(tmp_path: Path) -> None:
     out = tmp_path / "n.png"
     normalfit.convert(ROCK, out, bits=16, scale=16.0)

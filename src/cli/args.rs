@@ -3,19 +3,20 @@
 
 use std::fmt;
 use std::path::PathBuf;
+use std::sync::OnceLock;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
-use normalfit::convert::BorderChoices;
-use normalfit::height::{ConventionChoice, Model};
+use normalfit::convert::{BorderChoices, Conversion};
+use normalfit::height::{ConventionChoice, HeightOptions, Model};
 use normalfit::io::{
     Alpha, ByteOrder, Channel, OutputChannels, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
-use normalfit::options::{MAX_PATCH, UnitsName};
-use normalfit::shade::Light;
-use normalfit::tiling::KindChoice;
-use normalfit::{Borders, Convention, Fit};
+use normalfit::options::UnitsName;
+use normalfit::shade::{Light, LitOptions};
+use normalfit::tiling::{KindChoice, TilingOptions};
+use normalfit::{Borders, Convention, Fit, Options};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -66,11 +67,12 @@ pub enum Command {
 pub struct FitArgs {
     /// Patch size N: fit a plane to the N×N texels around each texel (odd, ≥ 3).
     /// Larger patches smooth more; the cost does not grow with N.
-    #[arg(short = 'n', long, value_name = "N", default_value_t = 3, value_parser = parse_patch)]
+    #[arg(short = 'n', long, value_name = "N", default_value_t = Options::DEFAULT_PATCH, value_parser = parse_patch)]
     pub patch: usize,
 
     /// Height gain S: the [0, 1] height range spans S texel widths.
-    #[arg(short, long, value_name = "S", default_value_t = 1.0, value_parser = parse_finite, conflicts_with = "relief")]
+    #[arg(short, long, value_name = "S", default_value_t = Options::DEFAULT_SCALE, value_parser = parse_finite,
+          conflicts_with = "relief")]
     pub scale: f64,
 
     /// Gain relative to the width: S = F × image width, so the look does not
@@ -84,17 +86,17 @@ pub struct FitArgs {
 
     /// Which least-squares plane: perpendicular distances (orthogonal) or
     /// vertical ones.
-    #[arg(long, default_value_t = Fit::Orthogonal, value_parser = named::<Fit>(Fit::ALL))]
+    #[arg(long, default_value_t = Options::default().fit, value_parser = named::<Fit>(Fit::ALL))]
     pub fit: Fit,
 
     /// Border mode, one for both axes or `X,Y`: wrap (tiles), clamp, mirror,
     /// or auto (wrap where the image tiles, mirror where it does not).
-    #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_borders)]
+    #[arg(long, value_name = "MODE[,MODE]", default_value = default_borders(), value_parser = parse_borders)]
     pub border: BorderChoices,
 
     /// Which way the normal maps' green points: up (opengl: glTF, Blender,
     /// Unity) or down (directx: Unreal).
-    #[arg(long, default_value_t = Convention::OpenGl, value_parser = named::<Convention>(Convention::ALL))]
+    #[arg(long, default_value_t = Options::default().convention, value_parser = named::<Convention>(Convention::ALL))]
     pub convention: Convention,
 }
 
@@ -139,7 +141,8 @@ pub struct ConvertArgs {
     /// would shrink by less than a tenth, as 16-bit ones, are stored) or
     /// small (each row's best filter, every row deflated unless that makes
     /// it larger: about 12 % smaller at 8 bits, a little slower).
-    #[arg(long, default_value_t = PngCompression::Fast, value_parser = named::<PngCompression>(PngCompression::NAMED))]
+    #[arg(long, default_value_t = Conversion::default().compression,
+          value_parser = named::<PngCompression>(PngCompression::NAMED))]
     pub compression: PngCompression,
 
     #[command(flatten)]
@@ -180,13 +183,13 @@ pub struct ChannelsArgs {
     /// Alpha channel: none (RGB), height (the input height, for parallax
     /// mapping: integer inputs in [0, 1], float ones as stored, clamped to
     /// [0, 1] in PNG), or one (opaque).
-    #[arg(long, default_value_t = Alpha::None, value_parser = named::<Alpha>(Alpha::ALL))]
+    #[arg(long, default_value_t = Alpha::default(), value_parser = named::<Alpha>(Alpha::ALL))]
     pub alpha: Alpha,
 
     /// rgb, or rg for two-channel (BC5) pipelines whose shader rebuilds z:
     /// EXR gets channels R and G only; PNG stays RGB with B = 0, which BC5
     /// encoders ignore.
-    #[arg(long, default_value_t = OutputChannels::Rgb, value_parser = named::<OutputChannels>(OutputChannels::ALL))]
+    #[arg(long, default_value_t = OutputChannels::default(), value_parser = named::<OutputChannels>(OutputChannels::ALL))]
     pub channels: OutputChannels,
 
     /// Also write the fit's residual: per texel, the root-mean-square
@@ -278,7 +281,7 @@ pub struct ShadeArgs {
     pub tile: bool,
 
     /// What the inputs hold; auto decides from the pixels (as `tiling` does).
-    #[arg(long, default_value_t = KindChoice::Auto, value_parser = named::<KindChoice>(KindChoice::ALL))]
+    #[arg(long, default_value_t = LitOptions::default().kind, value_parser = named::<KindChoice>(KindChoice::ALL))]
     pub kind: KindChoice,
 
     /// Channel of a height map that holds the height: luma, r, g, b, a, or
@@ -333,7 +336,7 @@ pub struct HeightArgs {
     /// exact: the inverse of normalfit's fit (its N, fit and borders), for
     /// maps normalfit made; generic: Frankot–Chellappa integration, for
     /// maps of other origin (bakes, scans) or unknown N.
-    #[arg(long, default_value_t = Model::Exact, value_parser = named::<Model>(Model::ALL))]
+    #[arg(long, default_value_t = HeightOptions::default().model, value_parser = named::<Model>(Model::ALL))]
     pub model: Model,
 
     /// Float (EXR) normal maps hold n in [−1, 1], not (n + 1)/2.
@@ -341,12 +344,13 @@ pub struct HeightArgs {
     pub signed: bool,
 
     /// Patch size N the normal map was fitted with (odd, ≥ 3).
-    #[arg(short = 'n', long, value_name = "N", default_value_t = 3, value_parser = parse_patch)]
+    #[arg(short = 'n', long, value_name = "N", default_value_t = Options::DEFAULT_PATCH, value_parser = parse_patch)]
     pub patch: usize,
 
     /// Height gain S the normal map was made with; heights come back in its
     /// units.
-    #[arg(short, long, value_name = "S", default_value_t = 1.0, value_parser = parse_finite, conflicts_with = "relief")]
+    #[arg(short, long, value_name = "S", default_value_t = Options::DEFAULT_SCALE, value_parser = parse_finite,
+          conflicts_with = "relief")]
     pub scale: f64,
 
     /// Gain relative to the width: S = F × image width.
@@ -358,17 +362,18 @@ pub struct HeightArgs {
     pub invert: bool,
 
     /// The fit the normal map was made with.
-    #[arg(long, default_value_t = Fit::Orthogonal, value_parser = named::<Fit>(Fit::ALL))]
+    #[arg(long, default_value_t = Options::default().fit, value_parser = named::<Fit>(Fit::ALL))]
     pub fit: Fit,
 
     /// Border mode the normal map was made with, one for both axes or `X,Y`:
     /// wrap, clamp or mirror.
-    #[arg(long, value_name = "MODE[,MODE]", default_value = "wrap", value_parser = parse_fixed_borders)]
+    #[arg(long, value_name = "MODE[,MODE]", default_value = default_borders(), value_parser = parse_fixed_borders)]
     pub border: Borders,
 
     /// Which way the map's green points: opengl (up), directx (down), or
     /// auto (the one whose slopes are more nearly integrable; printed).
-    #[arg(long, default_value_t = ConventionChoice::OpenGl, value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
+    #[arg(long, default_value_t = HeightOptions::default().convention(),
+          value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
     pub convention: ConventionChoice,
 
     #[command(flatten)]
@@ -412,7 +417,7 @@ pub struct TilingArgs {
     pub threshold: Option<f64>,
 
     /// What the images hold; auto decides from the pixels.
-    #[arg(long, default_value_t = KindChoice::Auto, value_parser = named::<KindChoice>(KindChoice::ALL))]
+    #[arg(long, default_value_t = TilingOptions::default().kind, value_parser = named::<KindChoice>(KindChoice::ALL))]
     pub kind: KindChoice,
 
     /// Channel of a height map that holds the height: luma, r, g, b, a, or
@@ -548,7 +553,7 @@ pub struct UnitsArgs {
     /// metres, texels as far apart as the GeoTIFF's pixel size says, in
     /// metres at each row's latitude for degrees: a texel's slope is the
     /// terrain's, times S).
-    #[arg(long, default_value_t = UnitsName::Texels, value_parser = named::<UnitsName>(UnitsName::ALL))]
+    #[arg(long, default_value_t = UnitsName::default(), value_parser = named::<UnitsName>(UnitsName::ALL))]
     pub units: UnitsName,
 
     /// Map units with this pixel size, X or X,Y (column to column, row to
@@ -592,12 +597,9 @@ impl ReadArgs {
     }
 }
 
+/// `-n N`, as the library parses and checks it.
 fn parse_patch(s: &str) -> Result<usize, String> {
-    let n: usize = s.parse().map_err(|_| format!("patch size must be a whole number, got '{s}'"))?;
-    if n < 3 || n.is_multiple_of(2) || n > MAX_PATCH {
-        return Err(format!("patch size must be odd, at least 3 and at most {MAX_PATCH}, got {n}"));
-    }
-    Ok(n)
+    normalfit::options::parse_patch(s).map_err(|e| library_message(&e))
 }
 
 fn parse_suffix(s: &str) -> Result<String, String> {
@@ -625,13 +627,10 @@ fn parse_bits(s: &str) -> Result<u8, String> {
     }
 }
 
-/// `--channel`: a keyword or an EXR channel's name, resolved per file by
-/// the library's rule (exact name first, then the keywords in any case).
+/// `--channel`: a keyword or an EXR channel's name, as the library takes
+/// it (resolved per file: exact name first, then the keywords in any case).
 fn parse_channel(s: &str) -> Result<Channel, String> {
-    if s.is_empty() {
-        return Err("expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name".into());
-    }
-    Ok(Channel::Named(s.to_string()))
+    Channel::named(s).map_err(|e| library_message(&e))
 }
 
 fn parse_finite(s: &str) -> Result<f64, String> {
@@ -639,6 +638,12 @@ fn parse_finite(s: &str) -> Result<f64, String> {
         Ok(v) if v.is_finite() => Ok(v),
         _ => Err(format!("expected a finite number, got '{s}'")),
     }
+}
+
+/// The fit's default borders as `--border` spells them ("wrap").
+fn default_borders() -> &'static str {
+    static NAME: OnceLock<String> = OnceLock::new();
+    NAME.get_or_init(|| Options::default().borders.to_string())
 }
 
 /// `--border` of `height`: fixed modes only (the map was made with them).

@@ -13,7 +13,7 @@ use normalfit::io::{Layout, OutputFormat};
 use super::args::{ConvertArgs, library_message};
 use super::batch::{Batch, Job, Outcome, RESIDUAL_SUFFIX, Turn, Words};
 use super::fitting;
-use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
+use super::input::{Input, read_stdin, stdin_at_most_once};
 use super::output::Destination;
 use super::report::Failure;
 
@@ -89,10 +89,7 @@ impl Plan {
         let input = &job.input;
         let open = |source| self.conversion.open(source).map_err(|e| Failure::file(input.name(), e));
         let opened = match input {
-            Input::File(path) => {
-                check_extension(path)?;
-                open(convert::Input::Path(path))?
-            }
+            Input::File(path) => open(convert::Input::Path(path))?,
             // Decoded whole: the encoded bytes go once decoded.
             Input::Stdin => open(convert::Input::Bytes(&read_stdin()?))?,
         };

@@ -6,14 +6,14 @@
 
 use std::path::Path;
 
-use normalfit::Border;
 use normalfit::convert::{self, Output, Place};
 use normalfit::height::HeightOptions;
 use normalfit::height::file::{HeightConversion, HeightSummary};
+use normalfit::{Border, Options};
 
 use super::args::HeightArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
-use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
+use super::input::{Input, read_stdin, stdin_at_most_once};
 use super::output::Destination;
 use super::report::{Failure, print_line, warn};
 
@@ -33,14 +33,13 @@ struct Plan<'a> {
 /// Turns every input (files, the images of folders, standard input) into
 /// heights; returns the failures (already reported).
 pub fn run(args: &HeightArgs) -> Result<usize, Failure> {
-    let options = HeightOptions::new()
+    let fit = Options::new()
         .with_patch(args.patch)
         .with_fit(args.fit)
         .with_borders(args.border)
-        .with_convention(args.convention)
         .with_strength(super::fitting::strength(args.scale, args.relief))
-        .with_invert(args.invert)
-        .with_model(args.model);
+        .with_invert(args.invert);
+    let options = HeightOptions::from_fit(&fit).with_convention(args.convention).with_model(args.model);
     options.validate().map_err(|e| Failure::usage(e.to_string()))?;
     stdin_at_most_once(&args.inputs)?;
     let words = Words { done: "converted", purpose: "to turn into heights" };
@@ -84,7 +83,6 @@ impl Plan<'_> {
                 if path.is_dir() {
                     return Err(Failure::file(path, "is a folder, not an image"));
                 }
-                check_extension(path)?;
                 convert::Input::Path(path)
             }
             Input::Stdin => {

@@ -2,10 +2,9 @@
 //! identities (device, inode) that protect them from being written over.
 
 use std::io::Read;
-use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 
-use normalfit::io::{self, InputFormat, Raster, ReadOptions};
+use normalfit::io::{self, FileId, Raster, ReadOptions};
 
 use super::report::Failure;
 
@@ -45,7 +44,6 @@ pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> 
             if p.is_dir() {
                 return Err(Failure::file(p, "is a folder, not an image"));
             }
-            check_extension(p)?;
             io::read_path(p, opts).map_err(fail)
         }
         Input::Stdin => io::decode(&read_stdin()?, opts).map_err(fail),
@@ -77,51 +75,27 @@ pub fn stdin_at_most_once(inputs: &[PathBuf]) -> Result<(), Failure> {
     Ok(())
 }
 
-/// The (device, inode) of every input file, so that no output replaces one,
-/// whether named directly, through a symbolic link or as a hard link.
-pub struct InputIds(Vec<(u64, u64)>);
+/// The identity of every input file (the library's same-file rule,
+/// [`FileId`]), so that no output replaces one, whether named directly,
+/// through a symbolic link or as a hard link.
+pub struct InputIds(Vec<FileId>);
 
 impl InputIds {
     pub fn of(inputs: &[PathBuf]) -> InputIds {
-        InputIds(inputs.iter().filter_map(|p| std::fs::metadata(p).ok()).map(|m| (m.dev(), m.ino())).collect())
+        InputIds(inputs.iter().filter_map(|p| FileId::of(p)).collect())
     }
 
     /// Refuses `output` if it is (or links to) one of the inputs.
     pub fn refuse_overwrite(&self, output: &Path) -> Result<(), Failure> {
-        match std::fs::metadata(output) {
-            Ok(m) if self.0.contains(&(m.dev(), m.ino())) => Err(Failure::file(
+        if FileId::of(output).is_some_and(|id| self.0.contains(&id)) {
+            return Err(Failure::file(
                 output,
                 "is one of the inputs (or a link to one): normalfit never writes over an input",
-            )),
-            Ok(m) if m.is_dir() => Err(Failure::file(output, "is a folder: cannot write the output there")),
-            _ => Ok(()),
+            ));
         }
-    }
-}
-
-/// Refuses a file whose extension names one image format while its first
-/// bytes are another's: in a pipeline that is a mix-up upstream (a file
-/// saved under the wrong name, or a name reused for the wrong output), and
-/// converting it anyway would hide it. Files without an extension, with one
-/// that names no image format, or whose content is not recognised (the
-/// decoder then says what is wrong), and standard input, are read by
-/// content.
-pub fn check_extension(path: &Path) -> Result<(), Failure> {
-    let Some(ext) = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()) else { return Ok(()) };
-    // TGA has no signature to compare with: an extension of .tga says nothing.
-    let Some(named) = InputFormat::from_extension(&ext).filter(|f| f.info().has_signature()) else { return Ok(()) };
-    let mut head = Vec::with_capacity(16);
-    let Ok(file) = std::fs::File::open(path) else { return Ok(()) };
-    if file.take(16).read_to_end(&mut head).is_err() {
-        return Ok(());
-    }
-    match InputFormat::sniff(&head) {
-        Some(found) if found != named => Err(Failure::file(
-            path,
-            format!(
-                "is named .{ext} but its content is {found}: rename it, or pass it on standard input to read it by content"
-            ),
-        )),
-        _ => Ok(()),
+        if output.is_dir() {
+            return Err(Failure::file(output, "is a folder: cannot write the output there"));
+        }
+        Ok(())
     }
 }

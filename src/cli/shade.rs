@@ -14,7 +14,7 @@ use normalfit::units::MapSpacing;
 use super::args::ShadeArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::fitting;
-use super::input::{Input, check_extension, read_stdin, stdin_at_most_once};
+use super::input::{Input, read_stdin, stdin_at_most_once};
 use super::output::Destination;
 use super::report::Failure;
 
@@ -76,7 +76,6 @@ impl Plan {
                 if path.is_dir() {
                     return Err(Failure::file(path, "is a folder, not an image"));
                 }
-                check_extension(path)?;
                 convert::Input::Path(path)
             }
             Input::Stdin => {

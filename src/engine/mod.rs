@@ -42,7 +42,7 @@ use crate::units::MapSpacing;
 use crate::{Borders, Options};
 
 pub use self::sink::Output;
-pub(crate) use self::sink::{same_file, write_to};
+pub(crate) use self::sink::write_to;
 pub use self::source::{Input, Source, read_all};
 
 /// Which file an error concerns.

@@ -70,20 +70,6 @@ pub(crate) fn write_all(writer: &mut dyn Write, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// Whether `a` and `b` are the same file (through links too).
-pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
-    match (std::fs::metadata(a), std::fs::metadata(b)) {
-        #[cfg(unix)]
-        (Ok(a), Ok(b)) => {
-            use std::os::unix::fs::MetadataExt;
-            (a.dev(), a.ino()) == (b.dev(), b.ino())
-        }
-        #[cfg(not(unix))]
-        (Ok(_), Ok(_)) => std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok(),
-        _ => false,
-    }
-}
-
 /// A normal map fitted straight into the output's texel type.
 pub(crate) enum Texels {
     Eight(Vec<[u8; 3]>),
@@ -315,7 +301,7 @@ impl Seek for InMemory {
 pub(crate) fn prepare(output: &Output<'_>, input: Option<&Path>) -> Result<()> {
     let Output::File { path, create_folder } = *output else { return Ok(()) };
     if let Some(input) = input
-        && same_file(input, path)
+        && io::same_file(input, path)
     {
         return Err(Error::InvalidOption(
             "the output is the input (or a link to it): normalfit never writes over an input".into(),

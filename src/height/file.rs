@@ -1,7 +1,7 @@
 //! A normal map file to a height map file in one call, as `normalfit
 //! height` does: the normals read back from the file's R, G and B (c =
 //! (n + 1)/2, or n for a signed float map), the step of their storage
-//! taken for the quantisation, the heights written as an EXR of float
+//! taken for the quantisation (both [`Storage`]'s rule), the heights written as an EXR of float
 //! heights (channel Y, mean 0, units of the gain) or a 16-bit gray PNG
 //! normalised to [0, 1] with the range in the summary. Outputs appear
 //! whole or not at all and never replace the input. Nothing prints:
@@ -24,6 +24,7 @@ use std::path::Path;
 use crate::convert::{ConvertError, Input, Output, Place};
 use crate::error::{Error, Result};
 use crate::io::{self, ExrDepth, InputFormat, OutputFormat, PngDepth, PngOptions, ReadOptions, SampleType};
+use crate::normal_map::Storage;
 use crate::samples::{Samples, try_vec, with_slice};
 
 use super::{HeightOptions, HeightReport, SlopeField, heights_of_slopes};
@@ -179,7 +180,7 @@ impl HeightConversion {
         let format = self.output_format(path).map_err(fail_out)?;
         self.options.validate().map_err(fail_in)?;
         if let (Input::Path(input), Output::File { path, .. }) = (&input, &output)
-            && crate::engine::same_file(input, path)
+            && crate::io::same_file(input, path)
         {
             return Err(fail_out(Error::InvalidOption(
                 "the output is the input (or a link to it): normalfit never writes over an input".into(),
@@ -196,27 +197,19 @@ impl HeightConversion {
             (Some(r), Some(g), Some(b)) => [&r.data, &g.data, &b.data],
             _ => return Err(fail_in(Error::Unsupported("a normal map needs R, G and B channels".into()))),
         };
-        if self.signed && raster.sample != SampleType::Float {
-            return Err(fail_in(Error::InvalidOption(
-                "signed normal maps are float (EXR); an integer image stores (n + 1)/2".into(),
-            )));
-        }
-        let (step, bits) = match raster.sample {
-            SampleType::Int { bits } | SampleType::SignedInt { bits } => {
-                (2.0 / ((1u64 << bits.min(63)) - 1) as f64, Some(bits))
-            }
-            SampleType::Float => (f64::from(f32::EPSILON), None),
+        let stored = Storage::of_file(raster.sample, self.signed).map_err(fail_in)?;
+        let bits = match stored {
+            Storage::Int { bits } => Some(bits),
+            _ => None,
         };
-        let options = HeightOptions { step: self.step.unwrap_or(step), ..self.options.clone() };
+        let options = HeightOptions { step: self.step.unwrap_or(stored.step()), ..self.options.clone() };
         let texels = (w as u64).saturating_mul(h as u64);
         io::check_memory("finding the heights", texels.saturating_mul(per_texel(&options, w))).map_err(fail_in)?;
-        let signed = self.signed;
         let row = |y: usize, out: &mut [[f64; 3]]| {
             for (c, plane) in planes.iter().enumerate() {
                 with_slice!(plane, s => {
                     for (o, &v) in out.iter_mut().zip(&s[y * w..][..w]) {
-                        let stored = crate::samples::contract(v);
-                        o[c] = if signed { stored } else { 2.0 * stored - 1.0 };
+                        o[c] = stored.normal(v);
                     }
                 });
             }
@@ -307,9 +300,10 @@ const EXR_ROWS: usize = 256;
 /// fit's ratios and kept heights (24), the conjugate gradients' vectors
 /// (48, clamp with N ≥ 5), the output's samples (4).
 fn per_texel(options: &HeightOptions, width: usize) -> u64 {
-    let spectra = super::solve::Solver::memory(width, 1, options.borders, options.model);
-    let clamp = options.borders.x == crate::Border::Clamp || options.borders.y == crate::Border::Clamp;
-    let iterative = if clamp && options.patch > 3 { 48 } else { 0 };
-    let orthogonal = if options.fit == crate::Fit::Orthogonal { 24 } else { 0 };
+    let fit = &options.fit;
+    let spectra = super::solve::Solver::memory(width, 1, fit.borders, options.model);
+    let clamp = fit.borders.x == crate::Border::Clamp || fit.borders.y == crate::Border::Clamp;
+    let iterative = if clamp && fit.patch > 3 { 48 } else { 0 };
+    let orthogonal = if fit.fit == crate::Fit::Orthogonal { 24 } else { 0 };
     SlopeField::BYTES_PER_TEXEL + spectra.div_ceil(width.max(1) as u64) + 8 + orthogonal + iterative + 4
 }

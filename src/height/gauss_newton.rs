@@ -551,7 +551,7 @@ mod tests {
                     }
                 };
                 let patch = Patch::new(w, h, &opts);
-                let solver = Solver::new(w, h, opts.borders, n, Model::Exact).unwrap();
+                let solver = Solver::new(w, h, opts.fit.borders, n, Model::Exact).unwrap();
                 let p = Problem::new(&patch, &solver, &given, 0.0, h);
                 let (mut lin, mut r) = (linear(len), vec![[0.0; 2]; len]);
                 let cost = p.linearise(&zs, Some((&mut lin, &mut r)));

@@ -30,7 +30,7 @@ pub(crate) fn exact(
     lambda: f64,
     z: &mut [f64],
 ) -> Result<(usize, bool, f64)> {
-    let solver = Solver::new(w, h, opts.borders, opts.patch, Model::Exact);
+    let solver = Solver::new(w, h, opts.fit.borders, opts.fit.patch, Model::Exact);
     let patch = Patch::new(w, h, opts);
     let mut iterations = 0;
     // One vertical solve: the transform's, else conjugate gradients.
@@ -42,7 +42,7 @@ pub(crate) fn exact(
         }
     };
     let (mut converged, noise_gain) = vertical(slopes, z)?;
-    if opts.fit == Fit::Vertical {
+    if opts.fit.fit == Fit::Vertical {
         return Ok((iterations, converged, noise_gain));
     }
     // The orthogonal fit: vertical slopes g · ρ(z), ρ = (A − λ)/A.
@@ -372,7 +372,7 @@ fn conjugate_gradients(
     let len = z.len();
     let h = len / w;
     // The start: clamp read as a half-sample reflection, exact for N = 3.
-    let start = Solver::nearest(w, h, opts.borders, opts.patch, Model::Exact)
+    let start = Solver::nearest(w, h, opts.fit.borders, opts.fit.patch, Model::Exact)
         .map(|s| s.solve(slopes, lambda, z).map(|st| st.noise_gain))
         .transpose()?
         .unwrap_or(0.0);
@@ -405,8 +405,8 @@ fn conjugate_gradients(
     // the two edge ones twice (the period holds them twice).
     let multiplicity =
         |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
-    let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.borders.x, x)).collect();
-    let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.borders.y, y)).collect();
+    let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.fit.borders.x, x)).collect();
+    let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.fit.borders.y, y)).collect();
     let weigh = |y: usize, rx: &mut [f64], ry: &mut [f64]| {
         for ((gx, gy), m) in rx.iter_mut().zip(ry.iter_mut()).zip(&wx) {
             *gx *= m * wy[y];

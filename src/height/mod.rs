@@ -40,8 +40,9 @@
 //! (`gauss_newton.rs`), preconditioned by the vertical fit's transform
 //! solve; [`HeightReport::converged`] says whether the heights settled.
 //!
-//! Heights come back as h = z / S, S the gain of [`HeightOptions::strength`]
-//! (with [`HeightOptions::invert`]), with mean 0 over the image: `convert
+//! Heights come back as h = z / S, S the gain of the fit's
+//! [`Options::strength`](crate::Options::strength) (with its `invert`,
+//! [`HeightOptions::fit`]), with mean 0 over the image: `convert
 //! -s S` then `height -s S` gives the heights back up to a constant.
 //!
 //! # Texels without a slope
@@ -73,7 +74,7 @@ mod patch;
 mod solve;
 
 use crate::error::{Error, Result};
-use crate::options::{Border, Borders, Convention, Fit, Strength, named_values};
+use crate::options::{Border, Borders, Convention, Strength, named_values};
 use crate::par::prelude::*;
 use crate::samples::try_filled;
 
@@ -124,29 +125,27 @@ impl From<Convention> for ConventionChoice {
     }
 }
 
-/// Everything [`heights`] needs besides the normals. The fit's fields mean
-/// what they mean in [`crate::Options`], and must be those the normal map
-/// was made with for the exact inverse.
+/// Everything [`heights`] needs besides the normals: the fit the normal
+/// map was made with, and the solve's own options.
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct HeightOptions {
-    /// Patch size N (odd, ≥ 3). Default: 3.
-    pub patch: usize,
-    /// The fit the normals came from. Default: orthogonal.
-    pub fit: Fit,
-    /// Border modes. Default: wrap on both axes.
-    pub borders: Borders,
-    /// The green convention, or auto. Default: OpenGL.
-    pub convention: ConventionChoice,
-    /// The gain the normals were made with; heights come back in its
-    /// units. Default: `Scale(1.0)`.
-    pub strength: Strength,
-    /// The gain was negated (heights were depths). Default: false.
-    pub invert: bool,
+    /// The fit the normal map was made with, as [`crate::normals`] takes
+    /// it: its patch size N, fit, borders, green convention, gain and
+    /// invert must be those of the map for the exact inverse, and heights
+    /// come back in the units of its gain. Its units and nodata are not
+    /// used ([`HeightOptions::from_fit`] leaves them out). Default: the
+    /// fit's defaults (3×3, orthogonal, wrap, OpenGL, scale 1).
+    pub fit: crate::Options,
+    /// Choose the green convention from the map instead of taking
+    /// `fit`'s: the one whose slope field is more nearly integrable
+    /// ([`ConventionChoice::Auto`]). Default: false.
+    pub auto_convention: bool,
     /// Exact inverse of the fit, or generic integration. Default: exact.
     pub model: Model,
     /// The step of a stored normal component (2/255 for 8-bit, 2/65535 for
-    /// 16-bit, 0 for exact values). Default: 0.
+    /// 16-bit, 0 for exact values: [`crate::normal_map::Storage::step`]).
+    /// Default: 0.
     pub step: f64,
     /// λ added to every frequency's normal equation; `None`: from
     /// [`step`](Self::step) (q² / texels of the period, q = step/√12).
@@ -171,13 +170,17 @@ impl HeightOptions {
     /// the exact model, exact input.
     #[must_use]
     pub fn new() -> Self {
+        HeightOptions::from_fit(&crate::Options::new())
+    }
+
+    /// The inverse of the fit `fit`: its patch, fit, borders, convention,
+    /// gain and invert as they are there (not its units or nodata), with
+    /// the solve's defaults (the exact model, exact input).
+    #[must_use]
+    pub fn from_fit(fit: &crate::Options) -> Self {
         HeightOptions {
-            patch: 3,
-            fit: Fit::Orthogonal,
-            borders: Borders::default(),
-            convention: ConventionChoice::OpenGl,
-            strength: Strength::Scale(1.0),
-            invert: false,
+            fit: fit.clone().with_units(crate::Units::Texels).with_nodata(None),
+            auto_convention: false,
             model: Model::Exact,
             step: 0.0,
             regularisation: None,
@@ -186,55 +189,20 @@ impl HeightOptions {
         }
     }
 
-    /// The fit's options of a conversion: patch, fit, borders, convention,
-    /// gain and invert as they are there.
+    /// The green convention: the fit's, or auto.
     #[must_use]
-    pub fn from_fit(fit: &crate::Options) -> Self {
-        HeightOptions {
-            patch: fit.patch,
-            fit: fit.fit,
-            borders: fit.borders,
-            convention: fit.convention.into(),
-            strength: fit.strength,
-            invert: fit.invert,
-            ..HeightOptions::new()
-        }
+    pub fn convention(&self) -> ConventionChoice {
+        if self.auto_convention { ConventionChoice::Auto } else { self.fit.convention.into() }
     }
 
-    /// Sets N.
-    #[must_use]
-    pub fn with_patch(mut self, n: usize) -> Self {
-        self.patch = n;
-        self
-    }
-    /// Sets the fit.
-    #[must_use]
-    pub fn with_fit(mut self, fit: Fit) -> Self {
-        self.fit = fit;
-        self
-    }
-    /// Sets the borders.
-    #[must_use]
-    pub fn with_borders(mut self, borders: Borders) -> Self {
-        self.borders = borders;
-        self
-    }
-    /// Sets the convention (or auto).
+    /// Sets the convention (the fit's), or auto.
     #[must_use]
     pub fn with_convention(mut self, convention: impl Into<ConventionChoice>) -> Self {
-        self.convention = convention.into();
-        self
-    }
-    /// Sets the gain.
-    #[must_use]
-    pub fn with_strength(mut self, strength: Strength) -> Self {
-        self.strength = strength;
-        self
-    }
-    /// Sets invert.
-    #[must_use]
-    pub fn with_invert(mut self, invert: bool) -> Self {
-        self.invert = invert;
+        match convention.into() {
+            ConventionChoice::Auto => self.auto_convention = true,
+            ConventionChoice::OpenGl => (self.fit.convention, self.auto_convention) = (Convention::OpenGl, false),
+            ConventionChoice::DirectX => (self.fit.convention, self.auto_convention) = (Convention::DirectX, false),
+        }
         self
     }
     /// Sets the model.
@@ -259,27 +227,17 @@ impl HeightOptions {
     /// The gain S for an image `width` texels wide, sign included.
     #[must_use]
     pub fn scale_for_width(&self, width: usize) -> f64 {
-        self.fit_options(Convention::OpenGl).scale_for_width(width)
+        self.fit.scale_for_width(width)
     }
 
-    /// The forward fit's options with `convention`.
-    #[must_use]
-    pub fn fit_options(&self, convention: Convention) -> crate::Options {
-        crate::Options::new()
-            .with_patch(self.patch)
-            .with_fit(self.fit)
-            .with_borders(self.borders)
-            .with_convention(convention)
-            .with_strength(self.strength)
-            .with_invert(self.invert)
-    }
-
-    /// Checks the options on their own.
+    /// Checks the options on their own: the fit's as
+    /// [`Options::validate`](crate::Options::validate) does, then the
+    /// solve's.
     ///
     /// Errors: [`Error::InvalidOption`] naming the field.
     pub fn validate(&self) -> Result<()> {
-        self.fit_options(Convention::OpenGl).validate()?;
-        let gain = match self.strength {
+        self.fit.validate()?;
+        let gain = match self.fit.strength {
             Strength::Scale(s) | Strength::Relief(s) => s,
         };
         if gain == 0.0 {
@@ -485,7 +443,7 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
     opts.validate()?;
     let (width, height) = (field.width, field.height);
     let len = width * height;
-    let (convention, curl) = match opts.convention {
+    let (convention, curl) = match opts.convention() {
         ConventionChoice::OpenGl => (Convention::OpenGl, None),
         ConventionChoice::DirectX => (Convention::DirectX, None),
         ConventionChoice::Auto => {
@@ -499,14 +457,14 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
     // The slopes of row y: gx = −nx/nz, gy = −σ ny/nz; 0 where there is none.
     let slopes = |y: usize, gx: &mut [f64], gy: &mut [f64]| field.row(y, sigma, gx, gy);
 
-    let periods = period_texels(width, height, opts.borders);
+    let periods = period_texels(width, height, opts.fit.borders);
     let q = opts.step / 12f64.sqrt();
     let lambda = opts.regularisation.unwrap_or(q * q / periods);
     let mut z = try_filled(len, 0.0)?;
     let (iterations, converged, noise_gain) = match opts.model {
         Model::Generic => {
             // Frankot–Chellappa knows no clamp: its nearest transform is mirror's.
-            let borders = Borders { x: generic_border(opts.borders.x), y: generic_border(opts.borders.y) };
+            let borders = Borders { x: generic_border(opts.fit.borders.x), y: generic_border(opts.fit.borders.y) };
             let solver = solve::Solver::new(width, height, borders, 3, Model::Generic)
                 .ok_or_else(|| Error::InvalidOption("no transform for these borders".into()))?;
             let stats = solver.solve(&slopes, lambda, &mut z)?;
@@ -597,4 +555,41 @@ fn curl(field: &SlopeField) -> [f64; 2] {
         .collect();
     let total = per_row.iter().fold([0.0; 3], |a, r| [a[0] + r[0], a[1] + r[1], a[2] + r[2]]);
     if total[2] > 0.0 { [total[0] / total[2], total[1] / total[2]] } else { [0.0, 0.0] }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Fit, Options, Units};
+
+    /// The height options hold the fit's own options: the inverse of a
+    /// fit is made from them, without its units and nodata; the
+    /// convention is the fit's unless auto.
+    #[test]
+    fn the_height_options_hold_the_fits() {
+        assert_eq!(HeightOptions::new().fit, Options::default());
+        assert_eq!(HeightOptions::default().convention(), ConventionChoice::OpenGl);
+        let fit = Options::new()
+            .with_patch(7)
+            .with_fit(Fit::Vertical)
+            .with_borders(Borders { x: Border::Clamp, y: Border::Mirror })
+            .with_convention(Convention::DirectX)
+            .with_strength(Strength::Relief(0.25))
+            .with_invert(true)
+            .with_units(Units::Map(crate::options::Spacing::square(2.0)))
+            .with_nodata(Some(0.0));
+        let opts = HeightOptions::from_fit(&fit);
+        assert_eq!(opts.fit, fit.clone().with_units(Units::Texels).with_nodata(None));
+        assert_eq!(opts.convention(), ConventionChoice::DirectX);
+        assert_eq!(opts.scale_for_width(64), -16.0);
+        let auto = opts.clone().with_convention(ConventionChoice::Auto);
+        assert!(auto.auto_convention && auto.convention() == ConventionChoice::Auto);
+        let gl = auto.with_convention(Convention::OpenGl);
+        assert_eq!((gl.convention(), gl.fit.convention), (ConventionChoice::OpenGl, Convention::OpenGl));
+        // The fit's checks, then the solve's.
+        let e = HeightOptions::from_fit(&Options::new().with_patch(4)).validate().unwrap_err();
+        assert_eq!(e.to_string(), Options::new().with_patch(4).validate().unwrap_err().to_string());
+        let flat = HeightOptions::from_fit(&Options::new().with_strength(Strength::Scale(0.0)));
+        assert!(flat.validate().unwrap_err().to_string().contains("a gain of 0"));
+    }
 }

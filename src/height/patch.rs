@@ -68,13 +68,13 @@ pub(super) struct Patch {
 
 impl Patch {
     pub(super) fn new(w: usize, h: usize, opts: &HeightOptions) -> Patch {
-        let r = opts.patch / 2;
-        let (bx, by) = (opts.borders.x, opts.borders.y);
+        let r = opts.fit.patch / 2;
+        let (bx, by) = (opts.fit.borders.x, opts.fit.borders.y);
         Patch {
             w,
-            patch: opts.patch,
-            borders: opts.borders,
-            a: (opts.patch * r * (r + 1) * (2 * r + 1)) as f64 / 3.0,
+            patch: opts.fit.patch,
+            borders: opts.fit.borders,
+            a: (opts.fit.patch * r * (r + 1) * (2 * r + 1)) as f64 / 3.0,
             box_x: Lists::correlation(w, bx, r, |_| 1.0),
             ramp_x: Lists::correlation(w, bx, r, |i| i as f64),
             box_y: Lists::correlation(h, by, r, |_| 1.0),

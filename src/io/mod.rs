@@ -13,6 +13,7 @@ mod atomic;
 pub mod encoding;
 #[cfg(feature = "tiff")]
 pub(crate) mod geotiff;
+mod identity;
 mod memory;
 pub mod read;
 pub mod sidecar;
@@ -21,6 +22,7 @@ pub mod write;
 pub use encoding::{
     Alpha, Encoding, ExrDepth, ExrOptions, Layout, OutputChannels, OutputFormat, PngCompression, PngDepth, PngOptions,
 };
+pub use identity::{FileId, same_file};
 pub use memory::check_memory;
 pub use read::{
     Affine, ByteOrder, Channel, FormatInfo, Georef, InputFormat, ModelType, PackedElevation, Plane, Raster, RasterType,

@@ -113,6 +113,7 @@ impl ExrRows {
         if !opts.may_stream(path) {
             return Ok(None);
         }
+        crate::io::read::formats::check_extension(path)?;
         let file = File::open(path)?;
         let file_len = file.metadata()?.len();
         let mut file = BufReader::with_capacity(1 << 16, file);

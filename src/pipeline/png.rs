@@ -92,6 +92,7 @@ impl PngRows {
         if !opts.may_stream(path) {
             return Ok(None);
         }
+        crate::io::read::formats::check_extension(path)?;
         let mut file = BufReader::with_capacity(1 << 16, File::open(path)?);
         let start = std::io::BufRead::fill_buf(&mut file)?;
         if !start.starts_with(&PNG_SIGNATURE) {

@@ -76,6 +76,7 @@ impl TiffRows {
             return Ok(None);
         }
         opts.validate()?;
+        crate::io::read::formats::check_extension(path)?;
         let mut file = File::open(path)?;
         let mut magic = [0u8; 4];
         if file.read_exact(&mut magic).is_err() || !TIFF_MAGIC.contains(&magic) {

@@ -219,7 +219,10 @@ def convert(
 
     Returns a ConversionSummary (width, height, input_format, borders as
     used, streamed, tiling, warnings, nodata, missing). Raises ValueError for a bad option,
-    OSError naming the file for a file that cannot be read or written.
+    ValueError naming the file for a src whose extension names another
+    format than its content (a PNG named .exr, refused as the command line
+    refuses it), OSError naming the file for a file that cannot be read or
+    written.
     """
     return _normalfit.convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,

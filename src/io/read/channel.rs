@@ -34,6 +34,28 @@ pub enum Channel {
 }
 
 impl Channel {
+    /// The channel a caller names (`--channel`, `channel=`): a keyword
+    /// (luma, r, g, b, a) or an OpenEXR channel's name, kept as
+    /// [`Channel::Named`] and resolved per file by the rule of
+    /// [`Raster::heights`].
+    ///
+    /// Errors: [`Error::InvalidOption`] for an empty name, which no
+    /// channel has.
+    ///
+    /// ```
+    /// use normalfit::io::Channel;
+    /// assert_eq!(Channel::named("Z").unwrap(), Channel::Named("Z".into()));
+    /// assert!(Channel::named("").is_err());
+    /// ```
+    pub fn named(name: &str) -> Result<Channel> {
+        if name.is_empty() {
+            return Err(Error::InvalidOption(
+                "expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name".into(),
+            ));
+        }
+        Ok(Channel::Named(name.to_string()))
+    }
+
     /// The keyword this channel is: itself, or for [`Channel::Named`] the
     /// keyword its name spells in any case.
     fn keyword(&self) -> Option<Channel> {
@@ -411,5 +433,21 @@ impl<'a> Names<'a> {
             return "none".into();
         }
         self.all.join(", ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_named_channel_is_kept_as_named_and_an_empty_name_refused() {
+        for name in ["luma", "R", "Z", "diffuse.R", " "] {
+            assert_eq!(Channel::named(name).unwrap(), Channel::Named(name.into()));
+        }
+        assert_eq!(
+            Channel::named("").unwrap_err().to_string(),
+            "invalid option: expected luma, r, g, b, a or an OpenEXR channel's name, got an empty name"
+        );
     }
 }

@@ -18,6 +18,8 @@
 //! enable; [`names`] lists only the formats built in.
 
 use std::fmt;
+use std::io::Read;
+use std::path::Path;
 
 use image::ImageFormat;
 
@@ -371,6 +373,43 @@ impl fmt::Display for InputFormat {
     }
 }
 
+/// Refuses a file whose extension names one image format while its first
+/// bytes are another's ([`Error::Misnamed`]): in a pipeline that is a
+/// mix-up upstream (a file saved under the wrong name, or a name reused
+/// for the wrong output), and converting it anyway would hide it. Every
+/// read of a file by its path passes here ([`read_path`](super::read_path)
+/// and the streaming readers). Files without an extension, with one that
+/// names no format or a format without a signature (TGA, RAW), or whose
+/// content no signature recognises (the decoder then says what is wrong),
+/// are read by content, as are bytes without a name
+/// ([`decode`](super::decode)). A file that cannot be opened or read
+/// passes too: the read that follows reports it.
+///
+/// Errors: [`Error::Misnamed`].
+pub fn check_extension(path: &Path) -> Result<()> {
+    let Some(extension) = path.extension() else { return Ok(()) };
+    let mut head = Vec::with_capacity(16);
+    let Ok(file) = std::fs::File::open(path) else { return Ok(()) };
+    if file.take(16).read_to_end(&mut head).is_err() {
+        return Ok(());
+    }
+    check_named(&extension.to_string_lossy(), &head)
+}
+
+/// [`check_extension`] of a file named `.extension` whose first bytes (16
+/// are enough) are `head`.
+fn check_named(extension: &str, head: &[u8]) -> Result<()> {
+    let extension = extension.to_ascii_lowercase();
+    // TGA has no signature to compare with: an extension of .tga says nothing.
+    let Some(named) = InputFormat::from_extension(&extension).filter(|f| f.info().has_signature()) else {
+        return Ok(());
+    };
+    match InputFormat::sniff(head) {
+        Some(content) if content != named => Err(Error::Misnamed { extension, content }),
+        _ => Ok(()),
+    }
+}
+
 /// The formats this build reads, for help text and messages: "PNG,
 /// OpenEXR, TIFF, …" (those whose feature is off left out).
 #[must_use]
@@ -508,6 +547,57 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A file's extension is checked against its content for the formats
+    /// with a signature, in any case; the rest, and content no signature
+    /// recognises, pass.
+    #[test]
+    fn an_extension_naming_another_format_is_refused() {
+        let png: &[u8] = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR";
+        let exr: &[u8] = &[0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        for (extension, head, content) in [("exr", png, "png"), ("PNG", exr, "exr"), ("tif", png, "png")] {
+            let e = check_named(extension, head).unwrap_err();
+            assert!(matches!(&e, Error::Misnamed { .. }), "{e:?}");
+            let lower = extension.to_ascii_lowercase();
+            assert_eq!(
+                e.to_string(),
+                format!(
+                    "is named .{lower} but its content is {content}: rename it, or pass it on standard input to read it by content"
+                )
+            );
+        }
+        for (extension, head) in [
+            ("png", png),
+            ("EXR", exr),
+            // No signature to compare with: TGA and RAW are read as before.
+            ("tga", png),
+            ("raw", png),
+            ("r16", exr),
+            // An extension that names no format.
+            ("bin", png),
+            ("", png),
+            // Content no signature recognises: the decoder's to report.
+            ("png", b"this is not an image"),
+            ("png", b""),
+        ] {
+            assert!(check_named(extension, head).is_ok(), "{extension} {head:?}");
+        }
+    }
+
+    /// [`check_extension`] reads a file's first bytes; a file it cannot
+    /// open passes, for the read to report.
+    #[test]
+    fn check_extension_reads_the_files_start() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n', 0, 0, 0, 13];
+        for (name, ok) in [("a.exr", false), ("a.png", true), ("a", true), ("a.txt", true)] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, png).unwrap();
+            assert_eq!(check_extension(&path).is_ok(), ok, "{name}");
+        }
+        assert!(check_extension(&dir.path().join("missing.exr")).is_ok());
+        assert!(check_extension(dir.path()).is_ok(), "a folder");
     }
 
     /// A TGA header the `image` crate parses passes the plausibility check

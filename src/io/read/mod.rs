@@ -1,9 +1,12 @@
 //! Reading height maps: bytes in, planes of `f32` in contract units out.
 //!
 //! Rules this module keeps, and why:
-//! * The decoder is chosen from the content, never the file name: a `.png`
-//!   that is really a JPEG still reads, and a renamed file cannot pick a
-//!   decoder that then misreads it. The one exception is RAW heightmaps
+//! * The decoder is chosen from the content, never the file name: a renamed
+//!   file cannot pick a decoder that then misreads it. A file whose
+//!   extension names another format than its content (a `.png` that is
+//!   really a JPEG) is refused ([`formats::check_extension`]): in a
+//!   pipeline that is a mix-up upstream; its bytes without the name
+//!   ([`decode`]) still read. The one exception is RAW heightmaps
 //!   (`raw.rs`), bare samples with no content to know them by: they are
 //!   known by their extension (`.raw`, `.r16`, `.r8`) or by the caller's
 //!   [`ReadOptions::raw`]. The formats, their signatures, names
@@ -300,8 +303,11 @@ pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 /// Reads the file at `path` and [`decode`]s it: by its content, except a
 /// RAW heightmap, known by its extension (`.raw`, `.r16`, `.r8`) or, with
 /// [`ReadOptions::raw`], by an extension that names no format. Failing to
-/// read the file is [`Error::Io`].
+/// read the file is [`Error::Io`]; a file whose extension names another
+/// format than its content is [`Error::Misnamed`]
+/// ([`formats::check_extension`]).
 pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    formats::check_extension(path)?;
     let raw = raw_layout_for(path, opts);
     if raw.is_none() {
         // An OpenEXR file is decoded from the file, a block at a time, not
