@@ -40,8 +40,9 @@ pub enum Error {
     Misnamed {
         /// The file's extension, lower case, without the dot.
         extension: String,
-        /// The format its content is.
-        content: crate::io::InputFormat,
+        /// The name of the format its content is (`InputFormat`'s, as
+        /// `FormatInfo::name`: the error type sits below the formats).
+        content: &'static str,
     },
     /// The image is larger than the limit set for the read.
     Limits(String),

@@ -405,7 +405,7 @@ fn check_named(extension: &str, head: &[u8]) -> Result<()> {
         return Ok(());
     };
     match InputFormat::sniff(head) {
-        Some(content) if content != named => Err(Error::Misnamed { extension, content }),
+        Some(content) if content != named => Err(Error::Misnamed { extension, content: content.info().name }),
         _ => Ok(()),
     }
 }
