@@ -1,4 +1,4 @@
-//! TIFF output (src/io/geotiff.rs), read back with the `tiff` crate's own
+//! TIFF output (src/io/tiff/write.rs), read back with the `tiff` crate's own
 //! decoder: a normal map in TIFF holds the samples the PNG (8 and 16 bits)
 //! or the EXR (float, (n + 1)/2 or n) holds for the same conversion,
 //! streamed from a GeoTIFF or fitted whole, for wrapped and clamped

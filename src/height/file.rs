@@ -235,7 +235,7 @@ impl HeightConversion {
             // Converted to f32 as the blocks are written: no copy of the
             // heights (67 MB at 4096²).
             OutputFormat::Exr => crate::engine::write_to(output, |file| {
-                io::write::write_exr_rows(file, w, h, ExrDepth::Float, &["Y"], |push| {
+                io::exr::write::write_exr_rows(file, w, h, ExrDepth::Float, &["Y"], |push| {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
                         stored.clear();
@@ -248,7 +248,7 @@ impl HeightConversion {
             #[cfg(feature = "tiff")]
             OutputFormat::Tiff => crate::engine::write_to(output, |file| {
                 let tags = io::encoding::TiffTags::default();
-                io::geotiff::write_tiff_rows(file, (w, h), 1, tags, |push| {
+                io::tiff::write::write_tiff_rows(file, (w, h), 1, tags, |push| {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
                         stored.clear();

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use super::read::{InputFormat, SampleType};
+use super::{InputFormat, SampleType};
 use crate::error::{Error, Result};
 use crate::options::named_values;
 

@@ -9,8 +9,8 @@ use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::Result;
 use crate::fit::{BandFit, FromNormal};
 use crate::io::encoding::{ExrDepth, ExrOptions, Layout, TiffDepth, TiffOptions, TiffTags};
-use crate::io::geotiff::{TiffSample, write_tiff_rows};
-use crate::io::write::{Container, Sample, lay_out};
+use crate::io::texels::{Container, Sample, lay_out};
+use crate::io::tiff::write::{TiffSample, write_tiff_rows};
 use crate::options::Options;
 use crate::par::prelude::*;
 

@@ -1,6 +1,7 @@
-//! PNG rows in ([`PngRows`]) and a PNG encoder fed band by band: the
-//! rows PNG-filtered and deflated in pieces ([`deflate`]) in parallel on
-//! the fit's side, written on the caller's thread.
+//! A PNG encoder fed band by band: the rows PNG-filtered
+//! ([`crate::io::png::stream`]) and deflated in pieces
+//! ([`crate::io::png::deflate`]) in parallel on the fit's side, written on
+//! the caller's thread.
 //!
 //! Why not the `png` crate's `StreamWriter`: it takes rows in order, so a
 //! wrap in y (the default border) needs the image's last rows before its
@@ -17,256 +18,18 @@
 //! splits, the stored top rows, the same bytes whatever the threads).
 
 use std::borrow::Cow;
-use std::fs::File;
-use std::io::{BufReader, Read, Seek, Write};
+use std::io::{Read, Seek, Write};
 use std::ops::Range;
-use std::path::{Path, PathBuf};
 
-use crate::par::prelude::*;
-
-mod deflate;
-
-use self::deflate::{Checksum, FINAL_BLOCK, Piece, Pieces, ZLIB_HEADER, stored_len};
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
 use crate::fit::{BandFit, FromNormal};
-use crate::io::encoding::{Layout, PngCompression};
-use crate::io::encoding::{PngDepth, PngOptions};
-use crate::io::png_zlib::{IdatCount, IdatWatch, decode_options, finish_checked, png_error};
-use crate::io::read::{
-    Channel, InputFormat, PNG_SIGNATURE, ReadOptions, Source, check_png_header, check_png_palette, check_size,
-    no_layers, select_channel,
-};
-use crate::io::write::{Container, PngSample, lay_out};
+use crate::io::encoding::{Layout, PngCompression, PngDepth, PngOptions};
+use crate::io::png::deflate::{Checksum, FINAL_BLOCK, Piece, Pieces, ZLIB_HEADER, stored_len};
+use crate::io::png::stream::{Idat, filter_rows, write_chunk, write_first_idat, write_signature_and_header};
+use crate::io::png::write::PngSample;
+use crate::io::texels::{Container, lay_out};
 use crate::options::Options;
-use crate::samples::{Sample, luma};
-
-/// The rows of a PNG file, top to bottom: one channel's samples as stored,
-/// or luma in contract units ([`RowSource`]).
-pub struct PngRows {
-    reader: png::Reader<IdatWatch<BufReader<File>>>,
-    /// The image data the decoder has read, for [`finish_checked`].
-    idat: IdatCount,
-    /// The file, opened again if its image data must be checked again.
-    path: PathBuf,
-    width: usize,
-    height: usize,
-    layout: RowLayout,
-    /// Rows handed out so far.
-    next: usize,
-}
-
-/// How one decoded row turns into heights.
-#[derive(Clone, Copy)]
-struct RowLayout {
-    /// Samples per texel.
-    channels: usize,
-    /// Bytes per sample (1 or 2).
-    bytes: usize,
-    pick: Pick,
-}
-
-#[derive(Clone, Copy)]
-enum Pick {
-    /// One stored channel, by index.
-    Channel(usize),
-    /// Luma of channels 0, 1, 2.
-    Luma,
-}
-
-impl PngRows {
-    /// Opens `path` for streaming if it is a PNG that can stream (not
-    /// interlaced: Adam7 rows arrive in seven passes); `Ok(None)` otherwise,
-    /// and the caller reads the image whole. Reads only the header.
-    ///
-    /// Errors: [`Error::Io`] if the file cannot be opened, [`Error::Decode`]
-    /// for a corrupt header, [`Error::Limits`] for a size above
-    /// `opts.max_texels`, [`Error::Unsupported`] for a missing channel or
-    /// a layer asked for (PNG has none). The rows read later may fail with
-    /// [`Error::Decode`]; the last one also checks the rest of the file
-    /// up to IEND and the image data's checksum (zlib's Adler-32), as a
-    /// whole-image decoder does.
-    pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<PngRows>> {
-        // A band, a packing (Terrain-RGB tiles are PNGs) or a RAW layout is
-        // the whole-image reader's to apply, or to refuse.
-        if !opts.may_stream(path) {
-            return Ok(None);
-        }
-        crate::io::read::formats::check_extension(path)?;
-        let mut file = BufReader::with_capacity(1 << 16, File::open(path)?);
-        let start = std::io::BufRead::fill_buf(&mut file)?;
-        if !start.starts_with(&PNG_SIGNATURE) {
-            return Ok(None);
-        }
-        if let Some(layer) = &opts.layer {
-            return Err(no_layers(&InputFormat::Png, layer));
-        }
-        check_png_header(start, opts)?;
-        // The decoder's own buffers are a few rows; the limit guards them.
-        let (file, idat) = IdatWatch::new(file);
-        let mut decoder = png::Decoder::new_with_options(file, decode_options());
-        decoder.set_limits(png::Limits { bytes: 1 << 28 });
-        decoder.set_transformations(png::Transformations::EXPAND);
-        let reader = decoder.read_info().map_err(png_error)?;
-        let info = reader.info();
-        check_png_palette(info)?;
-        let (width, height) = (info.width, info.height);
-        check_size(u64::from(width), u64::from(height), opts)?;
-        if info.interlaced {
-            return Ok(None);
-        }
-        let (color, depth) = reader.output_color_type();
-        let bytes = match depth {
-            png::BitDepth::Eight => 1,
-            png::BitDepth::Sixteen => 2,
-            _ => return Ok(None),
-        };
-        let channels = color.samples();
-        let gray = channels <= 2;
-        let alpha = matches!(channels, 2 | 4).then_some(channels - 1);
-        // The whole-image rule on the planes this PNG decodes to: the
-        // same choice and the same errors, by construction.
-        let names: &[&str] = match (gray, alpha.is_some()) {
-            (true, false) => &["Y"],
-            (true, true) => &["Y", "A"],
-            (false, false) => &["R", "G", "B"],
-            (false, true) => &["R", "G", "B", "A"],
-        };
-        let pick = match select_channel(names, channel.as_ref(), &InputFormat::Png)? {
-            Source::Plane(c) => Pick::Channel(c),
-            Source::Luma(_) => Pick::Luma,
-        };
-        Ok(Some(PngRows {
-            reader,
-            idat,
-            path: path.to_path_buf(),
-            width: width as usize,
-            height: height as usize,
-            layout: RowLayout { channels, bytes, pick },
-            next: 0,
-        }))
-    }
-
-    /// Whether the file stores more than 8 bits per sample.
-    #[must_use]
-    pub fn more_than_8_bits(&self) -> bool {
-        self.layout.bytes == 2
-    }
-}
-
-impl RowSource for PngRows {
-    fn width(&self) -> usize {
-        self.width
-    }
-
-    fn height(&self) -> usize {
-        self.height
-    }
-
-    fn unit(&self) -> f64 {
-        match (self.layout.pick, self.layout.bytes) {
-            (Pick::Luma, _) => 1.0,
-            (Pick::Channel(_), 1) => u8::UNIT,
-            (Pick::Channel(_), _) => u16::UNIT,
-        }
-    }
-
-    fn next_row(&mut self, out: &mut [f64]) -> Result<()> {
-        let layout = self.layout;
-        // The stored value, and for luma each channel's height, by the
-        // formulas the whole-image reader uses ([`crate::samples`]).
-        let value = move |px: &[u8], c: usize| -> f64 {
-            if layout.bytes == 1 { f64::from(px[c]) } else { f64::from(u16::from_be_bytes([px[2 * c], px[2 * c + 1]])) }
-        };
-        let unit = if layout.bytes == 1 { u8::UNIT } else { u16::UNIT };
-        match layout.pick {
-            Pick::Channel(c) => self.decode_row(out, |px| value(px, c)),
-            Pick::Luma => {
-                self.decode_row(out, |px| luma(value(px, 0) * unit, value(px, 1) * unit, value(px, 2) * unit))
-            }
-        }
-    }
-
-    /// Luma is made in contract units: stored, it is 2^bits − 1 times
-    /// that, as the whole image's luma is ([`RowSource::stored_scale`]).
-    fn stored_scale(&self) -> (f64, bool) {
-        match (self.layout.pick, self.layout.bytes) {
-            (Pick::Channel(_), _) => (1.0, false),
-            (Pick::Luma, 1) => (255.0, false),
-            (Pick::Luma, _) => (65535.0, false),
-        }
-    }
-
-    /// A picked channel's integers, which `f32` holds exactly.
-    fn exact_in_f32(&self) -> bool {
-        matches!(self.layout.pick, Pick::Channel(_))
-    }
-
-    fn next_row_f32(&mut self, out: &mut [f32]) -> Result<()> {
-        let layout = self.layout;
-        let value = move |px: &[u8], c: usize| -> f32 {
-            if layout.bytes == 1 { f32::from(px[c]) } else { f32::from(u16::from_be_bytes([px[2 * c], px[2 * c + 1]])) }
-        };
-        match (layout.pick, layout.channels, layout.bytes) {
-            // Gray: texels of a constant size, a loop that vectorises (with
-            // the size a variable, it took a sixth of the decoding thread).
-            (Pick::Channel(_), 1, 1) => self.decode_row_with(out, |data, out| {
-                out.iter_mut().zip(data).for_each(|(o, &v)| *o = f32::from(v));
-            }),
-            (Pick::Channel(_), 1, _) => self.decode_row_with(out, |data, out| {
-                let (samples, _) = data.as_chunks::<2>();
-                out.iter_mut().zip(samples).for_each(|(o, &v)| *o = f32::from(u16::from_be_bytes(v)));
-            }),
-            (Pick::Channel(c), _, _) => self.decode_row(out, |px| value(px, c)),
-            // Not exact: luma is made in f64 (see `exact_in_f32`).
-            (Pick::Luma, _, _) => {
-                let mut row = vec![0.0f64; out.len()];
-                self.next_row(&mut row)?;
-                out.iter_mut().zip(&row).for_each(|(o, &v)| *o = v as f32);
-                Ok(())
-            }
-        }
-    }
-}
-
-impl PngRows {
-    /// Decodes the next row into `out`, one value a texel from its
-    /// samples by `texel`; after the last row, reads the rest of the file.
-    fn decode_row<V>(&mut self, out: &mut [V], texel: impl Fn(&[u8]) -> V) -> Result<()> {
-        let stride = self.layout.channels * self.layout.bytes;
-        self.decode_row_with(out, |data, out| {
-            out.iter_mut().zip(data.chunks_exact(stride)).for_each(|(o, px)| *o = texel(px));
-        })
-    }
-
-    /// Decodes the next row into `out` by `convert`, which gets the row's
-    /// bytes (as many texels as `out` holds); after the last row, reads the
-    /// rest of the file.
-    fn decode_row_with<V>(&mut self, out: &mut [V], convert: impl FnOnce(&[u8], &mut [V])) -> Result<()> {
-        let layout = self.layout;
-        let row = self.reader.next_row().map_err(png_error)?;
-        let row =
-            row.ok_or_else(|| Error::Decode(format!("image data ends after {} of {} rows", self.next, self.height)))?;
-        let data = row.data();
-        let stride = layout.channels * layout.bytes;
-        if data.len() != stride * out.len() {
-            return Err(Error::Decode(format!("row of {} bytes for {} texels", data.len(), out.len())));
-        }
-        convert(data, out);
-        self.next += 1;
-        if self.next == self.height {
-            // The rest of the file is read too, as a whole-image decoder
-            // reads it: a bad CRC in the last IDAT chunk, a file cut
-            // before IEND, or image data whose checksum does not match,
-            // is the same error either way, and comes before the output
-            // is put in place.
-            let path = &self.path;
-            let at_last_row = self.idat.get();
-            finish_checked(&mut self.reader, &self.idat, at_last_row, || Ok(BufReader::new(File::open(path)?)))?;
-        }
-        Ok(())
-    }
-}
 
 /// How `convert_as` writes: its compression, whether the top rows come
 /// last (into room kept after the header), and its channels.
@@ -356,18 +119,6 @@ pub(crate) fn convert_png_seekable_counting<W: Write + Seek>(
     Ok(missing)
 }
 
-/// Writes the first IDAT chunk into the room kept for it after the
-/// signature and IHDR of the PNG that began at `start`, and returns to the
-/// end of the file.
-fn write_first_idat<W: Write + Seek>(out: &mut W, start: u64, first_idat: &[u8]) -> Result<()> {
-    let end = out.stream_position()?;
-    out.seek(std::io::SeekFrom::Start(start + HEADER_BYTES))?;
-    write_chunk(out, b"IDAT", first_idat)?;
-    out.seek(std::io::SeekFrom::Start(end))?;
-    out.flush()?;
-    Ok(())
-}
-
 /// The lit view of the rows of `rows` (see [`crate::shade`]): the fit's
 /// normals lit by `lamp`, an 8-bit gray PNG written to `out` in one pass,
 /// the top rows last as [`convert_png_seekable`] writes them. The grey of
@@ -412,10 +163,6 @@ impl PngTexels for LitTexels {
         Cow::Owned(grey)
     }
 }
-
-/// Bytes of the PNG signature (8) and the IHDR chunk (25), after which the
-/// first IDAT chunk starts.
-const HEADER_BYTES: u64 = 8 + 25;
 
 /// What a streamed PNG's texels are made of: the fit's texels of a band
 /// (`Normal`, one per texel) turned into the bytes a PNG row stores.
@@ -579,200 +326,6 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     Ok((first_idat, fit.missing()))
 }
 
-/// PNG filter types (PNG spec §9.2).
-const NONE: u8 = 0;
-const SUB: u8 = 1;
-const UP: u8 = 2;
-const AVG: u8 = 3;
-const PAETH: u8 = 4;
-
-/// PNG-filters rows of `stride` bytes (texels of `bpp` bytes), in
-/// parallel, each row after its filter byte. `prior` is the row above the
-/// first one; without it (the first row written in the stream) only the
-/// filters that do not look up are used. The rows go into `out`, whose
-/// bytes are all overwritten (a buffer of an earlier band, or empty).
-///
-/// Not `adaptive`: Avg (the mean of the left and upper bytes predicts each
-/// byte) for every row with a row above, Sub (the left byte) otherwise.
-/// Avg is cheap and, on smooth normal maps, nearly as small as choosing
-/// per row (measured: 22.6 against 19.9 MiB for a 4096² map, at half the
-/// filtering time). `adaptive`: every filter is tried and the row keeps
-/// the one whose bytes, as signed numbers, have the least absolute sum —
-/// the usual heuristic (libpng's, the `png` crate's).
-fn filter_rows(
-    raw: &[u8],
-    stride: usize,
-    bpp: usize,
-    prior: Option<&[u8]>,
-    adaptive: bool,
-    mut out: Vec<u8>,
-) -> Vec<u8> {
-    let rows = raw.len() / stride;
-    out.resize(rows * (stride + 1), 0);
-    out.par_chunks_mut(stride + 1).enumerate().for_each(|(k, dst)| {
-        let cur = &raw[k * stride..][..stride];
-        let above = if k == 0 { prior } else { Some(&raw[(k - 1) * stride..][..stride]) };
-        let (kind, body) = dst.split_first_mut().expect("a filter byte");
-        *kind = match (above, adaptive) {
-            (None, false) => filter_row(SUB, cur, None, bpp, body),
-            (Some(up), false) => filter_row(AVG, cur, Some(up), bpp, body),
-            (above, true) => {
-                let kinds: &[u8] = if above.is_some() { &[NONE, SUB, UP, AVG, PAETH] } else { &[NONE, SUB] };
-                let cost = |bytes: &[u8]| bytes.iter().map(|&b| u64::from((b as i8).unsigned_abs())).sum::<u64>();
-                let mut trial = vec![0u8; stride];
-                let (mut best_cost, mut best_kind) = (u64::MAX, NONE);
-                for &kind in kinds {
-                    filter_row(kind, cur, above, bpp, &mut trial);
-                    let c = cost(&trial);
-                    if c < best_cost {
-                        (best_cost, best_kind) = (c, kind);
-                        body.copy_from_slice(&trial);
-                    }
-                }
-                best_kind
-            }
-        };
-    });
-    out
-}
-
-/// Writes row `cur` filtered by `kind` into `out`; `up` is the row above
-/// (None: no row above, only for NONE and SUB). Returns `kind`. Written as
-/// zips over slices, without indexing, so the loops vectorise.
-fn filter_row(kind: u8, cur: &[u8], up: Option<&[u8]>, bpp: usize, out: &mut [u8]) -> u8 {
-    let (head, rest) = out.split_at_mut(bpp);
-    match (kind, up) {
-        (NONE, _) => out.copy_from_slice(cur),
-        (SUB, _) => {
-            head.copy_from_slice(&cur[..bpp]);
-            for ((d, &c), &left) in rest.iter_mut().zip(&cur[bpp..]).zip(cur) {
-                *d = c.wrapping_sub(left);
-            }
-        }
-        (UP, Some(up)) => {
-            for ((d, &c), &u) in out.iter_mut().zip(cur).zip(up) {
-                *d = c.wrapping_sub(u);
-            }
-        }
-        (AVG, Some(up)) => {
-            for ((d, &c), &u) in head.iter_mut().zip(cur).zip(up) {
-                *d = c.wrapping_sub(u >> 1);
-            }
-            for (((d, &c), &left), &u) in rest.iter_mut().zip(&cur[bpp..]).zip(cur).zip(&up[bpp..]) {
-                *d = c.wrapping_sub(((u16::from(left) + u16::from(u)) >> 1) as u8);
-            }
-        }
-        (PAETH, Some(up)) => {
-            // With no left texel, the predictor is the byte above.
-            for ((d, &c), &u) in head.iter_mut().zip(cur).zip(up) {
-                *d = c.wrapping_sub(u);
-            }
-            let neighbours = cur.iter().zip(&up[bpp..]).zip(up);
-            for ((d, &c), ((&left, &u), &up_left)) in rest.iter_mut().zip(&cur[bpp..]).zip(neighbours) {
-                *d = c.wrapping_sub(paeth(left, u, up_left));
-            }
-        }
-        _ => unreachable!("filter {kind} needs the row above"),
-    }
-    kind
-}
-
-/// The Paeth predictor: of left, up and up-left, the one nearest to
-/// left + up − up-left.
-fn paeth(a: u8, b: u8, c: u8) -> u8 {
-    let (ia, ib, ic) = (i16::from(a), i16::from(b), i16::from(c));
-    let p = ia + ib - ic;
-    let (pa, pb, pc) = ((p - ia).abs(), (p - ib).abs(), (p - ic).abs());
-    if pa <= pb && pa <= pc {
-        a
-    } else if pb <= pc {
-        b
-    } else {
-        c
-    }
-}
-
-/// The PNG signature and the IHDR of a `bits`-bit RGB (3 `samples`) or
-/// RGBA (4) image.
-fn write_signature_and_header<W: Write + ?Sized>(
-    out: &mut W,
-    w: usize,
-    h: usize,
-    bits: u8,
-    samples: usize,
-) -> Result<()> {
-    let side = |n: usize| u32::try_from(n).ok().filter(|&n| n <= i32::MAX as u32);
-    let (Some(w), Some(h)) = (side(w), side(h)) else {
-        return Err(Error::Encode(format!("{w} × {h} is too large for PNG")));
-    };
-    out.write_all(b"\x89PNG\r\n\x1a\n")?;
-    let mut ihdr = Vec::with_capacity(13);
-    ihdr.extend_from_slice(&w.to_be_bytes());
-    ihdr.extend_from_slice(&h.to_be_bytes());
-    // Bit depth, colour type (0: gray, 2: RGB, 6: RGBA), deflate, adaptive
-    // filtering, no interlace.
-    let color_type = match samples {
-        1 => 0,
-        4 => 6,
-        _ => 2,
-    };
-    ihdr.extend_from_slice(&[bits, color_type, 0, 0, 0]);
-    write_chunk(out, b"IHDR", &ihdr)
-}
-
-/// One PNG chunk: length, type, data, CRC of type and data.
-fn write_chunk<W: Write + ?Sized>(out: &mut W, kind: &[u8; 4], data: &[u8]) -> Result<()> {
-    write_chunk_of(out, kind, &[data])
-}
-
-/// One PNG chunk whose data is `parts`, one after the other.
-fn write_chunk_of<W: Write + ?Sized>(out: &mut W, kind: &[u8; 4], parts: &[&[u8]]) -> Result<()> {
-    let len = u32::try_from(parts.iter().map(|p| p.len()).sum::<usize>())
-        .map_err(|_| Error::Encode("chunk too large".into()))?;
-    let mut crc = crc32fast::Hasher::new();
-    crc.update(kind);
-    parts.iter().for_each(|p| crc.update(p));
-    out.write_all(&len.to_be_bytes())?;
-    out.write_all(kind)?;
-    for part in parts {
-        out.write_all(part)?;
-    }
-    out.write_all(&crc.finalize().to_be_bytes())?;
-    Ok(())
-}
-
-/// IDAT chunks of a zlib stream given in pieces: each chunk holds at
-/// least [`IDAT_BYTES`] but the last.
-struct Idat<'a, W: ?Sized> {
-    out: &'a mut W,
-    /// The start of the next chunk, until it is long enough.
-    buf: Vec<u8>,
-}
-
-/// IDAT chunks of about this many bytes.
-const IDAT_BYTES: usize = 1 << 20;
-
-impl<W: Write + ?Sized> Idat<'_, W> {
-    /// Adds `data` to the stream: a chunk of what is held and `data` once
-    /// they are long enough (not copied first), else held.
-    fn push(&mut self, data: &[u8]) -> Result<()> {
-        if self.buf.len() + data.len() < IDAT_BYTES {
-            self.buf.extend_from_slice(data);
-            return Ok(());
-        }
-        write_chunk_of(self.out, b"IDAT", &[&self.buf, data])?;
-        self.buf.clear();
-        Ok(())
-    }
-
-    /// Writes what is held as the last IDAT chunk.
-    fn flush_chunk(&mut self) -> Result<()> {
-        write_chunk(self.out, b"IDAT", &self.buf)?;
-        self.buf.clear();
-        Ok(())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     //! The encoder on its own: every depth, channel layout and filter
@@ -784,6 +337,7 @@ mod tests {
 
     use super::*;
     use crate::fit::FitRequest;
+    use crate::io::png::stream::{AVG, IDAT_BYTES, NONE, PAETH, SUB, UP};
 
     /// Heights from memory, 16-bit.
     struct Rows {

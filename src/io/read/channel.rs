@@ -5,8 +5,8 @@ use std::fmt;
 
 use crate::par::prelude::*;
 
-use super::{InputFormat, Plane, Raster};
 use crate::error::{Error, Result};
+use crate::io::{InputFormat, Plane, Raster};
 use crate::samples::{Samples, luma, try_vec};
 
 /// Which channel of the image gives the height (SPEC §1, `--channel`).
@@ -195,7 +195,7 @@ impl Raster {
     /// chooses them, in f64: a DEM's int16 metres as metres, a 16-bit
     /// PNG's or RAW's integers as integers, floats unchanged; luma of
     /// stored values for a colour image. This is each height in contract
-    /// units times [`SampleType::stored_per_unit`](super::SampleType::stored_per_unit),
+    /// units times [`SampleType::stored_per_unit`](crate::io::SampleType::stored_per_unit),
     /// with integers made whole again (the signed and 32-bit ones were
     /// divided in f64 when decoded; rounding the product undoes that
     /// exactly, its error being under 2⁻²⁰). For fits in the file's own
@@ -208,7 +208,7 @@ impl Raster {
 
     fn into_stored_heights_checked(self, channel: Option<Channel>, check: bool) -> Result<Samples> {
         let scale = self.sample.stored_per_unit();
-        let whole = matches!(self.sample, super::SampleType::Int { bits } | super::SampleType::SignedInt { bits } if bits <= 32)
+        let whole = matches!(self.sample, crate::io::SampleType::Int { bits } | crate::io::SampleType::SignedInt { bits } if bits <= 32)
             && !matches!(self.select(channel.as_ref())?, Source::Luma(_));
         let heights = self.into_heights_checked(channel, check)?;
         if scale == 1.0 {

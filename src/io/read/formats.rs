@@ -23,38 +23,8 @@ use std::path::Path;
 
 use image::ImageFormat;
 
-use super::{Raster, ReadOptions};
 use crate::error::{Error, Result};
-
-/// The file format the bytes were decoded as, found from their content.
-#[derive(Clone, Debug, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum InputFormat {
-    /// Portable Network Graphics.
-    Png,
-    /// OpenEXR.
-    Exr,
-    /// JPEG.
-    Jpeg,
-    /// TIFF.
-    Tiff,
-    /// Truevision TGA.
-    Tga,
-    /// Windows bitmap.
-    Bmp,
-    /// WebP.
-    WebP,
-    /// Graphics Interchange Format.
-    Gif,
-    /// Radiance HDR (RGBE).
-    Hdr,
-    /// Netpbm (PBM, PGM, PPM, PAM).
-    Pnm,
-    /// Quite OK Image format.
-    Qoi,
-    /// A RAW heightmap: bare 8- or 16-bit samples, no header.
-    Raw,
-}
+use crate::io::{InputFormat, Raster, ReadOptions};
 
 /// One input format: how it is recognised, named and read.
 #[derive(Debug)]
@@ -118,7 +88,7 @@ const fn image_decoder(format: ImageFormat, built: bool) -> Decoder {
 
 /// TIFF's decoder, its own, when the `tiff` feature is on.
 #[cfg(feature = "tiff")]
-const TIFF_DECODER: Decoder = Decoder::Own(super::tiff::decode);
+const TIFF_DECODER: Decoder = Decoder::Own(crate::io::tiff::decode);
 #[cfg(not(feature = "tiff"))]
 const TIFF_DECODER: Decoder = Decoder::NotBuilt;
 
@@ -141,8 +111,8 @@ pub static FORMATS: &[FormatInfo] = &[
         extensions: &["png"],
         streams: true,
         feature: None,
-        signature: Signature::Magic(&[&[(0, &super::png::PNG_SIGNATURE)]]),
-        decoder: Decoder::Own(super::png::decode),
+        signature: Signature::Magic(&[&[(0, &crate::io::png::PNG_SIGNATURE)]]),
+        decoder: Decoder::Own(crate::io::png::decode),
     },
     FormatInfo {
         format: InputFormat::Exr,
@@ -151,8 +121,8 @@ pub static FORMATS: &[FormatInfo] = &[
         extensions: &["exr"],
         streams: true,
         feature: None,
-        signature: Signature::Magic(&[&[(0, &super::exr::EXR_MAGIC)]]),
-        decoder: Decoder::Own(super::exr::decode_exr),
+        signature: Signature::Magic(&[&[(0, &crate::io::exr::EXR_MAGIC)]]),
+        decoder: Decoder::Own(crate::io::exr::decode_exr),
     },
     FormatInfo {
         format: InputFormat::Tiff,

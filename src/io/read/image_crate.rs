@@ -8,14 +8,14 @@ use std::io::Cursor;
 use crate::par::prelude::*;
 use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
 
-use super::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
 use crate::error::{Error, Result};
 use crate::io::memory;
+use crate::io::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
 use crate::samples::{Samples, try_vec};
 
 /// Decodes with the `image` crate as `format` (ours: `ours`): header
 /// first, size check, then pixels.
-pub(super) fn decode_with_image(
+pub(crate) fn decode_with_image(
     bytes: &[u8],
     opts: &ReadOptions,
     format: ImageFormat,
@@ -50,21 +50,21 @@ pub(super) fn decode_with_image(
 /// parses (its header has enough fixed fields, image type and pixel
 /// depth, that text and most other data fail it).
 #[cfg(feature = "tga")]
-pub(super) fn is_tga(bytes: &[u8]) -> bool {
+pub(crate) fn is_tga(bytes: &[u8]) -> bool {
     let tga = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Tga);
     tga.into_decoder().is_ok()
 }
 
 /// The name of a format the `image` crate knows by its signature but
 /// normalfit does not read (ICO, DDS, AVIF, farbfeld), for the error.
-pub(super) fn unread_format(bytes: &[u8]) -> Option<String> {
+pub(crate) fn unread_format(bytes: &[u8]) -> Option<String> {
     image::guess_format(bytes).ok().map(|format| format!("{format:?}").to_lowercase())
 }
 
 /// Limits handed to `image`, so its own allocations (PNG chunks, decoder
 /// state) are bounded too: per side no more than `max_texels`, and memory
 /// for the largest pixel (RGBA f32, 16 bytes) of every texel plus slack.
-pub(super) fn image_limits(opts: &ReadOptions) -> Limits {
+pub(crate) fn image_limits(opts: &ReadOptions) -> Limits {
     let side = u32::try_from(opts.max_texels).unwrap_or(u32::MAX);
     let mut limits = Limits::default();
     limits.max_image_width = Some(side);
@@ -74,7 +74,7 @@ pub(super) fn image_limits(opts: &ReadOptions) -> Limits {
 }
 
 /// Plane names and sample type of a decoded colour type.
-pub(super) fn layout(color: ColorType) -> Result<(&'static [&'static str], SampleType)> {
+pub(crate) fn layout(color: ColorType) -> Result<(&'static [&'static str], SampleType)> {
     use ColorType::*;
     const Y: &[&str] = &["Y"];
     const YA: &[&str] = &["Y", "A"];
@@ -100,7 +100,7 @@ pub(super) fn layout(color: ColorType) -> Result<(&'static [&'static str], Sampl
 }
 
 /// Splits interleaved native-endian samples into planes, as stored.
-pub(super) fn deinterleave(buf: &[u8], names: &[&str], sample: SampleType, texels: usize) -> Result<Vec<Plane>> {
+pub(crate) fn deinterleave(buf: &[u8], names: &[&str], sample: SampleType, texels: usize) -> Result<Vec<Plane>> {
     let bytes = match sample {
         SampleType::Int { bits: 8 } => 1,
         SampleType::Int { bits: 16 } => 2,

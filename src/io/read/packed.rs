@@ -17,7 +17,7 @@ use crate::options::named_values;
 use crate::par::prelude::*;
 use crate::samples::Samples;
 
-use super::{InputFormat, Plane, Raster, SampleType, par_collect};
+use crate::io::{InputFormat, Plane, Raster, SampleType, par_collect};
 
 /// How an RGB tile packs heights (`--decode`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

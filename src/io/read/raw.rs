@@ -17,7 +17,7 @@ use crate::io::memory;
 use crate::options::named_values;
 use crate::samples::{Samples, try_vec};
 
-use super::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, to_usize};
+use crate::io::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, to_usize};
 
 /// The order of a 16-bit sample's two bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

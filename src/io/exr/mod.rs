@@ -3,16 +3,18 @@
 //! with subsampled channels, which `exr` refuses, are read by
 //! `subsampled.rs`.
 
+pub(crate) mod rows;
 pub(crate) mod subsampled;
+pub(crate) mod write;
 
 use std::io::{BufRead, Cursor, Read, Seek, SeekFrom};
 
 use crate::par::prelude::*;
 
 use self::subsampled as exr_subsampled;
-use super::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, to_usize};
 use crate::error::{Error, Result};
 use crate::io::memory;
+use crate::io::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, to_usize};
 use crate::samples::{Samples, try_vec};
 
 /// The four bytes every OpenEXR file starts with.
@@ -21,7 +23,7 @@ pub(crate) const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 /// Decodes an EXR: meta data first (windows and sizes checked), then the
 /// layer asked for ([`choose_exr_layer`]) at its largest resolution level,
 /// all its channels.
-pub(super) fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+pub(crate) fn decode_exr(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     decode_exr_from(Cursor::new(bytes), bytes.len() as u64, opts)
 }
 

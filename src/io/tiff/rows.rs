@@ -5,9 +5,11 @@ use std::fs::File;
 use std::io::Read;
 use std::path::Path;
 
-use super::RowSource;
+use super::TiffBand;
 use crate::error::{Error, Result};
-use crate::io::read::{Channel, Georef, ReadOptions, SampleType, SeekableBufReader, TiffBand, raw_layout_for};
+use crate::io::read::{Channel, Georef, SeekableBufReader, raw_layout_for};
+use crate::io::rows::RowSource;
+use crate::io::{ReadOptions, SampleType};
 
 /// The rows of one band of a TIFF file, top to bottom, as heights: the
 /// band [`crate::io::read`] decodes with the `tiff` crate (float, half,
@@ -42,11 +44,11 @@ impl TiffRows {
     /// asked for), and the caller reads the image whole, which reports
     /// what is wrong. Reads the header and tags only.
     ///
-    /// Errors: [`Error::Io`] if the file cannot be opened; those of the
-    /// whole-image reader for the same file: [`Error::Unsupported`] for a
-    /// sample format not read or a band past the last, [`Error::Limits`]
-    /// for a size above `opts.max_texels`, [`Error::Decode`] for a bad geo
-    /// tag or chunk table, [`Error::InvalidOption`] for options
+    /// Errors: [`Error::Io`](crate::Error::Io) if the file cannot be opened; those of the
+    /// whole-image reader for the same file: [`Error::Unsupported`](crate::Error::Unsupported) for a
+    /// sample format not read or a band past the last, [`Error::Limits`](crate::Error::Limits)
+    /// for a size above `opts.max_texels`, [`Error::Decode`](crate::Error::Decode) for a bad geo
+    /// tag or chunk table, [`Error::InvalidOption`](crate::Error::InvalidOption) for options
     /// [`ReadOptions::validate`] refuses.
     pub fn open(path: &Path, opts: &ReadOptions, channel: Option<Channel>) -> Result<Option<TiffRows>> {
         Self::open_from(path, opts, channel.as_ref(), 0)
@@ -56,7 +58,7 @@ impl TiffRows {
     /// decoding only the chunks that hold them: the tail a wrap in y needs
     /// for the top rows.
     ///
-    /// Errors: as [`TiffRows::open`], and [`Error::Unsupported`] if the
+    /// Errors: as [`TiffRows::open`], and [`Error::Unsupported`](crate::Error::Unsupported) if the
     /// file cannot stream.
     pub fn last_rows(path: &Path, opts: &ReadOptions, channel: Option<Channel>, rows: usize) -> Result<Vec<f64>> {
         let probe = Self::open_from(path, opts, channel.as_ref(), 0)?.ok_or_else(not_streamable)?;
@@ -64,7 +66,7 @@ impl TiffRows {
         drop(probe);
         let keep = rows.min(h);
         let mut source = Self::open_from(path, opts, channel.as_ref(), h - keep)?.ok_or_else(not_streamable)?;
-        let mut tail = super::zeroed(keep * w)?;
+        let mut tail = crate::io::rows::zeroed(keep * w)?;
         tail.chunks_exact_mut(w.max(1)).try_for_each(|row| source.next_row(row))?;
         Ok(tail)
     }

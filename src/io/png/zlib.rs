@@ -33,7 +33,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use crate::error::{Error, Result};
-use crate::io::read::message;
+use crate::io::message;
 
 /// The `png` decoder's options with zlib's checksum verified.
 pub(crate) fn decode_options() -> png::DecodeOptions {

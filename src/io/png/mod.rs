@@ -1,6 +1,10 @@
 //! PNG, read with the `png` crate, and zlib's checksum of its image data
 //! (`zlib.rs`), verified whole-image and streamed alike.
 
+pub(crate) mod deflate;
+pub(crate) mod rows;
+pub(crate) mod stream;
+pub(crate) mod write;
 pub(crate) mod zlib;
 
 use std::io::Cursor;
@@ -8,15 +12,15 @@ use std::io::Cursor;
 use image::ColorType;
 
 use self::zlib::{self as png_zlib, IdatWatch, finish_checked, png_error};
-use super::image_crate::{deinterleave, image_limits, layout};
-use super::{InputFormat, Raster, ReadOptions, check_size, to_usize};
 use crate::error::{Error, Result};
 use crate::io::memory;
+use crate::io::read::image_crate::{deinterleave, image_limits, layout};
+use crate::io::{InputFormat, Raster, ReadOptions, check_size, to_usize};
 use crate::samples::try_vec;
 
 /// Decodes a PNG: the size its header claims checked first
 /// ([`check_png_header`]), then [`decode_png`].
-pub(super) fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+pub(crate) fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     check_png_header(bytes, opts)?;
     decode_png(bytes, opts)
 }

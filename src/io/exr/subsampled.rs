@@ -32,7 +32,7 @@ use exr::prelude::f16;
 
 use super::{EXR_MAGIC, ExrPart, choose_exr_layer};
 use crate::error::{Error, Result};
-use crate::io::read::{ReadOptions, check_size};
+use crate::io::{ReadOptions, check_size};
 
 /// One channel of a header.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -8,22 +8,25 @@
 //! it as it always has. The georeferencing tags are read from every TIFF
 //! ([`Georef`]).
 
+pub(crate) mod rows;
+pub(crate) mod write;
+
 use std::io::{Cursor, Read, Seek};
 
 use crate::par::prelude::*;
 use image::ImageFormat;
 use tiff::tags::{SampleFormat, Tag};
 
-use super::georef::{Georef, tags as georef_tags};
-use super::image_crate::decode_with_image;
-use super::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
 use crate::error::{Error, Result};
 use crate::io::memory;
+use crate::io::read::georef::{self, Georef, tags as georef_tags};
+use crate::io::read::image_crate::decode_with_image;
+use crate::io::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
 use crate::samples::{Samples, try_vec};
 
 /// Decodes a TIFF: its georeferencing always; its samples here when
 /// `image` does not read them or a band is asked for, else with `image`.
-pub(super) fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
+pub(crate) fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     // A header `tiff` cannot parse goes to `image`, which parses it with the
     // same crate and reports the error as it always has.
     let Ok(mut decoder) = tiff::decoder::Decoder::new(Cursor::new(bytes)) else {
@@ -179,7 +182,7 @@ fn describe_colortype(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> St
 /// value / (2^bits − 1)); other unsigned integers value / (2^bits − 1) and
 /// signed integers value / (2^bits − 1) too (see
 /// [`SampleType::SignedInt`]), in f64, from which
-/// [`Raster::into_stored_heights`](super::Raster::into_stored_heights)
+/// [`Raster::into_stored_heights`](crate::io::Raster::into_stored_heights)
 /// gives the stored values back. 64-bit integers are divided in f64, so
 /// they keep 53 bits before the f32 rounding.
 fn decode_band(
@@ -349,10 +352,10 @@ fn read_georef<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>, nodata_t
     georef.stored.pixel_scale = scale.clone().unwrap_or_default();
     georef.stored.tiepoints = tiepoints.clone().unwrap_or_default();
     georef.stored.transformation = transformation.clone().unwrap_or_default();
-    super::georef::apply_model_tags(&mut georef, scale, tiepoints, transformation)?;
+    georef::apply_model_tags(&mut georef, scale, tiepoints, transformation)?;
     if let Some(keys) = tag(decoder, georef_tags::GEO_KEY_DIRECTORY, "GeoKeyDirectory")? {
         let keys = keys.into_u16_vec().map_err(|e| tag_error("GeoKeyDirectory", e))?;
-        super::georef::apply_key_directory(&mut georef, &keys)?;
+        georef::apply_key_directory(&mut georef, &keys)?;
         georef.stored.key_directory = keys;
         // The parameters the keys point into, kept for a GeoTIFF written
         // from this one; only the keys above are read here.
@@ -366,7 +369,7 @@ fn read_georef<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>, nodata_t
     if let Some(text) = nodata_tag.then(|| tag(decoder, georef_tags::GDAL_NODATA, "GDAL_NODATA")).transpose()?.flatten()
     {
         let text = text.into_string().map_err(|e| tag_error("GDAL_NODATA", e))?;
-        georef.nodata = Some(super::georef::parse_nodata(&text)?);
+        georef.nodata = Some(georef::parse_nodata(&text)?);
     }
     Ok(georef)
 }

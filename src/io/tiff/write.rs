@@ -19,9 +19,12 @@ use tiff::encoder::colortype::{
 use tiff::encoder::{TiffEncoder, TiffKind, TiffKindBig, TiffKindStandard, TiffValue};
 use tiff::tags::Tag;
 
-use super::encoding::TiffTags;
-use super::read::georef::tags;
 use crate::error::{Error, Result};
+use crate::io::encoding::TiffTags;
+use crate::io::encoding::{Layout, TiffOptions};
+use crate::io::read::georef::tags;
+use crate::io::texels::{Container, Sample, StoreInPlace, lay_out};
+use crate::par::prelude::*;
 
 /// A sample type TIFF output stores: `u8` and `u16` (unsigned integers)
 /// and `f32` (IEEE floats), in one, three (RGB) or four (RGB and an
@@ -188,6 +191,65 @@ fn from_tiff_error(e: tiff::TiffError) -> Error {
         tiff::TiffError::IoError(e) => Error::Io(e),
         other => Error::Encode(format!("tiff: {other}")),
     }
+}
+
+/// Rows of a TIFF handed to its writer at a time, from an image in memory.
+const TIFF_BAND_ROWS: usize = 256;
+
+/// A TIFF normal map: its samples laid out as in a PNG (red-green maps
+/// with B = 0), each band's normals changed in place by `store` if given
+/// (float samples: (n + 1)/2), in parallel, before they are laid out.
+pub(crate) fn tiff_normals<S: TiffSample + Sample>(
+    texels: &[[S; 3]],
+    heights: &[f32],
+    size: (usize, usize),
+    options: &TiffOptions,
+    store: Option<StoreInPlace<'_, S>>,
+    tags: TiffTags<'_>,
+    out: impl Write + Seek,
+) -> Result<()>
+where
+    [S]: tiff::encoder::TiffValue,
+{
+    let layout = options.layout;
+    let channels = layout.png_samples();
+    let rows = size.0.saturating_mul(TIFF_BAND_ROWS).max(1);
+    write_tiff_rows(out, size, channels, tags, |push| {
+        if layout == Layout::Rgb && store.is_none() {
+            // Written as they are: no copy of the image.
+            return texels.as_flattened().chunks(rows * 3).try_for_each(push);
+        }
+        let (mut stored, mut samples) = (Vec::new(), Vec::new());
+        texels.chunks(rows).enumerate().try_for_each(|(k, band)| {
+            let band_heights = if heights.is_empty() { heights } else { &heights[k * rows..][..band.len()] };
+            let band = match store {
+                Some(store) => {
+                    stored.clear();
+                    stored.extend_from_slice(band);
+                    stored.par_chunks_mut(1 << 14).for_each(store);
+                    &stored[..]
+                }
+                None => band,
+            };
+            samples.clear();
+            lay_out(band, band_heights, layout, Container::Png, &mut samples);
+            push(&samples)
+        })
+    })
+}
+
+/// A one-channel TIFF.
+pub(crate) fn tiff_gray<S: TiffSample>(
+    values: &[S],
+    size: (usize, usize),
+    tags: TiffTags<'_>,
+    out: impl Write + Seek,
+) -> Result<()>
+where
+    [S]: tiff::encoder::TiffValue,
+{
+    let rows = size.0.saturating_mul(TIFF_BAND_ROWS).max(1);
+    write_tiff_rows(out, size, 1, tags, |push| values.chunks(rows).try_for_each(push))
 }
 
 #[cfg(test)]

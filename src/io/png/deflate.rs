@@ -26,15 +26,15 @@
 use crate::par::prelude::*;
 
 /// The zlib header: deflate, 32 KiB window, no dictionary, fastest level.
-pub(super) const ZLIB_HEADER: [u8; 2] = [0x78, 0x01];
+pub(crate) const ZLIB_HEADER: [u8; 2] = [0x78, 0x01];
 
 /// A final, empty block after the last piece: BFINAL 1, BTYPE 01 (fixed
 /// Huffman), end-of-block (seven 0 bits), from a byte boundary.
-pub(super) const FINAL_BLOCK: [u8; 2] = [0x03, 0x00];
+pub(crate) const FINAL_BLOCK: [u8; 2] = [0x03, 0x00];
 
 /// The Adler-32 and the length of some data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct Checksum {
+pub(crate) struct Checksum {
     pub adler: u32,
     pub len: u64,
 }
@@ -57,7 +57,7 @@ impl Checksum {
 /// Raw deflate that does not end the stream and ends on a byte boundary,
 /// and the checksum of the data it holds.
 #[derive(Debug)]
-pub(super) struct Piece {
+pub(crate) struct Piece {
     pub bytes: Vec<u8>,
     pub sum: Checksum,
 }
@@ -78,7 +78,7 @@ impl Piece {
 /// the last one shorter: the bytes written do not depend on where the
 /// parts end (a band's rows depend on the number of threads). The pieces
 /// a part completes are deflated in parallel on rayon's pool.
-pub(super) struct Pieces {
+pub(crate) struct Pieces {
     /// The data of the piece not yet complete.
     pending: Vec<u8>,
     /// Whether a piece whose first [`PROBE`] bytes deflate shrinks by
@@ -210,7 +210,7 @@ fn as_piece(Body { out: mut stream, header }: Body, len: u64) -> Result<Piece, V
 }
 
 /// Bytes of `len` bytes of data as deflate stored blocks.
-pub(super) fn stored_len(len: usize) -> usize {
+pub(crate) fn stored_len(len: usize) -> usize {
     len + 5 * len.div_ceil(STORED_MAX).max(1)
 }
 
