@@ -43,6 +43,7 @@ use crate::{Borders, Options};
 
 pub use self::sink::Output;
 pub(crate) use self::sink::write_to;
+pub(crate) use self::source::decode_whole;
 pub use self::source::{Input, Source, read_all};
 
 /// Which file an error concerns.

@@ -99,11 +99,11 @@ impl Source {
                 return Ok(Source::of(path, Rows::Tiff(Box::new(rows), file()), InputFormat::Tiff, sample));
             }
         }
-        let (path, raster) = match input {
-            Input::Path(path) => (Some(path), io::read_path(path, read)?),
-            Input::Bytes(bytes) => (None, io::decode(bytes, read)?),
+        let path = match input {
+            Input::Path(path) => Some(path),
+            Input::Bytes(_) => None,
         };
-        Ok(Source::whole(raster, path))
+        Ok(Source::whole(decode_whole(input, read)?, path))
     }
 
     /// A decoded image (read from `path`, if from a file).
@@ -169,6 +169,17 @@ impl Source {
             Rows::Whole(raster) => Some(raster),
             _ => None,
         }
+    }
+}
+
+/// `input` decoded whole: what a source that may not stream reads, and
+/// what a stage that needs the whole image (the inverse) reads.
+///
+/// Errors: those of [`io::read_path`] and [`io::decode`].
+pub(crate) fn decode_whole(input: Input<'_>, read: &ReadOptions) -> Result<Raster> {
+    match input {
+        Input::Path(path) => io::read_path(path, read),
+        Input::Bytes(bytes) => io::decode(bytes, read),
     }
 }
 

@@ -21,7 +21,7 @@
 use std::fmt;
 use std::path::Path;
 
-use crate::convert::{ConvertError, Input, Output, Place};
+use crate::engine::{self, ConvertError, Input, Output, Place};
 use crate::error::{Error, Result};
 use crate::io::{self, ExrDepth, InputFormat, OutputFormat, PngDepth, PngOptions, ReadOptions, SampleType};
 use crate::normal_map::Storage;
@@ -186,11 +186,9 @@ impl HeightConversion {
                 "the output is the input (or a link to it): normalfit never writes over an input".into(),
             )));
         }
-        let raster = match input {
-            Input::Path(path) => io::read_path(path, &self.read),
-            Input::Bytes(bytes) => io::decode(bytes, &self.read),
-        }
-        .map_err(fail_in)?;
+        // The inverse needs the whole image: decoded whole by the engine's
+        // source, with the same reading and errors as every command.
+        let raster = engine::decode_whole(input, &self.read).map_err(fail_in)?;
         let (w, h) = (raster.width, raster.height);
         let (input_format, sample) = (raster.format.clone(), raster.sample);
         let planes = match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
