@@ -4,10 +4,10 @@
 use std::path::Path;
 
 use super::sink::{
-    self, InMemory, Output, Texels, check_assembly_memory, check_encode_memory, encode_residual, fitted, write_all,
-    write_to, zeroed,
+    self, InMemory, Output, check_assembly_memory, check_encode_memory, encode_residual, write_all, write_to, zeroed,
 };
 use super::source::{Reopen, Rows};
+use super::stage::{Texels, fitted};
 use super::{ConvertError, Observer, Place, Settings, Sink, Stage, Summary};
 use crate::borders::{BorderChoice, Warning};
 use crate::error::Error;

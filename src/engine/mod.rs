@@ -28,6 +28,7 @@
 mod job;
 pub(crate) mod sink;
 pub(crate) mod source;
+mod stage;
 
 use std::fmt;
 use std::path::PathBuf;

@@ -1,0 +1,91 @@
+//! The normals stage on a whole image: the fit straight into the output's
+//! texel type ([`Texels`]), with the residual and the holes when asked for.
+//! Band by band, the pipeline does the same fit ([`crate::pipeline`]).
+
+use super::sink::{WriteSeek, zeroed};
+use crate::error::Result;
+use crate::io::encoding::{TiffDepth, TiffOptions, TiffTags};
+use crate::io::{self, Encoding, PngDepth, PngOptions};
+use crate::{FromNormal, Options, Samples};
+
+/// A normal map fitted straight into the output's texel type.
+pub(crate) enum Texels {
+    Eight(Vec<[u8; 3]>),
+    Sixteen(Vec<[u16; 3]>),
+    /// The normals n, stored as the EXR options say when encoded.
+    Float(Vec<[f32; 3]>),
+}
+
+impl Texels {
+    /// Fits the normals for `encoding`; with `residual`, the fit's RMS
+    /// distances too (in surface units).
+    pub(crate) fn fit(
+        heights: &Samples,
+        w: usize,
+        h: usize,
+        opts: &Options,
+        encoding: &Encoding,
+        residual: Option<&mut [f32]>,
+        valid: Option<&mut [bool]>,
+    ) -> Result<Texels> {
+        Ok(match encoding {
+            Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => {
+                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => {
+                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Exr(_) | Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => {
+                Texels::Float(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => {
+                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
+            }
+            Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => {
+                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
+            }
+        })
+    }
+
+    /// Encodes the map (`heights` for an alpha of heights; a TIFF with
+    /// `tags`).
+    pub(crate) fn encode(
+        &self,
+        heights: &[f32],
+        size: (usize, usize),
+        encoding: &Encoding,
+        tags: TiffTags<'_>,
+        out: &mut dyn WriteSeek,
+    ) -> Result<()> {
+        match self {
+            Texels::Eight(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+            Texels::Sixteen(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+            Texels::Float(t) => io::write::encode_normals_tagged(t, Some(heights), size, encoding, tags, out),
+        }
+    }
+}
+
+/// The normals of `heights` fitted straight into texels `T`; with
+/// `residual`, the fit's RMS distances too; with `valid`, a fit with
+/// holes that says which texels have a normal.
+///
+/// Errors: those of the fit; [`Error::Limits`] when the memory is not there.
+pub(crate) fn fitted<T: FromNormal + Default + Clone>(
+    heights: &Samples,
+    w: usize,
+    h: usize,
+    opts: &Options,
+    residual: Option<&mut [f32]>,
+    valid: Option<&mut [bool]>,
+) -> Result<Vec<T>> {
+    let mut texels = zeroed::<T>(heights.len())?;
+    let mut request = crate::FitRequest::new(opts);
+    if let Some(residual) = residual {
+        request = request.residual(residual);
+    }
+    if let Some(valid) = valid {
+        request = request.holes(valid);
+    }
+    request.normals_into(heights, w, h, &mut texels)?;
+    Ok(texels)
+}
