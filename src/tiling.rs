@@ -135,15 +135,10 @@
 //!   of curvature, which shading hardly shows). A one- or two-plane image
 //!   forced to `Normal` is judged on its first plane.
 //!
-//! [`KindChoice::Auto`] (the default) uses [`ImageKind::detect`]: an image
-//! of three or more planes is a normal map when at least 90 % of a sample of
-//! its texels decode to vectors within 0.2 of unit length with z > 0, and
-//! their mean has z ≥ 0.5 and an (x, y) part shorter than 0.3 — the
-//! encoding c = (n + 1)/2 is tried, and for float images the raw n as well.
-//! Everything else, gray or a colour photo, is a height map. Colour photos
-//! fail the test (their decoded vectors have all lengths), as do gray
-//! images stored as RGB (equal channels decode to (t, t, t), whose mean is
-//! not near the z axis).
+//! [`KindChoice::Auto`] (the default) tells the two apart by
+//! [`ImageKind::detect`], the normal-map reader's rule (see
+//! [`normal_map`](crate::normal_map#height-map-or-normal-map)): a gray image
+//! or a colour photo is a height map.
 //!
 //! # Default threshold: 1.5
 //!
@@ -234,9 +229,14 @@
 use crate::par::prelude::*;
 
 use crate::Samples;
-use crate::options::{Border, Borders, named_values};
-use crate::samples::try_vec;
+use crate::options::{Border, Borders};
+use crate::samples::{check_planes, image_len, try_vec};
 use crate::{Error, Result};
+
+/// What the planes hold and how it is decided: the normal-map reader's
+/// ([`crate::normal_map`]), named here too for callers of earlier versions.
+#[doc(no_inline)]
+pub use crate::normal_map::{ImageKind, KindChoice};
 
 /// The default [`TilingOptions::threshold`]; see the [module docs](self)
 /// for the figures it was chosen from.
@@ -288,32 +288,6 @@ const JUDGE_SCALE: f32 = 1.0 / 4_294_967_296.0;
 
 /// 1 / [`JUDGE_SCALE`], to bring the sums back to height units.
 const UNSCALE: f64 = 4_294_967_296.0;
-
-/// What the planes of an image hold.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "lowercase"))]
-pub enum ImageKind {
-    /// Heights: judged on the height (gray, or luma of R, G, B), for seams
-    /// of value and of slope.
-    Height,
-    /// An encoded normal map: judged on R, G and B, for seams of value.
-    Normal,
-}
-
-/// How [`check`] decides the [`ImageKind`].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum KindChoice {
-    /// [`ImageKind::detect`] decides. The default.
-    #[default]
-    Auto,
-    /// Judge as a height map.
-    Height,
-    /// Judge as a normal map.
-    Normal,
-}
-
-named_values!(KindChoice, "kind", { Auto => "auto", Height => "height", Normal => "normal" });
 
 /// What [`check`] is asked to do.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -432,66 +406,6 @@ pub fn shift_half<T: Copy>(texels: &[T], width: usize, height: usize) -> Result<
     Ok(out)
 }
 
-/// `width * height`, or the error naming a size that overflows.
-fn image_len(width: usize, height: usize) -> Result<usize> {
-    width
-        .checked_mul(height)
-        .ok_or_else(|| Error::InvalidOption(format!("an image of {width}×{height} texels is too large")))
-}
-
-/// Fails unless every plane holds at least `len` values.
-fn check_planes(planes: &[&[f32]], len: usize) -> Result<()> {
-    match planes.iter().find(|p| p.len() < len) {
-        Some(short) => Err(Error::BufferSize { expected: len, actual: short.len() }),
-        None => Ok(()),
-    }
-}
-
-impl ImageKind {
-    /// Decides whether `planes` hold a height map or an encoded normal map
-    /// (the rule is in the [module docs](self#what-is-judged)).
-    ///
-    /// Looks at a grid sample of at most about 65 000 texels, so the cost is
-    /// the same for any image size.
-    ///
-    /// Errors: [`Error::BufferSize`] when a plane is shorter than
-    /// `width * height`.
-    pub fn detect(planes: &[&[f32]], width: usize, height: usize) -> Result<ImageKind> {
-        let len = image_len(width, height)?;
-        check_planes(planes, len)?;
-        if planes.len() < 3 || len == 0 {
-            return Ok(ImageKind::Height);
-        }
-        let (r, g, b) = (&planes[0][..len], &planes[1][..len], &planes[2][..len]);
-        // A grid stride per axis so that the sample covers the whole image.
-        let step = |n: usize| n.div_ceil(256).max(1);
-        let (sx, sy) = (step(width), step(height));
-        let decodings: [fn(f32) -> f64; 2] = [|c| 2.0 * f64::from(c) - 1.0, f64::from];
-        let normal = decodings.iter().any(|decode| {
-            let (mut count, mut unit) = (0usize, 0usize);
-            let mut mean = [0.0f64; 3];
-            for y in (0..height).step_by(sy) {
-                for x in (0..width).step_by(sx) {
-                    let k = y * width + x;
-                    let v = [decode(r[k]), decode(g[k]), decode(b[k])];
-                    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                    count += 1;
-                    if (length - 1.0).abs() <= 0.2 && v[2] > 0.0 {
-                        unit += 1;
-                    }
-                    for (m, c) in mean.iter_mut().zip(v) {
-                        *m += c;
-                    }
-                }
-            }
-            let n = count as f64;
-            let [mx, my, mz] = mean.map(|m| m / n);
-            unit as f64 >= 0.9 * n && mz >= 0.5 && mx.hypot(my) <= 0.3
-        });
-        Ok(if normal { ImageKind::Normal } else { ImageKind::Height })
-    }
-}
-
 /// Scores the x and y seams of an image given as f32 planes.
 ///
 /// `planes` are the channels, row-major, `width * height` each, in the
@@ -597,7 +511,8 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
 /// The two ways of feeding give the same bits.
 ///
 /// ```
-/// use normalfit::tiling::{check, HeightSeams, KindChoice, TilingOptions};
+/// use normalfit::normal_map::KindChoice;
+/// use normalfit::tiling::{check, HeightSeams, TilingOptions};
 /// // A ramp along x, fed row by row.
 /// let (w, h) = (64, 32);
 /// let ramp: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 / (w - 1) as f32).collect();

@@ -8,7 +8,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use normalfit::inspect::{seam_preview, seam_preview_lit, tiling_report};
 use normalfit::io::{self, Channel, Encoding, Raster, ReadOptions};
-use normalfit::tiling::{self, ImageKind, TilingOptions, TilingReport};
+use normalfit::normal_map::ImageKind;
+use normalfit::tiling::{self, TilingOptions, TilingReport};
 
 use super::args::{TilingArgs, library_message};
 use super::batch::{Batch, Job, Outcome, Turn, Words};
