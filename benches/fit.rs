@@ -27,7 +27,8 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
-use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, check};
+use normalfit::normal_map::KindChoice;
+use normalfit::tiling::{HeightSeams, TilingOptions, check};
 use normalfit::{Fit, FitRequest, FromNormal, Options, Strength};
 
 /// Side of the square height map; `NORMALFIT_BENCH_SIZE` overrides it.

@@ -7,7 +7,8 @@
 use std::fmt;
 
 use crate::error::{Error, Result};
-use crate::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport};
+use crate::normal_map::KindChoice;
+use crate::tiling::{HeightSeams, TilingOptions, TilingReport};
 use crate::{Border, Borders};
 
 /// One axis's border mode: as given, or chosen by the tiling check.

@@ -7,10 +7,10 @@ use std::path::Path;
 
 use crate::error::Result;
 use crate::io::{self, Channel, Raster, ReadOptions};
-use crate::normal_map::{kind_of, rgb_planes};
+use crate::normal_map::{ImageKind, KindChoice, kind_of, rgb_planes};
 use crate::options::{Convention, Options, Strength};
 use crate::shade::{Light, shade};
-use crate::tiling::{self, ImageKind, KindChoice, TilingOptions, TilingReport};
+use crate::tiling::{self, TilingOptions, TilingReport};
 
 /// The tiling report of a decoded image: its kind as `opts.kind` says or
 /// detected ([`kind_of`]); a normal map judged on its R, G, B planes, a

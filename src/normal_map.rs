@@ -6,14 +6,26 @@
 //! n itself. [`decode`] undoes either; [`Storage`] is that rule for one
 //! stored component, in f64, with the step of its rounding (what the
 //! height inverse reads, from a file or from an array). [`kind_of`] tells
-//! the two kinds of image apart by [`ImageKind::detect`], unless told.
+//! the two kinds of image apart by [`ImageKind::detect`], unless told
+//! ([`KindChoice`]); the tiling check and the lit view ask the same.
+//!
+//! # Height map or normal map
+//!
+//! An image of three or more planes is a normal map when at least 90 % of
+//! a sample of its texels decode to vectors within 0.2 of unit length with
+//! z > 0, and their mean has z ≥ 0.5 and an (x, y) part shorter than 0.3 —
+//! the encoding c = (n + 1)/2 is tried, and for float images the raw n as
+//! well. Everything else, gray or a colour photo, is a height map. Colour
+//! photos fail the test (their decoded vectors have all lengths), as do
+//! gray images stored as RGB (equal channels decode to (t, t, t), whose
+//! mean is not near the z axis).
 
 use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::{self, Channel, Raster, ReadOptions, SampleType};
-use crate::samples::{Sample, contract};
-use crate::tiling::{ImageKind, KindChoice};
+use crate::options::named_values;
+use crate::samples::{Sample, check_planes, contract, image_len};
 
 /// How a normal map's components are stored: integers of `bits` bits hold
 /// c = (n + 1)/2 as c · (2^bits − 1); floats hold (n + 1)/2, or n itself
@@ -94,6 +106,82 @@ pub fn rgb_planes(raster: &Raster) -> Result<Option<[Vec<f32>; 3]>> {
     match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
         (Some(r), Some(g), Some(b)) => Ok(Some([r.data.to_f32()?, g.data.to_f32()?, b.data.to_f32()?])),
         _ => Ok(None),
+    }
+}
+
+/// What the planes of an image hold: heights, or a normal map's encoded
+/// normals.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize), serde(rename_all = "lowercase"))]
+pub enum ImageKind {
+    /// Heights. The tiling check judges them on the height (gray, or luma
+    /// of R, G, B), for seams of value and of slope.
+    Height,
+    /// An encoded normal map. The tiling check judges it on R, G and B, for
+    /// seams of value.
+    Normal,
+}
+
+/// How the [`ImageKind`] of an image is decided: detected, or as the
+/// caller says ([`kind_of`], [`TilingOptions::kind`](crate::tiling::TilingOptions::kind),
+/// [`LitOptions::kind`](crate::shade::LitOptions::kind)).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum KindChoice {
+    /// [`ImageKind::detect`] decides. The default.
+    #[default]
+    Auto,
+    /// Judge as a height map.
+    Height,
+    /// Judge as a normal map.
+    Normal,
+}
+
+named_values!(KindChoice, "kind", { Auto => "auto", Height => "height", Normal => "normal" });
+
+impl ImageKind {
+    /// Decides whether `planes` hold a height map or an encoded normal map
+    /// (the rule is in the
+    /// [module docs](self#height-map-or-normal-map)).
+    ///
+    /// Looks at a grid sample of at most about 65 000 texels, so the cost is
+    /// the same for any image size.
+    ///
+    /// Errors: [`Error::BufferSize`] when a plane is shorter than
+    /// `width * height`.
+    pub fn detect(planes: &[&[f32]], width: usize, height: usize) -> Result<ImageKind> {
+        let len = image_len(width, height)?;
+        check_planes(planes, len)?;
+        if planes.len() < 3 || len == 0 {
+            return Ok(ImageKind::Height);
+        }
+        let (r, g, b) = (&planes[0][..len], &planes[1][..len], &planes[2][..len]);
+        // A grid stride per axis so that the sample covers the whole image.
+        let step = |n: usize| n.div_ceil(256).max(1);
+        let (sx, sy) = (step(width), step(height));
+        let decodings: [fn(f32) -> f64; 2] = [|c| 2.0 * f64::from(c) - 1.0, f64::from];
+        let normal = decodings.iter().any(|decode| {
+            let (mut count, mut unit) = (0usize, 0usize);
+            let mut mean = [0.0f64; 3];
+            for y in (0..height).step_by(sy) {
+                for x in (0..width).step_by(sx) {
+                    let k = y * width + x;
+                    let v = [decode(r[k]), decode(g[k]), decode(b[k])];
+                    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                    count += 1;
+                    if (length - 1.0).abs() <= 0.2 && v[2] > 0.0 {
+                        unit += 1;
+                    }
+                    for (m, c) in mean.iter_mut().zip(v) {
+                        *m += c;
+                    }
+                }
+            }
+            let n = count as f64;
+            let [mx, my, mz] = mean.map(|m| m / n);
+            unit as f64 >= 0.9 * n && mz >= 0.5 && mx.hypot(my) <= 0.3
+        });
+        Ok(if normal { ImageKind::Normal } else { ImageKind::Height })
     }
 }
 

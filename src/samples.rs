@@ -233,6 +233,21 @@ pub(crate) fn try_filled<T: Copy + Send + Sync>(len: usize, value: T) -> Result<
     Ok(v)
 }
 
+/// `width * height`, or the error naming a size that overflows.
+pub(crate) fn image_len(width: usize, height: usize) -> Result<usize> {
+    width
+        .checked_mul(height)
+        .ok_or_else(|| Error::InvalidOption(format!("an image of {width}×{height} texels is too large")))
+}
+
+/// Fails unless every plane holds at least `len` values.
+pub(crate) fn check_planes(planes: &[&[f32]], len: usize) -> Result<()> {
+    match planes.iter().find(|p| p.len() < len) {
+        Some(short) => Err(Error::BufferSize { expected: len, actual: short.len() }),
+        None => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

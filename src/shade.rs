@@ -29,8 +29,8 @@ use crate::error::{Error, Result};
 use crate::fit::checked_len;
 use crate::io::encoding::{TiffDepth, TiffOptions};
 use crate::io::{self, Channel, Georef, OutputFormat, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
+use crate::normal_map::{ImageKind, KindChoice};
 use crate::options::Options;
-use crate::tiling::{ImageKind, KindChoice};
 use crate::units::MapSpacing;
 
 pub use crate::light::{AMBIENT, Light, Sun, SunChoice, shade, shade_sun, tile_2x2};

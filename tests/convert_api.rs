@@ -19,8 +19,9 @@ use normalfit::io::{
     Encoding, ExrDepth, ExrOptions, InputFormat, Layout, OutputFormat, PngCompression, PngDepth, PngOptions,
     ReadOptions, SampleType, decode,
 };
+use normalfit::normal_map::{ImageKind, KindChoice};
 use normalfit::shade::{Light, LitOptions, lit_view, shade};
-use normalfit::tiling::{ImageKind, KindChoice, TilingOptions};
+use normalfit::tiling::TilingOptions;
 use normalfit::{Border, Borders, Error, Options, Strength, normal_map, normals};
 
 /// A 16-bit gray height map that tiles in x (whole sine periods) and not

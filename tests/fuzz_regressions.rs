@@ -3,8 +3,9 @@
 //! minimised cases (`cargo fuzz tmin`), as the fuzzers wrote them.
 
 use normalfit::io::{Raster, ReadOptions, decode};
+use normalfit::normal_map::KindChoice;
 use normalfit::pipeline::PngRows;
-use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport, check};
+use normalfit::tiling::{HeightSeams, TilingOptions, TilingReport, check};
 use normalfit::{Border, Borders, Error, FitRequest, Options};
 #[cfg(feature = "hdr")]
 use normalfit::{Fit, Strength};

@@ -3,7 +3,8 @@
 
 mod tiling_support;
 
-use normalfit::tiling::{HeightSeams, ImageKind, KindChoice, TilingOptions, TilingReport, check, shift_half};
+use normalfit::normal_map::{ImageKind, KindChoice};
+use normalfit::tiling::{HeightSeams, TilingOptions, TilingReport, check, shift_half};
 use normalfit::{Error, Samples};
 use tiling_support::{Case, Rng, generated_cases, hard_photo_cases, real_cases, spec_cases, structured_cases};
 

@@ -10,7 +10,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use normalfit::tiling::{HeightSeams, KindChoice, TilingOptions, check};
+use normalfit::normal_map::KindChoice;
+use normalfit::tiling::{HeightSeams, TilingOptions, check};
 use normalfit_fuzz::{Case, assert_report, assert_same_report, check_heights, decoded};
 
 fuzz_target!(|data: &[u8]| {

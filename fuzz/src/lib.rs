@@ -10,7 +10,8 @@
 #![forbid(unsafe_code)]
 
 use normalfit::io::{Channel, Raster, ReadOptions};
-use normalfit::tiling::{AxisReport, KindChoice, TilingOptions, TilingReport};
+use normalfit::normal_map::KindChoice;
+use normalfit::tiling::{AxisReport, TilingOptions, TilingReport};
 use normalfit::{Border, Borders, Convention, Error, Fit, Options, Samples, Strength};
 
 /// Small enough that a forged header costs the fuzzer little (a 1024² map

@@ -31,10 +31,11 @@ use normalfit::inspect;
 use normalfit::io::{
     ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
+use normalfit::normal_map::ImageKind;
 use normalfit::normal_map::{self, Storage};
 use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
-use normalfit::tiling::{self, ImageKind, TilingOptions};
+use normalfit::tiling::{self, TilingOptions};
 use normalfit::units::MapSpacing;
 use normalfit::{Border, Convention, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
 use numpy::ndarray::ArrayView2;

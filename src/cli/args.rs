@@ -13,9 +13,10 @@ use normalfit::height::{ConventionChoice, HeightOptions, Model};
 use normalfit::io::{
     Alpha, ByteOrder, Channel, OutputChannels, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
+use normalfit::normal_map::KindChoice;
 use normalfit::options::UnitsName;
 use normalfit::shade::{Light, LitOptions};
-use normalfit::tiling::{KindChoice, TilingOptions};
+use normalfit::tiling::TilingOptions;
 use normalfit::{Borders, Convention, Fit, Options};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;

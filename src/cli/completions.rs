@@ -6,6 +6,7 @@ use std::io::Write;
 use clap::CommandFactory;
 
 use super::args::{Cli, CompletionsArgs};
+use super::output::STDOUT;
 use super::report::Failure;
 
 /// Prints the script for the shell asked for.
@@ -15,5 +16,5 @@ pub fn run(args: &CompletionsArgs) -> Result<(), Failure> {
     let mut script = Vec::new();
     clap_complete::generate(args.shell, &mut Cli::command(), "normalfit", &mut script);
     let mut stdout = std::io::stdout().lock();
-    stdout.write_all(&script).and_then(|()| stdout.flush()).map_err(|e| Failure::file("<standard output>", e))
+    stdout.write_all(&script).and_then(|()| stdout.flush()).map_err(|e| Failure::file(STDOUT, e))
 }

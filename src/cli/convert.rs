@@ -7,14 +7,14 @@
 
 use std::path::{Path, PathBuf};
 
-use normalfit::convert::{self, Conversion, ConvertError, Observer, Opened, Output, Place, Warning};
+use normalfit::convert::{Conversion, ConvertError, Observer, Opened, Place, Warning};
 use normalfit::io::{Layout, OutputFormat};
 
 use super::args::{ConvertArgs, library_message};
 use super::batch::{Batch, Job, Outcome, RESIDUAL_SUFFIX, Turn, Words};
 use super::fitting;
-use super::input::{Input, read_stdin, stdin_at_most_once};
-use super::output::Destination;
+use super::input::{Input, source, stdin_at_most_once};
+use super::output::{self, Destination};
 use super::report::Failure;
 
 /// What `convert` does with every input, decided once from the arguments.
@@ -87,11 +87,10 @@ impl Plan {
     /// chooses, claims them, and has the library write them.
     fn convert_one(&self, job: &Job, turn: &Turn) -> Result<Outcome, Failure> {
         let input = &job.input;
-        let open = |source| self.conversion.open(source).map_err(|e| Failure::file(input.name(), e));
-        let opened = match input {
-            Input::File(path) => open(convert::Input::Path(path))?,
-            // Decoded whole: the encoded bytes go once decoded.
-            Input::Stdin => open(convert::Input::Bytes(&read_stdin()?))?,
+        let opened = {
+            // Standard input is decoded whole: its encoded bytes go once decoded.
+            let mut bytes = Vec::new();
+            self.conversion.open(source(input, &mut bytes)?).map_err(|e| Failure::file(input.name(), e))?
         };
         let target = self.target(job, &opened)?;
         self.claim(job, &target, turn)?;
@@ -100,19 +99,12 @@ impl Plan {
         if !write_normals && residual.is_none() {
             return Ok(Outcome::Skipped);
         }
-        let in_subfolder = !job.subfolder.as_os_str().is_empty();
-        let file = |path| Output::File { path, create_folder: in_subfolder };
-        // Standard output is locked only by the job that writes there.
-        let mut stdout;
-        let normals = match (&target.path, write_normals) {
-            (_, false) => None,
-            (Some(path), true) => Some(file(path)),
-            (None, true) => {
-                stdout = std::io::stdout().lock();
-                Some(Output::Writer(&mut stdout))
-            }
+        let mut stdout = None;
+        let normals = match write_normals {
+            true => Some(output::file_or_stdout(target.path.as_deref(), &job.subfolder, &mut stdout)),
+            false => None,
         };
-        let residual = residual.map(|r| (file(&r.path), r.format));
+        let residual = residual.map(|r| (output::file(&r.path, &job.subfolder), r.format));
         let observer = JobObserver { turn, input, quiet: self.quiet };
         let written = opened.write(&target.encoding, normals, residual, &observer);
         match written {
@@ -130,12 +122,12 @@ impl Plan {
                 }
                 Ok(Outcome::Done)
             }
-            Err(e) if target.path.is_none() && e.place == Place::Output && pipe_closed(&e) => Ok(Outcome::PipeClosed),
+            Err(e) if output::stdout_closed(&e, target.path.is_none()) => Ok(Outcome::PipeClosed),
             Err(ConvertError { place, error }) => Err(Failure::file(
                 match place {
                     Place::Input => input.name(),
                     Place::Residual => target.residual.as_ref().map_or(input.name(), |r| &r.path),
-                    _ => target.path.as_deref().unwrap_or(Path::new(STDOUT)),
+                    _ => output::name(target.path.as_deref()),
                 },
                 error,
             )),
@@ -150,7 +142,7 @@ impl Plan {
             Destination::File(p) => Some(p.as_path()),
             _ => None,
         };
-        let named = explicit_file.unwrap_or(Path::new(STDOUT));
+        let named = output::name(explicit_file);
         let encoding = opened.encoding(explicit_file).map_err(|e| Failure::file(named, e.error))?;
         let ext = encoding.format().extension();
         let path = self.destination.path_in(input, &job.subfolder, &format!("{}{}.{ext}", input.stem(), self.suffix));
@@ -182,14 +174,6 @@ impl Plan {
         }
         turn.claim(&job.input, &outputs)
     }
-}
-
-/// How messages name standard output.
-const STDOUT: &str = "<standard output>";
-
-/// Whether the error is a write into a pipe whose reader has gone.
-fn pipe_closed(e: &ConvertError) -> bool {
-    matches!(&e.error, normalfit::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
 }
 
 /// Where one input's outputs go and how the normal map is encoded.

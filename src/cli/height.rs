@@ -6,22 +6,19 @@
 
 use std::path::Path;
 
-use normalfit::convert::{self, Output, Place};
+use normalfit::convert::Place;
 use normalfit::height::HeightOptions;
 use normalfit::height::file::{HeightConversion, HeightSummary};
 use normalfit::{Border, Options};
 
 use super::args::HeightArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
-use super::input::{Input, read_stdin, stdin_at_most_once};
-use super::output::Destination;
+use super::input::{Input, source, stdin_at_most_once};
+use super::output::{self, Destination};
 use super::report::{Failure, print_line, warn};
 
 /// The stem ending of height maps: `<stem>_height.exr`.
 const SUFFIX: &str = "_height";
-
-/// How messages name standard output.
-const STDOUT: &str = "<standard output>";
 
 /// What `height` does with every input, decided once from the arguments.
 struct Plan<'a> {
@@ -77,34 +74,14 @@ impl Plan<'_> {
         if !turn.wanted(target.as_deref(), input) {
             return Ok(Outcome::Skipped);
         }
-        let bytes;
-        let source = match input {
-            Input::File(path) => {
-                if path.is_dir() {
-                    return Err(Failure::file(path, "is a folder, not an image"));
-                }
-                convert::Input::Path(path)
-            }
-            Input::Stdin => {
-                bytes = read_stdin()?;
-                convert::Input::Bytes(&bytes)
-            }
-        };
-        let in_subfolder = !job.subfolder.as_os_str().is_empty();
-        let mut stdout;
-        let output = match &target {
-            Some(path) => Output::File { path, create_folder: in_subfolder },
-            None => {
-                stdout = std::io::stdout().lock();
-                Output::Writer(&mut stdout)
-            }
-        };
-        let out_name = target.as_deref().unwrap_or(Path::new(STDOUT));
+        let mut bytes = Vec::new();
+        let source = source(input, &mut bytes)?;
+        let mut stdout = None;
+        let output = output::file_or_stdout(target.as_deref(), &job.subfolder, &mut stdout);
+        let out_name = output::name(target.as_deref());
         let summary = match self.conversion.convert(source, output) {
             Ok(summary) => summary,
-            Err(e) if target.is_none() && e.place == Place::Output && pipe_closed(&e.error) => {
-                return Ok(Outcome::PipeClosed);
-            }
+            Err(e) if output::stdout_closed(&e, target.is_none()) => return Ok(Outcome::PipeClosed),
             Err(e) => {
                 let at = if e.place == Place::Input { input.name() } else { out_name };
                 return Err(Failure::file(at, e.error));
@@ -143,9 +120,4 @@ impl Plan<'_> {
             ));
         }
     }
-}
-
-/// Whether the error is a write into a pipe whose reader has gone.
-fn pipe_closed(e: &normalfit::Error) -> bool {
-    matches!(e, normalfit::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
 }

@@ -4,6 +4,7 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use normalfit::convert;
 use normalfit::io::{self, FileId, Raster, ReadOptions};
 
 use super::report::Failure;
@@ -40,14 +41,29 @@ impl Input {
 pub fn read_input(input: &Input, opts: &ReadOptions) -> Result<Raster, Failure> {
     let fail = |e: normalfit::Error| Failure::file(input.name(), e);
     match input {
-        Input::File(p) => {
-            if p.is_dir() {
-                return Err(Failure::file(p, "is a folder, not an image"));
-            }
-            io::read_path(p, opts).map_err(fail)
-        }
+        Input::File(p) => io::read_path(not_a_folder(p)?, opts).map_err(fail),
         Input::Stdin => io::decode(&read_stdin()?, opts).map_err(fail),
     }
+}
+
+/// One input as the library's engine takes it: the file's path, or the
+/// bytes of standard input, read whole into `bytes`. A folder is refused.
+pub fn source<'a>(input: &'a Input, bytes: &'a mut Vec<u8>) -> Result<convert::Input<'a>, Failure> {
+    Ok(match input {
+        Input::File(p) => convert::Input::Path(not_a_folder(p)?),
+        Input::Stdin => {
+            *bytes = read_stdin()?;
+            convert::Input::Bytes(bytes)
+        }
+    })
+}
+
+/// `path`, unless it is a folder.
+fn not_a_folder(path: &Path) -> Result<&Path, Failure> {
+    if path.is_dir() {
+        return Err(Failure::file(path, "is a folder, not an image"));
+    }
+    Ok(path)
 }
 
 /// Reads standard input to its end; errors name it.

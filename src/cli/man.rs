@@ -8,6 +8,7 @@ use clap::CommandFactory;
 use clap_mangen::Man;
 
 use super::args::{Cli, ManArgs};
+use super::output::STDOUT;
 use super::report::Failure;
 
 /// Prints the whole manual as one page, or writes one page per command into
@@ -21,7 +22,7 @@ pub fn run(args: &ManArgs) -> Result<(), Failure> {
         None => {
             let page = whole_manual(&cli).map_err(|e| Failure::usage(format!("cannot render the manual: {e}")))?;
             let mut stdout = std::io::stdout().lock();
-            stdout.write_all(&page).and_then(|()| stdout.flush()).map_err(|e| Failure::file("<standard output>", e))
+            stdout.write_all(&page).and_then(|()| stdout.flush()).map_err(|e| Failure::file(STDOUT, e))
         }
         Some(dir) => {
             std::fs::create_dir_all(dir)

@@ -1,12 +1,19 @@
 //! Where each input's output goes, for the commands that write one file
-//! per input (`convert`, `shade`), and the rule that no output replaces an
-//! input or an earlier output of the same run.
+//! per input (`convert`, `shade`, `height`), the rule that no output
+//! replaces an input or an earlier output of the same run, and the
+//! library's [`Output`] of a job: a file, or standard output.
 
 use std::collections::HashSet;
+use std::io::StdoutLock;
 use std::path::{Path, PathBuf};
+
+use normalfit::convert::{ConvertError, Output, Place};
 
 use super::input::{Input, InputIds};
 use super::report::Failure;
+
+/// How messages name standard output.
+pub const STDOUT: &str = "<standard output>";
 
 /// Where outputs go, from `-o`.
 pub enum Destination {
@@ -83,4 +90,38 @@ pub fn claim(output: &Path, input: &Input, ids: &InputIds, written: &mut HashSet
         ));
     }
     Ok(())
+}
+
+/// The file `path`, an output of an input found in `subfolder` of a folder
+/// named as input (empty for a file named directly): the folder is made
+/// when there is a subfolder (under `-o DIR`, it may not exist yet).
+pub fn file<'a>(path: &'a Path, subfolder: &Path) -> Output<'a> {
+    Output::File { path, create_folder: !subfolder.as_os_str().is_empty() }
+}
+
+/// The output at `target`: that [`file`], or standard output (`None`),
+/// locked into `stdout` so that only the job that writes there holds it.
+pub fn file_or_stdout<'a>(
+    target: Option<&'a Path>,
+    subfolder: &Path,
+    stdout: &'a mut Option<StdoutLock<'static>>,
+) -> Output<'a> {
+    match target {
+        Some(path) => file(path, subfolder),
+        None => Output::Writer(stdout.insert(std::io::stdout().lock())),
+    }
+}
+
+/// How messages name the output at `target`: the file, or standard output.
+pub fn name(target: Option<&Path>) -> &Path {
+    target.unwrap_or(Path::new(STDOUT))
+}
+
+/// Whether `e` is a write into standard output (`to_stdout`) whose reader
+/// has gone (`| head -c4`): no failure, the run stops
+/// ([`Outcome::PipeClosed`](super::batch::Outcome::PipeClosed)).
+pub fn stdout_closed(e: &ConvertError, to_stdout: bool) -> bool {
+    to_stdout
+        && e.place == Place::Output
+        && matches!(&e.error, normalfit::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
 }

@@ -4,9 +4,7 @@
 //! the output names, the rule that no output replaces an input, and the
 //! messages.
 
-use std::path::Path;
-
-use normalfit::convert::{self, Output, Place};
+use normalfit::convert::Place;
 use normalfit::io::ReadOptions;
 use normalfit::shade::{LitOptions, lit_file, lit_format};
 use normalfit::units::MapSpacing;
@@ -14,8 +12,8 @@ use normalfit::units::MapSpacing;
 use super::args::ShadeArgs;
 use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::fitting;
-use super::input::{Input, read_stdin, stdin_at_most_once};
-use super::output::Destination;
+use super::input::{source, stdin_at_most_once};
+use super::output::{self, Destination};
 use super::report::Failure;
 
 /// The stem ending of lit views: `<stem>_lit.png`.
@@ -70,40 +68,15 @@ impl Plan {
         if !turn.wanted(target.as_deref(), input) {
             return Ok(Outcome::Skipped);
         }
-        let bytes;
-        let source = match input {
-            Input::File(path) => {
-                if path.is_dir() {
-                    return Err(Failure::file(path, "is a folder, not an image"));
-                }
-                convert::Input::Path(path)
-            }
-            Input::Stdin => {
-                bytes = read_stdin()?;
-                convert::Input::Bytes(&bytes)
-            }
-        };
-        let in_subfolder = !job.subfolder.as_os_str().is_empty();
-        // Standard output is locked only by the job that writes there.
-        let mut stdout;
-        let output = match &target {
-            Some(path) => Output::File { path, create_folder: in_subfolder },
-            None => {
-                stdout = std::io::stdout().lock();
-                Output::Writer(&mut stdout)
-            }
-        };
+        let mut bytes = Vec::new();
+        let source = source(input, &mut bytes)?;
+        let mut stdout = None;
+        let output = output::file_or_stdout(target.as_deref(), &job.subfolder, &mut stdout);
         let done = match lit_file(source, &self.read, &self.lit, output) {
             Ok(done) => done,
-            Err(e) if target.is_none() && e.place == Place::Output && pipe_closed(&e.error) => {
-                return Ok(Outcome::PipeClosed);
-            }
+            Err(e) if output::stdout_closed(&e, target.is_none()) => return Ok(Outcome::PipeClosed),
             Err(e) => {
-                let at = match (e.place, &target) {
-                    (Place::Input, _) => input.name(),
-                    (_, Some(path)) => path.as_path(),
-                    (_, None) => Path::new("<standard output>"),
-                };
+                let at = if e.place == Place::Input { input.name() } else { output::name(target.as_deref()) };
                 return Err(Failure::file(at, e.error));
             }
         };
@@ -117,9 +90,4 @@ impl Plan {
         }
         Ok(Outcome::Done)
     }
-}
-
-/// Whether the error is a write into a pipe whose reader has gone.
-fn pipe_closed(e: &normalfit::Error) -> bool {
-    matches!(e, normalfit::Error::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
 }

@@ -8,12 +8,14 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use normalfit::inspect::{seam_preview, seam_preview_lit, tiling_report};
 use normalfit::io::{self, Channel, Encoding, Raster, ReadOptions};
-use normalfit::tiling::{self, ImageKind, TilingOptions, TilingReport};
+use normalfit::normal_map::ImageKind;
+use normalfit::tiling::{self, TilingOptions, TilingReport};
 
 use super::args::{TilingArgs, library_message};
 use super::batch::{Batch, Job, Outcome, Turn, Words};
 use super::exit;
 use super::input::{Input, read_input};
+use super::output::STDOUT;
 use super::report::Failure;
 
 /// Checks every image (files, and the images of folders). Exit 2 if any
@@ -82,7 +84,7 @@ impl Plan {
             match writeln!(stdout, "{line}").and_then(|()| stdout.flush()) {
                 Ok(()) => Ok(Outcome::Done),
                 Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(Outcome::PipeClosed),
-                Err(e) => Err(Failure::file("<standard output>", e)),
+                Err(e) => Err(Failure::file(STDOUT, e)),
             }
         })
     }

@@ -14,9 +14,10 @@ use crate::error::Error;
 use crate::io::encoding::TiffTags;
 use crate::io::{self, Encoding, Georef, Layout, OutputFormat, Raster};
 use crate::light::Lighting;
+use crate::normal_map::KindChoice;
 use crate::pipeline::{self, StoredRows};
 use crate::samples::Samples;
-use crate::tiling::{HeightSeams, KindChoice, TilingOptions, TilingReport};
+use crate::tiling::{HeightSeams, TilingOptions, TilingReport};
 use crate::{Border, Options};
 
 /// One run under way.

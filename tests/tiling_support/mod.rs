@@ -188,12 +188,12 @@ pub struct Case {
     /// Must it tile along x, along y?
     pub expect: (bool, bool),
     /// The kind `Auto` must find.
-    pub kind: normalfit::tiling::ImageKind,
+    pub kind: normalfit::normal_map::ImageKind,
 }
 
 /// The shared real textures with their verdicts, when `../shared/data` is there.
 pub fn real_cases() -> Option<Vec<Case>> {
-    use normalfit::tiling::ImageKind::{Height, Normal};
+    use normalfit::normal_map::ImageKind::{Height, Normal};
     let dir = data_dir()?;
     let files = [
         ("tileable/ambientcg_Bricks061/Bricks061_1K-JPG_Displacement.jpg", true, Height),
@@ -221,13 +221,13 @@ pub fn real_cases() -> Option<Vec<Case>> {
 }
 
 fn gray_case(name: String, v: Vec<f32>, n: usize, expect: (bool, bool)) -> Case {
-    Case { name, image: Planes::gray(v, n, n), expect, kind: normalfit::tiling::ImageKind::Height }
+    Case { name, image: Planes::gray(v, n, n), expect, kind: normalfit::normal_map::ImageKind::Height }
 }
 
 /// The generated cases, at side `n`, quantised to 16 bits as a PNG would
 /// hold them (the normal maps stay float).
 pub fn generated_cases(n: usize) -> Vec<Case> {
-    use normalfit::tiling::ImageKind::Normal;
+    use normalfit::normal_map::ImageKind::Normal;
     let mut cases = Vec::new();
     // Noise at several frequencies: (cells of the first octave, octaves).
     // The finest octave keeps cells of at least 8 texels: white noise
@@ -299,7 +299,7 @@ pub mod structured;
 /// periodic textures of the same, which must tile. 8-bit photos (gray and
 /// RGB, as cameras give), 16-bit gray or 8-bit RGB textures.
 pub fn structured_cases(n: usize) -> Vec<Case> {
-    use normalfit::tiling::ImageKind::Height;
+    use normalfit::normal_map::ImageKind::Height;
     use structured::{Camera, Look, Pattern, Wrap, photo, texture};
     let mut cases = Vec::new();
     let case = |name: String, r: structured::Rendered, tiles: bool| Case {
@@ -371,7 +371,7 @@ pub fn hard_photo_cases() -> Vec<Case> {
                 name: format!("rough planks photo at {angle}°, zoom 1.5, n{n}"),
                 image: Planes { planes: p.planes, width: n, height: n },
                 expect: (false, false),
-                kind: normalfit::tiling::ImageKind::Height,
+                kind: normalfit::normal_map::ImageKind::Height,
             }
         })
         .collect()
