@@ -1,7 +1,6 @@
 //! Inputs as the command line names them: files or standard input, and the
 //! identities (device, inode) that protect them from being written over.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use normalfit::convert;
@@ -68,19 +67,7 @@ fn not_a_folder(path: &Path) -> Result<&Path, Failure> {
 
 /// Reads standard input to its end; errors name it.
 pub fn read_stdin() -> Result<Vec<u8>, Failure> {
-    let mut bytes = Vec::new();
-    std::io::stdin().lock().read_to_end(&mut bytes).map_err(|e| {
-        let problem = match e.kind() {
-            // Read whole, the file must fit in memory: say so, and how far it got.
-            std::io::ErrorKind::OutOfMemory => normalfit::Error::Limits(format!(
-                "standard input is read whole, and {} MiB of it already fill the memory the process may take",
-                bytes.len() >> 20
-            )),
-            _ => e.into(),
-        };
-        Failure::file(Input::Stdin.name(), problem)
-    })?;
-    Ok(bytes)
+    normalfit::engine::read_all(std::io::stdin().lock()).map_err(|e| Failure::file(Input::Stdin.name(), e))
 }
 
 /// Standard input can be read only once.
