@@ -16,7 +16,7 @@
 //! the orthogonal fit takes the smallest eigenvector of the 3×3 covariance
 //! [[Cuu, Cuv, Cuz], [Cuv, Cvv, Cvz], [Cuz, Cvz, Czz]]: a rotation in (u, v)
 //! makes its (u, v) block diagonal, and the unequal spacing's solver
-//! ([`smallest_eigen`](super::smallest_eigen)) finds it. A texel that is itself missing, or whose
+//! ([`smallest_eigen`](super::eigen::smallest_eigen)) finds it. A texel that is itself missing, or whose
 //! valid points are fewer than 3 or collinear, is missing.
 //!
 //! # Sums, and why they keep their digits
@@ -41,7 +41,8 @@
 
 use std::ops::Range;
 
-use super::{FromNormal, NEWTON_STEPS, Plan, RowRef, SourceRows, eigen_start, eigenvector, newton_step, select};
+use super::eigen::{NEWTON_STEPS, eigen_start, eigenvector, newton_step, select};
+use super::{FromNormal, Plan, RowRef, SourceRows};
 use crate::samples::Sample;
 
 /// Whether a value as given is a hole.
@@ -255,7 +256,7 @@ pub(super) struct Moments {
 /// over whole planes, which vectorise, rather than patch by patch (whose
 /// branches and Newton loop took 55 % of a 10 %-holes conversion).
 ///
-/// Each patch's fit is [`smallest_eigen`](super::smallest_eigen)'s
+/// Each patch's fit is [`smallest_eigen`](super::eigen::smallest_eigen)'s
 /// arithmetic, in its order: the normals are those of a per-patch solve,
 /// bit for bit.
 #[derive(Default)]
@@ -282,7 +283,7 @@ pub(super) struct MaskedRow {
     zz: Vec<f64>,
     /// The centred moments [Cuu, Cvv, Cuv, Cuz, Cvz, Czz]; the orthogonal
     /// fit rotates them in place into [a1, a2, cos θ, b1, b2, Czz] (see
-    /// [`smallest_eigen`](super::smallest_eigen)).
+    /// [`smallest_eigen`](super::eigen::smallest_eigen)).
     moments: [Vec<f64>; 6],
     sin: Vec<f64>,
     flat: Vec<bool>,

@@ -7,7 +7,7 @@
 //!
 //! * vertical: n ∝ (−Cx, −Cy/ρ, A);
 //! * orthogonal: the eigenvector of the smallest eigenvalue, found by
-//!   Newton's steps from a lower bound (`smallest_eigen` in the parent);
+//!   Newton's steps from a lower bound (`eigen`);
 //! * a patch flat by the contract's rule: (0, 0, 1).
 //!
 //! The rule the loops obey: no branch per texel. Every case is computed
@@ -21,8 +21,9 @@
 //! conversion (`perf`, 4096², N = 3), which ran at a third of the square
 //! grid's speed.
 
+use super::eigen::{eigen_start, eigenvector, is_flat, select};
 use super::masked::{NewtonWork, newton};
-use super::{FromNormal, Plan, WindowSums, eigen_start, eigenvector, is_flat, select, store_normals};
+use super::{FromNormal, Plan, WindowSums, store_normals};
 
 /// The planes of one row's unequal-spacing fit, kept from row to row (a
 /// strip's scratch): the matrix's varying entries, the Newton state.
@@ -290,7 +291,7 @@ fn orthogonal_normals(
 
 #[cfg(test)]
 mod tests {
-    use super::super::{smallest_eigen, unequal_normal};
+    use super::super::eigen::{newton_step, smallest_eigen, unequal_normal};
     use super::*;
     use crate::options::{Convention, Options};
 
@@ -390,7 +391,7 @@ mod tests {
             let (mut lambda, scale) = eigen_start(a1, a2, b1, b2, czz);
             let mut steps = 0;
             loop {
-                let (next, more) = super::super::newton_step([a1, a2, b1, b2, czz], scale, lambda);
+                let (next, more) = newton_step([a1, a2, b1, b2, czz], scale, lambda);
                 lambda = next;
                 steps += 1;
                 if !more {
