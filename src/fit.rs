@@ -22,10 +22,11 @@
 //! and sy down a column (per row for a geographic raster: the patch takes
 //! its centre row's). Lengths are then counted in x spacings: z / sx, and
 //! the rows ρ = sy / sx apart. Where ρ = 1 the formulas above run as they
-//! are (on z / sx); otherwise `unequal_normal`: the vertical fit
+//! are (on z / sx); otherwise (`unequal`) the vertical fit
 //! n ∝ (−Cx, −Cy/ρ, A), the orthogonal fit the smallest eigenvector of
-//! [[A, 0, Cx], [0, ρ²A, ρCy], [Cx, ρCy, Czz]] (docs/spec.md). The sums,
-//! and so the cost per texel, do not change; only the last step does.
+//! [[A, 0, Cx], [0, ρ²A, ρCy], [Cx, ρCy, Czz]] (docs/spec.md). The sums
+//! do not change; only the last step does, and it too runs as loops over
+//! a row's planes, without branches.
 //!
 //! # How the sums are found
 //!
@@ -74,11 +75,14 @@ use crate::error::{Error, Result};
 use crate::options::{Borders, Fit, Options, Spacing, Units};
 use crate::samples::{Sample, first_non_finite};
 
+mod eigen;
 mod masked;
 mod request;
+mod unequal;
 mod window;
 use masked::{MaskSums, MaskedRow, Moments, row_has_hole};
 pub use request::{FitRequest, Heights};
+use unequal::{RowSpacing, UnequalRow};
 pub use window::{Halo, HaloPlan, Window};
 
 /// A type an output texel can be made from a unit normal.
@@ -763,7 +767,7 @@ impl Plan {
             .collect();
         ring.rotate_right(y0 % n);
         let mut entering = RowSums::zeros(w);
-        let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        let mut scratch = EmitScratch::new(w);
 
         let mut v = WindowSums::zeros(w);
         for j in 0..n {
@@ -783,9 +787,9 @@ impl Plan {
             if let Some(holes) = holes.as_mut() {
                 self.advance_holes(rows, y0 + k, holes, &mut v);
             }
-            self.emit(&v, gain, y0 + k, &mut normal, out_row);
+            self.emit(&v, gain, y0 + k, &mut scratch, out_row);
             if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, gain, y0 + k, residual[k]);
+                self.emit_residual(&v, gain, y0 + k, &mut scratch, residual[k]);
             }
             if let Some(holes) = holes.as_mut() {
                 self.patch_holes(&v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
@@ -849,7 +853,7 @@ impl Plan {
         let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
         let mut cache = RowCache::new(N, w);
         let mut v = WindowSums::zeros(w);
-        let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        let mut scratch = EmitScratch::new(w);
         for (k, out_row) in out.iter_mut().enumerate() {
             let y = (y0 + k) as isize;
             for j in 0..N as isize {
@@ -860,9 +864,9 @@ impl Plan {
             if let Some(holes) = holes.as_mut() {
                 self.advance_holes(rows, y0 + k, holes, &mut v);
             }
-            self.emit(&v, 1.0, y0 + k, &mut normal, out_row);
+            self.emit(&v, 1.0, y0 + k, &mut scratch, out_row);
             if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, 1.0, y0 + k, residual[k]);
+                self.emit_residual(&v, 1.0, y0 + k, &mut scratch, residual[k]);
             }
             if let Some(holes) = holes.as_mut() {
                 self.patch_holes(&v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
@@ -934,7 +938,7 @@ impl Plan {
         let row_sums = |v: isize, sums: &mut RowSums| self.blocked_row_sums(rows(v), gain, cols.clone(), sums);
         let mut suffix: Vec<WindowSums> = (0..n).map(|_| WindowSums::zeros(w)).collect();
         let (zero, mut prefix, mut v) = (WindowSums::zeros(w), WindowSums::zeros(w), WindowSums::zeros(w));
-        let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        let mut scratch = EmitScratch::new(w);
 
         for block in y0 / n..=(y_end - 1) / n {
             let top = (block * n) as isize;
@@ -978,9 +982,9 @@ impl Plan {
                 if let Some(holes) = holes.as_mut() {
                     self.advance_holes(rows, y0 + k, holes, &mut v);
                 }
-                self.emit(&v, 1.0, y0 + k, &mut normal, out[k]);
+                self.emit(&v, 1.0, y0 + k, &mut scratch, out[k]);
                 if let Some(residual) = residual.as_mut() {
-                    self.emit_residual(&v, 1.0, y0 + k, residual[k]);
+                    self.emit_residual(&v, 1.0, y0 + k, &mut scratch, residual[k]);
                 }
                 if let Some(holes) = holes.as_mut() {
                     self.patch_holes(&v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
@@ -1047,12 +1051,13 @@ impl Plan {
         }
     }
 
-    /// Turns the window sums of one row into normals, through `normal`
-    /// (x, y and z planes): the fit's loop then stores whole vectors, and
+    /// Turns the window sums of one row into normals, through `scratch`'s
+    /// planes (x, y and z): the fit's loop then stores whole vectors, and
     /// the texel type's conversion is a loop of its own. The sums are in
     /// units of z / `gain` (stored integers), or of z (`gain` 1); `y` is
     /// the image row, whose spacing map units fit with.
-    fn emit<T: FromNormal>(&self, v: &WindowSums, gain: f64, y: usize, normal: &mut [Vec<f64>; 3], out: &mut [T]) {
+    fn emit<T: FromNormal>(&self, v: &WindowSums, gain: f64, y: usize, scratch: &mut EmitScratch, out: &mut [T]) {
+        let normal = &mut scratch.normal;
         if self.moments {
             let n2 = (self.n * self.n) as f64;
             let czz_gain = gain * gain / n2;
@@ -1077,8 +1082,8 @@ impl Plan {
                 pulp::Arch::new().dispatch(EmitRow::<T, false> { plan: self, v, gain, normal, out })
             }
             fit => {
-                self.emit_unequal(v, gain, rho, fit == Fit::Orthogonal, normal);
-                store_normals(normal, out);
+                let row = RowSpacing { gain, rho, orthogonal: fit == Fit::Orthogonal };
+                scratch.unequal.normals(self, v, row, normal, out);
             }
         }
     }
@@ -1102,24 +1107,6 @@ impl Plan {
                 let [sx, sy] = spacing.at(y);
                 ([sx, sy], sy / sx)
             }
-        }
-    }
-
-    /// [`Self::emit_with`] for texels of unequal spacing (ρ ≠ 1), lengths
-    /// in units of the x spacing: the vertical fit by its closed form, the
-    /// orthogonal one by the scatter matrix's smallest eigenvector
-    /// ([`unequal_normal`]).
-    fn emit_unequal(&self, v: &WindowSums, gain: f64, rho: f64, orthogonal: bool, normal: &mut [Vec<f64>; 3]) {
-        let n2 = (self.n * self.n) as f64;
-        let czz_gain = gain * gain / n2;
-        let (gx, gy) = (gain, self.sigma * gain);
-        let [nx, ny, nz] = normal;
-        let w = nx.len();
-        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
-        let (ny, nz) = (&mut ny[..w], &mut nz[..w]);
-        for x in 0..w {
-            let czz = Self::czz(n2, czz_gain, s0[x], szz[x]);
-            [nx[x], ny[x], nz[x]] = unequal_normal(orthogonal, self.a, rho, gx * si[x], gy * sj[x], czz);
         }
     }
 
@@ -1166,35 +1153,19 @@ impl Plan {
     /// own, run only when asked for, so the normals' loop stays as it is.
     /// In map units, the distances are in the heights' unit (the fit's
     /// lengths in x spacings, times sx).
-    fn emit_residual(&self, v: &WindowSums, gain: f64, y: usize, out: &mut [f32]) {
+    fn emit_residual(&self, v: &WindowSums, gain: f64, y: usize, scratch: &mut EmitScratch, out: &mut [f32]) {
         let ([sx, _], rho) = self.spacing_at(y);
         let gain = gain / sx;
         match self.fit {
             // The vertical fit's residual does not depend on ρ: ordinary
             // least squares leaves the same residual however its regressors
-            // are scaled.
-            Fit::Orthogonal if rho != 1.0 => self.emit_residual_unequal(v, gain, rho, sx, out),
+            // are scaled. The orthogonal fit's is the smallest eigenvalue
+            // of the scatter matrix.
+            Fit::Orthogonal if rho != 1.0 => {
+                scratch.unequal.residuals(self, v, RowSpacing { gain, rho, orthogonal: true }, sx, out)
+            }
             Fit::Orthogonal => self.emit_residual_with::<true>(v, gain, sx, out),
             Fit::Vertical => self.emit_residual_with::<false>(v, gain, sx, out),
-        }
-    }
-
-    /// The orthogonal fit's residual for texels of unequal spacing: the
-    /// smallest eigenvalue of the scatter matrix.
-    fn emit_residual_unequal(&self, v: &WindowSums, gain: f64, rho: f64, sx: f64, out: &mut [f32]) {
-        let n2 = (self.n * self.n) as f64;
-        let (inv_n2, czz_gain) = (1.0 / n2, gain * gain / n2);
-        let w = out.len();
-        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
-        for x in 0..w {
-            let czz = Self::czz(n2, czz_gain, s0[x], szz[x]);
-            let (cx, cy) = (gain * si[x], gain * sj[x]);
-            let sum = if is_flat(self.a, cx, cy, czz) {
-                czz
-            } else {
-                smallest_eigen(self.a, rho * rho * self.a, cx, rho * cy, czz).0.max(0.0)
-            };
-            out[x] = ((sum * inv_n2).sqrt() * sx) as f32;
         }
     }
 
@@ -1236,130 +1207,6 @@ fn squared_distance_sum<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: f64, czz: f
     };
     let tilted = (a * czz - tilt2).max(0.0) / largest;
     if flat { czz } else { tilted }
-}
-
-/// Whether a patch has no tilt, up to rounding: Cx² + Cy² ≤ 1e-20 ·
-/// (A + Czz)², the contract's rule (lengths in x spacings).
-#[inline(always)]
-fn is_flat(a: f64, cx: f64, cy: f64, czz: f64) -> bool {
-    cx * cx + cy * cy <= 1e-20 * (a + czz) * (a + czz)
-}
-
-/// The unit normal of a patch whose rows are ρ x-spacings apart (ρ ≠ 1),
-/// lengths in x spacings, from its sums (A, Cx, Cy as on the square grid,
-/// Czz; see the module docs). The points are (i, ρ·σ·j, z), so the scatter
-/// matrix is
-///
-/// ```text
-/// [[A, 0, Cx], [0, ρ²A, ρCy], [Cx, ρCy, Czz]]
-/// ```
-///
-/// * vertical: ordinary least squares, z = gx·u + gy·v with gx = Cx / A,
-///   gy = ρCy / (ρ²A): n ∝ (−Cx, −Cy/ρ, A);
-/// * orthogonal: the eigenvector of the smallest eigenvalue
-///   ([`smallest_eigen`]), n_z ≥ 0. The spacing is in the moments: the
-///   plane minimises perpendicular distances in real-world lengths, which
-///   no scaling of the square-grid normal gives.
-/// * a patch flat by [`is_flat`]: (0, 0, 1).
-fn unequal_normal(orthogonal: bool, a: f64, rho: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
-    if is_flat(a, cx, cy, czz) {
-        return [0.0, 0.0, 1.0];
-    }
-    let n = if orthogonal { smallest_eigen(a, rho * rho * a, cx, rho * cy, czz).1 } else { [-cx, -cy / rho, a] };
-    let inv = 1.0 / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    n.map(|c| c * inv)
-}
-
-/// The smallest eigenvalue λ of the scatter matrix M = [[a1, 0, b1],
-/// [0, a2, b2], [b1, b2, c]] (a1, a2 > 0, M positive semi-definite), and
-/// an eigenvector of it (not normalised) with a non-negative z (with z = 0
-/// up to rounding: a non-negative y, then x).
-///
-/// λ is the smallest root of p(λ) = det(M − λI) =
-/// (a1 − λ)(a2 − λ)(c − λ) − b1²(a2 − λ) − b2²(a1 − λ). Left of that root
-/// p is positive, decreasing and convex (p'' changes sign only at the mean
-/// eigenvalue), so Newton's steps from any point left of it rise to it
-/// without overshooting. The start is the closed form of the square grid
-/// with both a's replaced by m = min(a1, a2): M minus that matrix is
-/// diag(a1 − m, a2 − m, 0) ⪰ 0, so its smallest eigenvalue is a lower
-/// bound, and close to λ when the spacings are close. The eigenvector is
-/// the longest cross product of two rows of M − λI (the first two rows'
-/// is (−b1(a2 − λ), −b2(a1 − λ), (a1 − λ)(a2 − λ)), the normal of the
-/// square grid's formula when a1 = a2; the others take over when λ meets
-/// a1 or a2, a patch whose flattest direction is horizontal).
-fn smallest_eigen(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, [f64; 3]) {
-    let (mut lambda, scale) = eigen_start(a1, a2, b1, b2, c);
-    for _ in 0..NEWTON_STEPS {
-        let (next, more) = newton_step([a1, a2, b1, b2, c], scale, lambda);
-        lambda = next;
-        if !more {
-            break;
-        }
-    }
-    (lambda, eigenvector([a1, a2, b1, b2, c], lambda))
-}
-
-/// Newton's steps [`smallest_eigen`] takes at most.
-const NEWTON_STEPS: usize = 200;
-
-/// [`smallest_eigen`]'s start: the lower bound λ₀, and the scale of M
-/// its steps are measured against.
-#[inline(always)]
-fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64) {
-    let m = a1.min(a2);
-    let tilt2 = b1 * b1 + b2 * b2;
-    let d = 0.5 * (m - c);
-    let largest = 0.5 * (m + c) + (d * d + tilt2).sqrt();
-    (((m * c - tilt2) / largest).max(0.0), a1 + a2 + c)
-}
-
-/// One of [`smallest_eigen`]'s Newton steps from λ, without branches (the
-/// masked fit runs it over arrays of patches): the next λ, and whether
-/// to step again. It stays at λ once p(λ) ≤ 0, the slope is not
-/// negative or the step does not rise, and stops after a step below
-/// 1e-17 of the scale.
-// The stops negated rather than the comparisons flipped: a NaN steps on.
-#[allow(clippy::neg_cmp_op_on_partial_ord)]
-#[inline(always)]
-fn newton_step([a1, a2, b1, b2, c]: [f64; 5], scale: f64, lambda: f64) -> (f64, bool) {
-    let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
-    let p = p1 * p2 * p3 - b1 * b1 * p2 - b2 * b2 * p1;
-    let slope = b1 * b1 + b2 * b2 - (p2 * p3 + p1 * p3 + p1 * p2);
-    let next = lambda - p / slope;
-    let rises = !(p <= 0.0) & !(slope >= 0.0) & !(next <= lambda);
-    let step = next - lambda;
-    (if rises { next } else { lambda }, rises & !(step <= 1e-17 * scale))
-}
-
-/// [`smallest_eigen`]'s eigenvector for its λ, without branches.
-#[inline(always)]
-fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3] {
-    let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
-    let candidates =
-        [[-b1 * p2, -b2 * p1, p1 * p2], [-b1 * b2, b1 * b1 - p1 * p3, p1 * b2], [p2 * p3 - b2 * b2, b1 * b2, -p2 * b1]];
-    let length2 = |v: &[f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-    let mut best = candidates[0];
-    for v in &candidates[1..] {
-        let longer = length2(v) > length2(&best);
-        best = if longer { *v } else { best };
-    }
-    // n_z ≥ 0; a vertical plane (n_z = 0 up to rounding, 1e-12 of the
-    // vector: a cliff whose heights spread more than the narrower axis's
-    // texels) takes n_y ≥ 0, then n_x ≥ 0.
-    let tiny = 1e-12 * best[0].abs().max(best[1].abs()).max(best[2].abs());
-    let [x, y, z] = best;
-    let (z_counts, y_counts) = (z.abs() > tiny, y.abs() > tiny);
-    let flip = (z_counts & (z < 0.0)) | (!z_counts & ((y_counts & (y < 0.0)) | (!y_counts & (x < 0.0))));
-    best.map(|c| select(flip, -c, c))
-}
-
-/// `if take { a } else { b }`, both already computed, chosen by masks:
-/// the compiler cannot move a costly `b` (a division, a square root) into
-/// a branch of its own, so a loop of it stays branch-free and vectorises.
-#[inline(always)]
-fn select(take: bool, a: f64, b: f64) -> f64 {
-    let mask = u64::from(take).wrapping_neg();
-    f64::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
 }
 
 /// The fitted plane's unit normal from the patch sums (see the module
@@ -1421,6 +1268,19 @@ impl<T: FromNormal, const ORTHOGONAL: bool> pulp::WithSimd for EmitRow<'_, T, OR
 fn store_normals<T: FromNormal>([nx, ny, nz]: &[Vec<f64>; 3], out: &mut [T]) {
     for (((texel, &x), &y), &z) in out.iter_mut().zip(nx.iter()).zip(ny.iter()).zip(nz.iter()) {
         *texel = T::from_normal([x, y, z]);
+    }
+}
+
+/// A strip's planes for turning window sums into texels, kept from row
+/// to row: the normals' x, y and z planes, and the unequal spacing's.
+struct EmitScratch {
+    normal: [Vec<f64>; 3],
+    unequal: UnequalRow,
+}
+
+impl EmitScratch {
+    fn new(width: usize) -> Self {
+        EmitScratch { normal: [vec![0.0; width], vec![0.0; width], vec![0.0; width]], unequal: UnequalRow::default() }
     }
 }
 

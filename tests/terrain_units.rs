@@ -281,6 +281,57 @@ fn per_row_spacing_fits_as_the_reference() {
     }
 }
 
+/// Rows of every kind in one image: ρ = sy / sx below 1, exactly 1 (the
+/// square grid's loop) and above 1 (the unequal spacing's loops over
+/// planes), row after row, in an image wide enough for three strips of
+/// the fit, N = 3, 5, 9, both fits, every border pair: each texel checked
+/// (near the edges, the strips' joins and every 37th column) against the
+/// reference; and the same bits on one thread as on three, and band by
+/// band ([`BandFit`]) as whole.
+#[test]
+fn rows_of_mixed_spacing_across_strips_fit_as_the_reference() {
+    let (w, h) = (1100, 9);
+    let z = terrain(w, h, 30.0);
+    let rows: Vec<[f64; 2]> = (0..h).map(|y| [[10.0, 10.0], [8.0, 11.3], [12.0, 7.0]][y % 3]).collect();
+    let checked = |x: usize| {
+        x < 40 || x >= w - 40 || (490..540).contains(&x) || (1000..1050).contains(&x) || x.is_multiple_of(37)
+    };
+    for n in [3, 5, 9] {
+        for fit in [Fit::Vertical, Fit::Orthogonal] {
+            for (bx, by) in BORDERS.iter().flat_map(|&x| BORDERS.iter().map(move |&y| (x, y))) {
+                let opts = Options::new()
+                    .with_patch(n)
+                    .with_fit(fit)
+                    .with_borders(Borders { x: bx, y: by })
+                    .with_units(Units::Map(Spacing::Rows(Arc::from(rows.clone()))));
+                let run = |threads: usize| {
+                    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                    pool.install(|| fitted(&z, w, h, &opts).0)
+                };
+                let got = run(3);
+                for y in 0..h {
+                    for x in (0..w).filter(|&x| checked(x)) {
+                        let want = reference::normal_at(&z, w, h, &opts, x, y);
+                        let g = got[y * w + x];
+                        let err = (0..3).map(|c| (g[c] - want[c]).abs()).fold(0.0, f64::max);
+                        assert!(err < 1e-9, "N {n} {fit:?} {bx:?},{by:?} ({x}, {y}): {g:?} against {want:?}");
+                    }
+                }
+                let bits = |normals: &[[f64; 3]]| normals.iter().map(|t| t.map(f64::to_bits)).collect::<Vec<_>>();
+                assert!(bits(&run(1)) == bits(&got), "N {n} {fit:?} {bx:?},{by:?}: one thread");
+                let bands = normalfit::fit::BandFit::new(w, h, &opts).unwrap();
+                let mut streamed = Vec::new();
+                for band in bands.bands() {
+                    let mut out = vec![[0.0f64; 3]; band.len() * w];
+                    bands.fit_band(band, &|y| &z[y * w..][..w], &mut out).unwrap();
+                    streamed.extend(out);
+                }
+                assert!(bits(&streamed) == bits(&got), "N {n} {fit:?} {bx:?},{by:?}: bands");
+            }
+        }
+    }
+}
+
 /// Where the spacing comes from, and the one-line errors when it cannot.
 #[test]
 fn the_spacing_of_a_georeference_and_its_errors() {

@@ -1,0 +1,141 @@
+//! The smallest eigenvector of a patch's scatter matrix where its rows
+//! and columns are spaced unequally (the masked fit's, after a rotation,
+//! and the unequal spacing's): Newton's steps on its characteristic
+//! polynomial, each a function without branches that the row loops of
+//! `masked` and `unequal` run over planes; and the per-patch statement of
+//! that arithmetic (`smallest_eigen`, `unequal_normal`) their tests
+//! hold them to. Pure functions of numbers: nothing here knows the fit.
+
+/// Whether a patch has no tilt, up to rounding: Cx² + Cy² ≤ 1e-20 ·
+/// (A + Czz)², the contract's rule (lengths in x spacings).
+#[inline(always)]
+pub(super) fn is_flat(a: f64, cx: f64, cy: f64, czz: f64) -> bool {
+    cx * cx + cy * cy <= 1e-20 * (a + czz) * (a + czz)
+}
+
+/// The unit normal of a patch whose rows are ρ x-spacings apart (ρ ≠ 1),
+/// lengths in x spacings, from its sums (A, Cx, Cy as on the square grid,
+/// Czz; see the fit's module docs). The points are (i, ρ·σ·j, z), so the scatter
+/// matrix is
+///
+/// ```text
+/// [[A, 0, Cx], [0, ρ²A, ρCy], [Cx, ρCy, Czz]]
+/// ```
+///
+/// * vertical: ordinary least squares, z = gx·u + gy·v with gx = Cx / A,
+///   gy = ρCy / (ρ²A): n ∝ (−Cx, −Cy/ρ, A);
+/// * orthogonal: the eigenvector of the smallest eigenvalue
+///   ([`smallest_eigen`]), n_z ≥ 0. The spacing is in the moments: the
+///   plane minimises perpendicular distances in real-world lengths, which
+///   no scaling of the square-grid normal gives.
+/// * a patch flat by [`is_flat`]: (0, 0, 1).
+///
+/// Patch by patch, with branches: the statement of the arithmetic that
+/// `unequal`'s loops over a row's planes run, in the same order, for the
+/// same bits (its tests hold them to it).
+#[cfg(test)]
+pub(super) fn unequal_normal(orthogonal: bool, a: f64, rho: f64, cx: f64, cy: f64, czz: f64) -> [f64; 3] {
+    if is_flat(a, cx, cy, czz) {
+        return [0.0, 0.0, 1.0];
+    }
+    let n = if orthogonal { smallest_eigen(a, rho * rho * a, cx, rho * cy, czz).1 } else { [-cx, -cy / rho, a] };
+    let inv = 1.0 / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    n.map(|c| c * inv)
+}
+
+/// The smallest eigenvalue λ of the scatter matrix M = [[a1, 0, b1],
+/// [0, a2, b2], [b1, b2, c]] (a1, a2 > 0, M positive semi-definite), and
+/// an eigenvector of it (not normalised) with a non-negative z (with z = 0
+/// up to rounding: a non-negative y, then x).
+///
+/// λ is the smallest root of p(λ) = det(M − λI) =
+/// (a1 − λ)(a2 − λ)(c − λ) − b1²(a2 − λ) − b2²(a1 − λ). Left of that root
+/// p is positive, decreasing and convex (p'' changes sign only at the mean
+/// eigenvalue), so Newton's steps from any point left of it rise to it
+/// without overshooting. The start is the closed form of the square grid
+/// with both a's replaced by m = min(a1, a2): M minus that matrix is
+/// diag(a1 − m, a2 − m, 0) ⪰ 0, so its smallest eigenvalue is a lower
+/// bound, and close to λ when the spacings are close. The eigenvector is
+/// the longest cross product of two rows of M − λI (the first two rows'
+/// is (−b1(a2 − λ), −b2(a1 − λ), (a1 − λ)(a2 − λ)), the normal of the
+/// square grid's formula when a1 = a2; the others take over when λ meets
+/// a1 or a2, a patch whose flattest direction is horizontal).
+///
+/// Patch by patch: the fit runs these steps over planes of patches
+/// (`unequal` and `masked`, through [`eigen_start`], [`newton_step`] and
+/// [`eigenvector`]), with the same bits.
+#[cfg(test)]
+pub(super) fn smallest_eigen(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, [f64; 3]) {
+    let (mut lambda, scale) = eigen_start(a1, a2, b1, b2, c);
+    for _ in 0..NEWTON_STEPS {
+        let (next, more) = newton_step([a1, a2, b1, b2, c], scale, lambda);
+        lambda = next;
+        if !more {
+            break;
+        }
+    }
+    (lambda, eigenvector([a1, a2, b1, b2, c], lambda))
+}
+
+/// Newton's steps [`smallest_eigen`] takes at most.
+pub(super) const NEWTON_STEPS: usize = 200;
+
+/// [`smallest_eigen`]'s start: the lower bound λ₀, and the scale of M
+/// its steps are measured against.
+#[inline(always)]
+pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64) {
+    let m = a1.min(a2);
+    let tilt2 = b1 * b1 + b2 * b2;
+    let d = 0.5 * (m - c);
+    let largest = 0.5 * (m + c) + (d * d + tilt2).sqrt();
+    (((m * c - tilt2) / largest).max(0.0), a1 + a2 + c)
+}
+
+/// One of [`smallest_eigen`]'s Newton steps from λ, without branches (the
+/// masked fit runs it over arrays of patches): the next λ, and whether
+/// to step again. It stays at λ once p(λ) ≤ 0, the slope is not
+/// negative or the step does not rise, and stops after a step below
+/// 1e-17 of the scale.
+// The stops negated rather than the comparisons flipped: a NaN steps on.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+pub(super) fn newton_step([a1, a2, b1, b2, c]: [f64; 5], scale: f64, lambda: f64) -> (f64, bool) {
+    let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
+    let p = p1 * p2 * p3 - b1 * b1 * p2 - b2 * b2 * p1;
+    let slope = b1 * b1 + b2 * b2 - (p2 * p3 + p1 * p3 + p1 * p2);
+    let next = lambda - p / slope;
+    let rises = !(p <= 0.0) & !(slope >= 0.0) & !(next <= lambda);
+    let step = next - lambda;
+    (if rises { next } else { lambda }, rises & !(step <= 1e-17 * scale))
+}
+
+/// [`smallest_eigen`]'s eigenvector for its λ, without branches.
+#[inline(always)]
+pub(super) fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3] {
+    let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
+    let candidates =
+        [[-b1 * p2, -b2 * p1, p1 * p2], [-b1 * b2, b1 * b1 - p1 * p3, p1 * b2], [p2 * p3 - b2 * b2, b1 * b2, -p2 * b1]];
+    let length2 = |v: &[f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    let mut best = candidates[0];
+    for v in &candidates[1..] {
+        let longer = length2(v) > length2(&best);
+        best = if longer { *v } else { best };
+    }
+    // n_z ≥ 0; a vertical plane (n_z = 0 up to rounding, 1e-12 of the
+    // vector: a cliff whose heights spread more than the narrower axis's
+    // texels) takes n_y ≥ 0, then n_x ≥ 0.
+    let tiny = 1e-12 * best[0].abs().max(best[1].abs()).max(best[2].abs());
+    let [x, y, z] = best;
+    let (z_counts, y_counts) = (z.abs() > tiny, y.abs() > tiny);
+    let flip = (z_counts & (z < 0.0)) | (!z_counts & ((y_counts & (y < 0.0)) | (!y_counts & (x < 0.0))));
+    best.map(|c| select(flip, -c, c))
+}
+
+/// `if take { a } else { b }`, both already computed, chosen by masks:
+/// the compiler cannot move a costly `b` (a division, a square root) into
+/// a branch of its own, so a loop of it stays branch-free and vectorises.
+#[inline(always)]
+pub(super) fn select(take: bool, a: f64, b: f64) -> f64 {
+    let mask = u64::from(take).wrapping_neg();
+    f64::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
+}
