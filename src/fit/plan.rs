@@ -1,0 +1,831 @@
+//! The plan of a fit: everything that is the same for every tile (the
+//! patch, the gain, the borders, the blocks of rows), and the tiles and
+//! strips the rows are cut into for the threads.
+
+use std::ops::Range;
+
+use crate::par::prelude::*;
+
+use crate::error::Result;
+use crate::options::{Borders, Fit, Options, Spacing, Units};
+use crate::samples::Sample;
+
+use super::emit::{EmitRow, EmitScratch, normal_from_sums, squared_distance_sum};
+use super::masked::{MaskSums, MaskedRow, Moments};
+use super::sums::{RowCache, RowRef, RowSums, SourceRows, WindowSums};
+use super::unequal::RowSpacing;
+use super::{FromNormal, checked_len};
+
+/// Texels per branch between the two loops of the orthogonal fit's
+/// normals (see [`Plan::emit_with`]).
+pub(super) const EMIT_CHUNK: usize = 32;
+
+/// Columns per parallel task of the fit (at least 8·N): the
+/// task's sums (a few rows of f64 per column) then fit in a core's cache.
+pub(super) const STRIP_COLS: usize = 512;
+
+/// Texels a block of rows holds at least (unless the image is smaller):
+/// a narrow image's blocks are tall enough that a block's work outweighs
+/// setting it up.
+pub(super) const MIN_BLOCK_TEXELS: usize = 1 << 14;
+
+/// Texels a block of rows, and a band of blocks, holds at most (unless one
+/// row is longer): what a streaming caller holds stays bounded whatever the
+/// width.
+pub(super) const MAX_BLOCK_TEXELS: usize = 1 << 24;
+
+/// A strip's holes: the valid points' moments, the strip's rows of
+/// `valid`, and the nodata value.
+pub(super) struct StripHoles<'t> {
+    pub(super) mask: MaskSums,
+    pub(super) patches: MaskedRow,
+    pub(super) valid: Vec<&'t mut [bool]>,
+    pub(super) nodata: f64,
+}
+
+/// One parallel task of the fit: a strip of a tile, its rows from `y0`,
+/// its columns from `x0`, as pieces of the output rows (and of the
+/// residual rows, when asked for).
+pub(super) struct Strip<'t, T> {
+    pub(super) y0: usize,
+    pub(super) x0: usize,
+    pub(super) out: Vec<&'t mut [T]>,
+    pub(super) residual: Option<Vec<&'t mut [f32]>>,
+    /// With holes: whether each texel has a normal, by row, and the
+    /// nodata value.
+    pub(super) valid: Option<(Vec<&'t mut [bool]>, f64)>,
+}
+
+/// Everything about a conversion that is the same for every tile.
+pub(super) struct Plan {
+    pub(super) width: usize,
+    pub(super) n: usize,
+    pub(super) r: usize,
+    /// S: surface z per unit of height, sign included. The fit multiplies
+    /// the samples by S times their unit ([`Sample::UNIT`]).
+    pub(super) scale: f64,
+    pub(super) sigma: f64,
+    pub(super) fit: Fit,
+    /// A = Σ i² over the patch.
+    pub(super) a: f64,
+    pub(super) borders: Borders,
+    pub(super) height: usize,
+    pub(super) block_rows: usize,
+    /// Emit each texel's patch moments [Cx, Cy, Czz] instead of its normal
+    /// (the height inverse's re-fit, [`BandFit::moments`]).
+    pub(super) moments: bool,
+    /// Map units ([`Units::Map`]): the texel spacing, and heights taken as
+    /// the values given whatever their type. `None`: the contract's units.
+    pub(super) spacing: Option<Spacing>,
+    /// [`Options::nodata`].
+    pub(super) nodata: Option<f64>,
+    /// The normal written at a missing texel ([`FitRequest::missing`]).
+    pub(super) missing: [f64; 3],
+}
+
+impl Plan {
+    pub(super) fn new(width: usize, height: usize, opts: &Options) -> Result<Plan> {
+        opts.validate()?;
+        checked_len(width, height)?;
+        let n = opts.patch;
+        let r = n / 2;
+        let tile = (8 * n).max(64);
+        // Rows of a block: at least a tile, more for a narrow image, fewer
+        // (down to one) for a very wide one (see the module docs).
+        let block_rows = tile.max(MIN_BLOCK_TEXELS.div_ceil(width)).min((MAX_BLOCK_TEXELS / width).max(1));
+        let rf = r as f64;
+        let spacing = match &opts.units {
+            Units::Texels => None,
+            Units::Map(spacing) => {
+                spacing.validate(Some(height))?;
+                Some(spacing.clone())
+            }
+        };
+        Ok(Plan {
+            width,
+            n,
+            r,
+            scale: opts.scale_for_width(width),
+            sigma: opts.convention.sigma(),
+            fit: opts.fit,
+            a: n as f64 * rf * (rf + 1.0) * (2.0 * rf + 1.0) / 3.0,
+            borders: opts.borders,
+            height,
+            block_rows,
+            moments: false,
+            spacing,
+            nodata: opts.nodata,
+            missing: [0.0, 0.0, 1.0],
+        })
+    }
+
+    /// Fits the output rows from `y0`, columns `cols`, into `out` (rows of
+    /// `cols.len()` texels), tile by tile and strip by strip in parallel.
+    /// `rows(v)` gives source row v for every v the patches reach (beyond
+    /// the image's edges too: the caller's source maps them). `residual`,
+    /// when given, holds as many texels as `out` and gets the fit's RMS
+    /// distances.
+    ///
+    /// Every texel's sums come from its own patch by the same operations
+    /// whichever tile, strip or window holds it (see the module docs), so
+    /// the cuts change no result. Tiles: the top r rows, then `block_rows`
+    /// at a time, so that a streaming caller's bands are whole tiles.
+    /// Strips of about 512 columns are the tasks that run in parallel: many
+    /// small tasks keep both cores busy beside the pipeline's other threads
+    /// (two tasks a band left one core idle while the other finished its
+    /// tile), and a strip's sums stay in the core's cache.
+    pub(super) fn fit_rows<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        unit: f64,
+        (y0, cols): (usize, Range<usize>),
+        out: &mut [T],
+        residual: Option<&mut [f32]>,
+        valid: Option<(&mut [bool], f64)>,
+    ) {
+        let w = cols.len();
+        let strip = self.strip_cols();
+        let mut tasks: Vec<Strip<'_, T>> = Vec::new();
+        let nodata = valid.as_ref().map(|v| v.1);
+        let (mut y, mut rest, mut rest_residual) = (y0, out, residual);
+        let mut rest_valid = valid.map(|v| v.0);
+        while !rest.is_empty() {
+            let tile_rows = if y < self.r { self.r - y } else { self.block_rows - (y - self.r) % self.block_rows };
+            let len = (tile_rows * w).min(rest.len());
+            let (tile, tail) = rest.split_at_mut(len);
+            let (tile_residual, residual_tail) = match rest_residual {
+                Some(r) => {
+                    let (head, tail) = r.split_at_mut(len);
+                    (Some(head), Some(tail))
+                }
+                None => (None, None),
+            };
+            let (tile_valid, valid_tail) = match rest_valid {
+                Some(v) => {
+                    let (head, tail) = v.split_at_mut(len);
+                    (Some(head), Some(tail))
+                }
+                None => (None, None),
+            };
+            let first = tasks.len();
+            for x0 in cols.clone().step_by(strip) {
+                let has_residual = tile_residual.is_some();
+                let valid = nodata.map(|nd| (Vec::new(), nd));
+                tasks.push(Strip { y0: y, x0, out: Vec::new(), residual: has_residual.then(Vec::new), valid });
+            }
+            if let Some(tile_valid) = tile_valid {
+                for row in tile_valid.chunks_exact_mut(w) {
+                    for (task, piece) in tasks[first..].iter_mut().zip(row.chunks_mut(strip)) {
+                        task.valid.as_mut().expect("a valid strip").0.push(piece);
+                    }
+                }
+            }
+            for row in tile.chunks_exact_mut(w) {
+                for (task, piece) in tasks[first..].iter_mut().zip(row.chunks_mut(strip)) {
+                    task.out.push(piece);
+                }
+            }
+            if let Some(tile_residual) = tile_residual {
+                for row in tile_residual.chunks_exact_mut(w) {
+                    for (task, piece) in tasks[first..].iter_mut().zip(row.chunks_mut(strip)) {
+                        task.residual.as_mut().expect("a residual strip").push(piece);
+                    }
+                }
+            }
+            y += tile_rows;
+            rest = tail;
+            rest_residual = residual_tail;
+            rest_valid = valid_tail;
+        }
+        // Map units take every value as it is given (a DEM's metres).
+        let unit = if self.spacing.is_some() { 1.0 } else { unit };
+        // The product of S and the unit, once: every path that fits these
+        // samples forms the same gain, and so the same bits.
+        let gain = self.scale * unit;
+        // A unit below 1 is that of stored integers (1/255, 1/65535).
+        let integers = unit != 1.0;
+        tasks.into_par_iter().for_each(|task| match (integers, self.n) {
+            (true, _) => self.fit_strip_sliding(rows, gain, task),
+            (false, 3) => self.fit_strip_direct::<H, T, 3>(rows, gain, task),
+            (false, 5) => self.fit_strip_direct::<H, T, 5>(rows, gain, task),
+            (false, 7) => self.fit_strip_direct::<H, T, 7>(rows, gain, task),
+            (false, _) => self.fit_strip_blocked(rows, gain, task),
+        });
+    }
+
+    /// The holes of one strip: `None` when no row it reads holds one (every
+    /// texel is then valid, and the strip is fitted as without holes).
+    pub(super) fn strip_holes<'t, 'a, H: Sample>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        y0: usize,
+        len: usize,
+        cols: Range<usize>,
+        valid: Option<(Vec<&'t mut [bool]>, f64)>,
+    ) -> Option<StripHoles<'t>> {
+        let (mut valid, nodata) = valid?;
+        let r = self.r as isize;
+        if !(y0 as isize - r..(y0 + len) as isize + r).any(|v| rows(v).holes) {
+            valid.iter_mut().for_each(|row| row.fill(true));
+            return None;
+        }
+        Some(StripHoles { mask: MaskSums::new(cols), patches: MaskedRow::default(), valid, nodata })
+    }
+
+    /// Makes the valid points' sums those of output row `y`, and marks in
+    /// `v` the patches that hold a hole, before [`Self::emit`].
+    pub(super) fn advance_holes<'a, H: Sample>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        y: usize,
+        holes: &mut StripHoles<'_>,
+        v: &mut WindowSums,
+    ) {
+        holes.mask.advance(self, rows, y as isize, holes.nodata);
+        let n2 = (self.n * self.n) as i64;
+        v.with_hole.clear();
+        v.with_hole.extend(holes.mask.c.iter().map(|&c| c != n2));
+    }
+
+    /// Refits the texels of output row `y` (row `k` of the strip) whose
+    /// patch has a hole, from the valid points' moments (see `masked`;
+    /// [`Self::advance_holes`] made them), over what [`Self::emit`] wrote,
+    /// and marks the missing ones. `v` and `gain` are as `emit` took them.
+    pub(super) fn patch_holes<T: FromNormal>(
+        &self,
+        v: &WindowSums,
+        gain: f64,
+        (y, k): (usize, usize),
+        holes: &mut StripHoles<'_>,
+        out: &mut [T],
+        residual: Option<&mut [f32]>,
+    ) {
+        let StripHoles { mask, patches, valid, .. } = holes;
+        let valid = &mut valid[k];
+        valid.fill(true);
+        let n2 = (self.n * self.n) as i64;
+        if mask.full(n2) {
+            return;
+        }
+        let ([sx, _], rho) = self.spacing_at(y);
+        let g = gain / sx;
+        patches.clear(out.len());
+        for x in (0..out.len()).filter(|&x| mask.c[x] != n2) {
+            let moments = Moments {
+                c: mask.c[x],
+                geometry: [mask.si[x], mask.sj[x], mask.sii[x], mask.sjj[x], mask.sij[x]],
+                z: [g * v.s0[x], g * v.si[x], g * v.sj[x], g * g * v.szz[x]],
+            };
+            patches.push(x, mask.centre[x], &moments);
+        }
+        patches.solve(self.fit == Fit::Orthogonal, rho, self.sigma);
+        patches.store(out, valid, residual, sx, T::from_normal(self.missing));
+    }
+
+    /// The source row of padded row p = y + j + r, through the y border.
+    #[inline]
+    pub(super) fn source_y(&self, p: usize) -> usize {
+        self.borders.y.map(p as isize - self.r as isize, self.height)
+    }
+
+    /// Columns per parallel task: about 512, and at least 8·N, so that
+    /// starting a strip's sums (N steps a row) costs at most an eighth of
+    /// the strip's work.
+    pub(super) fn strip_cols(&self) -> usize {
+        STRIP_COLS.max(8 * self.n)
+    }
+
+    /// The heights of columns `lo .. hi` of `src`, times `gain`, into
+    /// `padded`: those that `src` holds as they are, the others through
+    /// the x border (which the caller made sure maps them into `src`).
+    #[inline]
+    pub(super) fn padded_row<H: Sample>(
+        &self,
+        src: RowRef<'_, H>,
+        (lo, hi): (isize, isize),
+        gain: f64,
+        padded: &mut Vec<f64>,
+    ) {
+        padded.clear();
+        let (a, b) = (lo - src.x0, hi - src.x0);
+        if src.holes {
+            // A hole adds nothing to the z sums (see `masked`).
+            let nodata = self.nodata.unwrap_or(f64::NAN);
+            let value = |u: isize| {
+                let at = if (src.x0..src.x0 + src.values.len() as isize).contains(&u) {
+                    u
+                } else {
+                    self.borders.x.map(u, self.width) as isize
+                };
+                let h = src.values[(at - src.x0) as usize].to_f64();
+                if super::masked::is_hole(h, nodata) { 0.0 } else { gain * h }
+            };
+            if a >= 0 && b <= src.values.len() as isize {
+                let values = &src.values[a as usize..b as usize];
+                padded.extend(values.iter().map(|&h| {
+                    let h = h.to_f64();
+                    if super::masked::is_hole(h, nodata) { 0.0 } else { gain * h }
+                }));
+            } else {
+                padded.extend((lo..hi).map(value));
+            }
+        } else if a >= 0 && b <= src.values.len() as isize {
+            // Away from the borders: a slice, and a loop that vectorises.
+            padded.extend(src.values[a as usize..b as usize].iter().map(|&h| gain * h.to_f64()));
+        } else {
+            self.bordered_row(src, (lo, hi), gain, padded);
+        }
+    }
+
+    /// [`Self::padded_row`] where some column is not in `src`. Out of
+    /// line: only a row's first and last strips come here, and the hot
+    /// loop stays small.
+    #[inline(never)]
+    pub(super) fn bordered_row<H: Sample>(
+        &self,
+        src: RowRef<'_, H>,
+        (lo, hi): (isize, isize),
+        gain: f64,
+        padded: &mut Vec<f64>,
+    ) {
+        let held = src.x0..src.x0 + src.values.len() as isize;
+        let (inside_lo, inside_hi) = (lo.max(held.start).min(hi), hi.min(held.end).max(lo));
+        let value = |u: isize| {
+            let at = if held.contains(&u) { u } else { self.borders.x.map(u, self.width) as isize };
+            gain * src.values[(at - src.x0) as usize].to_f64()
+        };
+        padded.extend((lo..inside_lo).map(value));
+        let inside = &src.values[(inside_lo - src.x0) as usize..(inside_hi - src.x0) as usize];
+        padded.extend(inside.iter().map(|&h| gain * h.to_f64()));
+        padded.extend((inside_hi..hi).map(value));
+    }
+
+    /// Fits one strip of stored integers by running sums. Sums of the
+    /// integers themselves are exact in f64 (below 2^53 for 16 bits and
+    /// N ≤ 63), so adding the entering texel and removing the leaving one
+    /// gives every texel exactly the sums of its own patch, wherever the
+    /// run started; the gain comes after, in the normals.
+    pub(super) fn fit_strip_sliding<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        gain: f64,
+        strip: Strip<'_, T>,
+    ) {
+        let Strip { y0, x0, mut out, mut residual, valid } = strip;
+        let Some(first) = out.first() else { return };
+        let n = self.n;
+        let cols = x0..x0 + first.len();
+        let w = cols.len();
+        let row_of = |p: usize| rows(p as isize - self.r as isize);
+        let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
+
+        // Ring of the N rows' horizontal sums: slot p % N holds padded row p.
+        let mut ring: Vec<RowSums> = (y0..y0 + n)
+            .map(|p| {
+                let mut sums = RowSums::zeros(w);
+                self.sliding_row_sums(row_of(p), cols.clone(), &mut sums);
+                sums
+            })
+            .collect();
+        ring.rotate_right(y0 % n);
+        let mut entering = RowSums::zeros(w);
+        let mut scratch = EmitScratch::new(w);
+
+        let mut v = WindowSums::zeros(w);
+        for j in 0..n {
+            v.add(&ring[(y0 + j) % n], j as f64 - self.r as f64);
+        }
+
+        let (rf, r1) = (self.r as f64, self.r as f64 + 1.0);
+        for (k, out_row) in out.iter_mut().enumerate() {
+            if k > 0 {
+                // Slide down one row: padded row p_in enters, p_out leaves.
+                let p_out = y0 + k - 1;
+                let p_in = p_out + n;
+                self.sliding_row_sums(row_of(p_in), cols.clone(), &mut entering);
+                v.slide(&ring[p_out % n], &entering, rf, r1);
+                std::mem::swap(&mut ring[p_out % n], &mut entering);
+            }
+            if let Some(holes) = holes.as_mut() {
+                self.advance_holes(rows, y0 + k, holes, &mut v);
+            }
+            self.emit(&v, gain, y0 + k, &mut scratch, out_row);
+            if let Some(residual) = residual.as_mut() {
+                self.emit_residual(&v, gain, y0 + k, &mut scratch, residual[k]);
+            }
+            if let Some(holes) = holes.as_mut() {
+                self.patch_holes(&v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
+            }
+        }
+    }
+
+    /// Σh, Σih, Σh² over each column's horizontal window of one source row
+    /// of integers, by a running sum along the strip.
+    pub(super) fn sliding_row_sums<H: Sample>(&self, src: RowRef<'_, H>, cols: Range<usize>, out: &mut RowSums) {
+        // Disjoint borrows, and below slices of the strip's length: the
+        // sliding loop then keeps every pointer in a register and has no
+        // bounds checks (through `out`, it reloaded the planes' pointers
+        // and lengths at every texel, 17 % more instructions).
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, .. } = out;
+        let (n, r) = (self.n, self.r);
+        let (rf, r1) = (r as f64, r as f64 + 1.0);
+        let w = cols.len();
+        self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), 1.0, padded);
+        let (mut s0, mut si, mut szz) = (0.0, 0.0, 0.0);
+        for (q, &z) in padded[..n].iter().enumerate() {
+            s0 += z;
+            si += (q as f64 - rf) * z;
+            szz += z * z;
+        }
+        let (out_s0, out_si, out_szz) = (&mut out_s0[..w], &mut out_si[..w], &mut out_szz[..w]);
+        out_s0[0] = s0;
+        out_si[0] = si;
+        out_szz[0] = szz;
+        // Texel k (k ≥ 1): padded[k − 1] leaves the window, padded[k − 1 + n] enters it.
+        let slides = padded.iter().zip(&padded[n..]);
+        let outs = out_s0[1..].iter_mut().zip(&mut out_si[1..]).zip(&mut out_szz[1..]);
+        for ((&leaving, &entering), ((o0, oi), ozz)) in slides.zip(outs) {
+            s0 += entering - leaving;
+            si += rf * leaving + r1 * entering - s0;
+            szz += entering * entering - leaving * leaving;
+            *o0 = s0;
+            *oi = si;
+            *ozz = szz;
+        }
+    }
+
+    /// Fits one strip of floats with a small patch (N ≤ 7) by summing each
+    /// texel's patch outright, its values in order along the row and then
+    /// its rows in order: a texel's sums are made from its patch alone, the
+    /// same bits in whatever strip, tile or window it is computed. At this
+    /// size the sums take no more work than running sums, and the loops
+    /// run across the columns, so they vectorise.
+    pub(super) fn fit_strip_direct<'a, H: Sample, T: FromNormal, const N: usize>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        gain: f64,
+        strip: Strip<'_, T>,
+    ) {
+        let Strip { y0, x0, mut out, mut residual, valid } = strip;
+        let Some(first) = out.first() else { return };
+        let r = (N / 2) as isize;
+        let cols = x0..x0 + first.len();
+        let w = cols.len();
+        let row_sums = |v: isize, sums: &mut RowSums| self.direct_row_sums::<H, N>(rows(v), gain, cols.clone(), sums);
+        let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
+        let mut cache = RowCache::new(N, w);
+        let mut v = WindowSums::zeros(w);
+        let mut scratch = EmitScratch::new(w);
+        for (k, out_row) in out.iter_mut().enumerate() {
+            let y = (y0 + k) as isize;
+            for j in 0..N as isize {
+                cache.get(y - r + j, &row_sums);
+            }
+            let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
+            v.sum_rows(&patch_rows);
+            if let Some(holes) = holes.as_mut() {
+                self.advance_holes(rows, y0 + k, holes, &mut v);
+            }
+            self.emit(&v, 1.0, y0 + k, &mut scratch, out_row);
+            if let Some(residual) = residual.as_mut() {
+                self.emit_residual(&v, 1.0, y0 + k, &mut scratch, residual[k]);
+            }
+            if let Some(holes) = holes.as_mut() {
+                self.patch_holes(&v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
+            }
+        }
+    }
+
+    /// Σz, Σiz, Σz² (z = gain · h) over each column's horizontal window of
+    /// one source row, each window summed outright (see
+    /// [`Self::fit_strip_direct`]).
+    pub(super) fn direct_row_sums<H: Sample, const N: usize>(
+        &self,
+        src: RowRef<'_, H>,
+        gain: f64,
+        cols: Range<usize>,
+        out: &mut RowSums,
+    ) {
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, squares, .. } = out;
+        let r = N / 2;
+        let w = cols.len();
+        self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), gain, padded);
+        // Σiz pairs the texels at ±d: Σ d·(z[r + d] − z[r − d]).
+        squares.clear();
+        squares.extend(padded.iter().map(|z| z * z));
+        let outs = out_s0[..w].iter_mut().zip(&mut out_si[..w]).zip(&mut out_szz[..w]);
+        for ((window, squares), ((o0, oi), ozz)) in padded.windows(N).zip(squares.windows(N)).zip(outs) {
+            let z: &[f64; N] = window.try_into().expect("windows of N");
+            let zz: &[f64; N] = squares.try_into().expect("windows of N");
+            let (mut s0, mut si, mut szz) = (z[0], z[r + 1] - z[r - 1], zz[0]);
+            for q in 1..N {
+                s0 += z[q];
+                szz += zz[q];
+            }
+            for d in 2..=r {
+                si += d as f64 * (z[r + d] - z[r - d]);
+            }
+            *o0 = s0;
+            *oi = si;
+            *ozz = szz;
+        }
+    }
+
+    /// Fits one strip of floats by sums over blocks aligned on the image
+    /// (van Herk, Gil–Werman). Output texel t of block k (x = kN + t,
+    /// 0 ≤ t < N) has the window [x − r, x + r]: the suffix of the values
+    /// [kN − r, kN + r] from x − r, plus the prefix of the next N values up
+    /// to x + r (empty for t = 0). Each is summed in a fixed order from
+    /// values of the patch alone, across and then down, so a texel's sums
+    /// are the same bits in whatever strip, tile or window it is computed
+    /// (running sums of floats would carry the rounding of wherever they
+    /// started); the cost per texel stays flat in N.
+    pub(super) fn fit_strip_blocked<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        gain: f64,
+        strip: Strip<'_, T>,
+    ) {
+        let Strip { y0, x0, mut out, mut residual, valid } = strip;
+        let Some(first) = out.first() else { return };
+        let (n, r) = (self.n, self.r as isize);
+        let cols = x0..x0 + first.len();
+        let w = cols.len();
+        let y_end = y0 + out.len();
+        let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
+
+        // Horizontal sums of the source rows a block of output rows and
+        // the next one read (2N rows), in slot v mod 2N.
+        let mut cache = RowCache::new(2 * n, w);
+        let row_sums = |v: isize, sums: &mut RowSums| self.blocked_row_sums(rows(v), gain, cols.clone(), sums);
+        let mut suffix: Vec<WindowSums> = (0..n).map(|_| WindowSums::zeros(w)).collect();
+        let (zero, mut prefix, mut v) = (WindowSums::zeros(w), WindowSums::zeros(w), WindowSums::zeros(w));
+        let mut scratch = EmitScratch::new(w);
+
+        for block in y0 / n..=(y_end - 1) / n {
+            let top = (block * n) as isize;
+            let ts = y0.saturating_sub(block * n)..(y_end - block * n).min(n);
+            // Weights j relative to o = top + r + 1, the next block's first
+            // source row; output row t's own offsets are j − (t − r − 1).
+            let o = top + r + 1;
+            // Suffixes, in place: suffix[t] = suffix[t + 1] + row top + t − r
+            // (rows top + r down to top + t − r, the last alone).
+            for t in (ts.start..n).rev() {
+                let u = top + t as isize - r;
+                let h = cache.get(u, &row_sums);
+                let (lower, upper) = suffix.split_at_mut(t + 1);
+                let previous = upper.first().unwrap_or(&zero);
+                lower[t].set_sum(previous, h, (u - o) as f64);
+            }
+            // Prefixes: rows top + r + 1 up to top + r + t; the row that
+            // completes one goes in with the combination, in one pass.
+            prefix.clear();
+            let mut through = top + r;
+            for t in ts.clone() {
+                let shift = (t as isize - r - 1) as f64;
+                let wanted = top + r + t as isize;
+                while through + 1 < wanted {
+                    through += 1;
+                    prefix.add(cache.get(through, &row_sums), (through - o) as f64);
+                }
+                if through < wanted {
+                    through += 1;
+                    prefix.add_then_combine(
+                        cache.get(through, &row_sums),
+                        (through - o) as f64,
+                        &suffix[t],
+                        shift,
+                        &mut v,
+                    );
+                } else {
+                    v.combine(&suffix[t], &prefix, shift);
+                }
+                let k = block * n + t - y0;
+                if let Some(holes) = holes.as_mut() {
+                    self.advance_holes(rows, y0 + k, holes, &mut v);
+                }
+                self.emit(&v, 1.0, y0 + k, &mut scratch, out[k]);
+                if let Some(residual) = residual.as_mut() {
+                    self.emit_residual(&v, 1.0, y0 + k, &mut scratch, residual[k]);
+                }
+                if let Some(holes) = holes.as_mut() {
+                    self.patch_holes(&v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
+                }
+            }
+        }
+    }
+
+    /// Σz, Σiz, Σz² (z = gain · h) over each column's horizontal window of
+    /// one source row, from block-aligned suffix and prefix sums (see
+    /// [`Self::fit_strip_blocked`]).
+    pub(super) fn blocked_row_sums<H: Sample>(
+        &self,
+        src: RowRef<'_, H>,
+        gain: f64,
+        cols: Range<usize>,
+        out: &mut RowSums,
+    ) {
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, suffix, prefix, .. } = out;
+        let (n, r) = (self.n, self.r);
+        self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), gain, padded);
+        // Weights relative to the next block's first value (q = 2r + 1).
+        let weight = |q: usize| q as f64 - (2 * r + 1) as f64;
+        suffix.resize(n, [0.0; 3]);
+        prefix.resize(n, [0.0; 3]);
+        for block in cols.start / n..=(cols.end - 1) / n {
+            let bx = block * n;
+            let ts = cols.start.saturating_sub(bx)..(cols.end - bx).min(n);
+            // Value q of the block (column bx − r + q) is padded[bx + q − cols.start].
+            let z = &padded[bx + ts.start - cols.start..];
+            let at = |q: usize| z[q - ts.start];
+            // The suffixes (values q = 2r down to t) and the prefixes
+            // (values q = 2r + 1 up to 2r + t) in one loop while both run:
+            // six chains of additions side by side rather than three.
+            let (suffix_steps, prefix_steps) = (n - ts.start, ts.end.saturating_sub(1));
+            let (mut a0, mut ai, mut azz) = (0.0, 0.0, 0.0);
+            let (mut p0, mut pi, mut pzz) = (0.0, 0.0, 0.0);
+            let mut suffix_step = |i: usize| {
+                let q = 2 * r - i;
+                let zq = at(q);
+                a0 += zq;
+                ai += weight(q) * zq;
+                azz += zq * zq;
+                suffix[q] = [a0, ai, azz];
+            };
+            let mut prefix_step = |i: usize| {
+                let q = 2 * r + 1 + i;
+                let zq = at(q);
+                p0 += zq;
+                pi += weight(q) * zq;
+                pzz += zq * zq;
+                prefix[i + 1] = [p0, pi, pzz];
+            };
+            let both = suffix_steps.min(prefix_steps);
+            for i in 0..both {
+                suffix_step(i);
+                prefix_step(i);
+            }
+            (both..suffix_steps).for_each(&mut suffix_step);
+            (both..prefix_steps).for_each(&mut prefix_step);
+            prefix[0] = [0.0; 3];
+            for t in ts {
+                let ([a0, ai, azz], [p0, pi, pzz]) = (suffix[t], prefix[t]);
+                let h0 = a0 + p0;
+                let x = bx + t - cols.start;
+                out_s0[x] = h0;
+                out_si[x] = (ai + pi) - (t as f64 - r as f64 - 1.0) * h0;
+                out_szz[x] = azz + pzz;
+            }
+        }
+    }
+
+    /// Turns the window sums of one row into normals, through `scratch`'s
+    /// planes (x, y and z): the fit's loop then stores whole vectors, and
+    /// the texel type's conversion is a loop of its own. The sums are in
+    /// units of z / `gain` (stored integers), or of z (`gain` 1); `y` is
+    /// the image row, whose spacing map units fit with.
+    pub(super) fn emit<T: FromNormal>(
+        &self,
+        v: &WindowSums,
+        gain: f64,
+        y: usize,
+        scratch: &mut EmitScratch,
+        out: &mut [T],
+    ) {
+        let normal = &mut scratch.normal;
+        if self.moments {
+            let n2 = (self.n * self.n) as f64;
+            let czz_gain = gain * gain / n2;
+            let w = out.len();
+            let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+            for (x, texel) in out.iter_mut().enumerate() {
+                *texel = T::from_normal([gain * si[x], gain * sj[x], Self::czz(n2, czz_gain, s0[x], szz[x])]);
+            }
+            return;
+        }
+        // Lengths in units of the x spacing: z / sx, and ρ = sy / sx the
+        // rows' spacing. In texel units, and for square pixels, ρ = 1 and
+        // the contract's square-grid formulas run (sx = 1: the same bits).
+        let ([sx, _], rho) = self.spacing_at(y);
+        let gain = gain / sx;
+        // One loop per fit, so the per-texel work has no branch and vectorises.
+        match self.fit {
+            Fit::Orthogonal if rho == 1.0 => {
+                pulp::Arch::new().dispatch(EmitRow::<T, true> { plan: self, v, gain, normal, out })
+            }
+            Fit::Vertical if rho == 1.0 => {
+                pulp::Arch::new().dispatch(EmitRow::<T, false> { plan: self, v, gain, normal, out })
+            }
+            fit => {
+                let row = RowSpacing { gain, rho, orthogonal: fit == Fit::Orthogonal };
+                scratch.unequal.normals(self, v, row, normal, out);
+            }
+        }
+    }
+
+    /// Czz = (N²·Σz² − (Σz)²) / N² times the gain², from one column's
+    /// sums: for stored integers the numerator is exact (below 2^53 for
+    /// 8 bits, and for 16 bits up to N = 37; beyond, A dwarfs its
+    /// rounding), and it does not cancel as Σz² − (Σz)²/N² would.
+    #[inline(always)]
+    pub(super) fn czz(n2: f64, czz_gain: f64, s0: f64, szz: f64) -> f64 {
+        ((n2 * szz - s0 * s0) * czz_gain).max(0.0)
+    }
+
+    /// The spacing `[sx, sy]` of image row `y` and ρ = sy / sx: `[1, 1]`
+    /// and 1 in texel units.
+    #[inline]
+    pub(super) fn spacing_at(&self, y: usize) -> ([f64; 2], f64) {
+        match &self.spacing {
+            None => ([1.0, 1.0], 1.0),
+            Some(spacing) => {
+                let [sx, sy] = spacing.at(y);
+                ([sx, sy], sy / sx)
+            }
+        }
+    }
+
+    #[inline(always)]
+    pub(super) fn emit_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3]) {
+        let n2 = (self.n * self.n) as f64;
+        let czz_gain = gain * gain / n2;
+        let (gx, gy) = (gain, self.sigma * gain);
+        let [nx, ny, nz] = normal;
+        let w = nx.len();
+        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+        let (ny, nz) = (&mut ny[..w], &mut nz[..w]);
+        let czz_at = |x: usize| Self::czz(n2, czz_gain, s0[x], szz[x]);
+        for start in (0..w).step_by(EMIT_CHUNK) {
+            let texels = start..(start + EMIT_CHUNK).min(w);
+            // Only a patch whose heights spread more than its columns and
+            // rows (Czz > A) needs the orthogonal fit's division; most
+            // chunks have none, and their loop leaves it out (the
+            // division took a tenth of the fit), with the same results.
+            // A patch with a hole (read as 0: a cliff) is refitted after,
+            // whatever this loop gives it, and does not make its chunk steep.
+            let steep = ORTHOGONAL
+                && if v.with_hole.is_empty() {
+                    texels.clone().any(|x| czz_at(x) > self.a)
+                } else {
+                    texels.clone().any(|x| czz_at(x) > self.a && !v.with_hole[x])
+                };
+            if steep {
+                for x in texels {
+                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz_at(x));
+                    [nx[x], ny[x], nz[x]] = n;
+                }
+            } else {
+                for x in texels {
+                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, gx * si[x], gy * sj[x], czz_at(x));
+                    [nx[x], ny[x], nz[x]] = n;
+                }
+            }
+        }
+    }
+
+    /// The RMS distance of each texel's patch points from its fitted plane,
+    /// in surface units, from the window sums of one row. A loop of its
+    /// own, run only when asked for, so the normals' loop stays as it is.
+    /// In map units, the distances are in the heights' unit (the fit's
+    /// lengths in x spacings, times sx).
+    pub(super) fn emit_residual(
+        &self,
+        v: &WindowSums,
+        gain: f64,
+        y: usize,
+        scratch: &mut EmitScratch,
+        out: &mut [f32],
+    ) {
+        let ([sx, _], rho) = self.spacing_at(y);
+        let gain = gain / sx;
+        match self.fit {
+            // The vertical fit's residual does not depend on ρ: ordinary
+            // least squares leaves the same residual however its regressors
+            // are scaled. The orthogonal fit's is the smallest eigenvalue
+            // of the scatter matrix.
+            Fit::Orthogonal if rho != 1.0 => {
+                scratch.unequal.residuals(self, v, RowSpacing { gain, rho, orthogonal: true }, sx, out)
+            }
+            Fit::Orthogonal => self.emit_residual_with::<true>(v, gain, sx, out),
+            Fit::Vertical => self.emit_residual_with::<false>(v, gain, sx, out),
+        }
+    }
+
+    pub(super) fn emit_residual_with<const ORTHOGONAL: bool>(
+        &self,
+        v: &WindowSums,
+        gain: f64,
+        sx: f64,
+        out: &mut [f32],
+    ) {
+        let n2 = (self.n * self.n) as f64;
+        let (inv_n2, czz_gain) = (1.0 / n2, gain * gain / n2);
+        let w = out.len();
+        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
+        for x in 0..w {
+            let czz = Self::czz(n2, czz_gain, s0[x], szz[x]);
+            let sum = squared_distance_sum::<ORTHOGONAL>(self.a, gain * si[x], gain * sj[x], czz);
+            out[x] = ((sum * inv_n2).sqrt() * sx) as f32;
+        }
+    }
+}
