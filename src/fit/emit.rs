@@ -3,8 +3,6 @@
 //! vectorises, and the texels made from the normals.
 
 use super::FromNormal;
-use super::plan::Plan;
-use super::sums::WindowSums;
 use super::unequal::UnequalRow;
 
 /// The summed squared distance of the patch's points from the fitted
@@ -65,32 +63,6 @@ pub(super) fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(
     let inv = 1.0 / (tilt2 + nz * nz).sqrt();
     let n = [-cx * inv, -cy * inv, nz * inv];
     if flat { [0.0, 0.0, 1.0] } else { n }
-}
-
-/// [`Plan::emit_with`] and the texels' conversion, for
-/// [`pulp::Arch::dispatch`]: compiled for the widest vectors the processor
-/// has (AVX2 where baseline x86-64 has SSE2's two lanes of f64), chosen at
-/// run time. The square roots and divisions were a fifth of a lit view's
-/// processor time. They, and the other operations, round alike in every
-/// instruction set, and nothing fuses a multiply with an add: the same
-/// bits on every processor.
-pub(super) struct EmitRow<'a, T, const ORTHOGONAL: bool> {
-    pub(super) plan: &'a Plan,
-    pub(super) v: &'a WindowSums,
-    pub(super) gain: f64,
-    pub(super) normal: &'a mut [Vec<f64>; 3],
-    pub(super) out: &'a mut [T],
-}
-
-impl<T: FromNormal, const ORTHOGONAL: bool> pulp::WithSimd for EmitRow<'_, T, ORTHOGONAL> {
-    type Output = ();
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        // Inlined here, so that it is compiled for each instruction set.
-        let EmitRow { plan, v, gain, normal, out } = self;
-        plan.emit_with::<ORTHOGONAL>(v, gain, normal);
-        store_normals(normal, out);
-    }
 }
 
 /// The texels of a row's normals (x, y and z planes).
