@@ -374,13 +374,15 @@ mod tests {
     }
 
     /// The test's patches reach every part of the solve: flat ones, and
-    /// some that step long enough to be moved together.
+    /// some that still step three passes after three quarters have
+    /// stopped (the passes in place end there: the rest are moved
+    /// together, `newton`'s second loop).
     #[test]
     fn the_patches_include_flat_and_slow_ones() {
         let (n2, a, rho) = (9.0, 6.0, 1.41);
         let v = sums(77, n2);
         let mut flat = 0;
-        let mut longest = 0;
+        let mut steps_taken = Vec::new();
         for x in 0..77 {
             let czz = Plan::czz(n2, 1.0 / n2, v.s0[x], v.szz[x]);
             if is_flat(a, v.si[x], v.sj[x], czz) {
@@ -398,9 +400,14 @@ mod tests {
                     break;
                 }
             }
-            longest = longest.max(steps);
+            steps_taken.push(steps);
         }
         assert!(flat >= 8, "{flat} flat patches");
-        assert!(longest >= 10, "at most {longest} Newton steps");
+        steps_taken.sort_unstable();
+        let (quarter_left, longest) = (steps_taken[steps_taken.len() * 3 / 4], steps_taken[steps_taken.len() - 1]);
+        assert!(
+            longest >= quarter_left + 3,
+            "Newton steps: three quarters at most {quarter_left}, the longest {longest}"
+        );
     }
 }
