@@ -757,3 +757,173 @@ fn extreme_shapes_under_1_gib_convert_or_are_refused_in_one_line() {
     }
     assert_eq!(listing(dir.path()), Vec::<String>::new(), "no output, no temporary file");
 }
+
+/// The decoded pixels of an output, as floats, to compare outputs that
+/// went different ways (a file's PNG takes its top rows last, a stream's
+/// first).
+fn pixels(bytes: &[u8]) -> normalfit::io::Raster {
+    normalfit::io::decode(bytes, &normalfit::io::ReadOptions::default()).expect("a whole image")
+}
+
+/// What `convert` writes into a plain new file, for comparison.
+fn reference_output(input: &Path, ext: &str, dir: &Path) -> Vec<u8> {
+    let path = dir.join(format!("reference.{ext}"));
+    let r = run(&["convert", s(input), "-o", s(&path)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let bytes = fs::read(&path).unwrap();
+    fs::remove_file(&path).unwrap();
+    bytes
+}
+
+#[test]
+fn an_output_link_is_followed_and_stays_a_link() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray8(&input, 40, 30);
+    let inputs = Untouched::of(&[&input]);
+    fs::create_dir(dir.path().join("real")).unwrap();
+    for ext in ["png", "exr", "tif"] {
+        let want = pixels(&reference_output(&input, ext, dir.path()));
+        // A link (relative) to an existing file, a link to that link, and a
+        // link to a name with no file yet.
+        let target = dir.path().join(format!("real/a.{ext}"));
+        fs::write(&target, b"old").unwrap();
+        let link = dir.path().join(format!("link.{ext}"));
+        std::os::unix::fs::symlink(format!("real/a.{ext}"), &link).unwrap();
+        let chain = dir.path().join(format!("chain.{ext}"));
+        std::os::unix::fs::symlink(&link, &chain).unwrap();
+        let dangling = dir.path().join(format!("dangling.{ext}"));
+        std::os::unix::fs::symlink(format!("real/new.{ext}"), &dangling).unwrap();
+        for (named, written) in
+            [(&link, &target), (&chain, &target), (&dangling, &dir.path().join(format!("real/new.{ext}")))]
+        {
+            fs::write(&target, b"old").unwrap();
+            let r = run(&["convert", s(&input), "-o", s(named)]);
+            assert!(r.status.success(), "{}: {}", named.display(), String::from_utf8_lossy(&r.stderr));
+            assert!(fs::symlink_metadata(named).unwrap().file_type().is_symlink(), "{} stays a link", named.display());
+            assert_eq!(
+                pixels(&fs::read(written).unwrap()),
+                want,
+                "{} is written through {}",
+                written.display(),
+                named.display()
+            );
+        }
+        assert_eq!(fs::read_link(&link).unwrap(), Path::new(&format!("real/a.{ext}")));
+        assert_eq!(fs::read_link(&chain).unwrap(), link);
+    }
+    let mut names = listing(&dir.path().join("real"));
+    names.sort();
+    assert_eq!(names, ["a.exr", "a.png", "a.tif", "new.exr", "new.png", "new.tif"], "no temporary file");
+    inputs.check("links");
+}
+
+/// Runs `args` while a thread reads the FIFO at `fifo` to its end.
+fn run_into_fifo(args: &[&str], fifo: &Path) -> (Output, Vec<u8>) {
+    let reader = {
+        let fifo = fifo.to_path_buf();
+        std::thread::spawn(move || fs::read(fifo).unwrap())
+    };
+    let r = run(args);
+    // Replaced by a file, the FIFO would never be written: fail rather
+    // than wait for the reader.
+    let kind = fs::symlink_metadata(fifo).unwrap().file_type();
+    assert!(std::os::unix::fs::FileTypeExt::is_fifo(&kind), "{args:?}: the FIFO was replaced by {kind:?}");
+    if !r.status.success() {
+        // The reader waits for a writer: give it one that writes nothing.
+        drop(fs::OpenOptions::new().write(true).open(fifo));
+    }
+    (r, reader.join().unwrap())
+}
+
+#[test]
+fn a_fifo_output_is_written_into_and_stays_a_fifo() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray8(&input, 40, 30);
+    let inputs = Untouched::of(&[&input]);
+    let fifo = dir.path().join("pipe");
+    rustix::fs::mknodat(rustix::fs::CWD, &fifo, rustix::fs::FileType::Fifo, rustix::fs::Mode::from_raw_mode(0o600), 0)
+        .unwrap();
+    // PNG, and EXR and TIFF, which seek while written: assembled first.
+    for format in ["png", "exr", "tiff"] {
+        let ext = if format == "tiff" { "tif" } else { format };
+        let want = pixels(&reference_output(&input, ext, dir.path()));
+        let (r, bytes) = run_into_fifo(&["convert", s(&input), "-o", s(&fifo), "--format", format], &fifo);
+        assert!(r.status.success(), "{format}: {}", String::from_utf8_lossy(&r.stderr));
+        assert_eq!(pixels(&bytes), want, "{format}");
+        assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo(), "{format}: the FIFO stays");
+    }
+    // The lit view, which streams into a file, and the inverse.
+    let (r, bytes) = run_into_fifo(&["shade", s(&input), "-o", s(&fifo)], &fifo);
+    assert!(r.status.success(), "shade: {}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!((pixels(&bytes).width, pixels(&bytes).height), (40, 30));
+    let normals = dir.path().join("n.png");
+    assert!(run(&["convert", s(&input), "-o", s(&normals)]).status.success());
+    let (r, bytes) = run_into_fifo(&["height", s(&normals), "-o", s(&fifo), "--format", "exr"], &fifo);
+    assert!(r.status.success(), "height: {}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!((pixels(&bytes).width, pixels(&bytes).height), (40, 30));
+    assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    let mut names = listing(dir.path());
+    names.sort();
+    assert_eq!(names, ["h.png", "n.png", "pipe"], "no temporary file, no sidecar");
+    inputs.check("fifo");
+}
+
+#[test]
+fn dev_stdout_as_the_output_writes_to_standard_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray8(&input, 40, 30);
+    let want = pixels(&reference_output(&input, "png", dir.path()));
+    let r = run(&["convert", s(&input), "-o", "/dev/stdout", "--format", "png"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(pixels(&r.stdout), want);
+    assert_eq!(listing(dir.path()), ["h.png"]);
+}
+
+#[test]
+#[ignore = "needs root to make a device node; CI runs as root with --include-ignored"]
+fn a_device_output_is_written_into_not_replaced() {
+    use std::os::unix::fs::FileTypeExt;
+    assert!(is_root(), "run as root: a device node (a copy of /dev/null) is made in a temporary folder");
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray8(&input, 40, 30);
+    let inputs = Untouched::of(&[&input]);
+    // A null device of the test's own, so that a failure cannot replace
+    // the system's /dev/null.
+    let null = dir.path().join("null");
+    rustix::fs::mknodat(
+        rustix::fs::CWD,
+        &null,
+        rustix::fs::FileType::CharacterDevice,
+        rustix::fs::Mode::from_raw_mode(0o666),
+        rustix::fs::makedev(1, 3),
+    )
+    .unwrap();
+    let link = dir.path().join("null-link");
+    std::os::unix::fs::symlink(&null, &link).unwrap();
+    for named in [&null, &link] {
+        for args in [
+            vec!["convert", s(&input), "-o", s(named), "--format", "png"],
+            vec!["convert", s(&input), "-o", s(named), "--format", "exr"],
+            vec!["convert", s(&input), "-o", s(named), "--format", "tiff"],
+            vec!["shade", s(&input), "-o", s(named)],
+        ] {
+            let r = run(&args);
+            assert!(r.status.success(), "{args:?}: {}", String::from_utf8_lossy(&r.stderr));
+            let meta = fs::metadata(&null).unwrap();
+            assert!(
+                meta.file_type().is_char_device() && meta.rdev() == rustix::fs::makedev(1, 3),
+                "{args:?}: still the device"
+            );
+        }
+    }
+    assert!(fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+    let mut names = listing(dir.path());
+    names.sort();
+    assert_eq!(names, ["h.png", "null", "null-link"], "no temporary file, no sidecar");
+    inputs.check("device");
+}

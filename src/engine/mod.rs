@@ -225,6 +225,17 @@ pub(crate) fn run(
         (stage, _) => stage,
     };
     let encoding = stage.encoding();
+    // A file output that leads to a device, FIFO or socket is a stream,
+    // written as a writer is.
+    let input = path.as_deref();
+    let mut main_stream =
+        self::sink::open_stream(sink.main.as_ref(), input).map_err(ConvertError::at(Place::Output))?;
+    let mut residual_stream = self::sink::open_stream(sink.residual.as_ref().map(|(output, _)| output), input)
+        .map_err(ConvertError::at(Place::Residual))?;
+    let sink = Sink {
+        main: sink.main.map(|output| self::sink::or_stream(output, &mut main_stream)),
+        residual: sink.residual.map(|(output, format)| (self::sink::or_stream(output, &mut residual_stream), format)),
+    };
     // Beside a PNG file: GDAL reads no EXR here, a TIFF holds its own
     // tags, a writer has no name, and a tiled view is not the place.
     let sidecar_of = match (&sink.main, encoding, stage) {

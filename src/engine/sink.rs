@@ -43,13 +43,49 @@ impl<'a> Output<'a> {
     }
 }
 
+/// The device, FIFO or socket a file output leads to
+/// ([`io::OutputTarget::Stream`]), opened after the output is checked
+/// against the input ([`prepare`]); `None` for a file (or no output). The
+/// engine writes a stream as it writes a writer: formats that seek are
+/// assembled first, and nothing is written beside it.
+///
+/// Errors: [`Error::InvalidOption`] for the input; [`Error::Io`] when the
+/// target cannot be opened, or a link not followed.
+pub(crate) fn open_stream(output: Option<&Output<'_>>, input: Option<&Path>) -> Result<Option<std::fs::File>> {
+    let Some(output @ Output::File { path, .. }) = output else { return Ok(None) };
+    match io::output_target(path)? {
+        io::OutputTarget::File(_) => Ok(None),
+        io::OutputTarget::Stream(target) => {
+            prepare(output, input)?;
+            io::open_stream(&target).map(Some)
+        }
+    }
+}
+
+/// `output`, or a writer into `stream` when it was opened
+/// ([`open_stream`]).
+pub(crate) fn or_stream<'a: 's, 's>(output: Output<'a>, stream: &'s mut Option<std::fs::File>) -> Output<'s> {
+    match (stream, output) {
+        (Some(file), _) => Output::Writer(file),
+        (None, Output::File { path, create_folder }) => Output::File { path, create_folder },
+        (None, Output::Writer(writer)) => Output::Writer(writer),
+    }
+}
+
 /// Writes to a file atomically, or assembles the bytes in memory (EXR
 /// seeks while writing) and gives them to a writer.
 pub(crate) fn write_to(out: Output<'_>, encode: impl FnOnce(&mut dyn WriteSeek) -> Result<()>) -> Result<()> {
     match out {
         // Into the file itself, which seeks as EXR needs: no copy of the
         // encoded image in memory.
-        Output::File { path, .. } => io::write_file_atomically(path, |file| encode(file)),
+        Output::File { path, .. } => match io::output_target(path)? {
+            io::OutputTarget::File(_) => io::write_file_atomically(path, |file| encode(file)),
+            io::OutputTarget::Stream(target) => {
+                let mut bytes = InMemory::default();
+                encode(&mut bytes)?;
+                write_all(&mut io::open_stream(&target)?, bytes.0.get_ref())
+            }
+        },
         Output::Writer(writer) => {
             let mut bytes = InMemory::default();
             encode(&mut bytes)?;

@@ -49,6 +49,7 @@ use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use super::target::{OutputTarget, open_stream, output_target};
 use crate::error::{Error, Result};
 
 /// Creates `path` with the bytes `write` produces, so that it appears
@@ -68,8 +69,13 @@ use crate::error::{Error, Result};
 ///   while it is written, and a killed process can leave it behind;
 /// * the new file gets the permissions of any new file (0666 minus the
 ///   umask), not the private 0600 of a temp-file crate;
-/// * `path` that is a symbolic link is replaced by the file; the file it
-///   pointed to is not written.
+/// * a symbolic link is followed ([`output_target`]): the link stays, and
+///   the file it names is replaced as above (or created, for a link that
+///   names no file yet);
+/// * a device, FIFO or socket (`/dev/null`, `/dev/stdout`, a named pipe)
+///   is written into as it is, with no new file and no rename: it is a
+///   stream, and the promise of a whole output or none does not apply;
+///   `write` gets the opened device, which may not seek.
 ///
 /// Errors: [`Error::Io`], with the folder named when a file cannot be
 /// created in it; any error of `write`, as it is.
@@ -95,6 +101,11 @@ enum Where {
 
 /// [`write_file_atomically`], keeping the new file as `place` says.
 fn write_in(path: &Path, place: Where, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
+    let path = match output_target(path)? {
+        OutputTarget::File(target) => target,
+        OutputTarget::Stream(target) => return write_stream(&target, write),
+    };
+    let path = path.as_path();
     let name = path
         .file_name()
         .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;
@@ -116,6 +127,15 @@ fn write_in(path: &Path, place: Where, write: impl FnOnce(&mut BufWriter<File>) 
         None => name_unnamed(&file, folder, name, path)?,
     }
     sync_folder(folder);
+    Ok(())
+}
+
+/// Writes into a device, FIFO or socket as it is: nothing to sync or
+/// rename.
+fn write_stream(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
+    let mut out = BufWriter::new(open_stream(path)?);
+    write(&mut out)?;
+    out.flush()?;
     Ok(())
 }
 

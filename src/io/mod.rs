@@ -13,8 +13,9 @@
 //! layout of the channels), chosen from a file name and the input by its
 //! rules; [`write`](mod@write) encodes whole normal maps (SPEC §3) through
 //! each format's writer, `texels.rs` lays a layout's samples out for every
-//! writer, and `atomic.rs` puts files in place whole or not at all
-//! (SPEC §4). None of it knows about the fit's sums; the engine
+//! writer, `target.rs` says where an output path leads (links followed;
+//! a device, FIFO or socket is a stream), and `atomic.rs` puts files in
+//! place whole or not at all (SPEC §4). None of it knows about the fit's sums; the engine
 //! ([`crate::engine`]) joins reading and writing through a stage.
 
 mod atomic;
@@ -26,6 +27,7 @@ pub(crate) mod png;
 pub mod read;
 pub mod rows;
 pub mod sidecar;
+mod target;
 pub(crate) mod texels;
 #[cfg(feature = "tiff")]
 pub(crate) mod tiff;
@@ -49,6 +51,7 @@ pub use read::{
     metres_per_degree, parse_size, read_path,
 };
 pub use rows::RowSource;
+pub use target::{OutputTarget, open_stream, output_target};
 #[cfg(feature = "tiff")]
 pub use tiff::rows::TiffRows;
 pub use write::{
