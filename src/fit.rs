@@ -18,7 +18,7 @@
 //!   written so that it does not cancel);
 //! * a patch with Cx² + Cy² ≤ 1e-20 · (A + Czz)² is flat: n = (0, 0, 1).
 //!
-//! In map units ([`Units::Map`]) texel centres are sx apart along a row
+//! In map units ([`Units::Map`](crate::options::Units::Map)) texel centres are sx apart along a row
 //! and sy down a column (per row for a geographic raster: the patch takes
 //! its centre row's). Lengths are then counted in x spacings: z / sx, and
 //! the rows ρ = sy / sx apart. Where ρ = 1 the formulas above run as they

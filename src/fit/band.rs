@@ -22,7 +22,7 @@ use super::sums::RowRef;
 /// y, only the top band needs the image's last rows, and a caller can fit
 /// and write every other band first. A band of rows y0 … y1 − 1 reads the
 /// source rows y0 − r … y1 − 1 + r, through the y border. The texels are
-/// the same, bit for bit, as [`FitRequest`] gives for the whole image.
+/// the same, bit for bit, as [`FitRequest`](super::FitRequest) gives for the whole image.
 ///
 /// ```
 /// use normalfit::fit::BandFit;
@@ -129,10 +129,10 @@ impl BandFit {
     }
 
     /// Like [`fit_band`](Self::fit_band), with holes (see
-    /// [`FitRequest::holes`]): `valid` (as long as `out`) gets whether
+    /// [`FitRequest::holes`](super::FitRequest::holes)): `valid` (as long as `out`) gets whether
     /// each texel has a normal. Returns the band's count of missing texels.
     /// The texels and `valid` are the same, bit for bit, as
-    /// [`FitRequest::holes`] gives for the whole image.
+    /// [`FitRequest::holes`](super::FitRequest::holes) gives for the whole image.
     ///
     /// Errors: as [`fit_band`](Self::fit_band), but no
     /// [`Error::NonFiniteHeight`].
