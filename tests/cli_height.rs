@@ -313,3 +313,30 @@ fn help_man_page_and_completions_cover_every_option_of_height() {
     models.sort();
     assert!(models.iter().any(|m| m == "exact") && models.iter().any(|m| m == "generic"), "{models:?}");
 }
+
+/// A gain so small that the heights leave the float range is an error
+/// naming the output, never infinite heights written with exit 0.
+#[test]
+fn heights_past_the_floats_range_are_an_error_not_infinities() {
+    let dir = tempfile::tempdir().unwrap();
+    let (hmap, nmap) = (dir.path().join("h.png"), dir.path().join("n.png"));
+    write_heights(&hmap, 32, 24);
+    ok(&run(&["convert", s(&hmap), "-o", s(&nmap), "-s", "4"]));
+    // 1e-40: past f32's ±3.4e38, within f64's; EXR and TIFF hold f32.
+    for ext in ["exr", "tif"] {
+        let out = dir.path().join(format!("back.{ext}"));
+        let line = error_line(&run(&["height", s(&nmap), "-o", s(&out), "-s", "1e-40"]));
+        assert!(
+            line.starts_with(&format!("normalfit: {}: ", out.display())) && line.contains("larger scale"),
+            "{line}"
+        );
+        assert!(!out.exists());
+    }
+    // The 16-bit PNG stores the heights scaled to their range: it holds them.
+    let png = dir.path().join("back.png");
+    ok(&run(&["height", s(&nmap), "-o", s(&png), "-s", "1e-40"]));
+    // 1e-320 (subnormal): past f64's range too, whatever the format.
+    let line = error_line(&run(&["height", s(&nmap), "-o", s(&dir.path().join("tiny.png")), "-s", "1e-320"]));
+    assert!(line.contains("overflow") && line.contains("larger scale"), "{line}");
+    assert_eq!(listing(dir.path()), ["back.png", "h.png", "n.png"]);
+}

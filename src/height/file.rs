@@ -221,6 +221,15 @@ impl HeightConversion {
         let png_range = (format == OutputFormat::Png).then_some((lo, hi));
         let png_scale = png_range.map(|(lo, hi)| options.scale_for_width(w) * (hi - lo));
         let values = found.values;
+        // Float files hold the heights as f32: beyond its range they would
+        // be written infinite.
+        let f32_max = f64::from(f32::MAX);
+        if format != OutputFormat::Png && (lo < -f32_max || hi > f32_max) {
+            let reach = if hi > f32_max { hi } else { lo };
+            return Err(fail_out(Error::InvalidOption(format!(
+                "heights reach {reach:.3e}, beyond the ±3.4e38 of the 32-bit floats {format} files hold here: give a larger scale"
+            ))));
+        }
         if let Output::File { path, create_folder: true } = output
             && let Some(parent) = path.parent()
             && !parent.as_os_str().is_empty()

@@ -490,6 +490,13 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
         })
         .collect();
     let range = row_ranges.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+    // A tiny gain divides the surface into heights past f64's range: an
+    // error, not infinite heights.
+    if !(range.0.is_finite() && range.1.is_finite()) {
+        return Err(Error::InvalidOption(format!(
+            "heights overflow: a gain of {scale:e} makes them larger than 64-bit floats hold; give a larger scale"
+        )));
+    }
     let quantisation_error = (opts.step > 0.0).then(|| q * noise_gain / scale.abs());
     let report = HeightReport {
         convention,
