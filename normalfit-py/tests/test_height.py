@@ -103,6 +103,16 @@ def test_bad_calls_raise() -> None:
     assert not flat.any() and info.range == (0.0, 0.0)
 
 
+def test_heights_past_the_float_range_raise() -> None:
+    """A gain so small that the heights leave f64's range raises, as the
+    command line refuses: never infinite heights."""
+    n = normalfit.normals(periodic(24, 32), scale=4.0)
+    with pytest.raises(ValueError, match="overflow"):
+        normalfit.height(n, scale=1e-320)
+    back, info = normalfit.height(n, scale=1e-40)
+    assert np.isfinite(back).all() and np.isfinite(info.range).all()
+
+
 def test_height_file_matches_the_command_line(tmp_path: Path) -> None:
     binary = cli_binary()
     if binary is None:
