@@ -64,8 +64,8 @@ pub(super) fn unequal_normal(orthogonal: bool, a: f64, rho: f64, cx: f64, cy: f6
 /// [`eigenvector`]), with the same bits.
 #[cfg(test)]
 pub(super) fn smallest_eigen(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, [f64; 3]) {
-    let (mut lambda, scale) = eigen_start(a1, a2, b1, b2, c);
-    for _ in 0..NEWTON_STEPS {
+    let (mut lambda, scale, settled) = eigen_start(a1, a2, b1, b2, c);
+    for _ in 0..NEWTON_STEPS * usize::from(!settled) {
         let (next, more) = newton_step([a1, a2, b1, b2, c], scale, lambda);
         lambda = next;
         if !more {
@@ -78,8 +78,9 @@ pub(super) fn smallest_eigen(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64
 /// Newton's steps [`smallest_eigen`] takes at most.
 pub(super) const NEWTON_STEPS: usize = 200;
 
-/// [`smallest_eigen`]'s start: a lower bound λ₀ of λ, and the scale of M
-/// its steps are measured against.
+/// [`smallest_eigen`]'s start: a lower bound λ₀ of λ, the scale of M its
+/// steps are measured against, and whether λ₀ is λ already (by the rule
+/// of [`settled`]: no step need be taken).
 ///
 /// Two lower bounds, the larger taken:
 ///
@@ -101,7 +102,7 @@ pub(super) const NEWTON_STEPS: usize = 200;
 // The conditions negated rather than flipped: a NaN takes the first bound.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64) {
+pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
     let m = a1.min(a2);
     let tilt2 = b1 * b1 + b2 * b2;
     let d = 0.5 * (m - c);
@@ -116,7 +117,23 @@ pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f
     let slope = tilt2 - (p2 * p3 + p1 * p3 + p1 * p2);
     let below = r - p / slope;
     let tangent = !(p > 0.0) & !(slope >= 0.0) & !(3.0 * r > trace) & !(below <= bound);
-    (select(tangent, below, bound), trace)
+    // The tangent from r is a Newton step from above: what it leaves is at
+    // most p''·(r − below)² / (2|p'(r)|) (p'' is largest at `below`, and
+    // |p'| is smallest at r on [below, r]), the rule `newton_step` stops by.
+    let settled = settled(trace, below, r - below, slope);
+    (select(tangent, below, bound), trace, tangent & settled)
+}
+
+/// Whether a Newton step of `step` from λ, where p' = `slope` < 0, left
+/// λ within 1e-17 of the scale of the root: by Taylor, the next step would
+/// be at most p''(λ)·step² / (2|p'|), p'' = 2·trace − 6λ its largest on
+/// the way up. Quadratic convergence: a step of 1e-9 of the scale leaves
+/// 1e-18, so the step that only confirms the root is not taken.
+// Negated rather than flipped: a NaN is not settled.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn settled(trace: f64, lambda: f64, step: f64, slope: f64) -> bool {
+    !(step * step * (2.0 * trace - 6.0 * lambda) > -2e-17 * trace * slope)
 }
 
 /// One of [`smallest_eigen`]'s Newton steps from λ, without branches (the
@@ -134,7 +151,7 @@ pub(super) fn newton_step([a1, a2, b1, b2, c]: [f64; 5], scale: f64, lambda: f64
     let next = lambda - p / slope;
     let rises = !(p <= 0.0) & !(slope >= 0.0) & !(next <= lambda);
     let step = next - lambda;
-    (if rises { next } else { lambda }, rises & !(step <= 1e-17 * scale))
+    (if rises { next } else { lambda }, rises & !(step <= 1e-17 * scale) & !settled(scale, lambda, step, slope))
 }
 
 /// [`smallest_eigen`]'s eigenvector for its λ, without branches.

@@ -607,8 +607,9 @@ fn rotate(
         let rotated = [cuu - (s / c) * cuv, cvv + (s / c) * cuv, c * cuz - s * cvz, s * cuz + c * cvz];
         [a1[k], a2[k], b1[k], b2[k]] = rotated;
         (cos[k], sin[k]) = (c, s);
-        (lambda[k], scale[k]) = eigen_start(rotated[0], rotated[1], rotated[2], rotated[3], czz[k]);
-        stepping[k] = !flat[k];
+        let settled;
+        (lambda[k], scale[k], settled) = eigen_start(rotated[0], rotated[1], rotated[2], rotated[3], czz[k]);
+        stepping[k] = !flat[k] & !settled;
     }
 }
 

@@ -256,8 +256,9 @@ fn start(
     let (a1, a2, b1, b2, czz) = (&a1[..w], &a2[..w], &b1[..w], &b2[..w], &czz[..w]);
     let (lambda, scale, stepping) = (&mut lambda[..w], &mut scale[..w], &mut stepping[..w]);
     for x in 0..w {
-        (lambda[x], scale[x]) = eigen_start(a1[x], a2[x], b1[x], b2[x], czz[x]);
-        stepping[x] = !flat[x];
+        let settled;
+        (lambda[x], scale[x], settled) = eigen_start(a1[x], a2[x], b1[x], b2[x], czz[x]);
+        stepping[x] = !flat[x] & !settled;
     }
 }
 
@@ -390,15 +391,12 @@ mod tests {
                 continue;
             }
             let [a1, a2, b1, b2] = [a, rho * rho * a, v.si[x], rho * v.sj[x]];
-            let (mut lambda, scale) = eigen_start(a1, a2, b1, b2, czz);
+            let (mut lambda, scale, settled) = eigen_start(a1, a2, b1, b2, czz);
             let mut steps = 0;
-            loop {
-                let (next, more) = newton_step([a1, a2, b1, b2, czz], scale, lambda);
-                lambda = next;
+            let mut more = !settled;
+            while more {
+                (lambda, more) = newton_step([a1, a2, b1, b2, czz], scale, lambda);
                 steps += 1;
-                if !more {
-                    break;
-                }
             }
             steps_taken.push(steps);
         }
