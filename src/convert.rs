@@ -52,7 +52,9 @@ pub use crate::borders::{BorderChoice, BorderChoices, Warning};
 use crate::engine::{self, Settings, Sink, Stage};
 pub use crate::engine::{ConvertError, Input, Observer, Output, Place, Summary, read_all};
 use crate::error::Error;
-use crate::io::{Channel, Encoding, InputFormat, Layout, OutputFormat, PngCompression, ReadOptions, SampleType};
+use crate::io::{
+    Channel, Encoding, InputFormat, Layout, OutputFormat, PngCompression, ReadOptions, Replace, SampleType,
+};
 use crate::units::MapSpacing;
 
 /// Every choice of a conversion. The defaults are the contract's: the
@@ -88,6 +90,10 @@ pub struct Conversion {
     /// the same values row by row). The fit's own [`Options::units`] are
     /// replaced by what this gives.
     pub map_units: Option<MapSpacing>,
+    /// Which existing files the normal map, its residual and its
+    /// georeferencing sidecars may replace (default: any). All of them are
+    /// checked before any is written, and they appear together.
+    pub replace: Replace,
 }
 
 impl Default for Conversion {
@@ -105,6 +111,7 @@ impl Default for Conversion {
             layout: Layout::Rgb,
             residual: false,
             map_units: None,
+            replace: Replace::Always,
         }
     }
 }
@@ -185,6 +192,13 @@ impl Conversion {
     #[must_use]
     pub fn with_map_units(mut self, map_units: Option<MapSpacing>) -> Conversion {
         self.map_units = map_units;
+        self
+    }
+
+    /// Which existing files the outputs may replace.
+    #[must_use]
+    pub fn with_replace(mut self, replace: Replace) -> Conversion {
+        self.replace = replace;
         self
     }
 
@@ -309,6 +323,7 @@ impl Opened {
             read: &c.read,
             channel: c.channel.clone(),
             map_units: c.map_units,
+            replace: c.replace,
         };
         let sink = Sink { main: normals, residual };
         engine::run(source, Stage::Normals(*encoding), sink, settings, observer).map(|(summary, _)| summary)

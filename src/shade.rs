@@ -28,7 +28,9 @@ use crate::engine::{self, ConvertError, Input, Output, Place, Settings, Sink, So
 use crate::error::{Error, Result};
 use crate::fit::checked_len;
 use crate::io::encoding::{TiffDepth, TiffOptions};
-use crate::io::{self, Channel, Georef, OutputFormat, PngCompression, PngDepth, PngOptions, Raster, ReadOptions};
+use crate::io::{
+    self, Channel, FileSet, Georef, OutputFormat, PngCompression, PngDepth, PngOptions, Raster, ReadOptions, Replace,
+};
 use crate::normal_map::{ImageKind, KindChoice};
 use crate::options::Options;
 use crate::units::MapSpacing;
@@ -94,6 +96,10 @@ pub struct LitOptions {
     /// [`Options::units`] are replaced by what this gives. Normal maps are
     /// lit as they are. Default: `None`, the contract's units.
     pub map_units: Option<MapSpacing>,
+    /// Which existing files the view and its georeferencing sidecars may
+    /// replace (default: any); checked before any is written, and they
+    /// appear together.
+    pub replace: Replace,
 }
 
 impl Default for LitOptions {
@@ -109,6 +115,7 @@ impl Default for LitOptions {
             channel: None,
             signed: false,
             map_units: None,
+            replace: Replace::Always,
         }
     }
 }
@@ -119,6 +126,13 @@ impl LitOptions {
     #[must_use]
     pub fn new() -> LitOptions {
         LitOptions::default()
+    }
+
+    /// Which existing files the view and its sidecars may replace.
+    #[must_use]
+    pub fn with_replace(mut self, replace: Replace) -> LitOptions {
+        self.replace = replace;
+        self
     }
 
     /// With this fit, its borders fixed as they are.
@@ -285,15 +299,23 @@ impl LitView {
     /// Errors: those of [`lit_format`], of the encoders and of writing the
     /// files.
     pub fn write_file(&self, path: &Path) -> Result<Vec<PathBuf>> {
-        if lit_format(path)? == OutputFormat::Tiff {
-            io::write_file_atomically(path, |out| self.encode_tiff(out))?;
-            return Ok(Vec::new());
-        }
-        io::write_file_atomically(path, |out| self.encode(out))?;
-        match &self.georef {
-            Some(georef) => io::sidecar::write_sidecars(path, georef),
-            None => Ok(Vec::new()),
-        }
+        let mut files = FileSet::new(Replace::Always);
+        let sidecars = match (&self.georef, lit_format(path)?) {
+            (_, OutputFormat::Tiff) => {
+                files.write(path, |out| self.encode_tiff(out))?;
+                Vec::new()
+            }
+            (georef, _) => {
+                let sidecars = match georef {
+                    Some(georef) => io::sidecar::write_sidecars(path, georef, None, &mut files)?,
+                    None => Vec::new(),
+                };
+                files.write(path, |out| self.encode(out))?;
+                sidecars
+            }
+        };
+        files.commit()?;
+        Ok(sidecars)
     }
 }
 
@@ -402,6 +424,7 @@ impl LitOptions {
             read,
             channel: self.channel.clone(),
             map_units: self.map_units,
+            replace: self.replace,
         }
     }
 }
@@ -492,11 +515,16 @@ pub fn lit_file(
     let view = lit_view_owned(raster, opts).map_err(&in_failure)?;
     sink::prepare(&output, input_path.as_deref()).map_err(&out_failure)?;
     let path = output.path().map(Path::to_path_buf);
-    write_to(output, |out| if tiff { view.encode_tiff(out) } else { view.encode(out) }).map_err(&out_failure)?;
+    let mut files = FileSet::new(opts.replace);
     let sidecars = match (&view.georef, path, tiff) {
-        (Some(georef), Some(path), false) => io::sidecar::write_sidecars(&path, georef).map_err(&out_failure)?,
+        (Some(georef), Some(path), false) => {
+            io::sidecar::write_sidecars(&path, georef, input_path.as_deref(), &mut files).map_err(&out_failure)?
+        }
         _ => Vec::new(),
     };
+    write_to(output, &mut files, |out| if tiff { view.encode_tiff(out) } else { view.encode(out) })
+        .map_err(&out_failure)?;
+    files.commit().map_err(&out_failure)?;
     Ok(LitWritten {
         width: view.width,
         height: view.height,

@@ -927,3 +927,128 @@ fn a_device_output_is_written_into_not_replaced() {
     assert_eq!(names, ["h.png", "null", "null-link"], "no temporary file, no sidecar");
     inputs.check("device");
 }
+
+/// A georeferenced 16² float DEM (UTM, 30 m texels) at `path`.
+fn write_dem(path: &Path) {
+    use common::geotiff::{self, Kind, Layout};
+    let heights: Vec<f64> = (0..16 * 16).map(|i| f64::from((i % 16) * (i / 16)) * 0.7).collect();
+    fs::write(path, geotiff::write(16, 16, &Layout::gray(Kind::F32), &[heights], &geotiff::utm_tags())).unwrap();
+}
+
+/// A sidecar is checked against the inputs before anything is written: a
+/// GeoTIFF named as the output's world file is refused (the output is
+/// not written either), as is one named as its `.aux.xml`.
+#[test]
+fn a_sidecar_that_is_the_input_is_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    for (input_name, output_name) in [("x.pgw", "x.png"), ("y.png.aux.xml", "y.png")] {
+        let input = dir.path().join(input_name);
+        write_dem(&input);
+        let inputs = Untouched::of(&[&input]);
+        let before = listing(dir.path());
+        let output = dir.path().join(output_name);
+        for command in ["convert", "shade"] {
+            let r = run(&[command, s(&input), "-o", s(&output), "--units", "map"]);
+            let line = expect_fault(&r, &output, &["is the input"]);
+            assert!(line.contains(input_name), "names the sidecar: {line}");
+            inputs.check(&format!("{command} {input_name}"));
+            assert_eq!(listing(dir.path()), before, "{command} {input_name}: nothing written");
+        }
+    }
+}
+
+/// `--overwrite never` keeps an existing sidecar: the batch writes
+/// nothing for that input (not the image beside the old world file), and
+/// goes on with the others.
+#[test]
+fn overwrite_never_keeps_an_existing_sidecar_and_its_image_is_not_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.tif"), dir.path().join("b.tif"));
+    write_dem(&a);
+    write_dem(&b);
+    let out = dir.path().join("out");
+    fs::create_dir(&out).unwrap();
+    let kept = out.join("a_normal.pgw");
+    fs::write(&kept, b"kept").unwrap();
+    let r = run(&["convert", s(&a), s(&b), "-o", s(&out), "--format", "png", "--overwrite", "never"]);
+    assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(stderr.contains("a_normal.pgw exists and is kept"), "{stderr}");
+    assert_eq!(fs::read(&kept).unwrap(), b"kept");
+    assert_eq!(listing(&out), ["a_normal.pgw", "b_normal.pgw", "b_normal.png", "b_normal.png.aux.xml"]);
+    // b's outputs are there now: a second run keeps them, and skips b.
+    let b_png = fs::read(out.join("b_normal.png")).unwrap();
+    let r = run(&["convert", s(&b), "-o", s(&out), "--format", "png", "--overwrite", "never"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(fs::read(out.join("b_normal.png")).unwrap(), b_png);
+}
+
+/// A full disk part way through a georeferenced output leaves the old
+/// image and the old sidecars as they were, and nothing else: the files
+/// are named together or not at all.
+#[test]
+#[ignore = "needs root to mount a small tmpfs; CI runs as root with --include-ignored"]
+fn a_full_disk_leaves_the_old_image_and_its_old_sidecars() {
+    assert!(is_root(), "needs root to mount a small tmpfs");
+    let dir = tempfile::tempdir().unwrap();
+    // 1024² float heights of noise, georeferenced: neither their normal
+    // map nor their lit view fits in 256 KiB.
+    let input = dir.path().join("dem.tif");
+    let noise = |i: u64| (i.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 40) as f64 / 1e3;
+    let heights: Vec<f64> = (0..1024 * 1024).map(noise).collect();
+    let layout = common::geotiff::Layout::gray(common::geotiff::Kind::F32);
+    fs::write(&input, common::geotiff::write(1024, 1024, &layout, &[heights], &common::geotiff::utm_tags())).unwrap();
+    let small = dir.path().join("small");
+    let mount = Mount::tmpfs(&small, "size=256k").unwrap_or_else(|why| panic!("no small file system to fill: {why}"));
+    let (image, world, aux) = (small.join("n.png"), small.join("n.pgw"), small.join("n.png.aux.xml"));
+    for (path, bytes) in [(&image, &b"old image"[..]), (&world, b"old world"), (&aux, b"old aux")] {
+        fs::write(path, bytes).unwrap();
+    }
+    for command in ["convert", "shade"] {
+        let r = run(&[command, s(&input), "-o", s(&image), "--units", "map", "--border", "clamp"]);
+        expect_fault(&r, &image, &["no space"]);
+        assert_eq!(fs::read(&image).unwrap(), b"old image", "{command}");
+        assert_eq!(fs::read(&world).unwrap(), b"old world", "{command}");
+        assert_eq!(fs::read(&aux).unwrap(), b"old aux", "{command}");
+        assert_eq!(listing(&small), ["n.pgw", "n.png", "n.png.aux.xml"], "{command}: nothing else");
+    }
+    drop(mount);
+}
+
+/// The residual beside a normal map: when the disk fills after the
+/// normal map is written and before the residual is, both keep their old
+/// content (the normal map was replaced before the two were named
+/// together).
+#[test]
+#[ignore = "needs root to mount a small tmpfs; CI runs as root with --include-ignored"]
+fn a_full_disk_after_the_normal_map_leaves_it_and_its_residual_as_they_were() {
+    assert!(is_root(), "needs root to mount a small tmpfs");
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("h.png");
+    write_gray16(&input, 256, 256);
+    let args = |map: &Path, residual: &Path| {
+        let (map, residual) = (s(map).to_string(), s(residual).to_string());
+        let input = s(&input).to_string();
+        run(&["convert", &input, "--scale", "200", "--bits", "8", "-o", &map, "--residual", &residual])
+    };
+    // Where there is room: the sizes.
+    let (roomy_map, roomy_residual) = (dir.path().join("n.png"), dir.path().join("r.exr"));
+    let r = args(&roomy_map, &roomy_residual);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let pages = |path: &Path| fs::metadata(path).unwrap().len().div_ceil(4096);
+    let (map_pages, residual_pages) = (pages(&roomy_map), pages(&roomy_residual));
+    assert!(residual_pages > 4, "the residual takes {residual_pages} pages");
+    // Room for the old files and the new normal map, not the residual.
+    let small = dir.path().join("small");
+    let size = format!("size={}k", 4 * (map_pages + 4));
+    let mount = Mount::tmpfs(&small, &size).unwrap_or_else(|why| panic!("no small file system to fill: {why}"));
+    let (map, residual) = (small.join("n.png"), small.join("r.exr"));
+    fs::write(&map, b"old map").unwrap();
+    fs::write(&residual, b"old residual").unwrap();
+    let r = args(&map, &residual);
+    expect_fault(&r, &residual, &["no space"]);
+    assert_eq!(fs::read(&map).unwrap(), b"old map");
+    assert_eq!(fs::read(&residual).unwrap(), b"old residual");
+    assert_eq!(listing(&small), ["n.png", "r.exr"], "nothing else");
+    drop(mount);
+}

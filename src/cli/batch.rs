@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex};
 
-use normalfit::io::InputFormat;
+use normalfit::io::{InputFormat, Replace};
 
 use super::args::{BatchArgs, OverwriteArg};
 use super::input::{Input, InputIds};
@@ -275,17 +275,22 @@ impl Turn<'_> {
     /// Whether `--overwrite` lets the output at `path` (None: standard
     /// output, always written) be written for `input`.
     pub fn wanted(&self, path: Option<&Path>, input: &Input) -> bool {
-        let Some(path) = path else { return true };
-        match self.shared.overwrite {
-            OverwriteArg::Always => true,
-            OverwriteArg::Never => std::fs::metadata(path).is_err(),
-            OverwriteArg::Older => {
-                let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified());
-                match (input, modified(path)) {
-                    (Input::File(source), Ok(written)) => modified(source).is_ok_and(|changed| written < changed),
-                    _ => true,
-                }
-            }
+        path.is_none_or(|path| self.replace(input).allows(path))
+    }
+
+    /// The files `--overwrite` lets the outputs of `input` replace: the
+    /// library applies it to every file a conversion writes (sidecars
+    /// included) before writing any.
+    pub fn replace(&self, input: &Input) -> Replace {
+        match (self.shared.overwrite, input) {
+            (OverwriteArg::Always, _) => Replace::Always,
+            (OverwriteArg::Never, _) => Replace::Never,
+            (OverwriteArg::Older, Input::File(source)) => match std::fs::metadata(source).and_then(|m| m.modified()) {
+                Ok(changed) => Replace::OlderThan(changed),
+                // An input without a time: an output is as old as it.
+                Err(_) => Replace::Never,
+            },
+            (OverwriteArg::Older, _) => Replace::Always,
         }
     }
 

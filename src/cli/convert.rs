@@ -90,7 +90,8 @@ impl Plan {
         let opened = {
             // Standard input is decoded whole: its encoded bytes go once decoded.
             let mut bytes = Vec::new();
-            self.conversion.open(source(input, &mut bytes)?).map_err(|e| Failure::file(input.name(), e))?
+            let conversion = self.conversion.clone().with_replace(turn.replace(input));
+            conversion.open(source(input, &mut bytes)?).map_err(|e| Failure::file(input.name(), e))?
         };
         let target = self.target(job, &opened)?;
         self.claim(job, &target, turn)?;

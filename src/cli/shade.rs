@@ -72,7 +72,8 @@ impl Plan {
         let source = source(input, &mut bytes)?;
         let mut stdout = None;
         let output = output::file_or_stdout(target.as_deref(), &job.subfolder, &mut stdout);
-        let done = match lit_file(source, &self.read, &self.lit, output) {
+        let lit = self.lit.clone().with_replace(turn.replace(input));
+        let done = match lit_file(source, &self.read, &lit, output) {
             Ok(done) => done,
             Err(e) if output::stdout_closed(&e, target.is_none()) => return Ok(Outcome::PipeClosed),
             Err(e) => {

@@ -12,7 +12,7 @@ use super::{ConvertError, Observer, Place, Settings, Sink, Stage, Summary};
 use crate::borders::{BorderChoice, Warning};
 use crate::error::Error;
 use crate::io::encoding::TiffTags;
-use crate::io::{self, Encoding, Georef, Layout, OutputFormat, Raster};
+use crate::io::{self, Encoding, FileSet, Georef, Layout, OutputFormat, Raster};
 use crate::light::Lighting;
 use crate::normal_map::KindChoice;
 use crate::pipeline::{self, StoredRows};
@@ -33,6 +33,8 @@ pub(super) struct Job<'a> {
     /// A lit view's pixels, when no file takes them.
     pub(super) pixels: Option<Vec<u8>>,
     pub(super) summary: Summary,
+    /// The files written so far, named together when the run is done.
+    pub(super) files: FileSet,
 }
 
 impl Job<'_> {
@@ -162,18 +164,24 @@ impl Job<'_> {
             (layout, _) if layout.needs_heights() => heights.into_f32().map_err(&in_failure)?,
             _ => Vec::new(),
         };
+        if let Some(out) = &normals {
+            self.prepare(out, Place::Output)?;
+        }
+        if let Some((out, _)) = &residual {
+            self.prepare(out, Place::Residual)?;
+        }
+        let mut files = std::mem::take(&mut self.files);
         let (encoding, tags) = (self.encoding, self.tiff_tags());
         if let Some(out) = normals {
-            self.prepare(&out, Place::Output)?;
-            write_to(out, |w| texels.encode(&heights, (width, height), &encoding, tags, w))
+            write_to(out, &mut files, |w| texels.encode(&heights, (width, height), &encoding, tags, w))
                 .map_err(ConvertError::at(Place::Output))?;
         }
         if let (Some((out, format)), Some(distances)) = (residual, &distances) {
-            self.prepare(&out, Place::Residual)?;
             let scale = fit.scale_for_width(width);
-            write_to(out, |w| encode_residual(distances, (width, height), scale, (format, tags), w))
+            write_to(out, &mut files, |w| encode_residual(distances, (width, height), scale, (format, tags), w))
                 .map_err(ConvertError::at(Place::Residual))?;
         }
+        self.files = files;
         Ok(())
     }
 
@@ -262,6 +270,7 @@ impl Job<'_> {
         };
         let (w, h) = (width, height);
         let mut missing = 0;
+        let mut files = std::mem::take(&mut self.files);
         #[cfg(feature = "tiff")]
         let tags = self.tiff_tags();
         let lamp = match self.stage {
@@ -270,17 +279,17 @@ impl Job<'_> {
         };
         let result = match (lamp, out, self.encoding) {
             // The lit view streams into a file alone ([`Stage::streams_into`]).
-            (Some(lamp), Output::File { path, .. }, Encoding::Png(_)) => io::write_file_atomically(path, |file| {
+            (Some(lamp), Output::File { path, .. }, Encoding::Png(_)) => files.write(path, |file| {
                 missing = pipeline::shade_png_seekable(rows, &fit, lamp, visit, file).inspect_err(&mut on_input)?;
                 Ok(())
             }),
             #[cfg(feature = "tiff")]
-            (Some(lamp), Output::File { path, .. }, Encoding::Tiff(_)) => io::write_file_atomically(path, |file| {
+            (Some(lamp), Output::File { path, .. }, Encoding::Tiff(_)) => files.write(path, |file| {
                 missing = pipeline::shade_tiff(rows, tail, &fit, lamp, tags, visit, file).inspect_err(&mut on_input)?;
                 Ok(())
             }),
             (Some(_), _, _) => Err(Error::InvalidOption("a lit view streams into a file only: read it whole".into())),
-            (None, Output::File { path, .. }, Encoding::Exr(options)) => io::write_file_atomically(path, |file| {
+            (None, Output::File { path, .. }, Encoding::Exr(options)) => files.write(path, |file| {
                 missing = pipeline::convert_exr_counting(rows, tail, &fit, options, visit, file)
                     .inspect_err(&mut on_input)?;
                 Ok(())
@@ -297,7 +306,7 @@ impl Job<'_> {
                         write_all(writer, bytes.0.get_ref())
                     })
             }
-            (None, Output::File { path, .. }, Encoding::Png(options)) => io::write_file_atomically(path, |file| {
+            (None, Output::File { path, .. }, Encoding::Png(options)) => files.write(path, |file| {
                 missing = pipeline::convert_png_seekable_counting(rows, &fit, options, visit, file)
                     .inspect_err(&mut on_input)?;
                 Ok(())
@@ -308,7 +317,7 @@ impl Job<'_> {
                     .map(|m| missing = m)
             }
             #[cfg(feature = "tiff")]
-            (None, Output::File { path, .. }, Encoding::Tiff(options)) => io::write_file_atomically(path, |file| {
+            (None, Output::File { path, .. }, Encoding::Tiff(options)) => files.write(path, |file| {
                 missing = pipeline::convert_tiff_counting(rows, tail, &fit, options, tags, visit, file)
                     .inspect_err(&mut on_input)?;
                 Ok(())
@@ -332,6 +341,7 @@ impl Job<'_> {
         self.summary.missing = missing;
         let place = if input_failed { Place::Input } else { Place::Output };
         result.map_err(ConvertError::at(place))?;
+        self.files = files;
         // A failed write stopped the rows part way: no seams to judge.
         if let Some(seams) = seams {
             self.judge(seams.finish(&check_opts).map_err(ConvertError::at(Place::Input))?);
@@ -402,8 +412,11 @@ impl Job<'_> {
             return Ok(());
         };
         self.prepare(&out, Place::Output)?;
+        let mut files = std::mem::take(&mut self.files);
         let (encoding, tags) = (self.encoding, self.tiff_tags());
-        write_to(out, |w| io::write::encode_gray_tagged(&greys, size, &encoding, tags, w))
-            .map_err(ConvertError::at(Place::Output))
+        write_to(out, &mut files, |w| io::write::encode_gray_tagged(&greys, size, &encoding, tags, w))
+            .map_err(ConvertError::at(Place::Output))?;
+        self.files = files;
+        Ok(())
     }
 }

@@ -189,6 +189,8 @@ pub(crate) struct Settings<'a> {
     /// Real-world units: the heights as stored, the spacing from the file
     /// or given.
     pub map_units: Option<MapSpacing>,
+    /// Which existing files the outputs (and their sidecars) may replace.
+    pub replace: io::Replace,
 }
 
 /// Where a run's results go: the main output (none: a lit view's pixels
@@ -265,11 +267,17 @@ pub(crate) fn run(
             nodata,
             missing: 0,
         },
+        files: io::FileSet::new(settings.replace),
     };
-    job.run(rows, sink)?;
+    // The sidecars first: they are known from the georeferencing, and one
+    // that is an input or that the policy keeps stops the run before any
+    // image byte is written. All the files are named together at the end.
     if let Some((path, georef)) = sidecar_of {
-        job.summary.sidecars = io::sidecar::write_sidecars(&path, georef).map_err(ConvertError::at(Place::Output))?;
+        job.summary.sidecars = io::sidecar::write_sidecars(&path, georef, input, &mut job.files)
+            .map_err(ConvertError::at(Place::Output))?;
     }
+    job.run(rows, sink)?;
+    std::mem::take(&mut job.files).commit().map_err(ConvertError::at(Place::Output))?;
     Ok((job.summary, job.pixels))
 }
 

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::encoding::{TiffDepth, TiffOptions, TiffTags};
-use crate::io::{self, Encoding, ExrDepth, ExrOptions, Layout, OutputFormat, PngDepth, PngOptions};
+use crate::io::{self, Encoding, ExrDepth, ExrOptions, FileSet, Layout, OutputFormat, PngDepth, PngOptions};
 use crate::samples::try_vec;
 
 /// Where a map goes.
@@ -72,14 +72,19 @@ pub(crate) fn or_stream<'a: 's, 's>(output: Output<'a>, stream: &'s mut Option<s
     }
 }
 
-/// Writes to a file atomically, or assembles the bytes in memory (EXR
-/// seeks while writing) and gives them to a writer.
-pub(crate) fn write_to(out: Output<'_>, encode: impl FnOnce(&mut dyn WriteSeek) -> Result<()>) -> Result<()> {
+/// Writes a file of the run's set `files` (named with the others at its
+/// commit), or assembles the bytes in memory (EXR seeks while writing) and
+/// gives them to a writer.
+pub(crate) fn write_to(
+    out: Output<'_>,
+    files: &mut FileSet,
+    encode: impl FnOnce(&mut dyn WriteSeek) -> Result<()>,
+) -> Result<()> {
     match out {
         // Into the file itself, which seeks as EXR needs: no copy of the
         // encoded image in memory.
         Output::File { path, .. } => match io::output_target(path)? {
-            io::OutputTarget::File(_) => io::write_file_atomically(path, |file| encode(file)),
+            io::OutputTarget::File(_) => files.write(path, |file| encode(file)),
             io::OutputTarget::Stream(target) => {
                 let mut bytes = InMemory::default();
                 encode(&mut bytes)?;

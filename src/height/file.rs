@@ -238,10 +238,11 @@ impl HeightConversion {
                 fail_out(Error::Io(std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}"))))
             })?;
         }
+        let mut files = io::FileSet::new(io::Replace::Always);
         let result = match format {
             // Converted to f32 as the blocks are written: no copy of the
             // heights (67 MB at 4096²).
-            OutputFormat::Exr => crate::engine::write_to(output, |file| {
+            OutputFormat::Exr => crate::engine::write_to(output, &mut files, |file| {
                 io::exr::write::write_exr_rows(file, w, h, ExrDepth::Float, &["Y"], |push| {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
@@ -253,7 +254,7 @@ impl HeightConversion {
             }),
             // Float heights, as in the EXR, a float32 one-band TIFF.
             #[cfg(feature = "tiff")]
-            OutputFormat::Tiff => crate::engine::write_to(output, |file| {
+            OutputFormat::Tiff => crate::engine::write_to(output, &mut files, |file| {
                 let tags = io::encoding::TiffTags::default();
                 io::tiff::write::write_tiff_rows(file, (w, h), 1, tags, |push| {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
@@ -272,12 +273,12 @@ impl HeightConversion {
                 let unit = if span > 0.0 { 65535.0 / span } else { 0.0 };
                 stored.extend(values.iter().map(|&v| ((v - lo) * unit).round().clamp(0.0, 65535.0) as u16));
                 drop(values);
-                crate::engine::write_to(output, |file| {
+                crate::engine::write_to(output, &mut files, |file| {
                     io::encode_gray(&stored, w, h, &PngOptions::new(PngDepth::Sixteen).into(), file)
                 })
             }
         };
-        result.map_err(fail_out)?;
+        result.and_then(|()| files.commit()).map_err(fail_out)?;
         let mut warnings = Vec::new();
         if report.bad_texels > 0 {
             warnings.push(HeightWarning::BadTexels(report.bad_texels));

@@ -101,33 +101,196 @@ enum Where {
 
 /// [`write_file_atomically`], keeping the new file as `place` says.
 fn write_in(path: &Path, place: Where, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
-    let path = match output_target(path)? {
-        OutputTarget::File(target) => target,
-        OutputTarget::Stream(target) => return write_stream(&target, write),
-    };
-    let path = path.as_path();
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;
-    let folder = folder_of(path);
-    let (file, named) = create(folder, name, place)?;
-    let write_back = WriteBack::start(&file);
-    let mut out = BufWriter::new(file);
-    write(&mut out)?;
-    let file = out.into_inner().map_err(|e| Error::Io(e.into_error()))?;
-    drop(write_back);
-    file.sync_all()?;
-    match named {
-        Some(temp) => {
-            // Closed before the rename: some systems (Windows) refuse to
-            // rename an open file.
-            drop(file);
-            temp.rename_onto(path)?;
+    let mut set = FileSet::new(Replace::Always);
+    set.write_in(path, place, write)?;
+    set.commit()
+}
+
+/// Which existing files a command may replace (the CLI's `--overwrite`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Replace {
+    /// Any file.
+    #[default]
+    Always,
+    /// None: a file that exists is kept.
+    Never,
+    /// Those last changed before this time (the input's): outputs older
+    /// than their input.
+    OlderThan(std::time::SystemTime),
+}
+
+impl Replace {
+    /// Whether a file at `path` may be written: always where there is none.
+    #[must_use]
+    pub fn allows(self, path: &Path) -> bool {
+        let changed = || fs::metadata(path).and_then(|m| m.modified());
+        match self {
+            Replace::Always => true,
+            Replace::Never => fs::metadata(path).is_err(),
+            Replace::OlderThan(input) => changed().map_or(true, |written| written < input),
         }
-        None => name_unnamed(&file, folder, name, path)?,
     }
-    sync_folder(folder);
-    Ok(())
+}
+
+/// Files that appear together or not at all: a normal map and its
+/// residual, an image and its georeferencing sidecars.
+///
+/// Each file is written as [`write_file_atomically`] writes one (to a new
+/// file beside its target, complete and synced before it has a name), but
+/// none takes its name until [`FileSet::commit`] names them all. Before
+/// that, the old files that will be replaced are kept under temporary
+/// names (hard links, else copies), so that if naming one fails, those
+/// already named are put back as they were (the old file, or none): every
+/// file is new, or every file is as before. Dropped without a commit, the
+/// set leaves every target as it was and no temporary file.
+///
+/// A file is checked against the set's [`Replace`] policy before a byte
+/// of it is written. A device, FIFO or socket is written into at once (a
+/// stream: the promise does not apply to it).
+#[derive(Default)]
+pub struct FileSet {
+    replace: Replace,
+    staged: Vec<Staged>,
+}
+
+/// A complete new file of a set, not yet named.
+struct Staged {
+    target: PathBuf,
+    /// Open until named (closed first where it has a temporary name:
+    /// some systems, Windows, refuse to rename an open file).
+    file: Option<File>,
+    /// Its temporary name, or `None` for an unnamed file.
+    named: Option<TempName>,
+}
+
+impl FileSet {
+    /// A set that may replace the files `replace` allows.
+    #[must_use]
+    pub fn new(replace: Replace) -> FileSet {
+        FileSet { replace, staged: Vec::new() }
+    }
+
+    /// Writes the file at `path` with the bytes `write` produces, to be
+    /// named at [`FileSet::commit`].
+    ///
+    /// Errors: [`Error::Io`] of kind `AlreadyExists` when the policy keeps
+    /// an existing file there (nothing written); those of
+    /// [`write_file_atomically`].
+    pub fn write(&mut self, path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
+        self.write_in(path, Where::Unnamed, write)
+    }
+
+    /// [`FileSet::write`], keeping the new file as `place` says.
+    fn write_in(
+        &mut self,
+        path: &Path,
+        place: Where,
+        write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+    ) -> Result<()> {
+        let target = match output_target(path)? {
+            OutputTarget::File(target) => target,
+            OutputTarget::Stream(target) => return write_stream(&target, write),
+        };
+        if !self.replace.allows(&target) {
+            let kept = format!("{} exists and is kept (--overwrite): nothing written", target.display());
+            return Err(Error::Io(io::Error::new(io::ErrorKind::AlreadyExists, kept)));
+        }
+        let name = target
+            .file_name()
+            .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;
+        let (file, named) = create(folder_of(&target), name, place)?;
+        let write_back = WriteBack::start(&file);
+        let mut out = BufWriter::new(file);
+        write(&mut out)?;
+        let file = out.into_inner().map_err(|e| Error::Io(e.into_error()))?;
+        drop(write_back);
+        file.sync_all()?;
+        self.staged.push(Staged { target, file: Some(file), named });
+        Ok(())
+    }
+
+    /// Names every file written, together (see [`FileSet`]).
+    ///
+    /// Errors: [`Error::Io`] when a file cannot be named, or an old file
+    /// not kept aside; the targets are then as they were.
+    pub fn commit(self) -> Result<()> {
+        let several = self.staged.len() > 1;
+        // The old files aside first: a failure here has named nothing.
+        let mut kept = Vec::with_capacity(self.staged.len());
+        for staged in &self.staged {
+            kept.push(if several { keep_aside(&staged.target)? } else { None });
+        }
+        let mut named: Vec<(&Path, Option<TempName>)> = Vec::new();
+        let mut failure = None;
+        let mut staged = self.staged;
+        for (staged, old) in staged.iter_mut().zip(kept) {
+            match staged.name() {
+                Ok(()) => named.push((staged.target.as_path(), old)),
+                Err(e) => {
+                    failure = Some(e);
+                    break;
+                }
+            }
+        }
+        if let Some(e) = failure {
+            // Put back what was named: the old file, or none.
+            for (target, old) in named {
+                match old {
+                    Some(old) => {
+                        let _ = old.rename_onto(target);
+                    }
+                    None => {
+                        let _ = fs::remove_file(target);
+                    }
+                }
+            }
+            return Err(e);
+        }
+        // The old files' temporary names go as `named` drops.
+        drop(named);
+        let mut folders: Vec<&Path> = staged.iter().map(|s| folder_of(&s.target)).collect();
+        folders.dedup();
+        folders.into_iter().for_each(sync_folder);
+        Ok(())
+    }
+}
+
+impl Staged {
+    /// Gives the new file its target's name.
+    fn name(&mut self) -> Result<()> {
+        match (&self.named, &self.file) {
+            (Some(temp), _) => {
+                self.file = None;
+                fs::rename(&temp.path, &self.target).map_err(placing)?;
+                // The temporary name is gone with the rename.
+                if let Some(temp) = &mut self.named {
+                    temp.armed = false;
+                }
+                Ok(())
+            }
+            (None, Some(file)) => {
+                let name = self.target.file_name().unwrap_or_default();
+                name_unnamed(file, folder_of(&self.target), name, &self.target)
+            }
+            (None, None) => Ok(()),
+        }
+    }
+}
+
+/// Keeps the file at `target` (if any) under a temporary name beside it:
+/// a second link, else a copy. `None` where there is no file.
+fn keep_aside(target: &Path) -> Result<Option<TempName>> {
+    if !fs::symlink_metadata(target).is_ok_and(|m| m.is_file()) {
+        return Ok(None);
+    }
+    let name = target.file_name().unwrap_or_default();
+    let path = temp_path(folder_of(target), name);
+    let kept = fs::hard_link(target, &path).or_else(|_| fs::copy(target, &path).map(|_| ()));
+    kept.map_err(|e| {
+        Error::Io(io::Error::new(e.kind(), format!("cannot keep the old {} aside: {e}", target.display())))
+    })?;
+    Ok(Some(TempName { path, armed: true }))
 }
 
 /// Writes into a device, FIFO or socket as it is: nothing to sync or
@@ -492,5 +655,81 @@ mod tests {
             assert!(got == expected, "{place:?}: the content differs");
             assert_eq!(listing(dir.path()), ["big.bin"], "{place:?}");
         }
+    }
+
+    /// A set's files appear together: none is named before the commit,
+    /// all are after it; a file whose naming fails puts back the ones
+    /// already named (the old file, or none), whether the new files are
+    /// unnamed or named.
+    #[test]
+    fn a_set_of_files_appears_together_or_not_at_all() {
+        for place in [Where::Unnamed, Where::Named] {
+            let dir = tempfile::tempdir().unwrap();
+            let (image, world, residual) =
+                (dir.path().join("n.png"), dir.path().join("n.pgw"), dir.path().join("r.png"));
+            fs::write(&image, b"old image").unwrap();
+            let mut set = FileSet::new(Replace::Always);
+            for (path, bytes) in [(&world, &b"new world"[..]), (&image, b"new image"), (&residual, b"new residual")] {
+                set.write_in(path, place, |out| Ok(out.write_all(bytes)?)).unwrap();
+            }
+            let visible = |names: &[&str]| names.iter().map(|n| (*n).to_string()).collect::<Vec<_>>();
+            assert_eq!(listing(dir.path()).iter().filter(|n| !n.starts_with('.')).count(), 1, "{place:?}");
+            set.commit().unwrap();
+            assert_eq!(listing(dir.path()), visible(&["n.pgw", "n.png", "r.png"]), "{place:?}");
+            assert_eq!(fs::read(&image).unwrap(), b"new image");
+
+            // The last file cannot be named (a folder with a file in it
+            // took its name after it was written): the others go back.
+            let mut set = FileSet::new(Replace::Always);
+            for (path, bytes) in
+                [(&world, &b"newer world"[..]), (&image, b"newer image"), (&residual, b"newer residual")]
+            {
+                set.write_in(path, place, |out| Ok(out.write_all(bytes)?)).unwrap();
+            }
+            fs::remove_file(&residual).unwrap();
+            fs::create_dir(&residual).unwrap();
+            fs::write(residual.join("keep"), b"").unwrap();
+            let e = set.commit().unwrap_err();
+            assert!(e.to_string().contains("cannot put the new file in place"), "{e}");
+            assert_eq!(fs::read(&world).unwrap(), b"new world", "{place:?}");
+            assert_eq!(fs::read(&image).unwrap(), b"new image", "{place:?}");
+            assert_eq!(listing(dir.path()), visible(&["n.pgw", "n.png", "r.png"]), "{place:?}: nothing else");
+
+            // Dropped without a commit: nothing changes, nothing is left.
+            let mut set = FileSet::new(Replace::Always);
+            set.write_in(&image, place, |out| Ok(out.write_all(b"never")?)).unwrap();
+            drop(set);
+            assert_eq!(fs::read(&image).unwrap(), b"new image", "{place:?}");
+            assert_eq!(listing(dir.path()), visible(&["n.pgw", "n.png", "r.png"]), "{place:?}");
+        }
+    }
+
+    /// The policy is checked before a byte is written: a file it keeps
+    /// stops the set, and leaves nothing.
+    #[test]
+    fn a_set_keeps_the_files_its_policy_keeps() {
+        let dir = tempfile::tempdir().unwrap();
+        let (old, new) = (dir.path().join("old.pgw"), dir.path().join("new.png"));
+        fs::write(&old, b"kept").unwrap();
+        let mut set = FileSet::new(Replace::Never);
+        set.write(&new, |out| Ok(out.write_all(b"image")?)).unwrap();
+        let mut wrote = false;
+        let e = set
+            .write(&old, |_| {
+                wrote = true;
+                Ok(())
+            })
+            .unwrap_err();
+        assert!(!wrote, "nothing written for a kept file");
+        assert!(e.to_string().contains("old.pgw exists and is kept"), "{e}");
+        drop(set);
+        assert_eq!(listing(dir.path()), ["old.pgw"]);
+        assert_eq!(fs::read(&old).unwrap(), b"kept");
+
+        // Older than a time: a file changed before it may go, one after not.
+        let changed = fs::metadata(&old).unwrap().modified().unwrap();
+        assert!(!Replace::OlderThan(changed).allows(&old));
+        assert!(Replace::OlderThan(changed + std::time::Duration::from_secs(1)).allows(&old));
+        assert!(Replace::Never.allows(&new) && Replace::Always.allows(&old));
     }
 }

@@ -55,7 +55,8 @@ pub use target::{OutputTarget, open_stream, output_target};
 #[cfg(feature = "tiff")]
 pub use tiff::rows::TiffRows;
 pub use write::{
-    GrayValue, NormalTexel, PngSample, Sample, encode_gray, encode_normals, write_atomically, write_file_atomically,
+    FileSet, GrayValue, NormalTexel, PngSample, Replace, Sample, encode_gray, encode_normals, write_atomically,
+    write_file_atomically,
 };
 
 // What every format reads into, and is asked to read: the vocabulary the

@@ -21,9 +21,9 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use super::atomic::write_file_atomically;
+use super::atomic::FileSet;
 use super::read::{Georef, RasterType};
-use crate::error::Result;
+use crate::error::{Error, Result};
 
 /// The six lines of the world file of `georef` (see the module), or
 /// `None` without a transform.
@@ -52,24 +52,40 @@ pub fn world_file_path(image: &Path) -> PathBuf {
     }
 }
 
-/// Writes the sidecars of `image` placed by `georef` (see the module):
-/// the world file when there is a transform, the auxiliary file when
-/// there is an EPSG code too. Each appears whole or not at all. Returns
-/// the files written (none without a transform).
+/// Writes the sidecars of `image` placed by `georef` (see the module)
+/// into `files`, named with the image when the set is committed: the
+/// world file when there is a transform, the auxiliary file when there is
+/// an EPSG code too. Returns their paths (none without a transform).
 ///
-/// Errors: [`crate::Error::Io`] when a file cannot be written.
-pub fn write_sidecars(image: &Path, georef: &Georef) -> Result<Vec<PathBuf>> {
+/// Errors: [`crate::Error::Io`] when a sidecar would be the `input` file
+/// (or a link to it), when the set's policy keeps a file there, or when a
+/// file cannot be written.
+pub fn write_sidecars(
+    image: &Path,
+    georef: &Georef,
+    input: Option<&Path>,
+    files: &mut FileSet,
+) -> Result<Vec<PathBuf>> {
     let Some(world) = world_file(georef) else { return Ok(Vec::new()) };
-    let mut written = Vec::new();
-    let path = world_file_path(image);
-    write_file_atomically(&path, |out| Ok(out.write_all(world.as_bytes())?))?;
-    written.push(path);
+    let mut sidecars = vec![(world_file_path(image), world)];
     if let Some(epsg) = georef.epsg {
         let mut name = image.as_os_str().to_owned();
         name.push(".aux.xml");
-        let path = PathBuf::from(name);
-        let xml = format!("<PAMDataset>\n  <SRS>EPSG:{epsg}</SRS>\n</PAMDataset>\n");
-        write_file_atomically(&path, |out| Ok(out.write_all(xml.as_bytes())?))?;
+        sidecars.push((PathBuf::from(name), format!("<PAMDataset>\n  <SRS>EPSG:{epsg}</SRS>\n</PAMDataset>\n")));
+    }
+    // Every name checked before any is written.
+    for (path, _) in &sidecars {
+        if input.is_some_and(|input| super::same_file(input, path)) {
+            let problem = format!(
+                "the georeferencing file {} beside the output is the input: normalfit never writes over an input",
+                path.display()
+            );
+            return Err(Error::Io(std::io::Error::new(std::io::ErrorKind::InvalidInput, problem)));
+        }
+    }
+    let mut written = Vec::new();
+    for (path, text) in sidecars {
+        files.write(&path, |out| Ok(out.write_all(text.as_bytes())?))?;
         written.push(path);
     }
     Ok(written)

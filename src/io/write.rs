@@ -13,7 +13,7 @@
 
 use std::io::{Seek, Write};
 
-pub use super::atomic::{write_atomically, write_file_atomically};
+pub use super::atomic::{FileSet, Replace, write_atomically, write_file_atomically};
 pub use super::png::write::PngSample;
 pub use super::texels::Sample;
 
