@@ -436,11 +436,44 @@ fn geotiff_cases() -> Vec<Case> {
     ]
 }
 
+/// A lossy WebP: the 1×1 VP8 image browsers are probed with.
+const LOSSY_WEBP: &[u8] = &[
+    0x52, 0x49, 0x46, 0x46, 0x22, 0x00, 0x00, 0x00, 0x57, 0x45, 0x42, 0x50, 0x56, 0x50, 0x38, 0x20, 0x16, 0x00, 0x00,
+    0x00, 0x30, 0x01, 0x00, 0x9d, 0x01, 0x2a, 0x01, 0x00, 0x01, 0x00, 0x0e, 0xc0, 0xfe, 0x25, 0xa4, 0x00, 0x03, 0x70,
+    0x00, 0x00, 0x00, 0x00,
+];
+
+/// Files refused for what the options ask of them; not in batches, whose
+/// good files the options do not fit.
+fn option_cases() -> Vec<Case> {
+    vec![
+        // Packed heights need exact bytes: a lossy tile is refused before
+        // it is decoded.
+        Case {
+            batch: false,
+            ..with_args(
+                case("webp_lossy_decoded_as_terrarium.webp", LOSSY_WEBP.to_vec(), &["this one is lossy"]),
+                &["--decode", "terrarium"],
+            )
+        },
+        // (2^32 − 1)(2^32 + 1) texels: 16-bit samples take more bytes than
+        // a 64-bit count holds, said so rather than saturated.
+        Case {
+            batch: false,
+            ..with_args(
+                case("raw_size_past_2_pow_64_bytes.raw", vec![0; 16], &["2^64 bytes or more at 16 bits"]),
+                &["--size", "4294967295x4294967297"],
+            )
+        },
+    ]
+}
+
 fn all_cases() -> Vec<Case> {
     let mut cases = png_cases();
     cases.extend(exr_cases());
     cases.extend(other_cases());
     cases.extend(geotiff_cases());
+    cases.extend(option_cases());
     cases
 }
 
