@@ -90,6 +90,36 @@ impl From<std::io::Error> for Error {
     }
 }
 
+/// A number as messages show it: Rust's shortest form that reads back to
+/// the same value (`0.1`, `30`, `-1500.25`), but in exponent form where
+/// that form would be long: from 1e16 up (`1e308`, where `{}` writes 309
+/// digits) and below 1e-4 (`1.5e-7`), the bounds of Python's `repr`, so a
+/// number in a message reads the same from the command line and from the
+/// Python package. NaN and infinities as `{}` writes them.
+///
+/// ```
+/// use normalfit::error::Number;
+/// assert_eq!(Number(1e308).to_string(), "1e308");
+/// assert_eq!(Number(-2.5e-7).to_string(), "-2.5e-7");
+/// assert_eq!(Number(30.0).to_string(), "30");
+/// assert_eq!(Number(0.1).to_string(), "0.1");
+/// assert_eq!(Number(f64::NAN).to_string(), "NaN");
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Number(pub f64);
+
+impl fmt::Display for Number {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v = self.0;
+        let magnitude = v.abs();
+        if v.is_finite() && v != 0.0 && !(1e-4..1e16).contains(&magnitude) {
+            write!(f, "{v:e}")
+        } else {
+            write!(f, "{v}")
+        }
+    }
+}
+
 /// Collapses a message from a dependency onto one line.
 pub(crate) fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")

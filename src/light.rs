@@ -13,7 +13,7 @@
 //! n and L are in the OpenGL tangent frame: +x to the right (larger column
 //! index), +y up the image (smaller row index), +z out of the surface.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Number, Result};
 use crate::fit::checked_len;
 use crate::io::Affine;
 use crate::options::Convention;
@@ -65,12 +65,14 @@ impl Light {
     pub fn new(azimuth_deg: f64, elevation_deg: f64) -> Result<Light> {
         if !azimuth_deg.is_finite() {
             return Err(Error::InvalidOption(format!(
-                "the light's azimuth must be a finite number of degrees, got {azimuth_deg}"
+                "the light's azimuth must be a finite number of degrees, got {}",
+                Number(azimuth_deg)
             )));
         }
         if !(0.0..=90.0).contains(&elevation_deg) {
             return Err(Error::InvalidOption(format!(
-                "the light's elevation must be from 0 to 90 degrees, got {elevation_deg}"
+                "the light's elevation must be from 0 to 90 degrees, got {}",
+                Number(elevation_deg)
             )));
         }
         Ok(Light { azimuth_deg, elevation_deg })
@@ -293,12 +295,14 @@ impl Sun {
     pub fn new(azimuth_deg: f64, altitude_deg: f64) -> Result<Sun> {
         if !azimuth_deg.is_finite() {
             return Err(Error::InvalidOption(format!(
-                "the sun's azimuth must be a finite number of degrees, got {azimuth_deg}"
+                "the sun's azimuth must be a finite number of degrees, got {}",
+                Number(azimuth_deg)
             )));
         }
         if !(0.0..=90.0).contains(&altitude_deg) {
             return Err(Error::InvalidOption(format!(
-                "the sun's altitude must be from 0 to 90 degrees, got {altitude_deg}"
+                "the sun's altitude must be from 0 to 90 degrees, got {}",
+                Number(altitude_deg)
             )));
         }
         Ok(Sun { azimuth_deg, altitude_deg })

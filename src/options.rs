@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use crate::error::Error;
+use crate::error::{Error, Number};
 
 /// Which plane the fit finds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -278,15 +278,16 @@ impl Spacing {
         }
         for (row, &[x, y]) in rows.iter().enumerate() {
             let at = if rows.len() > 1 { format!(" (row {row})") } else { String::new() };
+            let (sx, sy) = (Number(x), Number(y));
             if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0) {
                 return Err(Error::InvalidOption(format!(
-                    "texel spacing must be finite and positive, got {x} × {y}{at}"
+                    "texel spacing must be finite and positive, got {sx} × {sy}{at}"
                 )));
             }
             let ratio = x.max(y) / x.min(y);
             if !(ratio <= MAX_SPACING_RATIO && x.min(y) >= 1e-30 && x.max(y) <= 1e30) {
                 return Err(Error::InvalidOption(format!(
-                    "texel spacing {x} × {y}{at} is out of range: each side within 1e-30 to 1e30, \
+                    "texel spacing {sx} × {sy}{at} is out of range: each side within 1e-30 to 1e30, \
                      one at most {MAX_SPACING_RATIO:e} times the other"
                 )));
             }
@@ -453,7 +454,8 @@ impl Options {
         };
         if !value.is_finite() || value.abs() > MAX_GAIN {
             return Err(Error::InvalidOption(format!(
-                "{name} must be a finite number of magnitude at most {MAX_GAIN:e}, got {value}"
+                "{name} must be a finite number of magnitude at most {MAX_GAIN:e}, got {}",
+                Number(value)
             )));
         }
         if let Units::Map(spacing) = &self.units {

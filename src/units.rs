@@ -58,15 +58,27 @@ impl MapSpacing {
     /// The units of a fit of a `height`-row raster with georeferencing
     /// `georef` (if any), in map units.
     ///
-    /// Errors: those of [`map_spacing`] for [`MapSpacing::FromFile`];
+    /// Errors: those of [`map_spacing`] for [`MapSpacing::FromFile`], and
+    /// [`Error::Unsupported`] when the spacing it gives is out of range;
     /// [`Error::InvalidOption`] for a given spacing that is not finite and
     /// positive.
     pub fn units(&self, georef: Option<&Georef>, height: usize) -> Result<Units> {
         let spacing = match *self {
-            MapSpacing::Given { x, y } => Spacing::Uniform { x, y },
-            MapSpacing::FromFile => map_spacing(georef, height)?,
+            MapSpacing::Given { x, y } => {
+                let spacing = Spacing::Uniform { x, y };
+                spacing.validate(Some(height))?;
+                spacing
+            }
+            MapSpacing::FromFile => {
+                let spacing = map_spacing(georef, height)?;
+                // The file's tags, not the caller's option, are at fault.
+                spacing.validate(Some(height)).map_err(|e| match e {
+                    Error::InvalidOption(m) => Error::Unsupported(format!("the file's georeferencing: {m}")),
+                    other => other,
+                })?;
+                spacing
+            }
         };
-        spacing.validate(Some(height))?;
         Ok(Units::Map(spacing))
     }
 }
@@ -154,7 +166,8 @@ pub fn map_spacing(georef: Option<&Georef>, height: usize) -> Result<Spacing> {
             Ok(Spacing::Rows(Arc::from(rows)))
         }
         Some(other) => Err(unsupported(format!(
-            "map units take projected or geographic rasters, this one's model is {other:?} (GTModelTypeGeoKey)"
+            "map units take projected or geographic rasters, this one's model is {} (GTModelTypeGeoKey)",
+            other.name()
         ))),
     }
 }

@@ -211,9 +211,79 @@ fn packed_tiles_convert_as_their_metres_in_a_float_tiff() {
     let gray = dir.path().join("gray.png");
     gray16_png(&gray, 2, 2, &[1, 2, 3, 4]);
     let e = fails_naming(&["convert", s(&gray), "--decode", "terrarium"], &gray);
-    assert!(e.ends_with("terrarium tiles hold 8-bit RGB; this one has Int { bits: 16 } samples"), "{e}");
+    // The sample type in words, not a Rust value ("Int { bits: 16 }").
+    assert!(e.ends_with("terrarium tiles hold 8-bit RGB; this one has 16-bit integer samples"), "{e}");
     let r = run(&["convert", s(&tile), "--decode", "lerc"]);
     assert_eq!(r.status.code(), Some(2));
+}
+
+/// A lossy WebP: the 1×1 VP8 image browsers are probed with (a lossy
+/// keyframe, `RIFF…WEBPVP8 `), which `image` decodes to RGB.
+const LOSSY_WEBP: &[u8] = &[
+    0x52, 0x49, 0x46, 0x46, 0x22, 0x00, 0x00, 0x00, 0x57, 0x45, 0x42, 0x50, 0x56, 0x50, 0x38, 0x20, 0x16, 0x00, 0x00,
+    0x00, 0x30, 0x01, 0x00, 0x9d, 0x01, 0x2a, 0x01, 0x00, 0x01, 0x00, 0x0e, 0xc0, 0xfe, 0x25, 0xa4, 0x00, 0x03, 0x70,
+    0x00, 0x00, 0x00, 0x00,
+];
+
+#[test]
+fn packed_tiles_are_read_from_lossless_webp_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let lossy = dir.path().join("lossy.webp");
+    fs::write(&lossy, LOSSY_WEBP).unwrap();
+    // It is an image: read as one without --decode.
+    ok(&["convert", s(&lossy), "-o", s(&dir.path().join("picture.png"))]);
+    // Its bytes are not the ones packed: every packing refuses it, in
+    // every command that unpacks, from a file and from standard input.
+    for packing in ["terrarium", "terrain-rgb"] {
+        for command in ["convert", "shade"] {
+            let out = dir.path().join(format!("{packing}_{command}.png"));
+            let e = fails_naming(&[command, s(&lossy), "--decode", packing, "-o", s(&out)], &lossy);
+            assert!(
+                e.ends_with("lossless WebP tiles only: this one is lossy (VP8), which changes the packed bytes"),
+                "{e}"
+            );
+            assert!(!out.exists());
+        }
+    }
+    let r = bin()
+        .args(["convert", "-", "--decode", "terrarium", "-o", s(&dir.path().join("stdin.png"))])
+        .stdin(fs::File::open(&lossy).unwrap())
+        .output()
+        .unwrap();
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("this one is lossy"), "{}", String::from_utf8_lossy(&r.stderr));
+    // A lossless WebP tile unpacks as its PNG twin does.
+    let (w, h) = (6u32, 4u32);
+    let rgb: Vec<u8> = (0..w * h * 3).map(|k| (k * 29 % 256) as u8).collect();
+    let (webp, png) = (dir.path().join("tile.webp"), dir.path().join("tile.png"));
+    let mut bytes = Vec::new();
+    image::ImageEncoder::write_image(
+        image::codecs::webp::WebPEncoder::new_lossless(&mut bytes),
+        &rgb,
+        w,
+        h,
+        image::ExtendedColorType::Rgb8,
+    )
+    .unwrap();
+    fs::write(&webp, bytes).unwrap();
+    image::RgbImage::from_raw(w, h, rgb).unwrap().save(&png).unwrap();
+    let (a, b) = (dir.path().join("a.exr"), dir.path().join("b.exr"));
+    ok(&["convert", s(&webp), "--decode", "terrarium", "-o", s(&a)]);
+    ok(&["convert", s(&png), "--decode", "terrarium", "-o", s(&b)]);
+    assert_eq!(fs::read(&a).unwrap(), fs::read(&b).unwrap());
+}
+
+#[test]
+fn a_raw_size_past_2_pow_64_bytes_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let raw = dir.path().join("small.raw");
+    fs::write(&raw, [0u8; 16]).unwrap();
+    // (2^32 − 1)(2^32 + 1) = 2^64 − 1 texels: 2^64 − 1 bytes at 8 bits, and
+    // at 16 more than a u64 counts, said so rather than saturated.
+    let e = fails_naming(&["convert", s(&raw), "--size", "4294967295x4294967297"], &raw);
+    assert!(e.ends_with("(that takes 18446744073709551615 bytes at 8 bits or 2^64 bytes or more at 16 bits)"), "{e}");
+    let e = fails_naming(&["convert", s(&raw), "--size", "4294967296x4294967296"], &raw);
+    assert!(e.ends_with("too large: 4294967296 × 4294967296 is 2^64 texels or more"), "{e}");
 }
 
 #[test]
@@ -230,6 +300,27 @@ fn bad_geotiffs_are_one_line_errors_naming_the_file() {
     fs::write(&bad_nodata, geotiff::write(w, h, &layout, &geotiff::band_values(&layout, w, h), &tags)).unwrap();
     let e = fails_naming(&["convert", s(&bad_nodata)], &bad_nodata);
     assert!(e.ends_with("GDAL_NODATA tag (42113) holds 'none', not a number"), "{e}");
+    // A pixel scale that is finite and not 0, but too large to fit by:
+    // the number as written (1e308, not its 309 digits), and the file's
+    // tags at fault, not an option.
+    let huge = dir.path().join("huge.tif");
+    let tags = vec![
+        geotiff::GeoTag::Doubles(33550, vec![1e308, 1e308, 0.0]),
+        geotiff::GeoTag::Doubles(33922, vec![0.0, 0.0, 0.0, 500_000.0, 4_000_000.0, 0.0]),
+    ];
+    fs::write(&huge, geotiff::write(w, h, &layout, &geotiff::band_values(&layout, w, h), &tags)).unwrap();
+    for command in ["convert", "shade"] {
+        let out = dir.path().join(format!("huge_{command}.png"));
+        let e = fails_naming(&[command, s(&huge), "--units", "map", "-o", s(&out)], &huge);
+        assert!(
+            e.ends_with(
+                "unsupported: the file's georeferencing: texel spacing 1e308 × 1e308 is out of range: each \
+                 side within 1e-30 to 1e30, one at most 1e6 times the other"
+            ),
+            "{e}"
+        );
+        assert!(!out.exists());
+    }
 }
 
 #[test]

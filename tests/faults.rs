@@ -244,6 +244,31 @@ fn a_full_disk_is_an_error_that_leaves_the_old_output_and_nothing_else() {
         assert_eq!(listing(&small), [name], "{name}");
         fs::remove_file(&target).unwrap();
     }
+    // shade: the lit view streamed, whole (tiled) and of a normal map, and
+    // into a GeoTIFF; the line names the output it could not write, never
+    // the input (issue 32).
+    let lit_input = dir.path().join("hs.png");
+    write_gray16(&lit_input, 1024, 1024);
+    let normal_map = dir.path().join("nm.png");
+    let r = run(&["convert", s(&lit_input), "--scale", "200", "-o", s(&normal_map)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let inputs_too = Untouched::of(&[&lit_input, &normal_map]);
+    for (name, from, extra) in [
+        ("lit.png", &lit_input, &["--scale", "200"][..]),
+        ("lit_tiled.png", &lit_input, &["--scale", "200", "--tile"]),
+        ("lit.tif", &lit_input, &["--scale", "200"]),
+        ("lit_normals.png", &normal_map, &[]),
+    ] {
+        let target = small.join(name);
+        fs::write(&target, b"old").unwrap();
+        let r = run(&[&["shade", s(from), "-o", s(&target)], extra].concat());
+        expect_fault(&r, &target, &["no space"]);
+        assert_eq!(fs::read(&target).unwrap(), b"old", "{name}");
+        assert_eq!(listing(&small), [name], "{name}");
+        fs::remove_file(&target).unwrap();
+    }
+    inputs_too.check("shade onto a full disk");
+
     // No target before: none after.
     let target = small.join("fresh.png");
     let r = run(&["convert", s(&input), "-o", s(&target), "--bits", "16", "--scale", "200"]);

@@ -353,10 +353,127 @@ fn other_cases() -> Vec<Case> {
     ]
 }
 
+/// GeoTIFFs whose georeferencing is broken: values that are not numbers,
+/// a pixel without size, counts no GeoTIFF has. Read wrong they would
+/// place texels nowhere and be copied into every output's georeferencing;
+/// a forged count would reach the TIFF decoder, which allocates by it or,
+/// for a text tag, prints a line of debug output of its own.
+fn geotiff_cases() -> Vec<Case> {
+    const SCALE: u16 = 33550;
+    const TIEPOINT: u16 = 33922;
+    const TRANSFORMATION: u16 = 34264;
+    const KEYS: u16 = 34735;
+    const ASCII_PARAMS: u16 = 34737;
+    const NODATA: u16 = 42113;
+    let geotiff = |tags: Vec<ExtraTag>| tiff_gray_tagged(16, 16, 32, 3, &[0; 1024], &tags);
+    let scale = |s: [f64; 3]| ExtraTag::doubles(SCALE, &s);
+    let tiepoint = |x: f64| ExtraTag::doubles(TIEPOINT, &[0.0, 0.0, 0.0, x, 4_000_000.0, 0.0]);
+    let good_scale = || scale([10.0, 10.0, 0.0]);
+    let transformation = |a: f64, e: f64, last: f64| {
+        ExtraTag::doubles(
+            TRANSFORMATION,
+            &[a, 0.0, 0.0, 500_000.0, 0.0, e, 0.0, 4e6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, last],
+        )
+    };
+    let keys = || ExtraTag::shorts(KEYS, &[1, 1, 0, 1, 1024, 0, 1, 1]);
+    let text = |tag: u16, claimed: u32| ExtraTag { tag, kind: 2, count: claimed, bytes: b"-9999\0".to_vec() };
+    vec![
+        case(
+            "geotiff_nan_tiepoint.tif",
+            geotiff(vec![good_scale(), tiepoint(f64::NAN)]),
+            &["modeltiepoint tag: value 4 of 6 is nan"],
+        ),
+        case(
+            "geotiff_infinite_tiepoint.tif",
+            geotiff(vec![good_scale(), tiepoint(f64::INFINITY)]),
+            &["modeltiepoint tag: value 4 of 6 is inf"],
+        ),
+        case(
+            "geotiff_nan_pixel_scale.tif",
+            geotiff(vec![scale([f64::NAN, 10.0, 0.0]), tiepoint(5.0)]),
+            &["modelpixelscale tag: value 1 of 3 is nan"],
+        ),
+        case(
+            "geotiff_infinite_pixel_scale.tif",
+            geotiff(vec![scale([10.0, f64::NEG_INFINITY, 0.0]), tiepoint(5.0)]),
+            &["modelpixelscale tag: value 2 of 3 is -inf"],
+        ),
+        case(
+            "geotiff_zero_pixel_scale.tif",
+            geotiff(vec![scale([0.0, 10.0, 0.0]), tiepoint(5.0)]),
+            &["modelpixelscale tag: a texel of 0 × 10 has no size"],
+        ),
+        case(
+            "geotiff_nan_transformation.tif",
+            geotiff(vec![transformation(10.0, -10.0, f64::NAN)]),
+            &["modeltransformation tag: value 16 of 16 is nan"],
+        ),
+        case(
+            "geotiff_flat_transformation.tif",
+            geotiff(vec![transformation(10.0, 0.0, 1.0)]),
+            &["modeltransformation tag: it maps the raster onto a line"],
+        ),
+        case(
+            "geotiff_tiepoint_count_2_pow_31.tif",
+            geotiff(vec![good_scale(), tiepoint(5.0).claiming(i32::MAX as u32)]),
+            &["modeltiepoint tag holds 2147483647 values, geotiff gives it at most 393216"],
+        ),
+        case(
+            "geotiff_key_count_2_pow_30.tif",
+            geotiff(vec![keys().claiming(1 << 30)]),
+            &["geokeydirectory tag holds 1073741824 values, geotiff gives it at most 262144"],
+        ),
+        case(
+            "geotiff_ascii_params_count_2_pow_31.tif",
+            geotiff(vec![keys(), text(ASCII_PARAMS, i32::MAX as u32)]),
+            &["geoasciiparams tag holds 2147483647 values, geotiff gives it at most 65535"],
+        ),
+        case(
+            "geotiff_nodata_count_2_pow_31.tif",
+            geotiff(vec![text(NODATA, i32::MAX as u32)]),
+            &["gdal_nodata tag holds 2147483647 values, geotiff gives it at most 1024"],
+        ),
+    ]
+}
+
+/// A lossy WebP: the 1×1 VP8 image browsers are probed with.
+const LOSSY_WEBP: &[u8] = &[
+    0x52, 0x49, 0x46, 0x46, 0x22, 0x00, 0x00, 0x00, 0x57, 0x45, 0x42, 0x50, 0x56, 0x50, 0x38, 0x20, 0x16, 0x00, 0x00,
+    0x00, 0x30, 0x01, 0x00, 0x9d, 0x01, 0x2a, 0x01, 0x00, 0x01, 0x00, 0x0e, 0xc0, 0xfe, 0x25, 0xa4, 0x00, 0x03, 0x70,
+    0x00, 0x00, 0x00, 0x00,
+];
+
+/// Files refused for what the options ask of them; not in batches, whose
+/// good files the options do not fit.
+fn option_cases() -> Vec<Case> {
+    vec![
+        // Packed heights need exact bytes: a lossy tile is refused before
+        // it is decoded.
+        Case {
+            batch: false,
+            ..with_args(
+                case("webp_lossy_decoded_as_terrarium.webp", LOSSY_WEBP.to_vec(), &["this one is lossy"]),
+                &["--decode", "terrarium"],
+            )
+        },
+        // (2^32 − 1)(2^32 + 1) texels: 16-bit samples take more bytes than
+        // a 64-bit count holds, said so rather than saturated.
+        Case {
+            batch: false,
+            ..with_args(
+                case("raw_size_past_2_pow_64_bytes.raw", vec![0; 16], &["2^64 bytes or more at 16 bits"]),
+                &["--size", "4294967295x4294967297"],
+            )
+        },
+    ]
+}
+
 fn all_cases() -> Vec<Case> {
     let mut cases = png_cases();
     cases.extend(exr_cases());
     cases.extend(other_cases());
+    cases.extend(geotiff_cases());
+    cases.extend(option_cases());
     cases
 }
 
@@ -549,6 +666,19 @@ fn the_unbroken_files_convert() {
         }),
         ("base.tif", tiff_gray(16, 16, 8, 1, &[100; 256])),
         ("base_float.tif", tiff_gray(16, 16, 32, 3, &[0; 1024])),
+        ("base_geotiff.tif", {
+            let tags = [
+                ExtraTag::doubles(33550, &[10.0, 10.0, 0.0]),
+                ExtraTag::doubles(33922, &[0.0, 0.0, 0.0, 5.0, 4_000_000.0, 0.0]),
+                ExtraTag::shorts(34735, &[1, 1, 0, 1, 1024, 0, 1, 1]),
+                ExtraTag { tag: 34737, kind: 2, count: 6, bytes: b"-9999\0".to_vec() },
+            ];
+            tiff_gray_tagged(16, 16, 32, 3, &[0; 1024], &tags)
+        }),
+        ("base_geotiff_transformation.tif", {
+            let m = [10.0, 0.0, 0.0, 5e5, 0.0, -10.0, 0.0, 4e6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+            tiff_gray_tagged(16, 16, 32, 3, &[0; 1024], &[ExtraTag::doubles(34264, &m)])
+        }),
         ("base.jpg", jpeg(16, 16)),
         ("base.bmp", bmp(16, 16)),
         ("base_bomb.png", png_file(&ihdr(1024, 1024, 8, 0), &[], &zeros_deflated(1024 * 1025))),

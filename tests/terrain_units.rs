@@ -367,7 +367,7 @@ fn the_spacing_of_a_georeference_and_its_errors() {
     });
     assert!(message(Some(&rotated)).contains("rotated or sheared"), "{}", message(Some(&rotated)));
     let geocentric = with(utm([30.0, 30.0, 0.0]), &|g| g.model = Some(ModelType::Geocentric));
-    assert!(message(Some(&geocentric)).contains("Geocentric"));
+    assert!(message(Some(&geocentric)).contains("model is geocentric"));
     let unknown_unit = with(utm([30.0, 30.0, 0.0]), &|g| g.linear_unit = Some(9999));
     assert!(message(Some(&unknown_unit)).contains("EPSG 9999"));
     for m in [message(None), message(Some(&rotated)), message(Some(&unknown_unit))] {

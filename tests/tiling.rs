@@ -132,17 +132,34 @@ fn tiny_axes_have_defined_answers() {
     let three = [0.0f32, 0.5, 1.0, 0.0, 0.5, 1.0, 0.0, 0.5, 1.0];
     let r = check(&[&three], 3, 3, &TilingOptions::default()).unwrap();
     assert!(r.x.score > 1.9 && !r.x.seamless && r.y.seamless, "{r:?}");
-    // Empty images tile.
-    let r = check(&[&[]], 0, 5, &TilingOptions::default()).unwrap();
-    assert!(r.seamless());
+    // An image without texels has no seams to judge: refused, as the fit
+    // refuses it (and as no decoder gives one), never "seamless".
+    for (w, h) in [(0, 5), (5, 0), (0, 0)] {
+        let e = check(&[&[]], w, h, &TilingOptions::default()).unwrap_err();
+        assert_eq!(e.to_string(), format!("invalid option: image is {w}×{h}: both sides must be at least 1"));
+    }
 }
 
 #[test]
-fn non_finite_texels_give_finite_scores() {
+fn non_finite_heights_are_refused_and_normal_maps_give_finite_scores() {
     let mut v = tiling_support::periodic_noise(32, 32, 2, 2, 3);
-    v[40] = f32::NAN;
-    v[41] = f32::INFINITY;
-    let r = check(&[&v], 32, 32, &TilingOptions::default()).unwrap();
+    v[41] = f32::NAN;
+    v[42] = f32::INFINITY;
+    // A height map: the first non-finite height in row order, gray or the
+    // luma of R, G and B (one of which is NaN), judged by choice or
+    // detected (issue 32: a NaN map was "seamless").
+    let clean = tiling_support::periodic_noise(32, 32, 2, 2, 3);
+    for planes in [vec![v.as_slice()], vec![clean.as_slice(), clean.as_slice(), v.as_slice()]] {
+        for kind in [KindChoice::Auto, KindChoice::Height] {
+            let e = check(&planes, 32, 32, &TilingOptions::default().with_kind(kind)).unwrap_err();
+            assert!(matches!(e, Error::NonFiniteHeight { x: 9, y: 1 }), "{e}");
+        }
+    }
+    let e = check(&[&clean, &v], 32, 32, &TilingOptions::default());
+    assert!(e.is_ok(), "a second plane is alpha, not judged: {e:?}");
+    // A normal map's components: non-finite ones count as 0.
+    let planes = [v.as_slice(), clean.as_slice(), clean.as_slice()];
+    let r = check(&planes, 32, 32, &TilingOptions::default().with_kind(KindChoice::Normal)).unwrap();
     assert!(r.x.score.is_finite() && r.y.score.is_finite());
 }
 
@@ -357,11 +374,16 @@ fn streaming_non_finite_values_count_as_zero() {
         for (i, &k) in spots.iter().enumerate() {
             v[k] = bad[i % 3];
         }
-        assert_stream_matches(&v, w, h, 1.5, "non-finite");
+        // The streamed check (which settles the borders of maps with
+        // holes) counts them as 0, as the whole check measures zeros; the
+        // whole check refuses a height map that holds them.
         let zeroed: Vec<f32> = v.iter().map(|&x| if x.is_finite() { x } else { 0.0 }).collect();
+        assert_stream_matches(&zeroed, w, h, 1.5, "non-finite");
         let (a, b) = (stream(&v, w, h, &TilingOptions::new()), stream(&zeroed, w, h, &TilingOptions::new()));
         assert_eq!(a, b, "{w}×{h}");
         assert!(a.x.score.is_finite() && a.y.score.is_finite());
+        let e = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Height)).unwrap_err();
+        assert!(matches!(e, Error::NonFiniteHeight { x: 0, y: 0 }), "{e}");
     }
 }
 
@@ -383,14 +405,11 @@ fn streaming_with_rows_missing_is_refused_with_the_count() {
 
 #[test]
 fn streaming_empty_images_and_kind() {
-    let r = HeightSeams::new(0, 5).unwrap().finish(&TilingOptions::new()).unwrap();
-    assert!(r.seamless() && (r.x.score, r.y.score) == (1.0, 1.0));
-    let mut seams = HeightSeams::new(0, 3).unwrap();
-    for _ in 0..3 {
-        seams.push_row(&[]).unwrap();
+    // Refused as `check` refuses them.
+    for (w, h) in [(0, 5), (5, 0)] {
+        let e = HeightSeams::new(w, h).expect_err("an image without texels is refused");
+        assert_eq!(e.to_string(), format!("invalid option: image is {w}×{h}: both sides must be at least 1"));
     }
-    assert!(seams.finish(&TilingOptions::new()).unwrap().seamless());
-    assert!(HeightSeams::new(5, 0).unwrap().finish(&TilingOptions::new()).unwrap().seamless());
     // A forced Normal kind does not apply: the rows are heights.
     let v = vec![0.5f32; 16];
     let r = stream(&v, 4, 4, &TilingOptions::new().with_kind(KindChoice::Normal));

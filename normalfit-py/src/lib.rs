@@ -97,6 +97,17 @@ fn whole(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<i128> {
         .map_err(|_| PyValueError::new_err(format!("invalid option: {name} is out of range, got {}", shown(obj))))
 }
 
+/// A count argument (`max_texels`) as u64: a negative or huge int is an
+/// option out of range (`ValueError`, as on the command line), not the
+/// `OverflowError` of a plain conversion; the library checks the rest.
+fn count(obj: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<u64>> {
+    let Some(obj) = obj else { return Ok(None) };
+    let n = whole(obj, name)?;
+    u64::try_from(n)
+        .map(Some)
+        .map_err(|_| PyValueError::new_err(format!("invalid option: {name} is out of range, got {n}")))
+}
+
 /// `repr(obj)`, for messages.
 fn shown(obj: &Bound<'_, PyAny>) -> String {
     obj.repr().map_or_else(|_| "?".into(), |r| r.to_string())
@@ -384,10 +395,17 @@ trait Stored: Sample + Element {}
 
 impl<T: Sample + Element> Stored for T {}
 
-/// numpy's borrow checker refused: the arrays overlap (`out` is a view of
-/// `heights`) or another thread holds one mutably.
+/// numpy's borrow checker refused: `out` is read-only (a view numpy marks
+/// so, or an array made with `setflags(write=False)`), or the arrays
+/// overlap (`out` is a view of `heights`) or another thread holds one
+/// mutably.
 fn borrow_error(e: numpy::BorrowError) -> PyErr {
-    PyValueError::new_err(format!("out must not share memory with heights ({e})"))
+    match e {
+        numpy::BorrowError::NotWriteable => {
+            PyValueError::new_err("out= is read-only: give a writeable array, or none for a new one")
+        }
+        _ => PyValueError::new_err(format!("out must not share memory with heights ({e})")),
+    }
 }
 
 /// `normals` with every argument given (see `normalfit.normals`).
@@ -924,9 +942,9 @@ fn file_error(path: &Path, e: Error, output: bool) -> PyErr {
 }
 
 /// How files are read: the CLI's `--max-texels` and `--layer`.
-fn read_options(max_texels: Option<u64>, layer: Option<String>) -> PyResult<ReadOptions> {
+fn read_options(max_texels: Option<&Bound<'_, PyAny>>, layer: Option<String>) -> PyResult<ReadOptions> {
     let mut read = ReadOptions::default();
-    if let Some(n) = max_texels {
+    if let Some(n) = count(max_texels, "max_texels")? {
         read = read.with_max_texels(n);
     }
     if let Some(name) = layer {
@@ -1065,7 +1083,7 @@ fn convert(
     alpha: &str,
     channels: &str,
     residual: bool,
-    max_texels: Option<u64>,
+    max_texels: Option<&Bound<'_, PyAny>>,
     layer: Option<String>,
     units: &str,
     pixel_size: Option<(f64, f64)>,
@@ -1119,7 +1137,7 @@ fn decode_normals<'py>(
     py: Python<'py>,
     path: PathBuf,
     signed: bool,
-    max_texels: Option<u64>,
+    max_texels: Option<&Bound<'_, PyAny>>,
     layer: Option<String>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let read = read_options(max_texels, layer)?;
@@ -1150,7 +1168,7 @@ fn lit_view<'py>(
     scale: Option<f64>,
     relief: Option<f64>,
     invert: bool,
-    max_texels: Option<u64>,
+    max_texels: Option<&Bound<'_, PyAny>>,
     layer: Option<String>,
     units: &str,
     pixel_size: Option<(f64, f64)>,
@@ -1188,7 +1206,7 @@ fn check_tiling_file(
     threshold: f64,
     kind: &str,
     channel: Option<String>,
-    max_texels: Option<u64>,
+    max_texels: Option<&Bound<'_, PyAny>>,
     layer: Option<String>,
 ) -> PyResult<TilingReport> {
     let opts = tiling_options(threshold, kind)?;
@@ -1374,7 +1392,7 @@ fn height_file(
     model: &str,
     signed: bool,
     format: Option<&str>,
-    max_texels: Option<u64>,
+    max_texels: Option<&Bound<'_, PyAny>>,
     layer: Option<String>,
 ) -> PyResult<HeightInfo> {
     let opts = height_options(patch, fit, border, convention, scale, relief, invert, model)?;

@@ -91,8 +91,11 @@ def test_out_refusals() -> None:
         normalfit.normals(h, out=[[0.0]])
     readonly = np.zeros((12, 17, 3), np.float32)
     readonly.flags.writeable = False
-    with pytest.raises(ValueError):
+    # Said as it is, not as memory shared with the heights (issue 32).
+    with pytest.raises(ValueError, match=r"^out= is read-only: give a writeable array, or none for a new one$"):
         normalfit.normals(h, out=readonly)
+    with pytest.raises(ValueError, match="out= is read-only"):
+        normalfit.normals(h, out=np.frombuffer(bytes(12 * 17 * 3 * 4), np.float32).reshape(12, 17, 3))
     # out as a view of the heights' own memory.
     shared = np.zeros((12, 17, 3), np.float32)
     with pytest.raises(ValueError, match="share memory"):
@@ -168,8 +171,18 @@ def test_wrong_array_is_a_type_error(array: object, message: str) -> None:
 
 @pytest.mark.parametrize("shape", [(0, 0), (0, 5), (5, 0)])
 def test_empty_images_are_refused(shape: tuple[int, int]) -> None:
-    with pytest.raises(ValueError, match="both sides must be at least 1"):
-        normalfit.normals(np.zeros(shape, np.float32))
+    """Every call that takes an array refuses one without texels, as the
+    command line refuses an image of zero size: a ValueError, never a
+    result (check_tiling called it seamless)."""
+    message = rf"^invalid option: image is {shape[1]}×{shape[0]}: both sides must be at least 1$"
+    for border in ("wrap", "auto"):
+        with pytest.raises(ValueError, match=message):
+            normalfit.normals(np.zeros(shape, np.float32), border=border)
+    with pytest.raises(ValueError, match=message):
+        normalfit.height(np.zeros((*shape, 3), np.float32))
+    for image in (np.zeros(shape, np.uint16), np.zeros((*shape, 3), np.float32)):
+        with pytest.raises(ValueError, match=message):
+            normalfit.check_tiling(image)
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])

@@ -108,6 +108,9 @@ def test_convert_errors(tmp_path: Path) -> None:
         ({"channels": "rgba"}, "unknown channels 'rgba'"),
         ({"channel": ""}, "got an empty name"),
         ({"max_texels": 0}, "max_texels must be at least 1"),
+        # A ValueError as for 0, not the OverflowError of a conversion.
+        ({"max_texels": -1}, "^invalid option: max_texels is out of range, got -1$"),
+        ({"max_texels": 2**64}, "^invalid option: max_texels is out of range, got 18446744073709551616$"),
     ]:
         with pytest.raises(ValueError, match=message):
             normalfit.convert(ROCK, tmp_path / "o.png", **kwargs)  # type: ignore[arg-type]

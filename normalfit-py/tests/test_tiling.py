@@ -88,5 +88,43 @@ def test_refusals() -> None:
         normalfit.check_tiling(np.zeros(4, np.uint8))
     with pytest.raises(TypeError, match="uint8, uint16"):
         normalfit.check_tiling(np.zeros((4, 4), np.int64))
-    empty = normalfit.check_tiling(np.zeros((0, 4), np.float32))
-    assert empty.width == 4 and empty.height == 0
+    # No texels: no verdict, as the command line refuses an empty image.
+    with pytest.raises(ValueError, match="both sides must be at least 1"):
+        normalfit.check_tiling(np.zeros((0, 4), np.float32))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_non_finite_heights_are_refused_as_the_cli_refuses_them(bad: float, dtype: type, cli: Path, tmp_path: Path) -> None:
+    """A height map with a NaN or infinite height has no seam score: the
+    library's tiling check refuses it, from an array as from a file (it was
+    "seamless" from an array, issue 32). The CLI's line for the same
+    heights in a float TIFF names the same texel."""
+    heights = np.tile(np.sin(np.linspace(0, 2 * np.pi, 16, endpoint=False)), (12, 1)).astype(dtype)
+    heights[5, 7] = bad
+    heights[9, 2] = bad
+    for image, kind in [(heights, "auto"), (heights, "height"), (np.stack([heights] * 3, axis=-1), "auto")]:
+        with pytest.raises(ValueError, match=r"^height at texel \(x 7, y 5\) is NaN or infinite$"):
+            normalfit.check_tiling(image, kind=kind)
+    path = tmp_path / "nan.tif"
+    write_float_tiff(path, heights.astype(np.float32))
+    result = subprocess.run([str(cli), "tiling", str(path)], capture_output=True, text=True)
+    assert result.returncode == 2
+    assert result.stderr == f"normalfit: {path}: height at texel (x 7, y 5) is NaN or infinite\n"
+    with pytest.raises(OSError, match=r"height at texel \(x 7, y 5\) is NaN or infinite"):
+        normalfit.check_tiling(path)
+
+
+def write_float_tiff(path: Path, heights: np.ndarray) -> None:
+    """A one-strip little-endian float32 TIFF of `heights`."""
+    import struct
+
+    h, w = heights.shape
+    data = heights.astype("<f4").tobytes()
+    entries = [(256, 4, w), (257, 4, h), (258, 3, 32), (259, 3, 1), (262, 3, 1), (273, 4, 0), (277, 3, 1), (278, 4, h), (279, 4, len(data)), (339, 3, 3)]
+    data_at = 8 + 2 + 12 * len(entries) + 4
+    out = b"II*\0" + struct.pack("<IH", 8, len(entries))
+    for tag, kind, value in entries:
+        value = data_at if tag == 273 else value
+        out += struct.pack("<HHI", tag, kind, 1) + (struct.pack("<HH", value, 0) if kind == 3 else struct.pack("<I", value))
+    path.write_bytes(out + struct.pack("<I", 0) + data)

@@ -73,7 +73,7 @@ mod iterative;
 mod patch;
 mod solve;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Number, Result};
 use crate::options::{Border, Borders, Convention, Strength, named_values};
 use crate::par::prelude::*;
 use crate::samples::try_filled;
@@ -244,12 +244,12 @@ impl HeightOptions {
             return Err(Error::InvalidOption("a gain of 0 makes every map flat: heights need a non-zero scale".into()));
         }
         if !(self.step.is_finite() && (0.0..=2.0).contains(&self.step)) {
-            return Err(Error::InvalidOption(format!("step must be in [0, 2], got {}", self.step)));
+            return Err(Error::InvalidOption(format!("step must be in [0, 2], got {}", Number(self.step))));
         }
         if let Some(l) = self.regularisation
             && !(l.is_finite() && l >= 0.0)
         {
-            return Err(Error::InvalidOption(format!("regularisation must be finite and ≥ 0, got {l}")));
+            return Err(Error::InvalidOption(format!("regularisation must be finite and ≥ 0, got {}", Number(l))));
         }
         if self.max_iterations == 0 || !(self.tolerance.is_finite() && self.tolerance > 0.0) {
             return Err(Error::InvalidOption("max_iterations must be ≥ 1 and tolerance finite and > 0".into()));

@@ -119,6 +119,18 @@ pub enum SampleType {
     Float,
 }
 
+/// As messages name it: "16-bit integer samples", "16-bit signed integer
+/// samples", "float samples".
+impl std::fmt::Display for SampleType {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SampleType::Int { bits } => write!(f, "{bits}-bit integer samples"),
+            SampleType::SignedInt { bits } => write!(f, "{bits}-bit signed integer samples"),
+            SampleType::Float => write!(f, "float samples"),
+        }
+    }
+}
+
 impl SampleType {
     /// The stored value of a height of 1 in contract units: 2^bits − 1 for
     /// integers, signed or not (255, 65535, …), 1 for floats. A stored

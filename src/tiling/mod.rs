@@ -291,23 +291,31 @@ pub fn shift_half<T: Copy>(texels: &[T], width: usize, height: usize) -> Result<
 /// # Ok::<(), normalfit::Error>(())
 /// ```
 ///
-/// Errors: [`Error::InvalidOption`] when `planes` is empty,
+/// Errors: [`Error::InvalidOption`] when `planes` is empty or a side is 0
+/// (an image without texels has no seams to judge, and no decoder gives
+/// one; the fit's rule),
 /// [`Error::BufferSize`] when a plane is shorter than `width * height`,
+/// [`Error::NonFiniteHeight`] naming the first texel in row order whose
+/// height is NaN or infinite when the planes are judged as a height map (a
+/// score from heights some of which are not numbers would be a verdict on
+/// nothing; a normal map's non-finite components count as 0),
 /// [`Error::Limits`] when the profiles need more memory than the process
 /// may take.
 pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOptions) -> Result<TilingReport> {
     if planes.is_empty() {
         return Err(Error::InvalidOption("the tiling check needs at least one plane".into()));
     }
-    let len = image_len(width, height)?;
+    let len = crate::fit::checked_len(width, height)?;
     check_planes(planes, len)?;
     let kind = match opts.kind {
         KindChoice::Auto => ImageKind::detect(planes, width, height)?,
         KindChoice::Height => ImageKind::Height,
         KindChoice::Normal => ImageKind::Normal,
     };
-    if len == 0 {
-        return Ok(Profiles::empty_report(kind, opts));
+    if kind == ImageKind::Height
+        && let Some((x, y)) = Profiles::first_non_finite_height(planes, len, width)
+    {
+        return Err(Error::NonFiniteHeight { x, y });
     }
     let (cols, rows) = (Cut::of(width), Cut::of(height));
     let all_rows = Cut::whole(height);

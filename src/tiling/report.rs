@@ -1,6 +1,7 @@
 //! What the tiling check is asked ([`TilingOptions`]) and what it answers
 //! ([`TilingReport`], an [`AxisReport`] per axis).
 
+use crate::error::Number;
 use crate::normal_map::{ImageKind, KindChoice};
 use crate::options::{Border, Borders};
 use crate::{Error, Result};
@@ -54,7 +55,7 @@ impl TilingOptions {
     /// Errors: [`Error::InvalidOption`] naming the threshold.
     pub fn validate(&self) -> Result<()> {
         if self.threshold.is_nan() || self.threshold <= 0.0 {
-            return Err(Error::InvalidOption(format!("threshold must be positive, got {}", self.threshold)));
+            return Err(Error::InvalidOption(format!("threshold must be positive, got {}", Number(self.threshold))));
         }
         Ok(())
     }

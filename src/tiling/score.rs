@@ -127,11 +127,6 @@ pub(super) struct Profiles {
 }
 
 impl Profiles {
-    /// The report on an image without texels: both axes tile, score 1.
-    pub(super) fn empty_report(kind: ImageKind, opts: &TilingOptions) -> TilingReport {
-        TilingReport { kind, x: axis_report(1.0, opts), y: axis_report(1.0, opts) }
-    }
-
     /// The x axis's profiles, measured over the columns `cols` keeps of
     /// every row (lines `line` rows long).
     pub(super) fn x_axis(&self, line: usize, cols: Cut) -> Axis {

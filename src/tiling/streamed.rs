@@ -8,7 +8,7 @@ use super::report::{TilingOptions, TilingReport};
 use super::score::{Cut, Profiles, report};
 use crate::Samples;
 use crate::normal_map::ImageKind;
-use crate::samples::{image_len, try_vec};
+use crate::samples::try_vec;
 use crate::{Error, Result};
 
 /// The tiling check of a height map fed one row at a time, top to bottom:
@@ -106,9 +106,11 @@ impl HeightSeams {
     /// texels wide or tall needs 1.6 to 3.7 GB for it.
     ///
     /// Errors: [`Error::Limits`] saying how much is needed,
-    /// [`Error::InvalidOption`] when `width * height` overflows.
+    /// [`Error::InvalidOption`] when a side is 0 or `width * height`
+    /// overflows.
     pub fn new(width: usize, height: usize) -> Result<Self> {
-        image_len(width, height)?;
+        // An image without texels has no seams to judge (the fit's rule).
+        crate::fit::checked_len(width, height)?;
         crate::io::check_memory("the tiling check", Self::bytes_needed(width, height))?;
         let (cols, rows) = (Cut::of(width), Cut::of(height));
         let y = (!cols.is_whole()).then(|| RowSeams::new(width, rows.kept()));
@@ -275,16 +277,12 @@ impl HeightSeams {
 
     /// The report, judged as [`ImageKind::Height`] under `opts.threshold`,
     /// once every row (or every row's edge columns, and the edge rows) is
-    /// in. An image of height or width 0: score 1 on both axes, as `check`
-    /// of an empty image.
+    /// in.
     ///
     /// Errors: [`Error::InvalidOption`] saying how many rows are in, when
     /// some are missing (a stream cut short is not the image).
     pub fn finish(self, opts: &TilingOptions) -> Result<TilingReport> {
         let (w, h) = (self.width, self.height);
-        if w == 0 || h == 0 {
-            return Ok(Profiles::empty_report(ImageKind::Height, opts));
-        }
         let y_needed = self.y.as_ref().map_or(0, |y| y.height);
         if self.x.rows < h || self.y_rows < y_needed {
             let got = if self.x.rows < h { self.x.rows } else { self.y_rows };

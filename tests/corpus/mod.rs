@@ -310,6 +310,57 @@ pub fn box2i(b: [i32; 4]) -> Vec<u8> {
 /// or 3 (float), the header claiming `width` × `height` whatever `data`
 /// holds.
 pub fn tiff_gray(width: u32, height: u32, bits: u16, sample_format: u16, data: &[u8]) -> Vec<u8> {
+    tiff_gray_tagged(width, height, bits, sample_format, data, &[])
+}
+
+/// One more tag for [`tiff_gray_tagged`]: its number (above 339), TIFF
+/// type (3 SHORT, 2 ASCII, 12 DOUBLE), the count its directory entry
+/// claims (true or forged) and its value's bytes.
+pub struct ExtraTag {
+    pub tag: u16,
+    pub kind: u16,
+    pub count: u32,
+    pub bytes: Vec<u8>,
+}
+
+impl ExtraTag {
+    /// DOUBLEs, counted truly.
+    pub fn doubles(tag: u16, values: &[f64]) -> ExtraTag {
+        ExtraTag {
+            tag,
+            kind: 12,
+            count: values.len() as u32,
+            bytes: values.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        }
+    }
+
+    /// SHORTs, counted truly.
+    pub fn shorts(tag: u16, values: &[u16]) -> ExtraTag {
+        ExtraTag {
+            tag,
+            kind: 3,
+            count: values.len() as u32,
+            bytes: values.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        }
+    }
+
+    /// The same value with the count its entry claims set to `count`.
+    pub fn claiming(self, count: u32) -> ExtraTag {
+        ExtraTag { count, ..self }
+    }
+}
+
+/// [`tiff_gray`] with `extra` tags after its own (GeoTIFF's, GDAL's): a
+/// value of more than 4 bytes is stored after the directory, where its
+/// entry points.
+pub fn tiff_gray_tagged(
+    width: u32,
+    height: u32,
+    bits: u16,
+    sample_format: u16,
+    data: &[u8],
+    extra: &[ExtraTag],
+) -> Vec<u8> {
     const SHORT: u16 = 3;
     const LONG: u16 = 4;
     let entries: [(u16, u16, u32); 10] = [
@@ -324,11 +375,22 @@ pub fn tiff_gray(width: u32, height: u32, bits: u16, sample_format: u16, data: &
         (279, LONG, data.len() as u32),
         (339, SHORT, u32::from(sample_format)),
     ];
-    let ifd_len = 2 + entries.len() * 12 + 4;
-    let data_at = (8 + ifd_len) as u32;
+    let count = entries.len() + extra.len();
+    let ifd_len = 2 + count * 12 + 4;
+    // The values that do not fit an entry, then the strip.
+    let mut values = Vec::new();
+    let mut value_at = Vec::new();
+    for tag in extra {
+        value_at.push((8 + ifd_len + values.len()) as u32);
+        if tag.bytes.len() > 4 {
+            values.extend(&tag.bytes);
+            values.resize(values.len().next_multiple_of(2), 0);
+        }
+    }
+    let data_at = (8 + ifd_len + values.len()) as u32;
     let mut out = b"II*\0".to_vec();
     out.extend(8u32.to_le_bytes());
-    out.extend((entries.len() as u16).to_le_bytes());
+    out.extend((count as u16).to_le_bytes());
     for (tag, kind, value) in entries {
         let value = if tag == 273 { data_at } else { value };
         out.extend(tag.to_le_bytes());
@@ -342,7 +404,20 @@ pub fn tiff_gray(width: u32, height: u32, bits: u16, sample_format: u16, data: &
             _ => out.extend(value.to_le_bytes()),
         }
     }
+    for (tag, at) in extra.iter().zip(value_at) {
+        out.extend(tag.tag.to_le_bytes());
+        out.extend(tag.kind.to_le_bytes());
+        out.extend(tag.count.to_le_bytes());
+        if tag.bytes.len() > 4 {
+            out.extend(at.to_le_bytes());
+        } else {
+            let mut inline = tag.bytes.clone();
+            inline.resize(4, 0);
+            out.extend(inline);
+        }
+    }
     out.extend(0u32.to_le_bytes());
+    out.extend(values);
     out.extend(data);
     out
 }

@@ -58,6 +58,20 @@ pub enum ModelType {
     Other(u16),
 }
 
+impl ModelType {
+    /// The model as messages name it: "projected", "geographic",
+    /// "geocentric", or "code 7" for another.
+    #[must_use]
+    pub fn name(self) -> String {
+        match self {
+            ModelType::Projected => "projected".into(),
+            ModelType::Geographic => "geographic".into(),
+            ModelType::Geocentric => "geocentric".into(),
+            ModelType::Other(code) => format!("code {code}"),
+        }
+    }
+}
+
 /// Whether a tiepoint names a texel's corner or its centre
 /// (GTRasterTypeGeoKey).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -387,7 +401,35 @@ pub(crate) fn parse_nodata(text: &str) -> Result<f64> {
     })
 }
 
-/// Checks the lengths of the model tags and copies them into `georef`.
+/// The most values a georeferencing tag may hold, checked against the
+/// count in the file's directory before a value is read: a count no
+/// GeoTIFF has (a forged 2^31) is refused in one line, and never reaches
+/// the TIFF decoder, which allocates by it (or, for a text tag, prints a
+/// line of its own debug output to standard error before refusing it).
+///
+/// Pixel scale and transformation have fixed lengths; the key directory
+/// holds at most 65535 keys of 4 shorts after its 4-short header, and the
+/// double and text parameters are addressed by 16-bit offsets, so 65535
+/// values are their most. Tiepoints have no bound in GeoTIFF: 65536 of
+/// them (3 MiB) is far more than any control-point grid holds. GDAL writes
+/// a nodata value in at most a few dozen characters.
+#[cfg(feature = "tiff")]
+pub(crate) fn most_values(code: u16) -> u64 {
+    match code {
+        tags::MODEL_PIXEL_SCALE => 3,
+        tags::MODEL_TRANSFORMATION => 16,
+        tags::MODEL_TIEPOINT => 6 * 65536,
+        tags::GEO_KEY_DIRECTORY => 4 * 65536,
+        tags::GDAL_NODATA => 1024,
+        _ => 65535,
+    }
+}
+
+/// Checks the lengths of the model tags and their values, and copies them
+/// into `georef`: every value finite, and a pixel scale or transformation
+/// that gives texels a size. A NaN tiepoint or a zero scale read as it is
+/// would place every texel nowhere, or at one point, and be copied into
+/// every output's georeferencing.
 #[cfg(feature = "tiff")]
 pub(crate) fn apply_model_tags(
     georef: &mut Georef,
@@ -398,6 +440,19 @@ pub(crate) fn apply_model_tags(
     let bad = |name: &str, n: usize, want: &str| {
         Error::Decode(format!("{name} tag holds {n} values, GeoTIFF gives it {want}"))
     };
+    for (name, values) in
+        [("ModelPixelScale", &scale), ("ModelTiepoint", &tiepoints), ("ModelTransformation", &transformation)]
+    {
+        let values = values.as_deref().unwrap_or_default();
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Decode(format!(
+                "{name} tag: value {} of {} is {}: georeferencing must be finite",
+                k + 1,
+                values.len(),
+                crate::error::Number(values[k])
+            )));
+        }
+    }
     if let Some(s) = scale {
         match *s.as_slice() {
             [x, y, z] => georef.pixel_scale = Some([x, y, z]),
@@ -417,6 +472,24 @@ pub(crate) fn apply_model_tags(
             return Err(bad("ModelTransformation", m.len(), "16"));
         }
         georef.transformation = Some(std::array::from_fn(|i| m[i]));
+    }
+    // Only the raster's own axes need a size: ScaleZ (heights) is 0 in
+    // most files.
+    if let Some([x, y, _]) = georef.pixel_scale
+        && (x == 0.0 || y == 0.0)
+    {
+        let (x, y) = (crate::error::Number(x), crate::error::Number(y));
+        return Err(Error::Decode(format!(
+            "ModelPixelScale tag: a texel of {x} × {y} has no size: ScaleX and ScaleY must not be 0"
+        )));
+    }
+    if let Some(m) = georef.transformation
+        && m[0] * m[5] - m[1] * m[4] == 0.0
+    {
+        return Err(Error::Decode(
+            "ModelTransformation tag: it maps the raster onto a line or a point (a·e − b·d = 0): texels have no area"
+                .into(),
+        ));
     }
     Ok(())
 }

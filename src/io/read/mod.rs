@@ -78,7 +78,8 @@ use crate::io::{InputFormat, Raster, ReadOptions, no_bands, no_layers};
 /// [`Error::Limits`] when the header claims more than `opts.max_texels`
 /// texels; [`Error::Unsupported`] for a layout normalfit does not read, a
 /// layer or band asked for in a format that has none, a band the file does
-/// not have, a packing asked for in a file that is not an 8-bit RGB tile;
+/// not have, a packing asked for in a file that is not an 8-bit RGB tile
+/// or is a lossy WebP;
 /// [`Error::InvalidOption`] for options [`ReadOptions::validate`] refuses.
 pub fn decode(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     decode_as(bytes, opts.raw.as_ref(), opts)
@@ -131,6 +132,9 @@ fn decode_as(bytes: &[u8], raw: Option<&RawOptions>, opts: &ReadOptions) -> Resu
         Some(_) => InputFormat::Raw,
         None => InputFormat::recognise(bytes)?,
     };
+    if let Some(packing) = opts.decode {
+        packed::check_bytes(&format, bytes, packing)?;
+    }
     decode_checked(format.clone(), opts, || match raw {
         Some(raw) => raw::decode_raw(bytes, raw, opts),
         None => format.info().decode(bytes, opts),

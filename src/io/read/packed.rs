@@ -43,6 +43,59 @@ impl PackedElevation {
     }
 }
 
+/// Refuses bytes a packing cannot be read from before they are decoded: a
+/// lossy WebP, whose compression moves every byte a little, and a height
+/// by up to 6553.6 m when R moves by 1 (Terrain-RGB; 256 m for Terrarium).
+/// The format is checked after decoding ([`unpack`]), for every source.
+///
+/// Errors: [`Error::Unsupported`] for a WebP that is not lossless.
+pub(super) fn check_bytes(format: &InputFormat, bytes: &[u8], packing: PackedElevation) -> Result<()> {
+    if *format == InputFormat::WebP && !webp_is_lossless(bytes) {
+        return Err(Error::Unsupported(format!(
+            "{packing} heights are unpacked from lossless WebP tiles only: this one is lossy (VP8), \
+             which changes the packed bytes"
+        )));
+    }
+    Ok(())
+}
+
+/// Whether a WebP holds lossless image data only: a `VP8L` chunk and no
+/// lossy `VP8 ` one, at the top level or in an animation's frames (RIFF
+/// chunks: a four-byte name, a little-endian length, the data padded to
+/// an even length). `ALPH` (an alpha plane) only goes with lossy data.
+/// `image` decodes both kinds without saying which it read, so the chunk
+/// names are looked at here.
+fn webp_is_lossless(bytes: &[u8]) -> bool {
+    /// (lossless chunks, lossy chunks) among the chunks in `data`.
+    fn count(mut data: &[u8], depth: u8) -> (usize, usize) {
+        let (mut lossless, mut lossy) = (0, 0);
+        while data.len() >= 8 {
+            let (name, len) = (&data[..4], u32::from_le_bytes([data[4], data[5], data[6], data[7]]) as usize);
+            let body = &data[8..8 + len.min(data.len() - 8)];
+            match name {
+                b"VP8L" => lossless += 1,
+                b"VP8 " | b"ALPH" => lossy += 1,
+                // A frame: 16 bytes of placement, then its own chunks.
+                b"ANMF" if depth == 0 && body.len() >= 16 => {
+                    let (a, b) = count(&body[16..], 1);
+                    lossless += a;
+                    lossy += b;
+                }
+                _ => {}
+            }
+            data = &data[(8 + len + (len & 1)).min(data.len())..];
+        }
+        (lossless, lossy)
+    }
+    match bytes.get(..12) {
+        Some(head) if &head[..4] == b"RIFF" && &head[8..] == b"WEBP" => {
+            let (lossless, lossy) = count(&bytes[12..], 0);
+            lossless > 0 && lossy == 0
+        }
+        _ => false,
+    }
+}
+
 /// The raster's R, G and B bytes unpacked to one plane of heights in
 /// metres (alpha, if any, is dropped: the packings give it no meaning).
 ///
@@ -57,10 +110,7 @@ pub(super) fn unpack(raster: Raster, packing: PackedElevation) -> Result<Raster>
         )));
     }
     if raster.sample != (SampleType::Int { bits: 8 }) {
-        return Err(Error::Unsupported(format!(
-            "{packing} tiles hold 8-bit RGB; this one has {:?} samples",
-            raster.sample
-        )));
+        return Err(Error::Unsupported(format!("{packing} tiles hold 8-bit RGB; this one has {}", raster.sample)));
     }
     let plane = |name: &str| match raster.plane(name).map(|p| &p.data) {
         Some(Samples::U8(v)) => Ok(v.as_slice()),

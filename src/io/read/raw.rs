@@ -189,7 +189,7 @@ fn layout(len: u64, raw: &RawOptions) -> Result<(u64, u64, u8)> {
     match raw.size {
         Some((w, h)) => {
             let (w, h) = (w as u64, h as u64);
-            let texels = w.checked_mul(h).ok_or_else(|| Error::Limits(format!("{w} × {h} texels overflow")))?;
+            let texels = w.checked_mul(h).ok_or_else(|| Error::Limits(format!("{w} × {h} is 2^64 texels or more")))?;
             for &bits in depths {
                 if texels.checked_mul(u64::from(bits / 8)) == Some(len) {
                     return Ok((w, h, bits));
@@ -198,7 +198,10 @@ fn layout(len: u64, raw: &RawOptions) -> Result<(u64, u64, u8)> {
             let wanted: Vec<String> = depths
                 .iter()
                 .rev()
-                .map(|&b| format!("{} bytes at {b} bits", texels.saturating_mul(u64::from(b / 8))))
+                .map(|&b| match texels.checked_mul(u64::from(b / 8)) {
+                    Some(bytes) => format!("{bytes} bytes at {b} bits"),
+                    None => format!("2^64 bytes or more at {b} bits"),
+                })
                 .collect();
             Err(Error::Decode(format!(
                 "RAW heightmap of {len} bytes does not hold {w}×{h} {which} samples (that takes {})",
@@ -256,6 +259,12 @@ mod tests {
         );
         let e = layout(8, &sized.with_bits(16)).unwrap_err().to_string();
         assert!(e.contains("(that takes 16 bytes at 16 bits)"), "{e}");
+        // (2^32 − 1)(2^32 + 1) = 2^64 − 1 texels: one byte each fits a u64,
+        // two do not, and are said so rather than saturated (issue 32).
+        let e = layout(16, &RawOptions::default().with_size(u32::MAX as usize, (1 << 32) + 1)).unwrap_err().to_string();
+        assert!(e.contains("18446744073709551615 bytes at 8 bits or 2^64 bytes or more at 16 bits"), "{e}");
+        let e = layout(16, &RawOptions::default().with_size(1 << 32, 1 << 32)).unwrap_err().to_string();
+        assert_eq!(e, "too large: 4294967296 × 4294967296 is 2^64 texels or more");
     }
 
     #[test]

@@ -380,7 +380,18 @@ fn tag<R: Read + Seek>(
     code: u16,
     name: &str,
 ) -> Result<Option<tiff::decoder::ifd::Value>> {
-    decoder.find_tag(Tag::from_u16_exhaustive(code)).map_err(|e| tag_error(name, e))
+    let tag = Tag::from_u16_exhaustive(code);
+    // The count first: the decoder allocates by it (georef::most_values).
+    if let Some(entry) = decoder.image_ifd().find_entry(tag)
+        && entry.count() > georef::most_values(code)
+    {
+        return Err(Error::Decode(format!(
+            "{name} tag holds {} values, GeoTIFF gives it at most {}",
+            entry.count(),
+            georef::most_values(code)
+        )));
+    }
+    decoder.find_tag(tag).map_err(|e| tag_error(name, e))
 }
 
 /// A tag that cannot be read, named.
