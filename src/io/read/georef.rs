@@ -399,16 +399,30 @@ pub(crate) fn apply_model_tags(
         Error::Decode(format!("{name} tag holds {n} values, GeoTIFF gives it {want}"))
     };
     if let Some(s) = scale {
-        match *s.as_slice() {
-            [x, y, z] => georef.pixel_scale = Some([x, y, z]),
+        let [x, y, z] = match *s.as_slice() {
+            [x, y, z] => [x, y, z],
             // GDAL reads a two-value scale too (some writers leave Z out).
-            [x, y] => georef.pixel_scale = Some([x, y, 0.0]),
+            [x, y] => [x, y, 0.0],
             _ => return Err(bad("ModelPixelScale", s.len(), "3")),
+        };
+        // A scale of 0 puts every texel in one place; one that is not
+        // finite puts them nowhere (ScaleZ is 0 in most files: allowed).
+        if !(x.is_finite() && y.is_finite() && x != 0.0 && y != 0.0 && z.is_finite()) {
+            return Err(Error::Decode(format!(
+                "ModelPixelScale tag holds {} × {} × {}: the texel size must be finite and non-zero",
+                number(x),
+                number(y),
+                number(z)
+            )));
         }
+        georef.pixel_scale = Some([x, y, z]);
     }
     if let Some(t) = tiepoints {
         if t.is_empty() || t.len() % 6 != 0 {
             return Err(bad("ModelTiepoint", t.len(), "6 per tiepoint"));
+        }
+        if let Some(v) = t.iter().find(|v| !v.is_finite()) {
+            return Err(Error::Decode(format!("ModelTiepoint tag holds {}: a tiepoint must be finite", number(*v))));
         }
         georef.tiepoints = t.chunks_exact(6).map(|c| std::array::from_fn(|i| c[i])).collect();
     }
@@ -416,7 +430,40 @@ pub(crate) fn apply_model_tags(
         if m.len() != 16 {
             return Err(bad("ModelTransformation", m.len(), "16"));
         }
+        if let Some(v) = m.iter().find(|v| !v.is_finite()) {
+            return Err(Error::Decode(format!("ModelTransformation tag holds {}: it must be finite", number(*v))));
+        }
+        // Columns and rows must go somewhere, and not along one line.
+        let (a, b, d, e) = (m[0], m[1], m[4], m[5]);
+        let (column, row) = (a.hypot(d), b.hypot(e));
+        if !(column.is_finite() && row.is_finite() && column > 0.0 && row > 0.0) || a * e == b * d {
+            return Err(Error::Decode(format!(
+                "ModelTransformation tag maps columns by ({}, {}) and rows by ({}, {}): texels must be finite, \
+                 non-zero steps apart, across and down",
+                number(a),
+                number(d),
+                number(b),
+                number(e)
+            )));
+        }
         georef.transformation = Some(std::array::from_fn(|i| m[i]));
     }
+    // A huge scale times a huge tiepoint's raster point: the texels' place
+    // beyond f64's range.
+    if let Some(t) = georef.affine()
+        && ![t.a, t.b, t.c, t.d, t.e, t.f].iter().all(|v| v.is_finite())
+    {
+        return Err(Error::Decode(
+            "ModelTiepoint and ModelPixelScale tags place the raster beyond the range of 64-bit floats".into(),
+        ));
+    }
     Ok(())
+}
+
+/// A tag's number as a message shows it: as Rust prints it when short,
+/// else in scientific notation (1e308, not 309 digits).
+#[cfg(feature = "tiff")]
+fn number(v: f64) -> String {
+    let plain = v.to_string();
+    if plain.len() <= 12 { plain } else { format!("{v:e}") }
 }
