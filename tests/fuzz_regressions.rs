@@ -215,3 +215,16 @@ fn tiling_check_of_heights_holding_nan_is_refused() {
     v[9] = f32::NAN;
     assert!(check(&[&v], 8, 8, &TilingOptions::new().with_kind(KindChoice::Height)).is_err());
 }
+
+/// `raw_sizes`: a RAW size whose bytes overflow u64 (here
+/// 18446744073709551614 × 1 at 16 bits) was refused with the saturated
+/// 18446744073709551615 as the bytes it "takes" (issue 32); now "more than
+/// 2^64 bytes".
+#[test]
+fn a_raw_size_past_u64_bytes_says_so() {
+    let bytes = case("raw-size-product-past-u64.raw");
+    let raw = normalfit::io::RawOptions::default().with_size(usize::MAX - 1, 1);
+    let e = decode(&bytes, &ReadOptions::default().with_max_texels(u64::MAX).with_raw(raw)).unwrap_err();
+    let m = e.to_string();
+    assert!(m.contains("more than 2^64 bytes at 16 bits") && !m.contains(&u64::MAX.to_string()), "{m}");
+}

@@ -203,7 +203,10 @@ fn layout(len: u64, raw: &RawOptions) -> Result<(u64, u64, u8)> {
             let wanted: Vec<String> = depths
                 .iter()
                 .rev()
-                .map(|&b| format!("{} bytes at {b} bits", texels.saturating_mul(u64::from(b / 8))))
+                .map(|&b| match texels.checked_mul(u64::from(b / 8)) {
+                    Some(n) => format!("{n} bytes at {b} bits"),
+                    None => format!("more than 2^64 bytes at {b} bits"),
+                })
                 .collect();
             Err(Error::Decode(format!(
                 "RAW heightmap of {len} bytes does not hold {w}×{h} {which} samples (that takes {})",
