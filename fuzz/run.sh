@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Builds the fuzz targets and runs each for SECONDS, one after the other,
-# from the committed seeds (fuzz/seeds) and the working corpus
+# from the committed seeds (fuzz/seeds/TARGET for a target that has its
+# own, else fuzz/seeds, which libFuzzer reads with its subfolders) and
+# the working corpus
 # (fuzz/corpus/TARGET, kept between runs, git-ignored). Prints per target:
 # executions, exec/s, coverage (libFuzzer's cov: and ft: at the end),
 # corpus size and findings (new files in fuzz/artifacts/TARGET).
@@ -18,7 +20,7 @@ shift
 cd "$(dirname "$0")"
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(decode_fit tiling png_stream exr_stream)
+    targets=(decode_fit tiling png_stream exr_stream geotiff_tags raw_sizes rgb_packed inverse python_entry)
 fi
 
 export RUSTC_BOOTSTRAP=1
@@ -43,7 +45,9 @@ for t in "${targets[@]}"; do
     log="logs/$t.log"
     echo "== $t: ${secs}s"
     status=0
-    cargo fuzz run "$t" "corpus/$t" seeds -- "${fuzz_flags[@]}" >"$log" 2>&1 || status=$?
+    seeds=seeds
+    [ -d "seeds/$t" ] && seeds="seeds/$t"
+    cargo fuzz run "$t" "corpus/$t" "$seeds" -- "${fuzz_flags[@]}" >"$log" 2>&1 || status=$?
 
     # The last status line ("#N ... cov: C ft: F corp: U/S ... exec/s: E")
     # and the final stats, which libFuzzer prints on a clean stop.

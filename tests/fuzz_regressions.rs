@@ -158,3 +158,73 @@ fn png_palette_of_partial_entries_is_a_decode_error() {
         assert!(m.contains("palette"), "{m}");
     }
 }
+
+/// `geotiff_tags`' promise about a georeferencing that is read: finite
+/// values, scales that are not 0, texels placed within f64's range. A
+/// ModelPixelScale of NaN or 0, an infinite tiepoint, or a huge scale
+/// times a huge raster point were read as they were, so `--units map`
+/// refused them only through the spacing's check (with the 309 digits of
+/// 1e308), and a conversion in texel units wrote the NaN or infinity into
+/// its output's georeferencing (issue 32). Each is now a decode error
+/// naming the tag. The files are the target's UTM seed with one value
+/// changed.
+#[cfg(feature = "tiff")]
+#[test]
+fn geotiff_tags_that_place_no_texel_are_decode_errors() {
+    for (name, says) in [
+        ("geotiff-scale-nan.tif", &["ModelPixelScale tag: value 1 of 3 is NaN: georeferencing must be finite"][..]),
+        ("geotiff-scale-zero.tif", &["ModelPixelScale tag: a texel of 0 × 30 has no size"]),
+        ("geotiff-tiepoint-inf.tif", &["ModelTiepoint tag: value", "is inf: georeferencing must be finite"]),
+        ("geotiff-place-overflows.tif", &["place the raster beyond the range of 64-bit floats"]),
+    ] {
+        for nodata_tag in [true, false] {
+            match decode(&case(name), &read().with_nodata_tag(nodata_tag)) {
+                Err(Error::Decode(m)) => {
+                    assert!(says.iter().all(|s| m.contains(s)) && !m.contains('\n'), "{name}: {m}");
+                }
+                other => panic!("{name}: expected a decode error, got {:?}", other.map(|r| r.georef)),
+            }
+        }
+    }
+}
+
+/// `raw_sizes`: `parse_size` (`--size`, Python's `size="WxH"`) echoed the
+/// text it refused as it was, so a size holding a line break (this case
+/// is one byte, "\n") gave an error of two lines. The text is now shown
+/// on one line, as every message is.
+#[test]
+fn a_size_text_with_a_line_break_is_refused_on_one_line() {
+    let bytes = case("raw-size-newline.bin");
+    for text in [String::from_utf8_lossy(&bytes).into_owned(), "1\n6x16\r\n".into()] {
+        match normalfit::io::parse_size(&text) {
+            Err(Error::InvalidOption(m)) => assert!(!m.contains(['\n', '\r']), "{m:?}"),
+            other => panic!("{text:?}: expected an invalid option, got {other:?}"),
+        }
+    }
+}
+
+/// `python_entry` found that `tiling::check`, which Python's
+/// `check_tiling` calls on arrays, scored heights holding NaN (as 0) and
+/// could call them seamless, where the command line refuses them
+/// (`tests/data/fuzz/python-entry-tiling-nan.bin` is the minimised
+/// case, read by the target's options). The check now refuses them, as
+/// the fit and the reader do (issue 32, point 5).
+#[test]
+fn tiling_check_of_heights_holding_nan_is_refused() {
+    let mut v: Vec<f32> = (0..64).map(|k| (k % 8) as f32 / 7.0).collect();
+    v[9] = f32::NAN;
+    assert!(check(&[&v], 8, 8, &TilingOptions::new().with_kind(KindChoice::Height)).is_err());
+}
+
+/// `raw_sizes`: a RAW size whose bytes overflow u64 (here
+/// 18446744073709551614 × 1 at 16 bits) was refused with the saturated
+/// 18446744073709551615 as the bytes it "takes" (issue 32); now "2^64 bytes
+/// or more".
+#[test]
+fn a_raw_size_past_u64_bytes_says_so() {
+    let bytes = case("raw-size-product-past-u64.raw");
+    let raw = normalfit::io::RawOptions::default().with_size(usize::MAX - 1, 1);
+    let e = decode(&bytes, &ReadOptions::default().with_max_texels(u64::MAX).with_raw(raw)).unwrap_err();
+    let m = e.to_string();
+    assert!(m.contains("2^64 bytes or more at 16 bits") && !m.contains(&u64::MAX.to_string()), "{m}");
+}

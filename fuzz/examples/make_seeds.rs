@@ -15,6 +15,11 @@
 //! IEND CRC, JPEG's EOI). A few seeds therefore repeat a file with two
 //! bytes appended, which the decoders ignore, to start from other options
 //! too.
+//!
+//! The targets with seeds of their own (geotiff_tags, raw_sizes,
+//! rgb_packed, inverse, python_entry) get them in `seeds/TARGET`: their
+//! options come from more trailing bytes ([`Pick`](normalfit_fuzz::Pick)),
+//! which these seeds set on purpose ([`options`]).
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -408,6 +413,432 @@ fn others(s: &mut Seeds) {
     s.put("qoi-rgba.qoi", &encoded(F::Qoi, w, h, E::Rgba8, &rgba));
 }
 
+// ---------------------------------------------------------------------------
+// The seeds of the targets with options in more trailing bytes: each is a
+// payload with its options appended (or, for RAW and arrays, whose every
+// byte is a sample, the options as its last bytes).
+
+/// `k` bytes that [`normalfit_fuzz::Pick`] reads back as these choices,
+/// in order: (value, out of n).
+fn options(k: usize, choices: &[(usize, usize)]) -> Vec<u8> {
+    let (mut v, mut base) = (0u128, 1u128);
+    for &(c, n) in choices {
+        assert!(c < n, "choice {c} of {n}");
+        v += c as u128 * base;
+        base *= n as u128;
+    }
+    assert!(v < 1u128 << (8 * k), "the choices need more than {k} bytes");
+    v.to_le_bytes()[..k].to_vec()
+}
+
+fn with(mut payload: Vec<u8>, tail: &[u8]) -> Vec<u8> {
+    payload.extend_from_slice(tail);
+    payload
+}
+
+/// A GeoTIFF tag's value.
+enum Geo {
+    D(Vec<f64>),
+    S(Vec<u16>),
+    A(&'static str),
+}
+
+fn geotiff<C>(w: u32, h: u32, samples: &[C::Inner], tags: &[(u16, Geo)]) -> Vec<u8>
+where
+    C: tiff::encoder::colortype::ColorType,
+    [C::Inner]: tiff::encoder::TiffValue,
+{
+    let mut out = Cursor::new(Vec::new());
+    let mut enc = tiff::encoder::TiffEncoder::new(&mut out).expect("tiff");
+    let mut image = enc.new_image::<C>(w, h).expect("tiff image");
+    for (code, value) in tags {
+        let tag = tiff::tags::Tag::Unknown(*code);
+        match value {
+            Geo::D(d) => image.encoder().write_tag(tag, &d[..]),
+            Geo::S(s) => image.encoder().write_tag(tag, &s[..]),
+            Geo::A(a) => image.encoder().write_tag(tag, *a),
+        }
+        .expect("a GeoTIFF tag");
+    }
+    image.write_data(samples).expect("tiff data");
+    out.into_inner()
+}
+
+/// geotiff_tags: nodata tag (2), band (4), output (3), sun (3), then the
+/// fit (patch 3, borders 3 × 3, fit 2, convention 2, invert 2, gain 3).
+fn geo_options(nodata_tag: bool, band: usize, format: usize, patch: usize) -> Vec<u8> {
+    let c = [
+        (usize::from(nodata_tag), 2),
+        (band, 4),
+        (format, 3),
+        (format % 3, 3),
+        (patch, 3),
+        (band % 3, 3),
+        (format, 3),
+        (0, 2),
+        (band % 2, 2),
+        (0, 2),
+        (patch % 3, 3),
+    ];
+    options(4, &c)
+}
+
+fn geotiffs(s: &mut Seeds) {
+    use Geo::{A, D, S};
+    use tiff::encoder::colortype as c;
+    let (w, h) = (6u32, 5u32);
+    let (wu, hu) = (w as usize, h as usize);
+    let metres: Vec<f32> = heights(wu, hu).iter().map(|v| 200.0 + 150.0 * v).collect();
+    let i16s: Vec<i16> = metres.iter().map(|&v| v as i16).collect();
+    let u16s: Vec<u16> = ints(wu, hu, 16).iter().map(|&v| v as u16).collect();
+    let keys = |k: &[[u16; 2]]| {
+        let mut d = vec![1, 1, 0, k.len() as u16];
+        for [id, v] in k {
+            d.extend([*id, 0, 1, *v]);
+        }
+        S(d)
+    };
+    let utm = || [(33550, D(vec![30.0, 30.0, 0.0])), (33922, D(vec![0.0, 0.0, 0.0, 500_000.0, 4_600_000.0, 0.0]))];
+    let [sc, tp] = utm();
+    let proj =
+        geotiff::<c::Gray32Float>(w, h, &metres, &[sc, tp, (34735, keys(&[[1024, 1], [1025, 1], [3072, 32633]]))]);
+    s.put("utm-f32.tif", &with(proj.clone(), &geo_options(true, 0, 0, 0)));
+    s.put("utm-f32-tiff.tif", &with(proj.clone(), &geo_options(true, 0, 1, 1)));
+    s.put("utm-f32-exr.tif", &with(proj, &geo_options(false, 1, 2, 2)));
+    let [sc, tp] = utm();
+    let feet = keys(&[[1024, 1], [3072, 2263], [3076, 9002], [4096, 5703], [4099, 9002]]);
+    s.put(
+        "feet-i16.tif",
+        &with(geotiff::<c::GrayI16>(w, h, &i16s, &[sc, tp, (34735, feet)]), &geo_options(true, 0, 1, 0)),
+    );
+    let arc = 1.0 / 3600.0;
+    let geo = |lat: f64, unit: Option<u16>, point: bool| {
+        let mut k = vec![[1024, 2], [2048, 4326]];
+        if point {
+            k.push([1025, 2]);
+        }
+        if let Some(u) = unit {
+            k.push([2054, u]);
+        }
+        [(33550, D(vec![arc, arc, 0.0])), (33922, D(vec![0.0, 0.0, 0.0, 10.0, lat, 0.0])), (34735, keys(&k))]
+    };
+    let mut holes = metres.clone();
+    holes[7] = f32::NAN;
+    let [a, b, k] = geo(46.0, None, false);
+    s.put(
+        "geographic-nan.tif",
+        &with(geotiff::<c::Gray32Float>(w, h, &holes, &[a, b, k, (42113, A("nan"))]), &geo_options(true, 0, 0, 1)),
+    );
+    let [a, b, k] = geo(-89.99, Some(9102), true);
+    s.put(
+        "geographic-pole-point.tif",
+        &with(geotiff::<c::Gray32Float>(w, h, &metres, &[a, b, k]), &geo_options(true, 0, 1, 2)),
+    );
+    let [_, b, k] = geo(0.5, Some(9101), false);
+    let radians = (33550, D(vec![1e-6, 1e-6, 0.0]));
+    s.put(
+        "geographic-radians.tif",
+        &with(geotiff::<c::Gray32Float>(w, h, &metres, &[radians, b, k]), &geo_options(true, 0, 2, 0)),
+    );
+    let m = vec![2.0, 0.0, 0.0, 100.0, 0.0, -3.0, 0.0, 200.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    s.put(
+        "transform-f32.tif",
+        &with(
+            geotiff::<c::Gray32Float>(w, h, &metres, &[(34264, D(m)), (34735, keys(&[[1024, 1]]))]),
+            &geo_options(true, 0, 1, 1),
+        ),
+    );
+    let rotated = vec![2.0, 0.5, 0.0, 100.0, 0.5, -3.0, 0.0, 200.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    s.put(
+        "rotated-f32.tif",
+        &with(geotiff::<c::Gray32Float>(w, h, &metres, &[(34264, D(rotated))]), &geo_options(true, 0, 0, 0)),
+    );
+    let mut dem = i16s.clone();
+    dem[3] = -9999;
+    dem[20] = -9999;
+    let [sc, tp] = utm();
+    s.put(
+        "nodata-i16.tif",
+        &with(
+            geotiff::<c::GrayI16>(w, h, &dem, &[sc, tp, (34735, keys(&[[1024, 1]])), (42113, A("-9999"))]),
+            &geo_options(true, 0, 1, 0),
+        ),
+    );
+    s.put(
+        "two-value-scale-u16.tif",
+        &with(
+            geotiff::<c::Gray16>(w, h, &u16s, &[(33550, D(vec![10.0, 10.0])), (33922, D(vec![0.0; 6]))]),
+            &geo_options(true, 0, 0, 2),
+        ),
+    );
+    let [sc, tp] = utm();
+    s.put(
+        "geocentric.tif",
+        &with(
+            geotiff::<c::Gray32Float>(w, h, &metres, &[sc, tp, (34735, keys(&[[1024, 3]]))]),
+            &geo_options(true, 0, 0, 0),
+        ),
+    );
+    let [sc, tp] = utm();
+    let mut citation = vec![1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32767, 3073, 34737, 9, 0];
+    citation.extend([3074, 34736, 1, 0]);
+    citation[3] = 4;
+    s.put(
+        "user-defined.tif",
+        &with(
+            geotiff::<c::Gray32Float>(
+                w,
+                h,
+                &metres,
+                &[sc, tp, (34735, S(citation)), (34736, D(vec![0.9996])), (34737, A("Local TM|"))],
+            ),
+            &geo_options(false, 0, 1, 0),
+        ),
+    );
+    let [sc, tp] = utm();
+    let rgb: Vec<f32> = metres.iter().flat_map(|&v| [v, v * 0.5, 1.0]).collect();
+    s.put(
+        "three-bands-f32.tif",
+        &with(
+            geotiff::<c::RGB32Float>(w, h, &rgb, &[sc, tp, (34735, keys(&[[1024, 1]]))]),
+            &geo_options(true, 3, 0, 0),
+        ),
+    );
+    let [sc, tp] = utm();
+    s.put(
+        "vertical-unknown-u16.tif",
+        &with(
+            geotiff::<c::Gray16>(w, h, &u16s, &[sc, tp, (34735, keys(&[[1024, 1], [4099, 9999]]))]),
+            &geo_options(true, 0, 0, 1),
+        ),
+    );
+}
+
+/// raw_sizes: bits (8), size (4: none, a width twice, huge), its values,
+/// order (2), texel limit (4), extension (4), then the fit.
+fn raw_options(bits: usize, size: &[(usize, usize)], order: usize, limit: usize, ext: usize) -> Vec<u8> {
+    let mut c = vec![(bits, 8)];
+    c.extend_from_slice(size);
+    c.extend([
+        (order, 2),
+        (limit, 4),
+        (ext, 4),
+        (bits % 3, 3),
+        (order, 3),
+        (ext % 3, 3),
+        (0, 2),
+        (order, 2),
+        (0, 2),
+        (0, 2),
+    ]);
+    options(8, &c)
+}
+
+fn raws(s: &mut Seeds) {
+    // Samples of the surface, `len` bytes, the options their last 8.
+    let raw = |len: usize, tail: Vec<u8>| {
+        let mut v: Vec<u8> = ints(len, 1, 8).iter().map(|&v| v as u8).collect();
+        v.truncate(len - tail.len());
+        with(v, &tail)
+    };
+    // bits: None, 8, 16, None, 0, 12, 32, 255; sizes: HUGE's indices.
+    s.put("square8.raw", &raw(64, raw_options(0, &[(0, 4)], 0, 0, 0)));
+    s.put("square16-be.raw", &raw(128, raw_options(2, &[(0, 4)], 1, 0, 2)));
+    s.put("sized-6x5-r8.raw", &raw(30, raw_options(1, &[(1, 4), (5, 64), (0, 2)], 0, 0, 1)));
+    s.put("sized-10x4-16.raw", &raw(80, raw_options(2, &[(2, 4), (9, 64), (0, 2)], 0, 1, 3)));
+    s.put("sized-short.raw", &raw(45, raw_options(0, &[(1, 4), (7, 64), (1, 2)], 1, 3, 0)));
+    s.put("huge-2e62x2.raw", &raw(32, raw_options(2, &[(3, 4), (4, 8), (2, 8)], 0, 3, 0)));
+    s.put("huge-max-x1.raw", &raw(32, raw_options(0, &[(3, 4), (7, 8), (1, 8)], 0, 3, 3)));
+    s.put("huge-2e31x2e32.raw", &raw(32, raw_options(1, &[(3, 4), (2, 8), (3, 8)], 1, 2, 0)));
+    s.put("zero-width.raw", &raw(32, raw_options(0, &[(3, 4), (0, 8), (1, 8)], 0, 0, 0)));
+    s.put("bits12.raw", &raw(36, raw_options(5, &[(0, 4)], 0, 0, 0)));
+    s.put("bits0.raw", &raw(16, raw_options(4, &[(1, 4), (3, 64), (0, 2)], 0, 0, 3)));
+    let mut text = b"16\xc3\x971".to_vec();
+    text.extend(vec![7u8; 11]);
+    s.put("text-size.raw", &with(text, &raw_options(1, &[(2, 4), (15, 64), (0, 2)], 0, 0, 3)));
+}
+
+/// rgb_packed: packing (2), pixel size (4), output (3), then the fit.
+fn packed_options(packing: usize, pixel: usize, format: usize) -> Vec<u8> {
+    options(
+        3,
+        &[
+            (packing, 2),
+            (pixel, 4),
+            (format, 3),
+            (pixel % 3, 3),
+            (format, 3),
+            (packing, 3),
+            (0, 2),
+            (0, 2),
+            (0, 2),
+            (pixel % 3, 3),
+        ],
+    )
+}
+
+fn packed_tiles(s: &mut Seeds) {
+    use png::{BitDepth as D, ColorType as C};
+    let (w, h) = (8usize, 8usize);
+    let metres: Vec<f64> = heights(w, h).iter().map(|&v| 300.0 + 1200.0 * f64::from(v)).collect();
+    let terrain_rgb: Vec<[u8; 3]> = metres
+        .iter()
+        .map(|m| {
+            let v = ((m + 10000.0) * 10.0).round() as u32;
+            [(v >> 16) as u8, (v >> 8) as u8, v as u8]
+        })
+        .collect();
+    let terrarium: Vec<[u8; 3]> = metres
+        .iter()
+        .map(|m| {
+            let v = m + 32768.0;
+            [(v / 256.0) as u8, (v as u32 % 256) as u8, ((v.fract()) * 256.0) as u8]
+        })
+        .collect();
+    let flat = |t: &[[u8; 3]], alpha: bool| -> Vec<u8> {
+        t.iter().flat_map(|p| if alpha { vec![p[0], p[1], p[2], 255] } else { p.to_vec() }).collect()
+    };
+    let (w32, h32) = (w as u32, h as u32);
+    let tile = png(w32, h32, C::Rgb, D::Eight, &flat(&terrain_rgb, false), |_| {});
+    s.put("terrain-rgb.png", &with(tile.clone(), &packed_options(0, 0, 0)));
+    s.put("terrain-rgb-exr.png", &with(tile.clone(), &packed_options(0, 1, 1)));
+    s.put("terrain-rgb-as-terrarium.png", &with(tile, &packed_options(1, 2, 2)));
+    let rgba = png(w32, h32, C::Rgba, D::Eight, &flat(&terrain_rgb, true), |_| {});
+    s.put("terrain-rgba.png", &with(rgba, &packed_options(0, 3, 0)));
+    let tile = png(w32, h32, C::Rgb, D::Eight, &flat(&terrarium, false), |_| {});
+    s.put("terrarium.png", &with(tile, &packed_options(1, 0, 0)));
+    let webp = encoded(ImageFormat::WebP, w, h, ExtendedColorType::Rgba8, &flat(&terrarium, true));
+    s.put("terrarium-lossless.webp", &with(webp, &packed_options(1, 1, 2)));
+    let gray: Vec<u8> = ints(w, h, 8).iter().map(|&v| v as u8).collect();
+    s.put("gray.png", &with(png(w32, h32, C::Grayscale, D::Eight, &gray, |_| {}), &packed_options(0, 0, 0)));
+    let rgb16: Vec<u8> = flat(&terrain_rgb, false).iter().flat_map(|&v| [v, 0]).collect();
+    s.put("rgb16.png", &with(png(w32, h32, C::Rgb, D::Sixteen, &rgb16, |_| {}), &packed_options(0, 0, 0)));
+    let palette: Vec<u8> = terrarium.iter().take(16).flat_map(|p| p.to_vec()).collect();
+    let idx: Vec<u8> = (0..w * h).map(|k| (k % 16) as u8).collect();
+    s.put(
+        "palette.png",
+        &with(png(w32, h32, C::Indexed, D::Eight, &idx, |e| e.set_palette(palette)), &packed_options(1, 0, 1)),
+    );
+    let jpeg = encoded(ImageFormat::Jpeg, w, h, ExtendedColorType::Rgb8, &flat(&terrain_rgb, false));
+    s.put("terrain-rgb.jpg", &with(jpeg, &packed_options(0, 0, 0)));
+}
+
+/// inverse: kind (4: f32, f64, u8, u16), width − 1 (24), model (3),
+/// convention (3), step (4), then the fit (gain of 6).
+fn inverse_options(kind: usize, w: usize, model: usize, convention: usize, step: usize, fit: [usize; 7]) -> Vec<u8> {
+    let [patch, bx, by, f, conv, invert, gain] = fit;
+    let c = [
+        (kind, 4),
+        (w - 1, 24),
+        (model, 3),
+        (convention, 3),
+        (step, 4),
+        (patch, 3),
+        (bx, 3),
+        (by, 3),
+        (f, 2),
+        (conv, 2),
+        (invert, 2),
+        (gain, 6),
+    ];
+    options(6, &c)
+}
+
+fn normal_maps(s: &mut Seeds) {
+    use normalfit::{Border, Borders, Convention, Fit, Options};
+    let (w, h) = (8usize, 6usize);
+    let surface: Vec<f32> = heights(w, h).iter().map(|v| 3.0 * v).collect();
+    let modes = [Border::Wrap, Border::Clamp, Border::Mirror];
+    let made = |fit: [usize; 7]| {
+        let [patch, bx, by, f, conv, invert, _] = fit;
+        let opts = Options::new()
+            .with_patch([3, 5, 9][patch])
+            .with_borders(Borders { x: modes[bx], y: modes[by] })
+            .with_fit([Fit::Orthogonal, Fit::Vertical][f])
+            .with_convention([Convention::OpenGl, Convention::DirectX][conv])
+            .with_invert(invert == 1);
+        normalfit::normals(&surface, w, h, &opts).expect("the seed surface fits")
+    };
+    let encode = |kind: usize, n: &[[f32; 3]]| -> Vec<u8> {
+        n.iter()
+            .flatten()
+            .flat_map(|&c| match kind {
+                0 => c.to_le_bytes().to_vec(),
+                1 => f64::from(c).to_le_bytes().to_vec(),
+                2 => vec![((c + 1.0) * 127.5).round() as u8],
+                _ => (((c + 1.0) * 32767.5).round() as u16).to_le_bytes().to_vec(),
+            })
+            .collect()
+    };
+    let mut put = |name: &str, kind: usize, model: usize, convention: usize, step: usize, fit: [usize; 7]| {
+        let n = made(fit);
+        s.put(name, &with(encode(kind, &n), &inverse_options(kind, w, model, convention, step, fit)));
+    };
+    put("f32-ortho-wrap.bin", 0, 0, 0, 0, [0, 0, 0, 0, 0, 0, 0]);
+    put("f32-vertical-clamp5-dx.bin", 0, 0, 1, 1, [1, 1, 1, 1, 1, 0, 1]);
+    put("f64-generic-mirror.bin", 1, 2, 0, 1, [0, 2, 2, 1, 0, 0, 0]);
+    put("u8-auto-9.bin", 2, 0, 2, 0, [2, 2, 0, 0, 0, 1, 3]);
+    put("u16-step-clamp.bin", 3, 0, 0, 2, [0, 1, 2, 0, 0, 0, 2]);
+    put("u8-ortho-clamp3.bin", 2, 1, 0, 0, [0, 1, 1, 0, 0, 0, 0]);
+    put("f32-tiny-gain.bin", 0, 0, 0, 0, [0, 0, 0, 1, 0, 0, 4]);
+    put("f32-huge-gain.bin", 0, 0, 0, 3, [0, 2, 0, 0, 0, 0, 5]);
+    // Texels without a slope: facing down, NaN, zero.
+    let mut n = made([0; 7]);
+    n[3] = [0.0, 0.0, -1.0];
+    n[10] = [f32::NAN, 0.0, 1.0];
+    n[17] = [0.0; 3];
+    s.put("f32-bad-texels.bin", &with(encode(0, &n), &inverse_options(0, w, 0, 0, 0, [0; 7])));
+    // One column: the same normals read 1 wide.
+    let n = made([0; 7]);
+    s.put("f32-one-column.bin", &with(encode(0, &n), &inverse_options(0, 1, 0, 0, 0, [1, 2, 1, 0, 0, 0, 0])));
+}
+
+/// python_entry: dtype (4), width (33), channels (4), patch (8), fit (2),
+/// convention (2), borders (4 × 4), scale (8), relief (4), nodata (4),
+/// pixel size (8), output (3), residual (2), holes (2), window (8, 8, 8,
+/// 8), threshold (5), kind (3), light (4), tile (2).
+fn array_options(dtype: usize, w: usize, c: [usize; 20]) -> Vec<u8> {
+    let n = [4, 8, 2, 2, 4, 4, 8, 4, 4, 8, 3, 2, 2, 8, 8, 8, 8, 5, 3, 4];
+    let mut choices = vec![(dtype, 4), (w, 33)];
+    choices.extend(c.iter().zip(n).map(|(&c, n)| (c, n)));
+    choices.push((0, 2));
+    options(8, &choices)
+}
+
+fn arrays(s: &mut Seeds) {
+    let (w, h) = (12usize, 8usize);
+    let surface = heights(w, h);
+    let bytes = |dtype: usize| -> Vec<u8> {
+        surface
+            .iter()
+            .flat_map(|&v| match dtype {
+                0 => vec![(v * 255.0) as u8],
+                1 => ((v * 65535.0) as u16).to_le_bytes().to_vec(),
+                2 => (200.0 + 50.0 * v).to_le_bytes().to_vec(),
+                _ => (f64::from(v) * 7.0).to_le_bytes().to_vec(),
+            })
+            .collect()
+    };
+    let mut put = |name: &str, dtype: usize, c: [usize; 20]| {
+        let mut b = bytes(dtype);
+        let tail = array_options(dtype, w, c);
+        let keep = b.len() - tail.len();
+        b.truncate(keep);
+        s.put(name, &with(b, &tail));
+    };
+    //                          ch patch fit cv bx by sc rl nd px out res holes ox oy ww wh thr kind light
+    put("u8-defaults.bin", 0, [0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 0, 2, 1, 4, 3, 0, 0, 0]);
+    put("u16-auto-borders.bin", 1, [0, 1, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 0, 0, 7, 7, 0, 1, 1]);
+    put("f32-map-units.bin", 2, [0, 0, 0, 1, 2, 3, 1, 0, 0, 3, 0, 0, 0, 3, 2, 5, 4, 0, 1, 2]);
+    put("f32-nodata-holes.bin", 2, [0, 2, 0, 0, 3, 3, 0, 2, 2, 0, 0, 1, 1, 1, 1, 6, 5, 1, 1, 0]);
+    put("f64-relief.bin", 3, [2, 0, 1, 0, 1, 2, 0, 2, 0, 2, 2, 0, 0, 0, 0, 3, 3, 2, 2, 3]);
+    put("u8-rgb-normal.bin", 0, [2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 2, 0]);
+    put("u16-patch1023.bin", 1, [0, 7, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
+    put("f32-bad-options.bin", 2, [1, 5, 0, 0, 1, 1, 4, 2, 0, 5, 0, 0, 0, 0, 0, 0, 0, 3, 0, 3]);
+    put("f64-pixel-extremes.bin", 3, [3, 1, 1, 1, 2, 1, 2, 0, 3, 6, 0, 1, 0, 4, 4, 2, 2, 4, 0, 1]);
+    put("f32-scale-1e31.bin", 2, [0, 0, 0, 0, 1, 1, 6, 0, 0, 7, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0]);
+}
+
 fn main() {
     let dir = std::env::args_os().nth(1).map_or_else(|| PathBuf::from("seeds"), PathBuf::from);
     std::fs::create_dir_all(&dir).expect("create the seed folder");
@@ -416,6 +847,24 @@ fn main() {
     exrs(&mut seeds);
     tiffs(&mut seeds);
     others(&mut seeds);
-    let count = std::fs::read_dir(&dir).map(|d| d.count()).unwrap_or(0);
+    let count = std::fs::read_dir(&dir)
+        .map(|d| d.filter(|e| e.as_ref().is_ok_and(|e| e.path().is_file())).count())
+        .unwrap_or(0);
     println!("{count} seeds, {} bytes, in {}", seeds.total, Path::new(&dir).display());
+    type Maker = fn(&mut Seeds);
+    let targets: [(&str, Maker); 5] = [
+        ("geotiff_tags", geotiffs),
+        ("raw_sizes", raws),
+        ("rgb_packed", packed_tiles),
+        ("inverse", normal_maps),
+        ("python_entry", arrays),
+    ];
+    for (target, make) in targets {
+        let sub = dir.join(target);
+        std::fs::create_dir_all(&sub).expect("create a target's seed folder");
+        let mut seeds = Seeds { dir: sub.clone(), total: 0 };
+        make(&mut seeds);
+        let count = std::fs::read_dir(&sub).map(|d| d.count()).unwrap_or(0);
+        println!("{count} seeds, {} bytes, in {}", seeds.total, sub.display());
+    }
 }

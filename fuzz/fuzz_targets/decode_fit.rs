@@ -18,7 +18,9 @@ fuzz_target!(|data: &[u8]| {
     let Some(heights) = check_heights(raster.into_heights(case.channel.clone()), w * h) else { return };
 
     let mut normals = vec![[0.0f32; 3]; w * h];
-    FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut normals).expect("finite heights and valid options must fit");
+    FitRequest::new(&case.fit)
+        .normals_into(&heights, w, h, &mut normals)
+        .expect("finite heights and valid options must fit");
     for (k, &n) in normals.iter().enumerate() {
         assert_unit_normal(n, k);
     }

@@ -49,7 +49,9 @@ fuzz_target!(|data: &[u8]| {
     let out = decode(exr.get_ref(), &read_options()).expect("the streamed EXR decodes");
     assert_eq!((out.width, out.height), (w, h));
     let mut normals = vec![[0f32; 3]; w * h];
-    FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut normals).expect("finite heights and valid options must fit");
+    FitRequest::new(&case.fit)
+        .normals_into(&heights, w, h, &mut normals)
+        .expect("finite heights and valid options must fit");
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
         let plane = out.plane(name).expect("the streamed EXR has R, G and B").data.to_f32().expect("memory");
         for (k, n) in normals.iter().enumerate() {

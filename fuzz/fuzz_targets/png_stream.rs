@@ -47,13 +47,17 @@ fuzz_target!(|data: &[u8]| {
     };
     if case.sixteen {
         let mut rgb = vec![[0u16; 3]; w * h];
-        FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut rgb).expect("finite heights and valid options must fit");
+        FitRequest::new(&case.fit)
+            .normals_into(&heights, w, h, &mut rgb)
+            .expect("finite heights and valid options must fit");
         for (k, c) in rgb.iter().enumerate() {
             assert_eq!(texel(k), c, "texel {k} of the streamed 16-bit PNG");
         }
     } else {
         let mut rgb = vec![[0u8; 3]; w * h];
-        FitRequest::new(&case.fit).normals_into(&heights, w, h, &mut rgb).expect("finite heights and valid options must fit");
+        FitRequest::new(&case.fit)
+            .normals_into(&heights, w, h, &mut rgb)
+            .expect("finite heights and valid options must fit");
         for (k, c) in rgb.iter().enumerate() {
             assert_eq!(texel(k), c.map(u16::from), "texel {k} of the streamed 8-bit PNG");
         }

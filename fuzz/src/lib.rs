@@ -235,3 +235,114 @@ pub fn assert_same_report(a: &TilingReport, b: &TilingReport, opts: &TilingOptio
         assert!(x.seamless == y.seamless || near, "{name} verdicts differ at scores {} and {}", x.score, y.score);
     }
 }
+
+/// Options read from a case's last `k` bytes (at most 8), little-endian,
+/// as [`Case::of`] reads two: the bytes stay part of the case, so seeds
+/// are plain files, and the fuzzer steers the options by changing them.
+#[derive(Clone, Debug)]
+pub struct Pick(u64);
+
+impl Pick {
+    /// The options in the last `k` bytes of `data` (missing bytes read as 0).
+    #[must_use]
+    pub fn last(data: &[u8], k: usize) -> Pick {
+        let k = k.min(8);
+        let tail = &data[data.len().saturating_sub(k)..];
+        let mut bytes = [0u8; 8];
+        bytes[..tail.len()].copy_from_slice(tail);
+        Pick(u64::from_le_bytes(bytes))
+    }
+
+    /// A choice among `n` (n ≥ 1), taken from what is left.
+    pub fn index(&mut self, n: usize) -> usize {
+        let v = self.0 % n as u64;
+        self.0 /= n as u64;
+        v as usize
+    }
+
+    /// One of `values`.
+    pub fn one<T: Clone>(&mut self, values: &[T]) -> T {
+        values[self.index(values.len())].clone()
+    }
+
+    /// A coin.
+    pub fn flag(&mut self) -> bool {
+        self.index(2) == 1
+    }
+}
+
+/// The fit's options the new targets share: patch 3, 5 or 9, every border
+/// pair, both fits and conventions, inverted or not, and a gain from
+/// `gains`.
+pub fn fit_options(pick: &mut Pick, gains: &[Strength]) -> Options {
+    let patch = pick.one(&[3, 5, 9]);
+    let modes = [Border::Wrap, Border::Clamp, Border::Mirror];
+    let borders = Borders { x: pick.one(&modes), y: pick.one(&modes) };
+    let fit = pick.one(&[Fit::Orthogonal, Fit::Vertical]);
+    let convention = pick.one(&[Convention::OpenGl, Convention::DirectX]);
+    let invert = pick.flag();
+    Options::new()
+        .with_patch(patch)
+        .with_borders(borders)
+        .with_fit(fit)
+        .with_convention(convention)
+        .with_invert(invert)
+        .with_strength(pick.one(gains))
+}
+
+/// What a read georeferencing promises (issue 32: georeferencing tags are
+/// validated): a pixel scale's x and y finite and non-zero (z finite), every
+/// tiepoint and transformation value finite, a transform that places
+/// texels apart (finite, non-zero spacing on both axes).
+pub fn assert_georef(g: &normalfit::io::Georef, height: usize) {
+    if let Some([x, y, z]) = g.pixel_scale {
+        assert!(x.is_finite() && y.is_finite() && x != 0.0 && y != 0.0, "pixel scale {x} × {y} accepted");
+        assert!(z.is_finite(), "pixel scale z {z} accepted");
+    }
+    for t in &g.tiepoints {
+        assert!(t.iter().all(|v| v.is_finite()), "tiepoint {t:?} accepted");
+    }
+    if let Some(m) = &g.transformation {
+        assert!(m.iter().all(|v| v.is_finite()), "transformation {m:?} accepted");
+    }
+    if let Some(t) = g.affine() {
+        for v in [t.a, t.b, t.c, t.d, t.e, t.f] {
+            assert!(v.is_finite(), "affine {t:?} is not finite");
+        }
+    }
+    if let Some((x, y)) = g.spacing() {
+        assert!(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0, "spacing {x} × {y} accepted");
+    }
+    // Spacings in metres are the map units' to check (a huge scale in
+    // degrees may not be a length in f64): `assert_map_units`.
+    let _ = height;
+}
+
+/// Every spacing of map units finite and positive (what a fit in map
+/// units divides by).
+pub fn assert_map_units(units: &normalfit::Units, height: usize) {
+    let normalfit::Units::Map(spacing) = units else { panic!("map units asked for, got {units:?}") };
+    for row in 0..height {
+        let [x, y] = spacing.at(row);
+        assert!(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0, "spacing {x} × {y} at row {row}");
+        if matches!(spacing, normalfit::Spacing::Uniform { .. }) {
+            break;
+        }
+    }
+}
+
+/// A conversion's error: clean, wherever it happened.
+pub fn assert_clean_convert_error(e: &normalfit::convert::ConvertError) {
+    assert_clean_error(&e.error);
+    let msg = e.to_string();
+    assert!(!msg.contains('\n'), "conversion error of several lines: {msg:?}");
+}
+
+/// Writes a case's bytes to this process's temporary file named for
+/// `target` and `extension` (several extensions a target; the path is made
+/// each call, the file kept between cases) and returns the path.
+pub fn case_file_as(target: &str, extension: &str, data: &[u8]) -> std::path::PathBuf {
+    let path = std::env::temp_dir().join(format!("normalfit-fuzz-{target}-{}.{extension}", std::process::id()));
+    std::fs::write(&path, data).expect("write the case to a temporary file");
+    path
+}

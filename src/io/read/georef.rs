@@ -491,5 +491,14 @@ pub(crate) fn apply_model_tags(
                 .into(),
         ));
     }
+    // A huge scale times a huge tiepoint's raster point: the texels' place
+    // beyond f64's range.
+    if let Some(t) = georef.affine()
+        && ![t.a, t.b, t.c, t.d, t.e, t.f].iter().all(|v| v.is_finite())
+    {
+        return Err(Error::Decode(
+            "ModelTiepoint and ModelPixelScale tags place the raster beyond the range of 64-bit floats".into(),
+        ));
+    }
     Ok(())
 }

@@ -119,7 +119,12 @@ impl RawOptions {
 ///
 /// Errors: [`Error::InvalidOption`] naming the text.
 pub fn parse_size(text: &str) -> Result<(usize, usize)> {
-    let bad = || Error::InvalidOption(format!("expected a size WIDTHxHEIGHT such as 1025x1025, got '{text}'"));
+    let bad = || {
+        Error::InvalidOption(format!(
+            "expected a size WIDTHxHEIGHT such as 1025x1025, got '{}'",
+            crate::error::one_line(text)
+        ))
+    };
     let (w, h) = text.trim().split_once(['x', 'X', '×']).ok_or_else(bad)?;
     let (w, h): (usize, usize) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
     RawOptions::default().with_size(w, h).validate()?;
