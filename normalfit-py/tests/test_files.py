@@ -114,7 +114,7 @@ def test_convert_errors(tmp_path: Path) -> None:
     ]:
         with pytest.raises(ValueError, match=message):
             normalfit.convert(ROCK, tmp_path / "o.png", **kwargs)  # type: ignore[arg-type]
-    with pytest.raises(OSError, match="too large"):
+    with pytest.raises(MemoryError, match="too large"):
         normalfit.convert(ROCK, tmp_path / "o.png", max_texels=1000)
     assert not (tmp_path / "o.png").exists(), "a failed conversion leaves no output"
 

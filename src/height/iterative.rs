@@ -134,7 +134,7 @@ pub(crate) fn exact(
     let precision = opts.step.max(f64::from(f32::EPSILON));
     let room = crate::io::check_memory(
         "the orthogonal fit's Gauss–Newton steps",
-        (len as u64).saturating_mul(super::gauss_newton::BYTES_PER_TEXEL),
+        super::memory::gauss_newton_bytes(w, h, opts),
     );
     if let (Some(solver), true, Ok(())) = (&solver, !converged || off > OFF_BY * precision, room) {
         let (lo, hi) = z.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
