@@ -228,3 +228,61 @@ fn a_raw_size_past_u64_bytes_says_so() {
     let m = e.to_string();
     assert!(m.contains("2^64 bytes or more at 16 bits") && !m.contains(&u64::MAX.to_string()), "{m}");
 }
+
+/// `inverse`: a 5 × 24 map of 16-bit normals, patch 9 (wider than the
+/// map), clamp in x and wrap in y, orthogonal fit, DirectX, inverted,
+/// scale −3 (`tests/data/fuzz/inverse-timeout-5x24-patch9-clamp-wrap.bin`,
+/// read as the target reads it: the last six bytes pick the options,
+/// 2-byte texels the normals) ran past libFuzzer's 10 s: the conjugate
+/// gradients of clamp with N ≥ 5 took up to 2000 iterations per solve, and
+/// the orthogonal fit up to 100 solves, each pass O(N) a texel (issue 32,
+/// point 4). Now each pass is a few operations a texel whatever N, the
+/// iterations are preconditioned by the nearest transform's solve and
+/// start from the last solve's heights: it returns in milliseconds, with
+/// finite heights.
+#[test]
+fn inverse_of_a_wide_clamped_patch_returns_at_once() {
+    use normalfit::height::{ConventionChoice, HeightOptions, heights_of_rows};
+    use normalfit::normal_map::Storage;
+    let data = case("inverse-timeout-5x24-patch9-clamp-wrap.bin");
+    // The target's choices, in its order, from the last six bytes.
+    let mut tail = [0u8; 8];
+    tail[..6].copy_from_slice(&data[data.len() - 6..]);
+    let mut pick = u64::from_le_bytes(tail);
+    let mut index = |n: u64| {
+        let v = pick % n;
+        pick /= n;
+        v as usize
+    };
+    let (kind, w) = (index(4), 1 + index(24));
+    let (model, convention, step) = (index(3), index(3), index(4));
+    let (patch, bx, by, fit, green, invert, gain) =
+        (index(3), index(3), index(3), index(2), index(2), index(2), index(6));
+    assert_eq!((kind, w, model, convention, step), (3, 5, 0, 1, 0), "16-bit texels, exact model, DirectX");
+    assert_eq!((patch, bx, by, fit, green, invert, gain), (2, 1, 0, 0, 0, 1, 2), "N 9, clamp × wrap, orthogonal");
+    let h = data.len() / (3 * 2) / w;
+    assert_eq!(h, 24);
+    let fit = Options::new()
+        .with_patch(9)
+        .with_borders(Borders { x: Border::Clamp, y: Border::Wrap })
+        .with_fit(normalfit::Fit::Orthogonal)
+        .with_invert(true)
+        .with_strength(normalfit::Strength::Scale(-3.0));
+    let stored = Storage::Int { bits: 16 };
+    let opts = HeightOptions::from_fit(&fit).with_convention(ConventionChoice::DirectX).with_step(stored.step());
+    let row = |y: usize, out: &mut [[f64; 3]]| {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = [0, 1, 2].map(|c| {
+                let k = 2 * (3 * (y * w + x) + c);
+                stored.normal(u16::from_le_bytes([data[k], data[k + 1]]))
+            });
+        }
+    };
+    let start = std::time::Instant::now();
+    let found = heights_of_rows(&row, w, h, &opts).expect("heights");
+    let took = start.elapsed();
+    assert!(found.values.iter().all(|v| v.is_finite()));
+    assert_eq!(found.values.len(), w * h);
+    // Generous for a loaded machine and a debug build; it took over 10 s.
+    assert!(took.as_secs_f64() < 5.0, "{took:?}, {} solves", found.report.iterations);
+}
