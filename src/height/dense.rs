@@ -46,8 +46,18 @@ use super::solve::SlopeRows;
 pub(super) const MAX_DENSE: usize = 1024;
 
 /// Modes whose d is below this are the fit's null modes (0 up to
-/// rounding; d is at most 1).
-const NULL: f64 = 1e-13;
+/// rounding; d is at most 1): the vertical fit's least squares.
+pub(super) const NULL: f64 = 1e-13;
+
+/// Modes whose d is below this are left out of the orthogonal fit's
+/// fixed-point solves: the vertical fit barely sees them (a response of
+/// √d ≈ 3e-4 of the mode's size), so while the ratios have not settled,
+/// and the slopes asked for are not yet any heights' slopes, the exact
+/// least squares fill them with heights of thousands of texels, which the
+/// orthogonal fit then sees as roughness and the iteration chases
+/// (clamp, N = 15 on 40 × 32: unsettled after 122 solves, against 6).
+/// Gauss–Newton, with the exact operator, restores what they held.
+pub(super) const ORTHOGONAL_NULL: f64 = 1e-7;
 
 /// The null modes the solve takes out of its heights at most.
 const MAX_NULLS: usize = 64;
@@ -92,8 +102,10 @@ impl DenseSolver {
     /// `weights`: W per column and per row.
     ///
     /// Errors: [`crate::Error::Limits`] when a plane's memory is not there.
-    pub(super) fn solve(&self, b: &mut [f64], lambda: f64, weights: (&[f64], &[f64]), z: &mut [f64]) -> Result<()> {
-        let nulls = self.apply(b, lambda, None, z)?;
+    /// `null`: the threshold of d below which a mode is null ([`NULL`],
+    /// [`ORTHOGONAL_NULL`]).
+    pub(super) fn solve(&self, b: &mut [f64], lambda: f64, null: f64, weights: (&[f64], &[f64]), z: &mut [f64]) -> Result<()> {
+        let nulls = self.apply(b, lambda, null, None, z)?;
         self.remove_null_modes(&nulls, weights, z);
         Ok(())
     }
@@ -120,14 +132,14 @@ impl DenseSolver {
                 *o = b * m * wy[y];
             }
         });
-        self.apply(&mut weighted, lambda + epsilon, Some(weights), out).map(|_| ())
+        self.apply(&mut weighted, lambda + epsilon, NULL, Some(weights), out).map(|_| ())
     }
 
     /// z = (V ⊗ U) diag(1/(d/A² + λ s)) (V ⊗ U)ᵀ b, s each basis vector's
     /// measure (W's where `weights` is given, else the identity's); the null
     /// modes (d at rounding level) are 0 unless `weights` is given (then
     /// divided by λ s alone). Returns the null modes, (k, l).
-    fn apply(&self, b: &mut [f64], lambda: f64, weights: Option<(&[f64], &[f64])>, z: &mut [f64]) -> Result<Vec<(usize, usize)>> {
+    fn apply(&self, b: &mut [f64], lambda: f64, null_below: f64, weights: Option<(&[f64], &[f64])>, z: &mut [f64]) -> Result<Vec<(usize, usize)>> {
         let (w, h) = (self.w, self.h);
         let mut t = try_filled(w * h, 0.0)?;
         // c = Vᵀ B U: the rows times U, then Vᵀ times that.
@@ -148,7 +160,7 @@ impl DenseSolver {
                 for (k, c) in row.iter_mut().enumerate() {
                     let mx = self.x.eigen[k];
                     let seen = (1.0 - my) * mx + my * (1.0 - mx);
-                    let null = seen <= NULL;
+                    let null = seen <= null_below;
                     if null {
                         nulls.push((k, l));
                     }

@@ -43,6 +43,7 @@ pub(crate) fn exact(
     let nearest = if solver.is_none() { Solver::nearest(w, h, borders, n, Model::Exact) } else { None };
     // The exact solve in dense bases where the axes are short enough.
     let dense = if solver.is_none() { DenseSolver::new(&patch, h) } else { None };
+    let null = if opts.fit.fit == Fit::Vertical { super::dense::NULL } else { super::dense::ORTHOGONAL_NULL };
     let mut budget = CG_ITERATIONS;
     let mut iterations = 0;
     // One vertical solve: the transform's, else the dense bases', else
@@ -52,7 +53,7 @@ pub(crate) fn exact(
         match (&solver, &dense) {
             (Some(solver), _) => Ok((true, solver.solve(s, lambda, z)?.noise_gain)),
             (None, Some(dense)) => {
-                dense_solve(&patch, dense, s, lambda, z)?;
+                dense_solve(&patch, dense, s, lambda, null, z)?;
                 Ok((true, nearest.as_ref().map_or(0.0, |n| n.noise_gain(lambda).noise_gain)))
             }
             (None, None) => conjugate_gradients(&patch, nearest.as_ref(), s, lambda, z, warm, &mut budget),
@@ -480,13 +481,13 @@ fn multiplicities(patch: &Patch, h: usize) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// The vertical solve of `slopes` in `dense`'s bases, into `z`.
-fn dense_solve(patch: &Patch, dense: &DenseSolver, slopes: Slopes<'_>, lambda: f64, z: &mut [f64]) -> Result<()> {
+fn dense_solve(patch: &Patch, dense: &DenseSolver, slopes: Slopes<'_>, lambda: f64, null: f64, z: &mut [f64]) -> Result<()> {
     let len = z.len();
     let (wx, wy) = multiplicities(patch, len / patch.w);
     let (mut gx, mut gy, mut b) = (try_filled(len, 0.0)?, try_filled(len, 0.0)?, try_filled(len, 0.0)?);
     DenseSolver::right_hand_side(patch, slopes, (&wx, &wy), (&mut gx, &mut gy), &mut b);
     drop((gx, gy));
-    dense.solve(&mut b, lambda, (&wx, &wy), z)
+    dense.solve(&mut b, lambda, null, (&wx, &wy), z)
 }
 
 /// The conjugate gradients' iterations at most, over every solve of one
