@@ -47,7 +47,7 @@ pub(super) const MAX_DENSE: usize = 1024;
 
 /// Modes whose d is below this are the fit's null modes (0 up to
 /// rounding; d is at most 1): the vertical fit's least squares.
-pub(super) const NULL: f64 = 1e-13;
+pub(super) const NULL: f64 = 1e-12;
 
 /// Modes whose d is below this are left out of the orthogonal fit's
 /// fixed-point solves: the vertical fit barely sees them (a response of
@@ -60,13 +60,18 @@ pub(super) const NULL: f64 = 1e-13;
 pub(super) const ORTHOGONAL_NULL: f64 = 1e-7;
 
 /// The null modes the solve takes out of its heights at most.
-const MAX_NULLS: usize = 64;
+const MAX_NULLS: usize = 4096;
 
 /// One axis's basis: U (n × n, row-major: U[i][k] = component i of basis
-/// vector k), the generalised eigenvalues μ_k in [0, 1], and |u_k|².
+/// vector k), what the ramp and the box see of each basis vector (the
+/// generalised eigenvalue μ_k = |Ru_k|²_W and 1 − μ_k = |Bu_k|²_W, each
+/// summed from its own response rather than one taken from 1: a vector the
+/// box does not see then measures 1e-16 or so, not the 1e-12 that 1 − μ
+/// keeps of the rounding), and |u_k|².
 struct Basis {
     u: Vec<f64>,
-    eigen: Vec<f64>,
+    ramp: Vec<f64>,
+    boxed: Vec<f64>,
     norm2: Vec<f64>,
 }
 
@@ -151,20 +156,32 @@ impl DenseSolver {
         };
         let a2 = self.a * self.a;
         let every = weights.is_some();
+        // What the fit sees of each mode per unit of its size, d / |u ⊗ v|²,
+        // and the most it sees of any: a mode is null when it sees less
+        // than `null_below` of that (a basis vector the shifted measure
+        // made long, where both the ramp and the box nearly vanish, has a
+        // d of 1e-12 and a size of 1e13 or so).
+        let seen = |k: usize, l: usize| {
+            (self.y.boxed[l] * self.x.ramp[k] + self.y.ramp[l] * self.x.boxed[k]).max(0.0)
+                / (self.x.norm2[k] * self.y.norm2[l])
+        };
+        let most = (0..h)
+            .into_par_iter()
+            .map(|l| (0..w).map(|k| seen(k, l)).fold(0.0f64, f64::max))
+            .reduce(|| 0.0, f64::max);
         let nulls: Vec<Vec<(usize, usize)>> = b
             .par_chunks_mut(w)
             .enumerate()
             .map(|(l, row)| {
-                let my = self.y.eigen[l];
+
                 let mut nulls = Vec::new();
                 for (k, c) in row.iter_mut().enumerate() {
-                    let mx = self.x.eigen[k];
-                    let seen = (1.0 - my) * mx + my * (1.0 - mx);
-                    let null = seen <= null_below;
+                    let null = seen(k, l) <= null_below * most;
+                    let d = self.y.boxed[l] * self.x.ramp[k] + self.y.ramp[l] * self.x.boxed[k];
                     if null {
                         nulls.push((k, l));
                     }
-                    *c = if null && !every { 0.0 } else { *c / (seen.max(0.0) / a2 + lambda * sx[k] * sy[l]) };
+                    *c = if null && !every { 0.0 } else { *c / (d.max(0.0) / a2 + lambda * sx[k] * sy[l]) };
                 }
                 nulls
             })
@@ -266,7 +283,6 @@ impl Basis {
             g
         };
         let (p, q) = (gram(&r), gram(&b));
-        drop((r, b));
         // M = P + Q, and δ for the modes where both vanish (the constant
         // under wrap with N a multiple of the period): they are null modes.
         let mut m: Vec<f64> = p.iter().zip(&q).map(|(a, b)| a + b).collect();
@@ -290,9 +306,24 @@ impl Basis {
         let (eigen, y) = symmetric_eigen(c, n)?;
         // U = L⁻ᵀ Y.
         let u = upper_solve_columns(&l, &y, n);
+        drop(eigen);
         let norm2 = (0..n).map(|k| (0..n).map(|i| u[i * n + k] * u[i * n + k]).sum()).collect();
-        let eigen = eigen.into_iter().map(|v: f64| v.clamp(0.0, 1.0)).collect();
-        u.iter().all(|v| v.is_finite()).then_some(Basis { u, eigen, norm2 })
+        // |M u_k|²_W for M = R and B, column k of M U.
+        let seen = |m: &[f64]| -> Vec<f64> {
+            (0..n)
+                .into_par_iter()
+                .map(|k| {
+                    (0..n)
+                        .map(|i| {
+                            let v: f64 = (0..n).map(|j| m[i * n + j] * u[j * n + k]).sum();
+                            weight(i) * v * v
+                        })
+                        .sum()
+                })
+                .collect()
+        };
+        let (ramp, boxed) = (seen(&r), seen(&b));
+        u.iter().all(|v| v.is_finite()).then_some(Basis { u, ramp, boxed, norm2 })
     }
 }
 

@@ -43,12 +43,14 @@ pub(crate) fn exact(
     let nearest = if solver.is_none() { Solver::nearest(w, h, borders, n, Model::Exact) } else { None };
     // The exact solve in dense bases where the axes are short enough.
     let dense = if solver.is_none() { DenseSolver::new(&patch, h) } else { None };
-    let null = if opts.fit.fit == Fit::Vertical { super::dense::NULL } else { super::dense::ORTHOGONAL_NULL };
+    // The dense solves' null threshold: the fixed point's own first, the
+    // exact least squares once it has settled (see below).
+    let mut null = if opts.fit.fit == Fit::Vertical { super::dense::NULL } else { super::dense::ORTHOGONAL_NULL };
     let mut budget = CG_ITERATIONS;
     let mut iterations = 0;
     // One vertical solve: the transform's, else the dense bases', else
     // conjugate gradients; whether it met its tolerance, its noise gain.
-    let mut vertical = |s: Slopes<'_>, z: &mut [f64], warm: bool| -> Result<(bool, f64)> {
+    let mut vertical = |s: Slopes<'_>, z: &mut [f64], warm: bool, null: f64| -> Result<(bool, f64)> {
         iterations += 1;
         match (&solver, &dense) {
             (Some(solver), _) => Ok((true, solver.solve(s, lambda, z)?.noise_gain)),
@@ -59,7 +61,7 @@ pub(crate) fn exact(
             (None, None) => conjugate_gradients(&patch, nearest.as_ref(), s, lambda, z, warm, &mut budget),
         }
     };
-    let (mut converged, noise_gain) = vertical(slopes, z, false)?;
+    let (mut converged, noise_gain) = vertical(slopes, z, false, null)?;
     if opts.fit.fit == Fit::Vertical {
         return Ok((iterations, converged, noise_gain));
     }
@@ -88,6 +90,7 @@ pub(crate) fn exact(
     // the slopes asked for are known no better.
     let tolerance = opts.tolerance.max(opts.step);
     converged = false;
+    let mut settled_without_faint_modes = false;
     for _ in 1..opts.max_iterations {
         let weighted = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
             slopes(y, gx, gy);
@@ -96,7 +99,7 @@ pub(crate) fn exact(
                 *y *= r;
             }
         };
-        if !vertical(&weighted, z, true)?.0 {
+        if !vertical(&weighted, z, true, null)?.0 {
             // Conjugate gradients that did not meet their tolerance (their
             // budget spent): the iteration stops, unsettled.
             break;
@@ -104,6 +107,17 @@ pub(crate) fn exact(
         let (change, mismatch, now_off) = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping)?;
         off = now_off;
         if change <= tolerance {
+            if dense.is_some() && null != super::dense::NULL {
+                // Settled without the modes the vertical fit barely sees:
+                // the slopes asked for are now some heights' slopes, and
+                // the exact solves go on from here to give those modes
+                // back (a step that makes the fit worse is not kept: the
+                // closest heights found are).
+                settled_without_faint_modes = true;
+                null = super::dense::NULL;
+                (last_change, growing) = (f64::INFINITY, 0);
+                continue;
+            }
             converged = true;
             break;
         }
@@ -138,11 +152,19 @@ pub(crate) fn exact(
             break;
         }
     }
-    if !converged {
+    if !converged && settled_without_faint_modes {
+        // The exact solves did not settle again: the closest heights kept
+        // stand, settled as the fixed point was.
+        match &kept {
+            Some(kept) => z.iter_mut().zip(kept).for_each(|(z, &k)| *z = f64::from(k)),
+            None => drop(vertical(slopes, z, false, super::dense::ORTHOGONAL_NULL)?),
+        }
+        converged = true;
+    } else if !converged {
         match &kept {
             Some(kept) => z.iter_mut().zip(kept).for_each(|(z, &k)| *z = f64::from(k)),
             None => {
-                vertical(slopes, z, false)?;
+                vertical(slopes, z, false, null)?;
                 z.iter_mut().for_each(|z| *z = f64::from(*z as f32));
             }
         }
