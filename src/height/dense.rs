@@ -47,7 +47,7 @@ pub(super) const MAX_DENSE: usize = 1024;
 
 /// Modes whose d is below this are the fit's null modes (0 up to
 /// rounding; d is at most 1): the vertical fit's least squares.
-pub(super) const NULL: f64 = 1e-12;
+pub(super) const NULL: f64 = 1e-13;
 
 /// Modes whose d is below this are left out of the orthogonal fit's
 /// fixed-point solves: the vertical fit barely sees them (a response of
@@ -58,6 +58,10 @@ pub(super) const NULL: f64 = 1e-12;
 /// (clamp, N = 15 on 40 × 32: unsettled after 122 solves, against 6).
 /// Gauss–Newton, with the exact operator, restores what they held.
 pub(super) const ORTHOGONAL_NULL: f64 = 1e-7;
+
+/// A basis vector whose ramp and box responses together measure less
+/// than this (1 for a vector P + Q measures) is seen by neither.
+const UNSEEN: f64 = 1e-6;
 
 /// The null modes the solve takes out of its heights at most.
 const MAX_NULLS: usize = 4096;
@@ -156,19 +160,11 @@ impl DenseSolver {
         };
         let a2 = self.a * self.a;
         let every = weights.is_some();
-        // What the fit sees of each mode per unit of its size, d / |u ⊗ v|²,
-        // and the most it sees of any: a mode is null when it sees less
-        // than `null_below` of that (a basis vector the shifted measure
-        // made long, where both the ramp and the box nearly vanish, has a
-        // d of 1e-12 and a size of 1e13 or so).
-        let seen = |k: usize, l: usize| {
-            (self.y.boxed[l] * self.x.ramp[k] + self.y.ramp[l] * self.x.boxed[k]).max(0.0)
-                / (self.x.norm2[k] * self.y.norm2[l])
-        };
-        let most = (0..h)
-            .into_par_iter()
-            .map(|l| (0..w).map(|k| seen(k, l)).fold(0.0f64, f64::max))
-            .reduce(|| 0.0, f64::max);
+        // A basis vector the ramp and the box both barely see (its measure
+        // is the shift Cholesky needed, not P + Q: a long vector with a d
+        // of 1e-12 or so) gives null modes with every vector of the other
+        // axis, whatever its d says.
+        let unseen = |basis: &Basis, k: usize| basis.ramp[k] + basis.boxed[k] <= UNSEEN;
         let nulls: Vec<Vec<(usize, usize)>> = b
             .par_chunks_mut(w)
             .enumerate()
@@ -176,8 +172,8 @@ impl DenseSolver {
 
                 let mut nulls = Vec::new();
                 for (k, c) in row.iter_mut().enumerate() {
-                    let null = seen(k, l) <= null_below * most;
                     let d = self.y.boxed[l] * self.x.ramp[k] + self.y.ramp[l] * self.x.boxed[k];
+                    let null = d <= null_below || unseen(&self.x, k) || unseen(&self.y, l);
                     if null {
                         nulls.push((k, l));
                     }
