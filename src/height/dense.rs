@@ -11,11 +11,13 @@
 //! ```
 //!
 //! Per axis, the generalised eigenvectors of (P, P + Q): P U = (P + Q) U M
-//! with Uᵀ(P + Q)U = I, so UᵀPU = M and UᵀQU = I − M, μ in [0, 1] (P + Q
-//! = LLᵀ by Cholesky: positive definite but where both the box and the
-//! ramp vanish, which Q alone is not for a box whose zeros the axis holds;
-//! then the symmetric eigenproblem of L⁻¹PL⁻ᵀ by Householder's
-//! tridiagonal form and the implicit QL method, U = L⁻ᵀY). In the basis
+//! with Uᵀ(P + Q)U = I, so UᵀPU = M and UᵀQU = I − M, μ in [0, 1]. P + Q
+//! is singular where both the box and the ramp vanish (the box's zeros an
+//! axis holds under clamp), so it is diagonalised first, in W's measure,
+//! as E Σ Eᵀ: its rank is read off there, the seen vectors are
+//! E_s Σ_s^-1/2 Y with Y the eigenvectors of Σ_s^-1/2 E_sᵀ P E_s Σ_s^-1/2,
+//! and the unseen ones are E's remaining columns (both eigenproblems by
+//! Householder's tridiagonal form and the implicit QL method). In the basis
 //! V ⊗ U the normal matrix is diagonal, so
 //!
 //! ```text
@@ -25,8 +27,8 @@
 //! with four dense products along the rows and columns; λ, the
 //! quantisation's regularisation, is added in the measure of each basis
 //! vector (s = |u|²|v|², the diagonal of the identity in that basis), and
-//! the modes the fit does not see (d at rounding level: the constant, and
-//! the box's zeros on both axes) are 0. The heights are the least-squares solution exactly,
+//! the modes the fit does not see (d at rounding level: the constant, the
+//! box's zeros, the unseen vectors) are 0. The heights are the least-squares solution exactly,
 //! whatever N: a patch reaching past a clamped edge changes the bases, not
 //! the cost, which is O(n³) for an axis of n texels and O(texels · (w + h))
 //! a solve. Axes up to [`MAX_DENSE`] texels take it; past that the
@@ -59,9 +61,10 @@ pub(super) const NULL: f64 = 1e-13;
 /// Gauss–Newton, with the exact operator, restores what they held.
 pub(super) const ORTHOGONAL_NULL: f64 = 1e-7;
 
-/// A basis vector whose ramp and box responses together measure less
-/// than this (1 for a vector P + Q measures) is seen by neither.
-const UNSEEN: f64 = 1e-6;
+/// An axis's directions where P + Q (in W's measure) is below this part of
+/// its largest eigenvalue are seen by neither the ramp nor the box: the
+/// eigensolver's rounding is some n·ε of the largest (2e-13 at 1024).
+const RANK: f64 = 1e-11;
 
 /// The null modes the solve takes out of its heights at most.
 const MAX_NULLS: usize = 4096;
@@ -77,6 +80,10 @@ struct Basis {
     ramp: Vec<f64>,
     boxed: Vec<f64>,
     norm2: Vec<f64>,
+    /// The vectors neither the ramp nor the box sees (the last ones): null
+    /// modes with every vector of the other axis, and orthogonal in W's
+    /// measure to every other vector of their axis.
+    axis_null: Vec<bool>,
 }
 
 /// The dense solve of an image's vertical fit.
@@ -113,7 +120,14 @@ impl DenseSolver {
     /// Errors: [`crate::Error::Limits`] when a plane's memory is not there.
     /// `null`: the threshold of d below which a mode is null ([`NULL`],
     /// [`ORTHOGONAL_NULL`]).
-    pub(super) fn solve(&self, b: &mut [f64], lambda: f64, null: f64, weights: (&[f64], &[f64]), z: &mut [f64]) -> Result<()> {
+    pub(super) fn solve(
+        &self,
+        b: &mut [f64],
+        lambda: f64,
+        null: f64,
+        weights: (&[f64], &[f64]),
+        z: &mut [f64],
+    ) -> Result<()> {
         let nulls = self.apply(b, lambda, null, None, z)?;
         self.remove_null_modes(&nulls, weights, z);
         Ok(())
@@ -148,7 +162,14 @@ impl DenseSolver {
     /// measure (W's where `weights` is given, else the identity's); the null
     /// modes (d at rounding level) are 0 unless `weights` is given (then
     /// divided by λ s alone). Returns the null modes, (k, l).
-    fn apply(&self, b: &mut [f64], lambda: f64, null_below: f64, weights: Option<(&[f64], &[f64])>, z: &mut [f64]) -> Result<Vec<(usize, usize)>> {
+    fn apply(
+        &self,
+        b: &mut [f64],
+        lambda: f64,
+        null_below: f64,
+        weights: Option<(&[f64], &[f64])>,
+        z: &mut [f64],
+    ) -> Result<Vec<(usize, usize)>> {
         let (w, h) = (self.w, self.h);
         let mut t = try_filled(w * h, 0.0)?;
         // c = Vᵀ B U: the rows times U, then Vᵀ times that.
@@ -160,21 +181,18 @@ impl DenseSolver {
         };
         let a2 = self.a * self.a;
         let every = weights.is_some();
-        // A basis vector the ramp and the box both barely see (its measure
-        // is the shift Cholesky needed, not P + Q: a long vector with a d
-        // of 1e-12 or so) gives null modes with every vector of the other
-        // axis, whatever its d says.
-        let unseen = |basis: &Basis, k: usize| basis.ramp[k] + basis.boxed[k] <= UNSEEN;
         let nulls: Vec<Vec<(usize, usize)>> = b
             .par_chunks_mut(w)
             .enumerate()
             .map(|(l, row)| {
-
                 let mut nulls = Vec::new();
                 for (k, c) in row.iter_mut().enumerate() {
                     let d = self.y.boxed[l] * self.x.ramp[k] + self.y.ramp[l] * self.x.boxed[k];
-                    let null = d <= null_below || unseen(&self.x, k) || unseen(&self.y, l);
-                    if null {
+                    let axis_null = self.x.axis_null[k] || self.y.axis_null[l];
+                    let null = axis_null || d <= null_below;
+                    // The axes' null vectors are orthogonal in W to every
+                    // mode the solution holds: nothing of them to take out.
+                    if null && !axis_null {
                         nulls.push((k, l));
                     }
                     *c = if null && !every { 0.0 } else { *c / (d.max(0.0) / a2 + lambda * sx[k] * sy[l]) };
@@ -200,7 +218,8 @@ impl DenseSolver {
         }
         let (w, h) = (self.w, self.h);
         let column = |basis: &Basis, n: usize, k: usize| -> Vec<f64> { (0..n).map(|i| basis.u[i * n + k]).collect() };
-        let modes: Vec<(Vec<f64>, Vec<f64>)> = nulls.iter().map(|&(k, l)| (column(&self.x, w, k), column(&self.y, h, l))).collect();
+        let modes: Vec<(Vec<f64>, Vec<f64>)> =
+            nulls.iter().map(|&(k, l)| (column(&self.x, w, k), column(&self.y, h, l))).collect();
         let dot = |a: &[f64], b: &[f64], m: &[f64]| a.iter().zip(b).zip(m).map(|((a, b), m)| a * b * m).sum::<f64>();
         let mut gram = vec![0.0; count * count];
         for i in 0..count {
@@ -279,36 +298,70 @@ impl Basis {
             g
         };
         let (p, q) = (gram(&r), gram(&b));
-        // M = P + Q, and δ for the modes where both vanish (the constant
-        // under wrap with N a multiple of the period): they are null modes.
-        let mut m: Vec<f64> = p.iter().zip(&q).map(|(a, b)| a + b).collect();
+        // In W's measure (z = W^-1/2 z'), P' + Q' = E Σ Eᵀ, E orthonormal:
+        // its eigenvalues at rounding level span the vectors neither the
+        // ramp nor the box sees (the box's zeros the axis holds under clamp,
+        // the constant under wrap with N a multiple of the period). Those
+        // stay unit vectors in W's measure, orthogonal there to every other
+        // basis vector, rather than the long vectors a shifted Cholesky
+        // factor would make of them (|u|² of 1e7 and more, losing the
+        // digits the seen vectors need).
+        let root: Vec<f64> = (0..n).map(|i| weight(i).sqrt()).collect();
+        let scaled = |m: &[f64]| -> Vec<f64> { (0..n * n).map(|k| m[k] / (root[k / n] * root[k % n])).collect() };
+        let p = scaled(&p);
+        let sum: Vec<f64> = p.iter().zip(scaled(&q)).map(|(a, b)| a + b).collect();
         drop(q);
-        let largest = (0..n).map(|i| m[i * n + i]).fold(0.0f64, f64::max);
-        for i in 0..n {
-            m[i * n + i] += 1e-13 * largest.max(f64::MIN_POSITIVE);
-        }
-        let l = cholesky(m, n)?;
-        // C = L⁻¹ P L⁻ᵀ: X = L⁻¹P, then C = L⁻¹Xᵀ (C is symmetric).
-        let x = lower_solve_columns(&l, &p, n);
-        let mut c = lower_solve_columns(&l, &transpose(&x, n), n);
-        // Symmetrise the rounding.
-        for i in 0..n {
+        let (sigma, e) = symmetric_eigen(sum, n)?;
+        let largest = sigma.iter().fold(0.0f64, |m, s| m.max(*s));
+        let seen: Vec<usize> = (0..n).filter(|&k| sigma[k] > RANK * largest).collect();
+        let unseen: Vec<usize> = (0..n).filter(|&k| sigma[k] <= RANK * largest).collect();
+        let r_count = seen.len();
+        // F = E_s Σ_s^-1/2 (n × r), C = Fᵀ P' F (r × r), C = Y M Yᵀ; the
+        // seen vectors are W^-1/2 F Y: (P + Q)-orthonormal, UᵀPU = M.
+        let f: Vec<f64> = (0..n * r_count)
+            .map(|k| e[(k / r_count) * n + seen[k % r_count]] / sigma[seen[k % r_count]].sqrt())
+            .collect();
+        let pf: Vec<f64> = (0..n * r_count)
+            .into_par_iter()
+            .map(|k| {
+                let (i, c) = (k / r_count, k % r_count);
+                (0..n).map(|j| p[i * n + j] * f[j * r_count + c]).sum()
+            })
+            .collect();
+        let mut c: Vec<f64> = (0..r_count * r_count)
+            .into_par_iter()
+            .map(|k| {
+                let (a, b) = (k / r_count, k % r_count);
+                (0..n).map(|i| f[i * r_count + a] * pf[i * r_count + b]).sum()
+            })
+            .collect();
+        drop(p);
+        for i in 0..r_count {
             for j in 0..i {
-                let v = 0.5 * (c[i * n + j] + c[j * n + i]);
-                c[i * n + j] = v;
-                c[j * n + i] = v;
+                let v = 0.5 * (c[i * r_count + j] + c[j * r_count + i]);
+                c[i * r_count + j] = v;
+                c[j * r_count + i] = v;
             }
         }
-        let (eigen, y) = symmetric_eigen(c, n)?;
-        // U = L⁻ᵀ Y.
-        let u = upper_solve_columns(&l, &y, n);
-        drop(eigen);
-        let norm2 = (0..n).map(|k| (0..n).map(|i| u[i * n + k] * u[i * n + k]).sum()).collect();
-        // |M u_k|²_W for M = R and B, column k of M U.
-        let seen = |m: &[f64]| -> Vec<f64> {
+        let (_, y) = symmetric_eigen(c, r_count)?;
+        let mut u = vec![0.0; n * n];
+        u.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
+            for k in 0..r_count {
+                row[k] = (0..r_count).map(|c| f[i * r_count + c] * y[c * r_count + k]).sum::<f64>() / root[i];
+            }
+            for (k, &j) in unseen.iter().enumerate() {
+                row[r_count + k] = e[i * n + j] / root[i];
+            }
+        });
+        let norm2: Vec<f64> = (0..n).map(|k| (0..n).map(|i| u[i * n + k] * u[i * n + k]).sum()).collect();
+        // |M u_k|²_W for M = R and B, column k of M U; 0 for the unseen.
+        let response = |m: &[f64]| -> Vec<f64> {
             (0..n)
                 .into_par_iter()
                 .map(|k| {
+                    if k >= r_count {
+                        return 0.0;
+                    }
                     (0..n)
                         .map(|i| {
                             let v: f64 = (0..n).map(|j| m[i * n + j] * u[j * n + k]).sum();
@@ -318,8 +371,9 @@ impl Basis {
                 })
                 .collect()
         };
-        let (ramp, boxed) = (seen(&r), seen(&b));
-        u.iter().all(|v| v.is_finite()).then_some(Basis { u, ramp, boxed, norm2 })
+        let (ramp, boxed) = (response(&r), response(&b));
+        let axis_null: Vec<bool> = (0..n).map(|k| k >= r_count).collect();
+        u.iter().all(|v| v.is_finite()).then_some(Basis { u, ramp, boxed, norm2, axis_null })
     }
 }
 
@@ -403,59 +457,6 @@ fn transpose(m: &[f64], n: usize) -> Vec<f64> {
         }
     }
     t
-}
-
-/// The Cholesky factor L (row-major, lower) of the symmetric positive
-/// definite `a`; `None` if it is not.
-fn cholesky(mut a: Vec<f64>, n: usize) -> Option<Vec<f64>> {
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= a[j * n + k] * a[j * n + k];
-        }
-        if !(d > 0.0 && d.is_finite()) {
-            return None;
-        }
-        let d = d.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / d;
-        }
-        for k in j + 1..n {
-            a[j * n + k] = 0.0;
-        }
-    }
-    Some(a)
-}
-
-/// X = L⁻¹ B for lower-triangular L, column by column (B, X row-major).
-fn lower_solve_columns(l: &[f64], b: &[f64], n: usize) -> Vec<f64> {
-    let bt = transpose(b, n);
-    let mut xt = vec![0.0; n * n];
-    xt.par_chunks_mut(n).zip(bt.par_chunks(n)).for_each(|(x, b)| {
-        for i in 0..n {
-            let s: f64 = (0..i).map(|k| l[i * n + k] * x[k]).sum();
-            x[i] = (b[i] - s) / l[i * n + i];
-        }
-    });
-    transpose(&xt, n)
-}
-
-/// X = L⁻ᵀ B for lower-triangular L, column by column.
-fn upper_solve_columns(l: &[f64], b: &[f64], n: usize) -> Vec<f64> {
-    let bt = transpose(b, n);
-    let mut xt = vec![0.0; n * n];
-    xt.par_chunks_mut(n).zip(bt.par_chunks(n)).for_each(|(x, b)| {
-        for i in (0..n).rev() {
-            let s: f64 = (i + 1..n).map(|k| l[k * n + i] * x[k]).sum();
-            x[i] = (b[i] - s) / l[i * n + i];
-        }
-    });
-    transpose(&xt, n)
 }
 
 /// The eigenvalues and eigenvectors (row-major: Y[i][k] = component i of

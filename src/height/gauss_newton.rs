@@ -38,9 +38,9 @@ use crate::error::Result;
 use crate::par::prelude::*;
 use crate::samples::try_vec;
 
+use super::dense::DenseSolver;
 use super::line::{Scratch, Work, columns, rows};
 use super::patch::Patch;
-use super::dense::DenseSolver;
 use super::solve::SlopeRows as Slopes;
 use super::solve::Solver;
 
@@ -307,12 +307,7 @@ impl<'a> Problem<'a> {
 
     /// Σ W |r|² at `z`, and, given `store`, the residual r and the
     /// linearisation there; `planes` is work space.
-    fn linearise(
-        &self,
-        z: &[f64],
-        store: Option<(&mut Linear, &mut [[f64; 2]])>,
-        planes: &mut [Vec<f64>; 4],
-    ) -> f64 {
+    fn linearise(&self, z: &[f64], store: Option<(&mut Linear, &mut [[f64; 2]])>, planes: &mut [Vec<f64>; 4]) -> f64 {
         let (w, a) = (self.w, self.patch.a);
         let [p0, p1, p2, _] = planes;
         // box_y z, ramp_y z, box_y z².

@@ -14,9 +14,9 @@ use crate::options::{Border, Fit};
 use crate::par::prelude::*;
 use crate::samples::{try_filled, try_vec};
 
-use super::line::{Work, columns_in_place, rows};
 use super::dense::DenseSolver;
 use super::gauss_newton::Vertical;
+use super::line::{Work, columns_in_place, rows};
 use super::patch::Patch;
 use super::solve::Solver;
 use super::{HeightOptions, Model};
@@ -499,11 +499,21 @@ fn multiplicities(patch: &Patch, h: usize) -> (Vec<f64>, Vec<f64>) {
     let multiplicity =
         |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
     let w = patch.w;
-    ((0..w).map(|x| multiplicity(w, patch.borders.x, x)).collect(), (0..h).map(|y| multiplicity(h, patch.borders.y, y)).collect())
+    (
+        (0..w).map(|x| multiplicity(w, patch.borders.x, x)).collect(),
+        (0..h).map(|y| multiplicity(h, patch.borders.y, y)).collect(),
+    )
 }
 
 /// The vertical solve of `slopes` in `dense`'s bases, into `z`.
-fn dense_solve(patch: &Patch, dense: &DenseSolver, slopes: Slopes<'_>, lambda: f64, null: f64, z: &mut [f64]) -> Result<()> {
+fn dense_solve(
+    patch: &Patch,
+    dense: &DenseSolver,
+    slopes: Slopes<'_>,
+    lambda: f64,
+    null: f64,
+    z: &mut [f64],
+) -> Result<()> {
     let len = z.len();
     let (wx, wy) = multiplicities(patch, len / patch.w);
     let (mut gx, mut gy, mut b) = (try_filled(len, 0.0)?, try_filled(len, 0.0)?, try_filled(len, 0.0)?);
@@ -651,7 +661,10 @@ fn conjugate_gradients(
         p.iter_mut().zip(&y).for_each(|(p, y)| *p = y + beta * *p);
     }
     if std::env::var("NF_DEBUG").is_ok() {
-        eprintln!("CG: {dbg_its} iterations, converged {converged}, residual {:e}", (dot(&r, &r) / dot(&rhs, &rhs)).sqrt());
+        eprintln!(
+            "CG: {dbg_its} iterations, converged {converged}, residual {:e}",
+            (dot(&r, &r) / dot(&rhs, &rhs)).sqrt()
+        );
     }
     Ok((converged, start))
 }

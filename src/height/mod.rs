@@ -485,9 +485,9 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
                 Model::Exact => {
                     let (b, n) = (opts.fit.borders, opts.fit.patch);
                     let exact = solve::Solver::new(width, height, b, n, Model::Exact);
-                    exact.or_else(|| solve::Solver::nearest(width, height, b, n, Model::Exact)).ok_or_else(|| {
-                        Error::InvalidOption("no transform for these borders".into())
-                    })?
+                    exact
+                        .or_else(|| solve::Solver::nearest(width, height, b, n, Model::Exact))
+                        .ok_or_else(|| Error::InvalidOption("no transform for these borders".into()))?
                 }
             };
             solver.noise_gain(lambda).noise_gain

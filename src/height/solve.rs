@@ -395,7 +395,11 @@ impl Solver {
                 // The right-hand side as a plane, in `out`, which the last
                 // pass overwrites with the heights.
                 self.right_hand_side_plane(slopes, r, out)?;
-                if whole { self.solve_real(None, lambda, None, out) } else { self.solve_complex(None, lambda, None, out) }
+                if whole {
+                    self.solve_real(None, lambda, None, out)
+                } else {
+                    self.solve_complex(None, lambda, None, out)
+                }
             }
             Some(r) => {
                 let fill = |rows: std::ops::Range<usize>, dst: &mut [f64]| self.right_hand_side(slopes, r, rows, dst);
@@ -443,7 +447,8 @@ impl Solver {
         let line = |axis: &Axis, odd: bool| {
             Line::periodic(axis.n, r, (0..axis.period).map(|t| axis.map(t as isize, odd)).collect())
         };
-        let (x_odd, x_even, y_even, y_odd) = (line(&self.x, true), line(&self.x, false), line(&self.y, false), line(&self.y, true));
+        let (x_odd, x_even, y_even, y_odd) =
+            (line(&self.x, true), line(&self.x, false), line(&self.y, false), line(&self.y, true));
         let mut v = try_filled(out.len(), 0.0)?;
         rows(w, &mut [&mut *out, &mut v], |y, row, work| {
             let Work { scratch, temps } = work;
