@@ -216,6 +216,32 @@ fn tiling_check_of_heights_holding_nan_is_refused() {
     assert!(check(&[&v], 8, 8, &TilingOptions::new().with_kind(KindChoice::Height)).is_err());
 }
 
+/// `python_entry`: `tiling::check` of a normal map (3 planes, the kind
+/// asked for) holding NaN counted its non-finite components as 0 and
+/// called it seamless (`python-entry-tiling-normal-nonfinite.bin` is the
+/// case). A normal with a NaN or infinite component is no normal: the
+/// check now refuses it naming the texel, as it refuses such heights; with
+/// the kind left to detection, the same texel is refused.
+#[test]
+fn tiling_check_of_a_normal_map_holding_nan_is_refused() {
+    let (w, h) = (8, 8);
+    let mut planes: Vec<Vec<f32>> = vec![vec![0.5; w * h], vec![0.5; w * h], vec![1.0; w * h]];
+    planes[1][2 * w + 5] = f32::NAN;
+    planes[2][3 * w + 1] = f32::INFINITY;
+    let refs: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
+    for kind in [KindChoice::Normal, KindChoice::Auto] {
+        match check(&refs, w, h, &TilingOptions::new().with_kind(kind)) {
+            Err(e @ Error::NonFiniteNormal { x: 5, y: 2 }) => {
+                assert_eq!(e.to_string(), "normal at texel (x 5, y 2) has a NaN or infinite component");
+            }
+            // Detection judges the NaN texel's length too: the kind it
+            // settles on names the error, the texel is the same.
+            Err(Error::NonFiniteHeight { x: 5, y: 2 }) if kind == KindChoice::Auto => {}
+            other => panic!("{kind:?}: expected the texel refused, got {other:?}"),
+        }
+    }
+}
+
 /// `raw_sizes`: a RAW size whose bytes overflow u64 (here
 /// 18446744073709551614 × 1 at 16 bits) was refused with the saturated
 /// 18446744073709551615 as the bytes it "takes" (issue 32); now "2^64 bytes
@@ -227,4 +253,25 @@ fn a_raw_size_past_u64_bytes_says_so() {
     let e = decode(&bytes, &ReadOptions::default().with_max_texels(u64::MAX).with_raw(raw)).unwrap_err();
     let m = e.to_string();
     assert!(m.contains("2^64 bytes or more at 16 bits") && !m.contains(&u64::MAX.to_string()), "{m}");
+}
+
+/// `geotiff_tags`: a 710-byte TIFF whose header describes 6 × 16389
+/// texels of 17231 32-bit bands, uncompressed in one strip of 120 bytes,
+/// had its 6.8 GB of samples allocated and zeroed before `tiff` found the
+/// strip short (libFuzzer's out-of-memory). The stored strips now bound
+/// what a header may describe, by each compression's largest ratio, before
+/// anything is allocated.
+#[cfg(feature = "tiff")]
+#[test]
+fn a_tiff_header_describing_more_than_its_strips_hold_is_refused_before_allocating() {
+    for band in [None, Some(2)] {
+        let read = read().with_nodata_tag(true);
+        let read = if let Some(b) = band { read.with_band(b) } else { read };
+        match decode(&case("geotiff-tags-17231-bands-in-120-bytes.tif"), &read) {
+            Err(Error::Decode(m)) => {
+                assert!(m.contains("strips or tiles of 120 bytes in all cannot hold the 6777572616 bytes"), "{m}")
+            }
+            other => panic!("expected a decode error, got {:?}", other.map(|r| (r.width, r.height))),
+        }
+    }
 }

@@ -141,7 +141,7 @@ fn tiny_axes_have_defined_answers() {
 }
 
 #[test]
-fn non_finite_heights_are_refused_and_normal_maps_give_finite_scores() {
+fn non_finite_heights_and_normals_are_refused() {
     let mut v = tiling_support::periodic_noise(32, 32, 2, 2, 3);
     v[41] = f32::NAN;
     v[42] = f32::INFINITY;
@@ -157,8 +157,13 @@ fn non_finite_heights_are_refused_and_normal_maps_give_finite_scores() {
     }
     let e = check(&[&clean, &v], 32, 32, &TilingOptions::default());
     assert!(e.is_ok(), "a second plane is alpha, not judged: {e:?}");
-    // A normal map's components: non-finite ones count as 0.
+    // A normal map's components: a normal with a non-finite one is no
+    // normal, refused naming the texel (the fuzzers' python_entry case).
     let planes = [v.as_slice(), clean.as_slice(), clean.as_slice()];
+    let e = check(&planes, 32, 32, &TilingOptions::default().with_kind(KindChoice::Normal)).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteNormal { x: 9, y: 1 }), "{e}");
+    // Finite everywhere, the same map scores finite.
+    let planes = [clean.as_slice(), clean.as_slice(), clean.as_slice()];
     let r = check(&planes, 32, 32, &TilingOptions::default().with_kind(KindChoice::Normal)).unwrap();
     assert!(r.x.score.is_finite() && r.y.score.is_finite());
 }

@@ -160,8 +160,9 @@ impl HeightSeams {
         self.x.rows
     }
 
-    /// Adds the next row, `width` heights. Non-finite values count as 0, as
-    /// in [`check`](super::check).
+    /// Adds the next row, `width` heights. Non-finite values count as 0
+    /// (unlike [`check`](super::check), which refuses them): this check
+    /// settles `--border auto` for maps with nodata holes.
     ///
     /// Errors: [`Error::BufferSize`] when `row.len() != width`,
     /// [`Error::InvalidOption`] when all `height` rows are in already, or

@@ -201,6 +201,7 @@ fn decode_band(
     let len = plane.checked_mul(bands).ok_or_else(too_big)?;
     let planar =
         bands > 1 && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
+    check_stored_bytes(&mut decoder, len as u64)?;
     let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
     let data = if planar {
         // Only the band's own strips or tiles are read. The whole image's
@@ -233,6 +234,49 @@ fn decode_band(
         planes: vec![Plane { name: "Y".into(), data }],
         georef: None,
     })
+}
+
+/// Refuses a TIFF whose strips or tiles, as stored, cannot decode to the
+/// `decoded` bytes its header describes, before those bytes are allocated:
+/// a forged width, height or band count in a file of a few hundred bytes
+/// would otherwise have its whole image allocated (and zeroed) first.
+/// Uncompressed chunks hold their bytes as they are; each compression
+/// `tiff` decodes here expands by at most a known ratio (PackBits 128
+/// bytes from 2, Deflate 1032:1, an LZW code of at least 9 bits at most
+/// 4096 bytes, JPEG a generous 1024:1 for a block coded in a few bits).
+/// Other compressions are not bounded here; the memory check still is.
+fn check_stored_bytes<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>, decoded: u64) -> Result<()> {
+    // The codes of TIFF 6.0 and its technical notes.
+    let ratio: u64 = match decoder.find_tag_unsigned::<u16>(Tag::Compression).map_err(from_tiff_error)?.unwrap_or(1) {
+        1 => 1,
+        32773 => 64,
+        8 | 32946 => 1032,
+        5 => 4096 * 8 / 9 + 1,
+        6 | 7 => 1024,
+        _ => return Ok(()),
+    };
+    let counts = match decoder.get_chunk_type() {
+        tiff::decoder::ChunkType::Strip => Tag::StripByteCounts,
+        tiff::decoder::ChunkType::Tile => Tag::TileByteCounts,
+    };
+    let stored = decoder.find_tag_unsigned_vec::<u64>(counts).map_err(from_tiff_error)?.unwrap_or_default();
+    // A count past the end of the file is forged: no chunk holds more
+    // bytes than the file.
+    let reader = decoder.inner();
+    let here = reader.stream_position().map_err(Error::Io)?;
+    let file = reader.seek(std::io::SeekFrom::End(0)).map_err(Error::Io)?;
+    reader.seek(std::io::SeekFrom::Start(here)).map_err(Error::Io)?;
+    let chunks = stored.len() as u64;
+    let stored: u64 = stored.iter().fold(0, |sum, &n| sum.saturating_add(n.min(file)));
+    // JPEG chunks share tables kept elsewhere: a few hundred bytes each.
+    let most = stored.saturating_add(if ratio == 1024 { chunks.saturating_mul(1024) } else { 0 }).saturating_mul(ratio);
+    if most < decoded {
+        return Err(Error::Decode(format!(
+            "tiff strips or tiles of {stored} bytes in all cannot hold the {decoded} bytes of samples its header \
+             describes"
+        )));
+    }
+    Ok(())
 }
 
 /// The sample layout of `layout` and the 0-based index of the band read:
@@ -524,6 +568,8 @@ impl<R: Read + Seek> TiffBand<R> {
         let (w, h) = (to_usize(width.into())?, to_usize(height.into())?);
         let planar = bands > 1
             && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
+        let described = (w as u64).saturating_mul(h as u64).saturating_mul((bands * kind.bytes()) as u64);
+        check_stored_bytes(&mut decoder, described)?;
         let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
         // `tiff` checks the chunk geometry here.
         decoder.image_buffer_layout().map_err(from_tiff_error)?;
