@@ -692,3 +692,45 @@ fn edge_rows_mixed_with_whole_rows_or_too_many_are_refused() {
     assert_eq!(seams.edge_columns(), [0..300, 300..300]);
     assert_eq!(seams.edge_rows(), [0..0, 0..0]);
 }
+
+/// `HeightSeams::refusing_non_finite` (Python's `normalfit.dask.check_tiling`)
+/// refuses a NaN or infinite height among the lines the check reads,
+/// naming its texel in the image, whichever way the lines come; heights it
+/// does not read are not judged, and without it they count as 0.
+#[test]
+fn streamed_check_refusing_non_finite_names_the_texel_it_reads() {
+    let (w, h) = (600, 600);
+    let clean = tiling_support::periodic_noise(w, h, 2, 2, 5);
+    let with = |holes: &[(usize, usize)]| {
+        let mut v = clean.clone();
+        holes.iter().for_each(|&(x, y)| v[y * w + x] = f32::NAN);
+        v
+    };
+    let refusing = || HeightSeams::new(w, h).unwrap().refusing_non_finite();
+    // Whole rows: the first in row order.
+    let v = with(&[(300, 300), (590, 10)]);
+    let e = refusing().push_heights(&v).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteHeight { x: 590, y: 10 }), "{e}");
+    // Edge columns, then edge rows: each names the image's texel.
+    let feed = |v: &[f32]| -> normalfit::Result<()> {
+        let mut seams = refusing();
+        let cols = seams.edge_columns();
+        let strip: Vec<f32> =
+            v.chunks_exact(w).flat_map(|row| cols.iter().flat_map(|c| row[c.clone()].to_vec())).collect();
+        seams.push_edge_columns(&strip)?;
+        for r in seams.edge_rows() {
+            seams.push_edge_rows(&v[r.start * w..r.end * w])?;
+        }
+        seams.finish(&TilingOptions::new()).map(|_| ())
+    };
+    let e = feed(&with(&[(590, 10)])).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteHeight { x: 590, y: 10 }), "{e}");
+    let e = feed(&with(&[(300, 595)])).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteHeight { x: 300, y: 595 }), "{e}");
+    // A height the check does not read is not judged.
+    assert!(feed(&with(&[(300, 300)])).is_ok());
+    // Without the refusal, non-finite heights count as 0.
+    let mut seams = HeightSeams::new(w, h).unwrap();
+    seams.push_heights(&with(&[(590, 10)])).unwrap();
+    assert!(seams.finish(&TilingOptions::new()).is_ok());
+}
