@@ -2,6 +2,8 @@
 //! asserting the clean result. The files in `tests/data/fuzz/` are the
 //! minimised cases (`cargo fuzz tmin`), as the fuzzers wrote them.
 
+mod corpus;
+
 use normalfit::io::{Raster, ReadOptions, decode};
 use normalfit::normal_map::KindChoice;
 use normalfit::pipeline::PngRows;
@@ -274,4 +276,37 @@ fn a_tiff_header_describing_more_than_its_strips_hold_is_refused_before_allocati
             other => panic!("expected a decode error, got {:?}", other.map(|r| (r.width, r.height))),
         }
     }
+}
+
+/// `decode_fit`: a 6 × 5 float64 TIFF (deflated, with a checksum only
+/// fuzz builds skip, so it is rebuilt here uncompressed with the same
+/// kinds of values) of heights from 16 to 33318 and of ±1e300 and
+/// −3.9e80. Finite as doubles, they passed the fit's check, and their
+/// squares overflowed its sums: the normal at texel 0 was (−0, −0, NaN),
+/// with Ok. A height beyond `f32`'s range is now refused as infinite, as
+/// `Raster::heights` rounds it, naming the first in row order.
+#[cfg(feature = "tiff")]
+#[test]
+fn f64_heights_beyond_f32_range_are_refused_as_infinite() {
+    let v: Vec<f64> = vec![
+        25.0, 29.2, 33.3, 37.5, 41.7, 45.8, 16.4, 20.5, 24.7, 28.9, 0.0, -3.9e80, 0.0, 0.0, -1e300, -1e300, 1e300,
+        -1e300, 1e300, 0.0, 388.3, -1e300, 1e300, -1e300, 1e300, 33318.7, 1260.5, 45.7, 0.0, -1e300,
+    ];
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let tiff = corpus::tiff_gray_tagged(6, 5, 64, 3, &bytes, &[]);
+    let opts = Options::new();
+    match decode_fit(&tiff, &opts) {
+        Err(Error::NonFiniteHeight { x: 5, y: 1 }) => {}
+        other => panic!("expected texel (5, 1) refused, got {other:?}"),
+    }
+    // The fit holds samples from any source to the same rule. The bound is
+    // f32's: its largest value fits, a double past it does not.
+    let mut n = vec![[0.0f32; 3]; 9];
+    let edge = normalfit::Samples::F64(vec![f64::from(f32::MAX), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    assert!(FitRequest::new(&opts).normals_into(&edge, 3, 3, &mut n).is_ok());
+    let past = normalfit::Samples::F64(vec![f64::from(f32::MAX) * 1.000_001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    assert!(matches!(
+        FitRequest::new(&opts).normals_into(&past, 3, 3, &mut n),
+        Err(Error::NonFiniteHeight { x: 0, y: 0 })
+    ));
 }
