@@ -99,17 +99,42 @@ pub(super) const NEWTON_STEPS: usize = 200;
 ///
 /// Newton's steps then rise from λ₀ to λ, one or two instead of four to
 /// six from the first bound alone.
+#[inline(always)]
+pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
+    eigen_start_on(Diagonal::new(a1, a2), b1, b2, c)
+}
+
+/// What [`eigen_start`] computes from a1 and a2 alone: the same for every
+/// patch of a row of unequal spacing, whose loop forms it once (a
+/// division a texel less) by the same operations, so with the same bits.
+#[derive(Clone, Copy)]
+pub(super) struct Diagonal {
+    a1: f64,
+    a2: f64,
+    /// min(a1, a2), a1 + a2 and 1 / (a1·a2).
+    m: f64,
+    sum: f64,
+    inv: f64,
+}
+
+impl Diagonal {
+    #[inline(always)]
+    pub(super) fn new(a1: f64, a2: f64) -> Diagonal {
+        Diagonal { a1, a2, m: a1.min(a2), sum: a1 + a2, inv: 1.0 / (a1 * a2) }
+    }
+}
+
+/// [`eigen_start`] with its diagonal's constants formed.
 // The conditions negated rather than flipped: a NaN takes the first bound.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
-    let m = a1.min(a2);
+pub(super) fn eigen_start_on(Diagonal { a1, a2, m, sum, inv }: Diagonal, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
     let tilt2 = b1 * b1 + b2 * b2;
     let d = 0.5 * (m - c);
     let largest = 0.5 * (m + c) + (d * d + tilt2).sqrt();
     let bound = ((m * c - tilt2) / largest).max(0.0);
-    let trace = a1 + a2 + c;
-    let inv = 1.0 / (a1 * a2);
+    // a1 + a2 + c, as it reads: (a1 + a2) + c.
+    let trace = sum + c;
     let (g1, g2) = (b1 * a2 * inv, b2 * a1 * inv);
     let r = (c - b1 * g1 - b2 * g2) / (1.0 + g1 * g1 + g2 * g2);
     let (p1, p2, p3) = (a1 - r, a2 - r, c - r);
