@@ -46,7 +46,7 @@ pub(super) fn unequal_normal(orthogonal: bool, a: f64, rho: f64, cx: f64, cy: f6
 /// The smallest eigenvalue λ of the scatter matrix M = [[a1, 0, b1],
 /// [0, a2, b2], [b1, b2, c]] (a1, a2 > 0, M positive semi-definite), and
 /// an eigenvector of it (not normalised) with a non-negative z (with z = 0
-/// up to rounding: a non-negative y, then x).
+/// up to rounding: z = 0, a non-negative y, then x).
 ///
 /// λ is the smallest root of p(λ) = det(M − λI) =
 /// (a1 − λ)(a2 − λ)(c − λ) − b1²(a2 − λ) − b2²(a1 − λ). Left of that root
@@ -193,12 +193,14 @@ pub(super) fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3
     }
     // n_z ≥ 0; a vertical plane (n_z = 0 up to rounding, 1e-12 of the
     // vector: a cliff whose heights spread more than the narrower axis's
-    // texels) takes n_y ≥ 0, then n_x ≥ 0.
+    // texels) takes n_y ≥ 0, then n_x ≥ 0, and n_z = 0: its rounding, of
+    // either sign, would turn the normal below the horizon.
     let tiny = 1e-12 * best[0].abs().max(best[1].abs()).max(best[2].abs());
     let [x, y, z] = best;
     let (z_counts, y_counts) = (z.abs() > tiny, y.abs() > tiny);
     let flip = (z_counts & (z < 0.0)) | (!z_counts & ((y_counts & (y < 0.0)) | (!y_counts & (x < 0.0))));
-    best.map(|c| select(flip, -c, c))
+    let [x, y, z] = best.map(|c| select(flip, -c, c));
+    [x, y, select(z_counts, z, 0.0)]
 }
 
 /// `if take { a } else { b }`, both already computed, chosen by masks:
@@ -208,4 +210,42 @@ pub(super) fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3
 pub(super) fn select(take: bool, a: f64, b: f64) -> f64 {
     let mask = u64::from(take).wrapping_neg();
     f64::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::smallest_eigen;
+
+    /// Cliffs: 3 × 3 patches of heights 0 on the left and H on the right
+    /// (H up to 1e20), tilted along the cliff, whose plane of least squares
+    /// is vertical up to rounding. Their normals lie on the horizon, never
+    /// below it: rounding of either sign in z is 0 (a python_entry fuzz case
+    /// gave (7.8e-19, 1, −3.0e-17)).
+    #[test]
+    fn a_vertical_plane_faces_no_lower_than_the_horizon() {
+        let mut vertical = 0;
+        for e in 0..=200 {
+            let cliff = 10f64.powf(f64::from(e) / 10.0);
+            for tilt in [-7.0, -1.0, -0.3, 0.0, 0.3, 1.0, 7.0] {
+                for edge in [0, 1] {
+                    let (mut cx, mut cy, mut s, mut ss) = (0.0, 0.0, 0.0, 0.0);
+                    for v in -1..=1 {
+                        for u in -1..=1 {
+                            let z = if u >= edge { cliff } else { 0.0 } + tilt * f64::from(v);
+                            cx += f64::from(u) * z;
+                            cy += f64::from(v) * z;
+                            s += z;
+                            ss += z * z;
+                        }
+                    }
+                    let czz = ss - s * s / 9.0;
+                    let (_, n) = smallest_eigen(6.0, 6.0, cx, cy, czz);
+                    let len = n.iter().map(|c| c * c).sum::<f64>().sqrt();
+                    assert!(n[2] >= 0.0, "H {cliff:e}, tilt {tilt}, edge {edge}: normal {n:?} faces down");
+                    vertical += usize::from(n[2].abs() <= 1e-12 * len);
+                }
+            }
+        }
+        assert!(vertical > 0, "no case was vertical up to rounding");
+    }
 }
