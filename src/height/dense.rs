@@ -75,6 +75,7 @@ const MAX_NULLS: usize = 4096;
 /// summed from its own response rather than one taken from 1: a vector the
 /// box does not see then measures 1e-16 or so, not the 1e-12 that 1 − μ
 /// keeps of the rounding), and |u_k|².
+#[derive(Clone)]
 struct Basis {
     u: Vec<f64>,
     ramp: Vec<f64>,
@@ -104,7 +105,12 @@ impl DenseSolver {
             return None;
         }
         let x = Basis::new(&patch.x, w, patch.borders.x)?;
-        let y = Basis::new(&patch.y, h, patch.borders.y)?;
+        // A square map with one border: both axes are the same line.
+        let y = if (h, patch.borders.y) == (w, patch.borders.x) {
+            x.clone()
+        } else {
+            Basis::new(&patch.y, h, patch.borders.y)?
+        };
         Some(DenseSolver { w, h, a: patch.a, x, y })
     }
 
@@ -286,15 +292,9 @@ impl Basis {
         let weight = |i: usize| if border == Border::Mirror && n > 2 && i != 0 && i != n - 1 { 2.0 } else { 1.0 };
         // P = RᵀWR, Q = BᵀWB.
         let gram = |m: &[f64]| {
+            let weighted: Vec<f64> = (0..n * n).map(|k| weight(k / n) * m[k]).collect();
             let mut g = vec![0.0; n * n];
-            g.par_chunks_mut(n).enumerate().for_each(|(p, row)| {
-                for i in 0..n {
-                    let f = weight(i) * m[i * n + p];
-                    if f != 0.0 {
-                        row.iter_mut().zip(&m[i * n..][..n]).for_each(|(g, &v)| *g += f * v);
-                    }
-                }
-            });
+            product((m, n, n, true), (&weighted, n, false), &mut g);
             g
         };
         let (p, q) = (gram(&r), gram(&b));
@@ -321,20 +321,10 @@ impl Basis {
         let f: Vec<f64> = (0..n * r_count)
             .map(|k| e[(k / r_count) * n + seen[k % r_count]] / sigma[seen[k % r_count]].sqrt())
             .collect();
-        let pf: Vec<f64> = (0..n * r_count)
-            .into_par_iter()
-            .map(|k| {
-                let (i, c) = (k / r_count, k % r_count);
-                (0..n).map(|j| p[i * n + j] * f[j * r_count + c]).sum()
-            })
-            .collect();
-        let mut c: Vec<f64> = (0..r_count * r_count)
-            .into_par_iter()
-            .map(|k| {
-                let (a, b) = (k / r_count, k % r_count);
-                (0..n).map(|i| f[i * r_count + a] * pf[i * r_count + b]).sum()
-            })
-            .collect();
+        let mut pf = vec![0.0; n * r_count];
+        product((&p, n, n, false), (&f, r_count, false), &mut pf);
+        let mut c = vec![0.0; r_count * r_count];
+        product((&f, r_count, n, true), (&pf, r_count, false), &mut c);
         drop(p);
         for i in 0..r_count {
             for j in 0..i {
@@ -344,10 +334,12 @@ impl Basis {
             }
         }
         let (_, y) = symmetric_eigen(c, r_count)?;
+        let mut fy = vec![0.0; n * r_count];
+        product((&f, n, r_count, false), (&y, r_count, false), &mut fy);
         let mut u = vec![0.0; n * n];
         u.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
-            for k in 0..r_count {
-                row[k] = (0..r_count).map(|c| f[i * r_count + c] * y[c * r_count + k]).sum::<f64>() / root[i];
+            for (k, v) in row[..r_count].iter_mut().enumerate() {
+                *v = fy[i * r_count + k] / root[i];
             }
             for (k, &j) in unseen.iter().enumerate() {
                 row[r_count + k] = e[i * n + j] / root[i];
@@ -355,22 +347,16 @@ impl Basis {
         });
         let norm2: Vec<f64> = (0..n).map(|k| (0..n).map(|i| u[i * n + k] * u[i * n + k]).sum()).collect();
         // |M u_k|²_W for M = R and B, column k of M U; 0 for the unseen.
-        let response = |m: &[f64]| -> Vec<f64> {
-            (0..n)
-                .into_par_iter()
-                .map(|k| {
-                    if k >= r_count {
-                        return 0.0;
-                    }
-                    (0..n)
-                        .map(|i| {
-                            let v: f64 = (0..n).map(|j| m[i * n + j] * u[j * n + k]).sum();
-                            weight(i) * v * v
-                        })
-                        .sum()
-                })
-                .collect()
-        };
+        let response =
+            |m: &[f64]| -> Vec<f64> {
+                let mut mu = vec![0.0; n * n];
+                product((m, n, n, false), (&u, n, false), &mut mu);
+                (0..n)
+                    .map(|k| {
+                        if k >= r_count { 0.0 } else { (0..n).map(|i| weight(i) * mu[i * n + k] * mu[i * n + k]).sum() }
+                    })
+                    .collect()
+            };
         let (ramp, boxed) = (response(&r), response(&b));
         let axis_null: Vec<bool> = (0..n).map(|k| k >= r_count).collect();
         u.iter().all(|v| v.is_finite()).then_some(Basis { u, ramp, boxed, norm2, axis_null })
@@ -417,35 +403,42 @@ fn gauss(a: &mut [f64], b: &mut [f64], n: usize) -> Option<Vec<f64>> {
 
 /// out = m · U (`transposed`: m · Uᵀ), m of rows of `w`, U w × w.
 fn multiply_right(m: &[f64], w: usize, u: &[f64], transposed: bool, out: &mut [f64]) {
-    out.par_chunks_mut(w).zip(m.par_chunks(w)).for_each(|(o, row)| {
-        o.fill(0.0);
-        if transposed {
-            // o[x] = Σ_k row[k] U[x][k].
-            for (x, o) in o.iter_mut().enumerate() {
-                *o = row.iter().zip(&u[x * w..][..w]).map(|(a, b)| a * b).sum();
-            }
-        } else {
-            // o[k] = Σ_x row[x] U[x][k].
-            for (x, &v) in row.iter().enumerate() {
-                if v != 0.0 {
-                    o.iter_mut().zip(&u[x * w..][..w]).for_each(|(o, &b)| *o += v * b);
-                }
-            }
-        }
-    });
+    product((m, m.len() / w, w, false), (u, w, transposed), out);
 }
 
 /// out = V · m (`transposed`: Vᵀ · m), V h × h, m of h rows of `w`.
 fn multiply_left(v: &[f64], h: usize, transposed: bool, m: &[f64], w: usize, out: &mut [f64]) {
-    out.par_chunks_mut(w).enumerate().for_each(|(l, o)| {
-        o.fill(0.0);
-        for y in 0..h {
-            // (Vᵀ m)[l] = Σ_y V[y][l] m[y]; (V m)[l] = Σ_y V[l][y] m[y].
-            let f = if transposed { v[y * h + l] } else { v[l * h + y] };
-            if f != 0.0 {
-                o.iter_mut().zip(&m[y * w..][..w]).for_each(|(o, &b)| *o += f * b);
-            }
+    product((v, h, h, transposed), (m, w, false), out);
+}
+
+/// out = A B, A of `rows` × `inner` and B of `inner` × `columns`, each
+/// row-major or (its flag) given as its transpose; bands of out's rows in
+/// parallel, each one matrixmultiply's blocked product (through ndarray:
+/// the crate forbids unsafe code).
+fn product(
+    (a, rows, inner, a_transposed): (&[f64], usize, usize, bool),
+    (b, columns, b_transposed): (&[f64], usize, bool),
+    out: &mut [f64],
+) {
+    use ndarray::{ArrayView2, ArrayViewMut2, Axis, Slice, linalg::general_mat_mul};
+    fn view(m: &[f64], r: usize, c: usize, transposed: bool) -> ArrayView2<'_, f64> {
+        let m = &m[..r * c];
+        if transposed {
+            ArrayView2::from_shape((c, r), m).expect("a matrix of its size").reversed_axes()
+        } else {
+            ArrayView2::from_shape((r, c), m).expect("a matrix of its size")
         }
+    }
+    let (a, b) = (view(a, rows, inner, a_transposed), view(b, inner, columns, b_transposed));
+    if rows == 0 || columns == 0 {
+        return;
+    }
+    let band = rows.div_ceil(4 * crate::par::current_num_threads()).max(16);
+    out[..rows * columns].par_chunks_mut(band * columns).enumerate().for_each(|(i, chunk)| {
+        let first = i * band;
+        let count = chunk.len() / columns;
+        let mut c = ArrayViewMut2::from_shape((count, columns), chunk).expect("a band of its size");
+        general_mat_mul(1.0, &a.slice_axis(Axis(0), Slice::from(first..first + count)), &b, 0.0, &mut c);
     });
 }
 
