@@ -455,7 +455,10 @@ fn transpose(m: &[f64], n: usize) -> Vec<f64> {
 /// The eigenvalues and eigenvectors (row-major: Y[i][k] = component i of
 /// vector k) of the symmetric `a`: Householder's reduction to tridiagonal
 /// form and the implicit QL method (`tred2` and `tql2` of EISPACK, as in
-/// JAMA). `None` if QL does not converge (a matrix not finite).
+/// JAMA). `None` if QL does not converge (a matrix not finite). The loops
+/// keep EISPACK's indices, line for line, so the port can be read against
+/// it.
+#[allow(clippy::needless_range_loop)]
 fn symmetric_eigen(a: Vec<f64>, n: usize) -> Option<(Vec<f64>, Vec<f64>)> {
     // Column-major work matrix: v[j * n + i] = V[i][j].
     let mut v = transpose(&a, n);
@@ -619,7 +622,9 @@ fn symmetric_eigen(a: Vec<f64>, n: usize) -> Option<(Vec<f64>, Vec<f64>)> {
                 p = -s * s2 * c3 * el1 * e[l] / dl1;
                 e[l] = s * p;
                 d[l] = c * p;
-                if !(e[l].abs() > eps * tst1) {
+                // Converged, or not a number (then QL stops, and the
+                // eigenvalues' finiteness check below refuses them).
+                if e[l].abs() <= eps * tst1 || e[l].is_nan() {
                     break;
                 }
             }
