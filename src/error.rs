@@ -25,6 +25,14 @@ pub enum Error {
         /// Row of the texel.
         y: usize,
     },
+    /// A component of a normal map's normal is NaN or infinite; (x, y) is
+    /// the first such texel in row order.
+    NonFiniteNormal {
+        /// Column of the texel.
+        x: usize,
+        /// Row of the texel.
+        y: usize,
+    },
     /// The bytes are not a readable image: unknown format, corrupt or
     /// truncated data, zero size.
     Decode(String),
@@ -61,6 +69,9 @@ impl fmt::Display for Error {
             }
             Error::NonFiniteHeight { x, y } => {
                 write!(f, "height at texel (x {x}, y {y}) is NaN or infinite")
+            }
+            Error::NonFiniteNormal { x, y } => {
+                write!(f, "normal at texel (x {x}, y {y}) has a NaN or infinite component")
             }
             Error::Decode(m) => write!(f, "cannot decode: {m}"),
             Error::Unsupported(m) => write!(f, "unsupported: {m}"),

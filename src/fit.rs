@@ -169,8 +169,12 @@ pub fn normals<H: Sample>(heights: &[H], width: usize, height: usize, opts: &Opt
     Ok(out)
 }
 
-/// `width * height`, refusing zero sizes and overflow.
-pub(crate) fn checked_len(width: usize, height: usize) -> Result<usize> {
+/// `width * height`, refusing zero sizes and overflow: the rule every fit
+/// and check holds an image to (a caller planning work on an image it
+/// does not hold yet, such as `normalfit.dask`, asks it first).
+///
+/// Errors: [`Error::InvalidOption`] naming the size.
+pub fn checked_len(width: usize, height: usize) -> Result<usize> {
     if width == 0 || height == 0 {
         return Err(Error::InvalidOption(format!("image is {width}×{height}: both sides must be at least 1")));
     }

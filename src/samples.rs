@@ -24,7 +24,11 @@ pub trait Sample: Copy + Send + Sync + 'static {
     /// The stored value, exactly.
     fn to_f64(self) -> f64;
 
-    /// Whether the value is a number (integers always are).
+    /// Whether the value is a height the contract holds: a number
+    /// (integers always are) within `f32`'s range. The contract's heights
+    /// are `f32`; a double beyond that range is infinite there, as
+    /// [`Raster::heights`](crate::io::Raster::heights) rounds it, and in
+    /// the fit its squares overflow even `f64`'s sums.
     fn is_finite(self) -> bool;
 }
 
@@ -55,7 +59,7 @@ macro_rules! sample {
 sample!(u8, integer);
 sample!(u16, integer);
 sample!(f32, float);
-sample!(f64, float);
+sample!(f64, 1.0, |v: f64| (v as f32).is_finite());
 
 /// One channel's samples, row-major, in the type they were stored in.
 ///

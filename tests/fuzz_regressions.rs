@@ -2,6 +2,8 @@
 //! asserting the clean result. The files in `tests/data/fuzz/` are the
 //! minimised cases (`cargo fuzz tmin`), as the fuzzers wrote them.
 
+mod corpus;
+
 use normalfit::io::{Raster, ReadOptions, decode};
 use normalfit::normal_map::KindChoice;
 use normalfit::pipeline::PngRows;
@@ -216,6 +218,32 @@ fn tiling_check_of_heights_holding_nan_is_refused() {
     assert!(check(&[&v], 8, 8, &TilingOptions::new().with_kind(KindChoice::Height)).is_err());
 }
 
+/// `python_entry`: `tiling::check` of a normal map (3 planes, the kind
+/// asked for) holding NaN counted its non-finite components as 0 and
+/// called it seamless (`python-entry-tiling-normal-nonfinite.bin` is the
+/// case). A normal with a NaN or infinite component is no normal: the
+/// check now refuses it naming the texel, as it refuses such heights; with
+/// the kind left to detection, the same texel is refused.
+#[test]
+fn tiling_check_of_a_normal_map_holding_nan_is_refused() {
+    let (w, h) = (8, 8);
+    let mut planes: Vec<Vec<f32>> = vec![vec![0.5; w * h], vec![0.5; w * h], vec![1.0; w * h]];
+    planes[1][2 * w + 5] = f32::NAN;
+    planes[2][3 * w + 1] = f32::INFINITY;
+    let refs: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
+    for kind in [KindChoice::Normal, KindChoice::Auto] {
+        match check(&refs, w, h, &TilingOptions::new().with_kind(kind)) {
+            Err(e @ Error::NonFiniteNormal { x: 5, y: 2 }) => {
+                assert_eq!(e.to_string(), "normal at texel (x 5, y 2) has a NaN or infinite component");
+            }
+            // Detection judges the NaN texel's length too: the kind it
+            // settles on names the error, the texel is the same.
+            Err(Error::NonFiniteHeight { x: 5, y: 2 }) if kind == KindChoice::Auto => {}
+            other => panic!("{kind:?}: expected the texel refused, got {other:?}"),
+        }
+    }
+}
+
 /// `raw_sizes`: a RAW size whose bytes overflow u64 (here
 /// 18446744073709551614 × 1 at 16 bits) was refused with the saturated
 /// 18446744073709551615 as the bytes it "takes" (issue 32); now "2^64 bytes
@@ -227,4 +255,116 @@ fn a_raw_size_past_u64_bytes_says_so() {
     let e = decode(&bytes, &ReadOptions::default().with_max_texels(u64::MAX).with_raw(raw)).unwrap_err();
     let m = e.to_string();
     assert!(m.contains("2^64 bytes or more at 16 bits") && !m.contains(&u64::MAX.to_string()), "{m}");
+}
+
+/// `inverse`: a 5 × 24 map of 16-bit normals, patch 9 (wider than the
+/// map), clamp in x and wrap in y, orthogonal fit, DirectX, inverted,
+/// scale −3 (`tests/data/fuzz/inverse-timeout-5x24-patch9-clamp-wrap.bin`,
+/// read as the target reads it: the last six bytes pick the options,
+/// 2-byte texels the normals) ran past libFuzzer's 10 s: the conjugate
+/// gradients of clamp with N ≥ 5 took up to 2000 iterations per solve, and
+/// the orthogonal fit up to 100 solves, each pass O(N) a texel (issue 32,
+/// point 4). Clamp's axes now take the exact solve in dense bases (a
+/// solve is a few products a texel whatever N): the orthogonal fit's fixed
+/// point and Gauss–Newton need few solves, and it returns in milliseconds
+/// (timed as a benchmark by bench/height_n.sh, not here), with finite
+/// heights.
+#[test]
+fn inverse_of_a_wide_clamped_patch_takes_few_solves() {
+    use normalfit::height::{ConventionChoice, HeightOptions, heights_of_rows};
+    use normalfit::normal_map::Storage;
+    let data = case("inverse-timeout-5x24-patch9-clamp-wrap.bin");
+    // The target's choices, in its order, from the last six bytes.
+    let mut tail = [0u8; 8];
+    tail[..6].copy_from_slice(&data[data.len() - 6..]);
+    let mut pick = u64::from_le_bytes(tail);
+    let mut index = |n: u64| {
+        let v = pick % n;
+        pick /= n;
+        v as usize
+    };
+    let (kind, w) = (index(4), 1 + index(24));
+    let (model, convention, step) = (index(3), index(3), index(4));
+    let (patch, bx, by, fit, green, invert, gain) =
+        (index(3), index(3), index(3), index(2), index(2), index(2), index(6));
+    assert_eq!((kind, w, model, convention, step), (3, 5, 0, 1, 0), "16-bit texels, exact model, DirectX");
+    assert_eq!((patch, bx, by, fit, green, invert, gain), (2, 1, 0, 0, 0, 1, 2), "N 9, clamp × wrap, orthogonal");
+    let h = data.len() / (3 * 2) / w;
+    assert_eq!(h, 24);
+    let fit = Options::new()
+        .with_patch(9)
+        .with_borders(Borders { x: Border::Clamp, y: Border::Wrap })
+        .with_fit(normalfit::Fit::Orthogonal)
+        .with_invert(true)
+        .with_strength(normalfit::Strength::Scale(-3.0));
+    let stored = Storage::Int { bits: 16 };
+    let opts = HeightOptions::from_fit(&fit).with_convention(ConventionChoice::DirectX).with_step(stored.step());
+    let row = |y: usize, out: &mut [[f64; 3]]| {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = [0, 1, 2].map(|c| {
+                let k = 2 * (3 * (y * w + x) + c);
+                stored.normal(u16::from_le_bytes([data[k], data[k + 1]]))
+            });
+        }
+    };
+    let found = heights_of_rows(&row, w, h, &opts).expect("heights");
+    assert!(found.values.iter().all(|v| v.is_finite()));
+    assert_eq!(found.values.len(), w * h);
+    println!("{} solves", found.report.iterations);
+    // 126 solves (the fixed point's and Gauss–Newton's), 0.07 s in a release build.
+    assert!(found.report.iterations < 200, "{} solves", found.report.iterations);
+}
+
+/// `geotiff_tags`: a 710-byte TIFF whose header describes 6 × 16389
+/// texels of 17231 32-bit bands, uncompressed in one strip of 120 bytes,
+/// had its 6.8 GB of samples allocated and zeroed before `tiff` found the
+/// strip short (libFuzzer's out-of-memory). The stored strips now bound
+/// what a header may describe, by each compression's largest ratio, before
+/// anything is allocated.
+#[cfg(feature = "tiff")]
+#[test]
+fn a_tiff_header_describing_more_than_its_strips_hold_is_refused_before_allocating() {
+    for band in [None, Some(2)] {
+        let read = read().with_nodata_tag(true);
+        let read = if let Some(b) = band { read.with_band(b) } else { read };
+        match decode(&case("geotiff-tags-17231-bands-in-120-bytes.tif"), &read) {
+            Err(Error::Decode(m)) => {
+                assert!(m.contains("strips or tiles of 120 bytes in all cannot hold the 6777572616 bytes"), "{m}")
+            }
+            other => panic!("expected a decode error, got {:?}", other.map(|r| (r.width, r.height))),
+        }
+    }
+}
+
+/// `decode_fit`: a 6 × 5 float64 TIFF (deflated, with a checksum only
+/// fuzz builds skip, so it is rebuilt here uncompressed with the same
+/// kinds of values) of heights from 16 to 33318 and of ±1e300 and
+/// −3.9e80. Finite as doubles, they passed the fit's check, and their
+/// squares overflowed its sums: the normal at texel 0 was (−0, −0, NaN),
+/// with Ok. A height beyond `f32`'s range is now refused as infinite, as
+/// `Raster::heights` rounds it, naming the first in row order.
+#[cfg(feature = "tiff")]
+#[test]
+fn f64_heights_beyond_f32_range_are_refused_as_infinite() {
+    let v: Vec<f64> = vec![
+        25.0, 29.2, 33.3, 37.5, 41.7, 45.8, 16.4, 20.5, 24.7, 28.9, 0.0, -3.9e80, 0.0, 0.0, -1e300, -1e300, 1e300,
+        -1e300, 1e300, 0.0, 388.3, -1e300, 1e300, -1e300, 1e300, 33318.7, 1260.5, 45.7, 0.0, -1e300,
+    ];
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let tiff = corpus::tiff_gray_tagged(6, 5, 64, 3, &bytes, &[]);
+    let opts = Options::new();
+    match decode_fit(&tiff, &opts) {
+        Err(Error::NonFiniteHeight { x: 5, y: 1 }) => {}
+        other => panic!("expected texel (5, 1) refused, got {other:?}"),
+    }
+    // The fit holds samples from any source to the same rule. The bound is
+    // f32's: its largest value fits, a double past it does not.
+    let mut n = vec![[0.0f32; 3]; 9];
+    let edge = normalfit::Samples::F64(vec![f64::from(f32::MAX), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    assert!(FitRequest::new(&opts).normals_into(&edge, 3, 3, &mut n).is_ok());
+    let past = normalfit::Samples::F64(vec![f64::from(f32::MAX) * 1.000_001, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    assert!(matches!(
+        FitRequest::new(&opts).normals_into(&past, 3, 3, &mut n),
+        Err(Error::NonFiniteHeight { x: 0, y: 0 })
+    ));
 }

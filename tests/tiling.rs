@@ -141,7 +141,7 @@ fn tiny_axes_have_defined_answers() {
 }
 
 #[test]
-fn non_finite_heights_are_refused_and_normal_maps_give_finite_scores() {
+fn non_finite_heights_and_normals_are_refused() {
     let mut v = tiling_support::periodic_noise(32, 32, 2, 2, 3);
     v[41] = f32::NAN;
     v[42] = f32::INFINITY;
@@ -157,8 +157,13 @@ fn non_finite_heights_are_refused_and_normal_maps_give_finite_scores() {
     }
     let e = check(&[&clean, &v], 32, 32, &TilingOptions::default());
     assert!(e.is_ok(), "a second plane is alpha, not judged: {e:?}");
-    // A normal map's components: non-finite ones count as 0.
+    // A normal map's components: a normal with a non-finite one is no
+    // normal, refused naming the texel (the fuzzers' python_entry case).
     let planes = [v.as_slice(), clean.as_slice(), clean.as_slice()];
+    let e = check(&planes, 32, 32, &TilingOptions::default().with_kind(KindChoice::Normal)).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteNormal { x: 9, y: 1 }), "{e}");
+    // Finite everywhere, the same map scores finite.
+    let planes = [clean.as_slice(), clean.as_slice(), clean.as_slice()];
     let r = check(&planes, 32, 32, &TilingOptions::default().with_kind(KindChoice::Normal)).unwrap();
     assert!(r.x.score.is_finite() && r.y.score.is_finite());
 }
@@ -686,4 +691,46 @@ fn edge_rows_mixed_with_whole_rows_or_too_many_are_refused() {
     let seams = HeightSeams::new(300, 900).unwrap();
     assert_eq!(seams.edge_columns(), [0..300, 300..300]);
     assert_eq!(seams.edge_rows(), [0..0, 0..0]);
+}
+
+/// `HeightSeams::refusing_non_finite` (Python's `normalfit.dask.check_tiling`)
+/// refuses a NaN or infinite height among the lines the check reads,
+/// naming its texel in the image, whichever way the lines come; heights it
+/// does not read are not judged, and without it they count as 0.
+#[test]
+fn streamed_check_refusing_non_finite_names_the_texel_it_reads() {
+    let (w, h) = (600, 600);
+    let clean = tiling_support::periodic_noise(w, h, 2, 2, 5);
+    let with = |holes: &[(usize, usize)]| {
+        let mut v = clean.clone();
+        holes.iter().for_each(|&(x, y)| v[y * w + x] = f32::NAN);
+        v
+    };
+    let refusing = || HeightSeams::new(w, h).unwrap().refusing_non_finite();
+    // Whole rows: the first in row order.
+    let v = with(&[(300, 300), (590, 10)]);
+    let e = refusing().push_heights(&v).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteHeight { x: 590, y: 10 }), "{e}");
+    // Edge columns, then edge rows: each names the image's texel.
+    let feed = |v: &[f32]| -> normalfit::Result<()> {
+        let mut seams = refusing();
+        let cols = seams.edge_columns();
+        let strip: Vec<f32> =
+            v.chunks_exact(w).flat_map(|row| cols.iter().flat_map(|c| row[c.clone()].to_vec())).collect();
+        seams.push_edge_columns(&strip)?;
+        for r in seams.edge_rows() {
+            seams.push_edge_rows(&v[r.start * w..r.end * w])?;
+        }
+        seams.finish(&TilingOptions::new()).map(|_| ())
+    };
+    let e = feed(&with(&[(590, 10)])).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteHeight { x: 590, y: 10 }), "{e}");
+    let e = feed(&with(&[(300, 595)])).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteHeight { x: 300, y: 595 }), "{e}");
+    // A height the check does not read is not judged.
+    assert!(feed(&with(&[(300, 300)])).is_ok());
+    // Without the refusal, non-finite heights count as 0.
+    let mut seams = HeightSeams::new(w, h).unwrap();
+    seams.push_heights(&with(&[(590, 10)])).unwrap();
+    assert!(seams.finish(&TilingOptions::new()).is_ok());
 }

@@ -25,9 +25,9 @@ fuzz_target!(|data: &[u8]| {
     let planes: Vec<&[f32]> = planes.iter().map(Vec::as_slice).collect();
     match check(&planes, w, h, &opts) {
         Ok(report) => assert_report(&report, &opts),
-        // A height map holding a NaN or infinite height is refused, as
-        // `normalfit tiling` refuses it; never a normal map.
-        Err(normalfit::Error::NonFiniteHeight { .. }) => {
+        // A map holding a NaN or infinite sample is refused, as
+        // `normalfit tiling` refuses it, and only such a map.
+        Err(normalfit::Error::NonFiniteHeight { .. } | normalfit::Error::NonFiniteNormal { .. }) => {
             assert!(planes.iter().any(|p| p.iter().any(|v| !v.is_finite())));
         }
         Err(e) => panic!("{e}"),

@@ -533,16 +533,18 @@ fn window_normals<'py>(
 
 /// What `normalfit.dask.normals` asks before it makes a graph: the
 /// options of `window_normals` checked as a window's fit checks them,
-/// without fitting (the heights' dtype, every option, the output dtype,
+/// without fitting (the image's `(width, height)`, refused without
+/// texels as the whole-array fit refuses it, the heights' dtype, every option, the output dtype,
 /// `threads`, border `auto`'s refusal), and the library's halo plan for
 /// them (`fit::HaloPlan`): the radius r a chunk's halo reaches, and
 /// whether along x and along y a chunk at the image's edge holds a halo
 /// beyond it (wrap: Dask's `periodic` boundary; clamp and mirror hold none).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads))]
+#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads))]
 fn window_plan(
     py: Python<'_>,
+    image: (usize, usize),
     heights_dtype: &Bound<'_, PyAny>,
     patch: &Bound<'_, PyAny>,
     fit: &str,
@@ -554,6 +556,7 @@ fn window_plan(
     dtype: &Bound<'_, PyAny>,
     threads: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<(usize, (bool, bool))> {
+    normalfit::fit::checked_len(image.0, image.1).map_err(to_py_err)?;
     sample_kind_of(&PyArrayDescr::new(py, heights_dtype)?, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     output_kind(py, dtype)?;
@@ -827,9 +830,13 @@ fn range_pair([a, b]: [std::ops::Range<usize>; 2]) -> RangePair {
 
 #[pymethods]
 impl PyHeightSeams {
+    /// `refuse_non_finite`: a NaN or infinite height among the lines read
+    /// raises ValueError naming its texel (else it counts as 0).
     #[new]
-    fn new(width: usize, height: usize) -> PyResult<Self> {
+    #[pyo3(signature = (width, height, refuse_non_finite = false))]
+    fn new(width: usize, height: usize, refuse_non_finite: bool) -> PyResult<Self> {
         let seams = tiling::HeightSeams::new(width, height).map_err(to_py_err)?;
+        let seams = if refuse_non_finite { seams.refusing_non_finite() } else { seams };
         Ok(PyHeightSeams { seams: Mutex::new(Some(seams)), width, height })
     }
 

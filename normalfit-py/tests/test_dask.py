@@ -131,6 +131,38 @@ def test_options_are_checked_when_the_graph_is_made() -> None:
         nd.normals(da.zeros((8, 8), chunks=4, dtype=np.int16))
     with pytest.raises(TypeError, match="2-D"):
         nd.normals(da.zeros((8, 8, 3), chunks=4, dtype=np.float32))
+    # An array without texels is refused when the graph is made, with the
+    # whole-array fit's words (issue 32: it made a graph of nothing).
+    for shape in [(0, 5), (5, 0), (0, 0)]:
+        message = f"invalid option: image is {shape[1]}×{shape[0]}: both sides must be at least 1"
+        with pytest.raises(ValueError, match=f"^{message}$"):
+            normalfit.normals(np.zeros(shape, np.float32))
+        with pytest.raises(ValueError, match=f"^{message}$"):
+            nd.normals(da.zeros(shape, chunks=4, dtype=np.float32))
+        with pytest.raises(ValueError, match=f"^{message}$"):
+            nd.check_tiling(da.zeros(shape, chunks=4, dtype=np.float32))
+
+
+@pytest.mark.parametrize(("hole", "chunks"), [((590, 10), (128, 200)), ((300, 595), (600, 600)), ((7, 5), (4, 4))])
+def test_check_tiling_refuses_non_finite_heights_it_reads(hole: tuple[int, int], chunks: tuple[int, int]) -> None:
+    """As normalfit.check_tiling of the whole array: a NaN or infinite
+    height among the lines read raises ValueError naming its texel (they
+    were scored as 0, issue 32); one the check does not read is not
+    judged."""
+    size = 600 if hole[0] > 100 else 12
+    whole = np.random.default_rng(3).random((size, size), dtype=np.float32)
+    for bad in (np.nan, np.inf):
+        holed = whole.copy()
+        holed[hole[1], hole[0]] = bad
+        message = rf"^height at texel \(x {hole[0]}, y {hole[1]}\) is NaN or infinite$"
+        with pytest.raises(ValueError, match=message):
+            normalfit.check_tiling(holed)
+        with pytest.raises(ValueError, match=message):
+            nd.check_tiling(da.from_array(holed, chunks=chunks))
+    if size == 600:
+        unread = whole.copy()
+        unread[300, 300] = np.nan
+        nd.check_tiling(da.from_array(unread, chunks=chunks))
 
 
 @pytest.mark.parametrize("seamless", [True, False])

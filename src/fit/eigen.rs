@@ -46,7 +46,7 @@ pub(super) fn unequal_normal(orthogonal: bool, a: f64, rho: f64, cx: f64, cy: f6
 /// The smallest eigenvalue λ of the scatter matrix M = [[a1, 0, b1],
 /// [0, a2, b2], [b1, b2, c]] (a1, a2 > 0, M positive semi-definite), and
 /// an eigenvector of it (not normalised) with a non-negative z (with z = 0
-/// up to rounding: a non-negative y, then x).
+/// up to rounding: z = 0, a non-negative y, then x).
 ///
 /// λ is the smallest root of p(λ) = det(M − λI) =
 /// (a1 − λ)(a2 − λ)(c − λ) − b1²(a2 − λ) − b2²(a1 − λ). Left of that root
@@ -99,17 +99,42 @@ pub(super) const NEWTON_STEPS: usize = 200;
 ///
 /// Newton's steps then rise from λ₀ to λ, one or two instead of four to
 /// six from the first bound alone.
+#[inline(always)]
+pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
+    eigen_start_on(Diagonal::new(a1, a2), b1, b2, c)
+}
+
+/// What [`eigen_start`] computes from a1 and a2 alone: the same for every
+/// patch of a row of unequal spacing, whose loop forms it once (a
+/// division a texel less) by the same operations, so with the same bits.
+#[derive(Clone, Copy)]
+pub(super) struct Diagonal {
+    a1: f64,
+    a2: f64,
+    /// min(a1, a2), a1 + a2 and 1 / (a1·a2).
+    m: f64,
+    sum: f64,
+    inv: f64,
+}
+
+impl Diagonal {
+    #[inline(always)]
+    pub(super) fn new(a1: f64, a2: f64) -> Diagonal {
+        Diagonal { a1, a2, m: a1.min(a2), sum: a1 + a2, inv: 1.0 / (a1 * a2) }
+    }
+}
+
+/// [`eigen_start`] with its diagonal's constants formed.
 // The conditions negated rather than flipped: a NaN takes the first bound.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
-    let m = a1.min(a2);
+pub(super) fn eigen_start_on(Diagonal { a1, a2, m, sum, inv }: Diagonal, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
     let tilt2 = b1 * b1 + b2 * b2;
     let d = 0.5 * (m - c);
     let largest = 0.5 * (m + c) + (d * d + tilt2).sqrt();
     let bound = ((m * c - tilt2) / largest).max(0.0);
-    let trace = a1 + a2 + c;
-    let inv = 1.0 / (a1 * a2);
+    // a1 + a2 + c, as it reads: (a1 + a2) + c.
+    let trace = sum + c;
     let (g1, g2) = (b1 * a2 * inv, b2 * a1 * inv);
     let r = (c - b1 * g1 - b2 * g2) / (1.0 + g1 * g1 + g2 * g2);
     let (p1, p2, p3) = (a1 - r, a2 - r, c - r);
@@ -168,12 +193,14 @@ pub(super) fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3
     }
     // n_z ≥ 0; a vertical plane (n_z = 0 up to rounding, 1e-12 of the
     // vector: a cliff whose heights spread more than the narrower axis's
-    // texels) takes n_y ≥ 0, then n_x ≥ 0.
+    // texels) takes n_y ≥ 0, then n_x ≥ 0, and n_z = 0: its rounding, of
+    // either sign, would turn the normal below the horizon.
     let tiny = 1e-12 * best[0].abs().max(best[1].abs()).max(best[2].abs());
     let [x, y, z] = best;
     let (z_counts, y_counts) = (z.abs() > tiny, y.abs() > tiny);
     let flip = (z_counts & (z < 0.0)) | (!z_counts & ((y_counts & (y < 0.0)) | (!y_counts & (x < 0.0))));
-    best.map(|c| select(flip, -c, c))
+    let [x, y, z] = best.map(|c| select(flip, -c, c));
+    [x, y, select(z_counts, z, 0.0)]
 }
 
 /// `if take { a } else { b }`, both already computed, chosen by masks:
@@ -183,4 +210,42 @@ pub(super) fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3
 pub(super) fn select(take: bool, a: f64, b: f64) -> f64 {
     let mask = u64::from(take).wrapping_neg();
     f64::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::smallest_eigen;
+
+    /// Cliffs: 3 × 3 patches of heights 0 on the left and H on the right
+    /// (H up to 1e20), tilted along the cliff, whose plane of least squares
+    /// is vertical up to rounding. Their normals lie on the horizon, never
+    /// below it: rounding of either sign in z is 0 (a python_entry fuzz case
+    /// gave (7.8e-19, 1, −3.0e-17)).
+    #[test]
+    fn a_vertical_plane_faces_no_lower_than_the_horizon() {
+        let mut vertical = 0;
+        for e in 0..=200 {
+            let cliff = 10f64.powf(f64::from(e) / 10.0);
+            for tilt in [-7.0, -1.0, -0.3, 0.0, 0.3, 1.0, 7.0] {
+                for edge in [0, 1] {
+                    let (mut cx, mut cy, mut s, mut ss) = (0.0, 0.0, 0.0, 0.0);
+                    for v in -1..=1 {
+                        for u in -1..=1 {
+                            let z = if u >= edge { cliff } else { 0.0 } + tilt * f64::from(v);
+                            cx += f64::from(u) * z;
+                            cy += f64::from(v) * z;
+                            s += z;
+                            ss += z * z;
+                        }
+                    }
+                    let czz = ss - s * s / 9.0;
+                    let (_, n) = smallest_eigen(6.0, 6.0, cx, cy, czz);
+                    let len = n.iter().map(|c| c * c).sum::<f64>().sqrt();
+                    assert!(n[2] >= 0.0, "H {cliff:e}, tilt {tilt}, edge {edge}: normal {n:?} faces down");
+                    vertical += usize::from(n[2].abs() <= 1e-12 * len);
+                }
+            }
+        }
+        assert!(vertical > 0, "no case was vertical up to rounding");
+    }
 }

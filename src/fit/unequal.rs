@@ -21,7 +21,7 @@
 //! conversion (`perf`, 4096², N = 3), which ran at a third of the square
 //! grid's speed.
 
-use super::eigen::{eigen_start, eigenvector, is_flat, select};
+use super::eigen::{Diagonal, eigen_start_on, eigenvector, is_flat, select};
 use super::masked::{NewtonWork, newton};
 use super::{FromNormal, Plan, WindowSums, store_normals};
 
@@ -52,6 +52,15 @@ pub(super) struct RowSpacing {
     pub gain: f64,
     pub rho: f64,
     pub orthogonal: bool,
+}
+
+impl RowSpacing {
+    /// The matrix's diagonal a1 = A and a2 = ρ²A, the same for the whole
+    /// row: the loops take them as numbers, not planes.
+    #[inline(always)]
+    fn diagonal(self, plan: &Plan) -> (f64, f64) {
+        (plan.a, self.rho * self.rho * plan.a)
+    }
 }
 
 impl UnequalRow {
@@ -95,11 +104,12 @@ impl UnequalRow {
         let UnequalRow { a1, a2, b1, b2, czz, flat, lambda, scale, stepping, work } = self;
         let (a1, a2, b1, b2, czz) = (&mut a1[..w], &mut a2[..w], &mut b1[..w], &mut b2[..w], &mut czz[..w]);
         let (flat, lambda, scale, stepping) = (&mut flat[..w], &mut lambda[..w], &mut scale[..w], &mut stepping[..w]);
-        a1.fill(plan.a);
-        a2.fill(row.rho * row.rho * plan.a);
+        let (a, rho_a) = row.diagonal(plan);
+        a1.fill(a);
+        a2.fill(rho_a);
         let sums = Sums::of(plan, v, row, w);
         matrices(sums, b1, b2, czz, flat);
-        start(a1, a2, b1, b2, czz, flat, lambda, scale, stepping);
+        start(Diagonal::new(a, rho_a), b1, b2, czz, flat, lambda, scale, stepping);
         newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work);
     }
 }
@@ -169,8 +179,9 @@ impl<T: FromNormal> pulp::WithSimd for Normals<'_, T> {
         let [nx, ny, nz] = normal.each_mut().map(|plane| &mut plane[..w]);
         if row.orthogonal {
             fit.smallest_eigenvalues(plan, v, row, w);
-            let UnequalRow { a1, a2, b1, b2, czz, flat, lambda, .. } = &*fit;
-            orthogonal_normals(&a1[..w], &a2[..w], &b1[..w], &b2[..w], &czz[..w], &lambda[..w], &flat[..w], nx, ny, nz);
+            let UnequalRow { b1, b2, czz, flat, lambda, .. } = &*fit;
+            let diagonal = row.diagonal(plan);
+            orthogonal_normals(diagonal, &b1[..w], &b2[..w], &czz[..w], &lambda[..w], &flat[..w], nx, ny, nz);
         } else {
             vertical_normals(Sums::of(plan, v, row, w), nx, ny, nz);
         }
@@ -238,12 +249,12 @@ fn matrices(sums: Sums<'_>, b1: &mut [f64], b2: &mut [f64], czz: &mut [f64], fla
     }
 }
 
-/// Newton's start for every patch; a flat patch does not step.
+/// Newton's start for every patch of the row, whose diagonal is
+/// `diagonal`; a flat patch does not step.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn start(
-    a1: &[f64],
-    a2: &[f64],
+    diagonal: Diagonal,
     b1: &[f64],
     b2: &[f64],
     czz: &[f64],
@@ -253,22 +264,22 @@ fn start(
     stepping: &mut [bool],
 ) {
     let w = flat.len();
-    let (a1, a2, b1, b2, czz) = (&a1[..w], &a2[..w], &b1[..w], &b2[..w], &czz[..w]);
+    let (b1, b2, czz) = (&b1[..w], &b2[..w], &czz[..w]);
     let (lambda, scale, stepping) = (&mut lambda[..w], &mut scale[..w], &mut stepping[..w]);
     for x in 0..w {
         let settled;
-        (lambda[x], scale[x], settled) = eigen_start(a1[x], a2[x], b1[x], b2[x], czz[x]);
+        (lambda[x], scale[x], settled) = eigen_start_on(diagonal, b1[x], b2[x], czz[x]);
         stepping[x] = !flat[x] & !settled;
     }
 }
 
 /// The orthogonal fit's unit normals from the converged λ: the
-/// eigenvector, normalised, or (0, 0, 1) where flat.
+/// eigenvector, normalised, or (0, 0, 1) where flat. `(a1, a2)` is the
+/// row's diagonal.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn orthogonal_normals(
-    a1: &[f64],
-    a2: &[f64],
+    (a1, a2): (f64, f64),
     b1: &[f64],
     b2: &[f64],
     czz: &[f64],
@@ -279,10 +290,10 @@ fn orthogonal_normals(
     nz: &mut [f64],
 ) {
     let w = flat.len();
-    let (a1, a2, b1, b2, czz, lambda) = (&a1[..w], &a2[..w], &b1[..w], &b2[..w], &czz[..w], &lambda[..w]);
+    let (b1, b2, czz, lambda) = (&b1[..w], &b2[..w], &czz[..w], &lambda[..w]);
     let (nx, ny, nz) = (&mut nx[..w], &mut ny[..w], &mut nz[..w]);
     for x in 0..w {
-        let n = eigenvector([a1[x], a2[x], b1[x], b2[x], czz[x]], lambda[x]);
+        let n = eigenvector([a1, a2, b1[x], b2[x], czz[x]], lambda[x]);
         let inv = 1.0 / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         let flat = flat[x];
         (nx[x], ny[x], nz[x]) =
@@ -292,7 +303,7 @@ fn orthogonal_normals(
 
 #[cfg(test)]
 mod tests {
-    use super::super::eigen::{newton_step, smallest_eigen, unequal_normal};
+    use super::super::eigen::{eigen_start, newton_step, smallest_eigen, unequal_normal};
     use super::*;
     use crate::options::{Convention, Options};
 

@@ -38,9 +38,30 @@ use crate::error::Result;
 use crate::par::prelude::*;
 use crate::samples::try_vec;
 
-use super::patch::{Lists, Patch};
+use super::dense::DenseSolver;
+use super::line::{Scratch, Work, columns, rows};
+use super::patch::Patch;
 use super::solve::SlopeRows as Slopes;
 use super::solve::Solver;
+
+/// The vertical fit's solve that preconditions the steps: the transforms',
+/// or (clamp with N ≥ 5) the dense bases' with the period's multiplicities
+/// (per column, per row).
+#[derive(Clone, Copy)]
+pub(super) enum Vertical<'a> {
+    Transform(&'a Solver),
+    Dense(&'a DenseSolver, (&'a [f64], &'a [f64])),
+}
+
+impl Vertical<'_> {
+    /// (DᵀD + λ + ε)⁻¹ b, as [`Solver::inverse`].
+    fn inverse(&self, b: &[f64], lambda: f64, epsilon: f64, out: &mut [f64]) -> Result<()> {
+        match self {
+            Vertical::Transform(solver) => solver.inverse(b, lambda, epsilon, out),
+            Vertical::Dense(solver, weights) => solver.inverse(b, lambda, epsilon, *weights, out),
+        }
+    }
+}
 
 /// Bytes a texel the refinement holds besides the heights: the heights it
 /// started from (1 f64, kept by its caller), the linearisation (6), the
@@ -96,17 +117,13 @@ type RowStore<'a> = (&'a mut [[f64; 2]], &'a mut [[f64; 2]], &'a mut [[f64; 2]],
 
 struct Problem<'a> {
     patch: &'a Patch,
-    solver: &'a Solver,
+    solver: Vertical<'a>,
     slopes: Slopes<'a>,
     w: usize,
     /// Texels in a patch, N².
     n2: f64,
     wx: Vec<f64>,
     wy: Vec<f64>,
-    box_xt: Lists,
-    ramp_xt: Lists,
-    box_yt: Lists,
-    ramp_yt: Lists,
     lambda: f64,
 }
 
@@ -115,7 +132,7 @@ struct Problem<'a> {
 /// the input's step (its rounding sets the cost's floor).
 pub(super) fn refine(
     patch: &Patch,
-    solver: &Solver,
+    solver: Vertical<'_>,
     slopes: Slopes<'_>,
     lambda: f64,
     settle: f64,
@@ -139,16 +156,16 @@ pub(super) fn refine(
     };
     let mut lin = Linear { u: pair()?, ac: pair()?, m: plane()?, mean: plane()? };
     let mut r = pair()?;
-    let mut cost = p.linearise(z, Some((&mut lin, &mut r)));
-    let mut trial = plane()?;
-    let (mut rhs, mut step) = (plane()?, plane()?);
-    let mut work = Work {
+    let mut work = Vectors {
         res: plane()?,
         y: plane()?,
         dir: plane()?,
         op: plane()?,
         planes: [plane()?, plane()?, plane()?, plane()?],
     };
+    let mut cost = p.linearise(z, Some((&mut lin, &mut r)), &mut work.planes);
+    let mut trial = plane()?;
+    let (mut rhs, mut step) = (plane()?, plane()?);
     let (mut mu, mut solves, mut converged) = (1e-6, 0, false);
     let mut gains: Vec<f64> = Vec::new();
     for _ in 0..STEPS {
@@ -165,11 +182,11 @@ pub(super) fn refine(
         solves += p.conjugate_gradients(z, &lin, mu, CG_TOLERANCE, &rhs, &mut step, &mut work)?;
         trial.iter_mut().zip(z.iter()).zip(&step).for_each(|((t, z), s)| *t = z + s);
         // The trial's cost alone; its linearisation only if it is taken.
-        let trial_cost = p.linearise(&trial, None);
+        let trial_cost = p.linearise(&trial, None, &mut work.planes);
         if trial_cost < cost {
             let moved = step.iter().fold(0.0f64, |m, s| m.max(s.abs()));
             z.copy_from_slice(&trial);
-            p.linearise(z, Some((&mut lin, &mut r)));
+            p.linearise(z, Some((&mut lin, &mut r)), &mut work.planes);
             let cost_before = cost;
             cost = trial_cost;
             mu = (mu / 10.0).max(1e-12);
@@ -212,8 +229,9 @@ fn slow(gains: &[f64]) -> bool {
     gains.len() >= WINDOW && gains[gains.len() - WINDOW..].iter().product::<f64>() < GAIN
 }
 
-/// The conjugate gradients' vectors.
-struct Work {
+/// The conjugate gradients' vectors, and four planes of work (the patch
+/// sums' passes).
+struct Vectors {
     res: Vec<f64>,
     y: Vec<f64>,
     dir: Vec<f64>,
@@ -222,7 +240,7 @@ struct Work {
 }
 
 impl<'a> Problem<'a> {
-    fn new(patch: &'a Patch, solver: &'a Solver, slopes: Slopes<'a>, lambda: f64, h: usize) -> Problem<'a> {
+    fn new(patch: &'a Patch, solver: Vertical<'a>, slopes: Slopes<'a>, lambda: f64, h: usize) -> Problem<'a> {
         let w = patch.w;
         let multiplicity =
             |n: usize, mirror: bool, k: usize| if mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
@@ -235,67 +253,83 @@ impl<'a> Problem<'a> {
             n2: (patch.patch * patch.patch) as f64,
             wx: (0..w).map(|x| multiplicity(w, mx, x)).collect(),
             wy: (0..h).map(|y| multiplicity(h, my, y)).collect(),
-            box_xt: patch.box_x.transposed(),
-            ramp_xt: patch.ramp_x.transposed(),
-            box_yt: patch.box_y.transposed(),
-            ramp_yt: patch.ramp_y.transposed(),
             lambda,
         }
     }
 
-    /// Row y of J v, and of D v (the damping's).
-    fn jacobian_row(&self, z: &[f64], lin: &Linear, v: &[f64], y: usize) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
-        let w = self.w;
-        let (mut dx, mut dy, mut tmp, mut pv, mut pzv) =
-            (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-        self.patch.slopes(v, y, &mut dx, &mut dy);
-        self.boxed(v, None, y, &mut tmp, &mut pv);
-        self.boxed(v, Some(z), y, &mut tmp, &mut pzv);
-        let jv = (0..w)
-            .map(|x| {
+    /// J v and D v (the damping's), row by row: the patch sums of v and
+    /// z·v down the columns into three of `planes`, then along each row,
+    /// where `each(y, jv, dv, rows)` gets row y's and row y of the four
+    /// planes to write (their first three rows no longer needed).
+    fn jacobian_rows(
+        &self,
+        z: &[f64],
+        lin: &Linear,
+        v: &[f64],
+        planes: &mut [Vec<f64>; 4],
+        each: impl Fn(usize, &[[f64; 2]], &[[f64; 2]], &mut [&mut [f64]]) + Sync,
+    ) {
+        let (w, a) = (self.w, self.patch.a);
+        let [p0, p1, p2, p3] = planes;
+        // box_y v, ramp_y v, box_y (z·v).
+        columns(w, &[v, z], &mut [&mut p0[..], &mut p1[..], &mut p2[..]], |_, ins, outs, work| {
+            let Work { scratch, temps } = work;
+            let [boxed, ramped, boxed_zv] = outs else { unreachable!() };
+            self.patch.y.apply(ins[0], Some(&mut boxed[..]), Some(&mut ramped[..]), scratch);
+            let zv = &mut temps[0];
+            zv.iter_mut().zip(ins[0].iter().zip(ins[1])).for_each(|(o, (v, z))| *o = v * z);
+            self.patch.y.apply(zv, Some(&mut boxed_zv[..]), None, scratch);
+        });
+        rows(w, &mut [&mut p0[..], &mut p1[..], &mut p2[..], &mut p3[..]], |y, row, work| {
+            let Work { scratch, temps } = work;
+            let [dx, pv, dy, pzv] = temps;
+            self.patch.x.apply(row[0], Some(&mut pv[..]), Some(&mut dx[..]), scratch);
+            self.patch.x.apply(row[1], Some(&mut dy[..]), None, scratch);
+            self.patch.x.apply(row[2], Some(&mut pzv[..]), None, scratch);
+            let mut jv = vec![[0.0; 2]; w];
+            let mut dv = vec![[0.0; 2]; w];
+            for x in 0..w {
                 let k = y * w + x;
                 let (u, ac, m) = (lin.u[k], lin.ac[k], lin.m[k]);
+                let (dxv, dyv) = (dx[x] / a, dy[x] / a);
                 let e = pzv[x] - lin.mean[k] * pv[x];
-                let along = ac[0] * dx[x] + ac[1] * dy[x];
-                [dx[x] - u[0] * (along - m * e), dy[x] - u[1] * (along - m * e)]
-            })
-            .collect();
-        (jv, dx.into_iter().zip(dy).map(|(a, b)| [a, b]).collect())
+                let along = ac[0] * dxv + ac[1] * dyv;
+                jv[x] = [dxv - u[0] * (along - m * e), dyv - u[1] * (along - m * e)];
+                dv[x] = [dxv, dyv];
+            }
+            each(y, &jv, &dv, row);
+        });
     }
 
     fn weight(&self, x: usize, y: usize) -> f64 {
         self.wx[x] * self.wy[y]
     }
 
-    /// Row y of the box sums of `a` (times `b` if given) over the patches.
-    fn boxed(&self, a: &[f64], b: Option<&[f64]>, y: usize, tmp: &mut [f64], out: &mut [f64]) {
-        let w = self.w;
-        tmp.fill(0.0);
-        for &(i, wgt) in &self.patch.box_y.0[y] {
-            let ra = &a[i * w..][..w];
-            match b {
-                Some(b) => {
-                    for ((t, &x), &z) in tmp.iter_mut().zip(ra).zip(&b[i * w..][..w]) {
-                        *t += wgt * x * z;
-                    }
-                }
-                None => tmp.iter_mut().zip(ra).for_each(|(t, &x)| *t += wgt * x),
-            }
-        }
-        self.patch.box_x.row(tmp, out);
-    }
-
     /// Σ W |r|² at `z`, and, given `store`, the residual r and the
-    /// linearisation there.
-    fn linearise(&self, z: &[f64], store: Option<(&mut Linear, &mut [[f64; 2]])>) -> f64 {
+    /// linearisation there; `planes` is work space.
+    fn linearise(&self, z: &[f64], store: Option<(&mut Linear, &mut [[f64; 2]])>, planes: &mut [Vec<f64>; 4]) -> f64 {
         let (w, a) = (self.w, self.patch.a);
+        let [p0, p1, p2, _] = planes;
+        // box_y z, ramp_y z, box_y z².
+        columns(w, &[z], &mut [&mut p0[..], &mut p1[..], &mut p2[..]], |_, ins, outs, work| {
+            let Work { scratch, temps } = work;
+            let [boxed, ramped, boxed_zz] = outs else { unreachable!() };
+            self.patch.y.apply(ins[0], Some(&mut boxed[..]), Some(&mut ramped[..]), scratch);
+            let zz = &mut temps[0];
+            zz.iter_mut().zip(ins[0]).for_each(|(o, z)| *o = z * z);
+            self.patch.y.apply(zz, Some(&mut boxed_zz[..]), None, scratch);
+        });
+        let (p0, p1, p2) = (&*p0, &*p1, &*p2);
         let row_cost = |y: usize, mut out: Option<RowStore<'_>>| {
             let (mut vx, mut vy, mut gx, mut gy) = (vec![0.0; w], vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-            let (mut tmp, mut pz, mut pzz) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-            self.patch.slopes(z, y, &mut vx, &mut vy);
+            let (mut pz, mut pzz) = (vec![0.0; w], vec![0.0; w]);
+            let mut scratch = Scratch::default();
+            let (r0, r1, r2) = (&p0[y * w..][..w], &p1[y * w..][..w], &p2[y * w..][..w]);
+            self.patch.x.apply(r0, Some(&mut pz), Some(&mut vx), &mut scratch);
+            self.patch.x.apply(r1, Some(&mut vy), None, &mut scratch);
+            self.patch.x.apply(r2, Some(&mut pzz), None, &mut scratch);
+            vx.iter_mut().chain(vy.iter_mut()).for_each(|v| *v /= a);
             (self.slopes)(y, &mut gx, &mut gy);
-            self.boxed(z, None, y, &mut tmp, &mut pz);
-            self.boxed(z, Some(z), y, &mut tmp, &mut pzz);
             let mut sum = 0.0;
             for x in 0..w {
                 let mean_x = pz[x] / self.n2;
@@ -399,50 +433,44 @@ impl<'a> Problem<'a> {
     /// out = W⁻¹ (Dᵀ a + Eᵀ s) from the planes [ax, ay, s, s·mean]
     /// (which the row pass overwrites).
     fn transpose(&self, z: &[f64], planes: &mut [Vec<f64>; 4], out: &mut [f64]) {
-        let w = self.w;
-        {
-            let [ax, ay, s, sm] = planes;
-            ax.par_chunks_mut(w).zip(ay.par_chunks_mut(w)).zip(s.par_chunks_mut(w)).zip(sm.par_chunks_mut(w)).for_each(
-                |(((ax, ay), s), sm)| {
-                    let mut t = vec![0.0; w];
-                    self.ramp_xt.row(ax, &mut t);
-                    ax.copy_from_slice(&t);
-                    self.box_xt.row(ay, &mut t);
-                    ay.copy_from_slice(&t);
-                    self.box_xt.row(s, &mut t);
-                    s.copy_from_slice(&t);
-                    self.box_xt.row(sm, &mut t);
-                    sm.copy_from_slice(&t);
-                },
-            );
-        }
-        let [ax, ay, s, sm] = &*planes;
-        let a = self.patch.a;
-        out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
-            let (mut t1, mut t2, mut t3) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-            self.box_yt.column(ax, w, y, o, |v| v);
-            self.ramp_yt.column(ay, w, y, &mut t1, |v| v);
-            self.box_yt.column(s, w, y, &mut t2, |v| v);
-            self.box_yt.column(sm, w, y, &mut t3, |v| v);
-            let zr = &z[y * w..][..w];
-            for x in 0..w {
-                let value = (o[x] + t1[x]) / a + zr[x] * t2[x] - t3[x];
-                o[x] = value / self.weight(x, y);
+        let (w, a) = (self.w, self.patch.a);
+        let [ax, ay, s, sm] = planes;
+        rows(w, &mut [&mut ax[..], &mut ay[..], &mut s[..], &mut sm[..]], |_, row, work| {
+            let Work { scratch, temps } = work;
+            let t = &mut temps[0];
+            for (k, plane) in row.iter_mut().enumerate() {
+                let (boxed, ramped) = if k == 0 { (None, Some(&mut t[..])) } else { (Some(&mut t[..]), None) };
+                self.patch.x.apply_transposed(plane, boxed, ramped, scratch);
+                plane.copy_from_slice(t);
+            }
+        });
+        columns(w, &[ax, ay, s, sm, z], &mut [out], |x, ins, outs, work| {
+            let Work { scratch, temps } = work;
+            let [o] = outs else { unreachable!() };
+            let [t1, t2, t3, _] = temps;
+            self.patch.y.apply_transposed(ins[0], Some(&mut o[..]), None, scratch);
+            self.patch.y.apply_transposed(ins[1], None, Some(&mut t1[..]), scratch);
+            self.patch.y.apply_transposed(ins[2], Some(&mut t2[..]), None, scratch);
+            self.patch.y.apply_transposed(ins[3], Some(&mut t3[..]), None, scratch);
+            for (y, o) in o.iter_mut().enumerate() {
+                let value = (*o + t1[y]) / a + ins[4][y] * t2[y] - t3[y];
+                *o = value / self.weight(x, y);
             }
         });
     }
 
     /// (W⁻¹JᵀWJ + μ(M + ε)) v into `out`.
     fn apply(&self, z: &[f64], lin: &Linear, mu: f64, v: &[f64], out: &mut [f64], planes: &mut [Vec<f64>; 4]) {
-        self.back_rows(
-            lin,
-            planes,
-            |y| self.jacobian_row(z, lin, v, y),
-            |(jv, dv), x, y| {
+        let w = self.w;
+        self.jacobian_rows(z, lin, v, planes, |y, jv, dv, row| {
+            let [ax, ay, s, sm] = row else { unreachable!() };
+            for x in 0..w {
                 let wt = self.weight(x, y);
-                ([wt * jv[x][0], wt * jv[x][1]], [mu * wt * dv[x][0], mu * wt * dv[x][1]])
-            },
-        );
+                let wr = [wt * jv[x][0], wt * jv[x][1]];
+                let damp = [mu * wt * dv[x][0], mu * wt * dv[x][1]];
+                self.back_texel(lin, y * w + x, wr, damp, (&mut ax[x], &mut ay[x], &mut s[x], &mut sm[x]));
+            }
+        });
         self.transpose(z, planes, out);
         let extra = mu * (self.lambda + EPSILON);
         out.iter_mut().zip(v).for_each(|(o, v)| *o += extra * v);
@@ -471,9 +499,9 @@ impl<'a> Problem<'a> {
         tolerance: f64,
         rhs: &[f64],
         step: &mut [f64],
-        work: &mut Work,
+        work: &mut Vectors,
     ) -> Result<usize> {
-        let Work { res, y, dir, op, planes } = work;
+        let Vectors { res, y, dir, op, planes } = work;
         res.copy_from_slice(rhs);
         self.solver.inverse(res, self.lambda, EPSILON, y)?;
         let mut solves = 1;
@@ -510,6 +538,20 @@ mod tests {
     use crate::height::{HeightOptions, Model};
     use crate::options::{Border, Borders, Fit};
 
+    impl Problem<'_> {
+        /// J v at every texel.
+        fn jacobian(&self, z: &[f64], lin: &Linear, v: &[f64]) -> Vec<[f64; 2]> {
+            let len = z.len();
+            let mut planes = [vec![0.0; len], vec![0.0; len], vec![0.0; len], vec![0.0; len]];
+            self.jacobian_rows(z, lin, v, &mut planes, |_, jv, _, row| {
+                for (x, j) in jv.iter().enumerate() {
+                    (row[0][x], row[1][x]) = (j[0], j[1]);
+                }
+            });
+            planes[0].iter().zip(&planes[1]).map(|(&a, &b)| [a, b]).collect()
+        }
+    }
+
     fn linear(len: usize) -> Linear {
         Linear { u: vec![[0.0; 2]; len], ac: vec![[0.0; 2]; len], m: vec![0.0; len], mean: vec![0.0; len] }
     }
@@ -517,8 +559,9 @@ mod tests {
     /// Against code it does not share: r is (nearly) 0 at heights whose
     /// orthogonal fit (the forward fit, `crate::normals`, f32) gives the
     /// slopes; J matches central differences of r; and the gradient's Jᵀ
-    /// is J's adjoint in the period's inner product. Wrap and mirror, N = 3
-    /// and 5.
+    /// is J's adjoint in the period's inner product. Every border, N = 3
+    /// to 31 on a 13 × 11 image (the patch sums added outright, by blocks,
+    /// and over patches wider than the image).
     #[test]
     fn residual_jacobian_and_adjoint_match_independent_answers() {
         let (w, h) = (13, 11);
@@ -533,8 +576,10 @@ mod tests {
         let other: Vec<[f64; 2]> = (0..len)
             .map(|k| [(((k * 1013) % 89) as f64 / 89.0) - 0.5, (((k * 211) % 83) as f64 / 83.0) - 0.5])
             .collect();
-        for border in [Border::Wrap, Border::Mirror] {
-            for n in [3, 5] {
+        for border in [Border::Wrap, Border::Mirror, Border::Clamp] {
+            // Direct sums (N ≤ 7), blocks (9, 15), and patches wider than
+            // the image (31: whole periods, clamp's clipped windows).
+            for n in [3, 5, 9, 15, 31] {
                 let fit = crate::Options::new()
                     .with_patch(n)
                     .with_fit(Fit::Orthogonal)
@@ -551,15 +596,17 @@ mod tests {
                     }
                 };
                 let patch = Patch::new(w, h, &opts);
-                let solver = Solver::new(w, h, opts.fit.borders, n, Model::Exact).unwrap();
-                let p = Problem::new(&patch, &solver, &given, 0.0, h);
+                let solver = Solver::nearest(w, h, opts.fit.borders, n, Model::Exact).unwrap();
+                let p = Problem::new(&patch, Vertical::Transform(&solver), &given, 0.0, h);
+                let mut planes = [vec![0.0; len], vec![0.0; len], vec![0.0; len], vec![0.0; len]];
                 let (mut lin, mut r) = (linear(len), vec![[0.0; 2]; len]);
-                let cost = p.linearise(&zs, Some((&mut lin, &mut r)));
+                let cost = p.linearise(&zs, Some((&mut lin, &mut r)), &mut planes);
                 assert!(cost < 1e-10, "{border:?} N {n}: cost {cost:e}");
 
                 let residual = |z: &[f64]| {
                     let (mut l, mut r) = (linear(len), vec![[0.0; 2]; len]);
-                    p.linearise(z, Some((&mut l, &mut r)));
+                    let mut planes = [vec![0.0; len], vec![0.0; len], vec![0.0; len], vec![0.0; len]];
+                    p.linearise(z, Some((&mut l, &mut r)), &mut planes);
                     r
                 };
                 let t = 1e-6;
@@ -567,29 +614,22 @@ mod tests {
                 let minus: Vec<f64> = zs.iter().zip(&delta).map(|(z, d)| z - t * d).collect();
                 let (rp, rm) = (residual(&plus), residual(&minus));
                 let (mut worst, mut size) = (0.0f64, 0.0f64);
-                for y in 0..h {
-                    let (jv, _) = p.jacobian_row(&zs, &lin, &delta, y);
-                    for x in 0..w {
-                        for c in 0..2 {
-                            let fd = (rp[y * w + x][c] - rm[y * w + x][c]) / (2.0 * t);
-                            worst = worst.max((fd - jv[x][c]).abs());
-                            size = size.max(jv[x][c].abs());
-                        }
+                let jv = p.jacobian(&zs, &lin, &delta);
+                for k in 0..len {
+                    for c in 0..2 {
+                        let fd = (rp[k][c] - rm[k][c]) / (2.0 * t);
+                        worst = worst.max((fd - jv[k][c]).abs());
+                        size = size.max(jv[k][c].abs());
                     }
                 }
                 assert!(worst < 1e-6 * size, "{border:?} N {n}: J off by {worst:e} of {size:e}");
 
                 // ⟨J δ, W r'⟩ = −⟨δ, gradient(r')⟩_W, gradient = −W⁻¹JᵀWr'.
-                let mut planes = [vec![0.0; len], vec![0.0; len], vec![0.0; len], vec![0.0; len]];
                 let mut back = vec![0.0; len];
                 p.gradient(&zs, &lin, &other, &mut back, &mut planes);
                 let mut left = 0.0;
-                for y in 0..h {
-                    let (jv, _) = p.jacobian_row(&zs, &lin, &delta, y);
-                    for x in 0..w {
-                        let o = other[y * w + x];
-                        left += p.weight(x, y) * (jv[x][0] * o[0] + jv[x][1] * o[1]);
-                    }
+                for (k, (j, o)) in jv.iter().zip(&other).enumerate() {
+                    left += p.weight(k % w, k / w) * (j[0] * o[0] + j[1] * o[1]);
                 }
                 let right = -p.dot(&delta, &back);
                 assert!(

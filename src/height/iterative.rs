@@ -14,6 +14,9 @@ use crate::options::{Border, Fit};
 use crate::par::prelude::*;
 use crate::samples::{try_filled, try_vec};
 
+use super::dense::DenseSolver;
+use super::gauss_newton::Vertical;
+use super::line::{Work, columns_in_place, rows};
 use super::patch::Patch;
 use super::solve::Solver;
 use super::{HeightOptions, Model};
@@ -30,18 +33,35 @@ pub(crate) fn exact(
     lambda: f64,
     z: &mut [f64],
 ) -> Result<(usize, bool, f64)> {
-    let solver = Solver::new(w, h, opts.fit.borders, opts.fit.patch, Model::Exact);
+    let (borders, n) = (opts.fit.borders, opts.fit.patch);
+    let solver = Solver::new(w, h, borders, n, Model::Exact);
     let patch = Patch::new(w, h, opts);
+    // Clamp with N ≥ 5: conjugate gradients, preconditioned by (and, the
+    // first time, started from) the nearest transform's solve, within one
+    // budget of iterations for the whole inverse; the later solves start
+    // from the last one's heights.
+    let nearest = if solver.is_none() { Solver::nearest(w, h, borders, n, Model::Exact) } else { None };
+    // The exact solve in dense bases where the axes are short enough.
+    let dense = if solver.is_none() { DenseSolver::new(&patch, h) } else { None };
+    // The dense solves' null threshold: the fixed point's own first, the
+    // exact least squares once it has settled (see below).
+    let mut null = if opts.fit.fit == Fit::Vertical { super::dense::NULL } else { super::dense::ORTHOGONAL_NULL };
+    let mut budget = CG_ITERATIONS;
     let mut iterations = 0;
-    // One vertical solve: the transform's, else conjugate gradients.
-    let mut vertical = |s: Slopes<'_>, z: &mut [f64]| -> Result<(bool, f64)> {
+    // One vertical solve: the transform's, else the dense bases', else
+    // conjugate gradients; whether it met its tolerance, its noise gain.
+    let mut vertical = |s: Slopes<'_>, z: &mut [f64], warm: bool, null: f64| -> Result<(bool, f64)> {
         iterations += 1;
-        match &solver {
-            Some(solver) => Ok((true, solver.solve(s, lambda, z)?.noise_gain)),
-            None => conjugate_gradients(&patch, s, lambda, opts, z),
+        match (&solver, &dense) {
+            (Some(solver), _) => Ok((true, solver.solve(s, lambda, z)?.noise_gain)),
+            (None, Some(dense)) => {
+                dense_solve(&patch, dense, s, lambda, null, z)?;
+                Ok((true, nearest.as_ref().map_or(0.0, |n| n.noise_gain(lambda).noise_gain)))
+            }
+            (None, None) => conjugate_gradients(&patch, nearest.as_ref(), s, lambda, z, warm, &mut budget),
         }
     };
-    let (mut converged, noise_gain) = vertical(slopes, z)?;
+    let (mut converged, noise_gain) = vertical(slopes, z, false, null)?;
     if opts.fit.fit == Fit::Vertical {
         return Ok((iterations, converged, noise_gain));
     }
@@ -57,12 +77,20 @@ pub(crate) fn exact(
     // vertical solution, which a solve gives again: most maps converge and
     // never need them, and copying them took 3 % of the time at 4096².
     let mut kept: Option<Vec<f32>> = None;
+    if solver.is_none() && dense.is_none() {
+        // Conjugate gradients cannot promise the vertical solution again
+        // within their budget: kept from the start.
+        let mut k = try_vec(len)?;
+        k.par_extend(z.par_iter().map(|&z| z as f32));
+        kept = Some(k);
+    }
     let mut best = first;
     let (mut last_change, mut growing, mut damping) = (f64::INFINITY, 0, 1.0);
     // Ratios settled to the input's own precision (its step) are settled:
     // the slopes asked for are known no better.
     let tolerance = opts.tolerance.max(opts.step);
     converged = false;
+    let mut settled_without_faint_modes = false;
     for _ in 1..opts.max_iterations {
         let weighted = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
             slopes(y, gx, gy);
@@ -71,10 +99,25 @@ pub(crate) fn exact(
                 *y *= r;
             }
         };
-        vertical(&weighted, z)?;
+        if !vertical(&weighted, z, true, null)?.0 {
+            // Conjugate gradients that did not meet their tolerance (their
+            // budget spent): the iteration stops, unsettled.
+            break;
+        }
         let (change, mismatch, now_off) = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping)?;
         off = now_off;
         if change <= tolerance {
+            if dense.is_some() && null != super::dense::NULL {
+                // Settled without the modes the vertical fit barely sees:
+                // the slopes asked for are now some heights' slopes, and
+                // the exact solves go on from here to give those modes
+                // back (a step that makes the fit worse is not kept: the
+                // closest heights found are).
+                settled_without_faint_modes = true;
+                null = super::dense::NULL;
+                (last_change, growing) = (f64::INFINITY, 0);
+                continue;
+            }
             converged = true;
             break;
         }
@@ -109,11 +152,19 @@ pub(crate) fn exact(
             break;
         }
     }
-    if !converged {
+    if !converged && settled_without_faint_modes {
+        // The exact solves did not settle again: the closest heights kept
+        // stand, settled as the fixed point was.
+        match &kept {
+            Some(kept) => z.iter_mut().zip(kept).for_each(|(z, &k)| *z = f64::from(k)),
+            None => drop(vertical(slopes, z, false, super::dense::ORTHOGONAL_NULL)?),
+        }
+        converged = true;
+    } else if !converged {
         match &kept {
             Some(kept) => z.iter_mut().zip(kept).for_each(|(z, &k)| *z = f64::from(k)),
             None => {
-                vertical(slopes, z)?;
+                vertical(slopes, z, false, null)?;
                 z.iter_mut().for_each(|z| *z = f64::from(*z as f32));
             }
         }
@@ -136,11 +187,18 @@ pub(crate) fn exact(
         "the orthogonal fit's Gauss–Newton steps",
         super::memory::gauss_newton_bytes(w, h, opts),
     );
-    if let (Some(solver), true, Ok(())) = (&solver, !converged || off > OFF_BY * precision, room) {
+    let weights = multiplicities(&patch, h);
+    let preconditioner = match (&solver, &dense) {
+        (Some(solver), _) => Some(Vertical::Transform(solver)),
+        (None, Some(dense)) => Some(Vertical::Dense(dense, (&weights.0, &weights.1))),
+        (None, None) => None,
+    };
+    if let (Some(preconditioner), true, Ok(())) = (preconditioner, !converged || off > OFF_BY * precision, room) {
         let (lo, hi) = z.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
         let mut before: Vec<f64> = try_vec(len)?;
         before.extend_from_slice(z);
-        let outcome = super::gauss_newton::refine(&patch, solver, slopes, lambda, SETTLED * (hi - lo), precision, z)?;
+        let settle = SETTLED * (hi - lo);
+        let outcome = super::gauss_newton::refine(&patch, preconditioner, slopes, lambda, settle, precision, z)?;
         iterations += outcome.solves;
         if outcome.converged {
             converged = true;
@@ -200,6 +258,9 @@ impl Patch {
     ) -> Result<(f64, f64, f64)> {
         let w = self.w;
         let h = z.len() / w;
+        if self.refit_by_lines(h) {
+            return self.update_ratios_by_lines(z, slopes, rho, direction, damping);
+        }
         let mut fit = self.moments_fit(h)?;
         let bands: Vec<std::ops::Range<usize>> = fit.bands().collect();
         let widest = bands.iter().map(|b| b.len()).max().unwrap_or(0);
@@ -232,6 +293,79 @@ impl Patch {
         Ok((largest, mismatch, worst))
     }
 
+    /// Whether the re-fit takes its patch sums from the line sums of
+    /// `line.rs` rather than the forward fit's: where the image is less
+    /// than 8N texels wide or tall. The forward fit starts each tile of at
+    /// least 8N rows and strip of at least 8N columns with 2N rows of sums,
+    /// each as long as the strip plus N, and its blocks' sums of N values
+    /// per row sum (O(N²) a strip): on an image that small that setup is
+    /// no longer shared by enough texels, and grows with N (a re-fit of a
+    /// 512² image took 60 ms at N = 1023 by it). The line sums take a few
+    /// operations a texel whatever N, and three planes.
+    pub(super) fn refit_by_lines(&self, h: usize) -> bool {
+        refit_by_lines(self.w, h, self.patch)
+    }
+
+    /// [`Self::update_ratios`] with the patch sums from the line sums:
+    /// along the rows the ramp and box of z and the box of z², down the
+    /// columns Σiz, Σjz, Σz and Σz², then each row's ratios.
+    fn update_ratios_by_lines(
+        &self,
+        z: &[f64],
+        slopes: Slopes<'_>,
+        rho: &mut [f64],
+        direction: &mut [i8],
+        damping: f64,
+    ) -> Result<(f64, f64, f64)> {
+        let w = self.w;
+        let len = z.len();
+        let (mut si, mut sj, mut czz) = (try_filled(len, 0.0)?, try_filled(len, 0.0)?, try_filled(len, 0.0)?);
+        rows(w, &mut [&mut si, &mut sj, &mut czz], |y, row, work| {
+            let Work { scratch, temps } = work;
+            let [ramped, boxed, boxed_zz] = row else { unreachable!() };
+            let zr = &z[y * w..][..w];
+            self.x.apply(zr, Some(&mut boxed[..]), Some(&mut ramped[..]), scratch);
+            let zz = &mut temps[0];
+            zz.iter_mut().zip(zr).for_each(|(o, z)| *o = z * z);
+            self.x.apply(zz, Some(&mut boxed_zz[..]), None, scratch);
+        });
+        let n2 = (self.patch * self.patch) as f64;
+        columns_in_place(w, &mut [&mut si, &mut sj, &mut czz], |_, cols, work| {
+            let Work { scratch, temps } = work;
+            let [ramped, boxed, boxed_zz] = cols else { unreachable!() };
+            let [t_si, t_s0, t_sj, t_szz] = temps;
+            self.y.apply(ramped, Some(&mut t_si[..]), None, scratch);
+            self.y.apply(boxed, Some(&mut t_s0[..]), Some(&mut t_sj[..]), scratch);
+            self.y.apply(boxed_zz, Some(&mut t_szz[..]), None, scratch);
+            ramped.copy_from_slice(t_si);
+            boxed.copy_from_slice(t_sj);
+            // Czz as the forward fit forms it: (N² Σz² − (Σz)²) / N².
+            for ((c, &s0), &szz) in boxed_zz.iter_mut().zip(t_s0.iter()).zip(t_szz.iter()) {
+                *c = ((n2 * szz - s0 * s0) / n2).max(0.0);
+            }
+        });
+        let per_row: Vec<(f64, f64, f64)> = rho
+            .par_chunks_mut(w)
+            .zip(direction.par_chunks_mut(w))
+            .enumerate()
+            .map(|(y, (out, dir))| {
+                let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
+                slopes(y, &mut gx, &mut gy);
+                let at = y * w..(y + 1) * w;
+                let m: Vec<[f64; 3]> =
+                    si[at.clone()].iter().zip(&sj[at.clone()]).zip(&czz[at]).map(|((&a, &b), &c)| [a, b, c]).collect();
+                ratio_row(self.a, &m, &gx, &gy, out, dir, damping)
+            })
+            .collect();
+        let (mut largest, mut mismatch, mut worst) = (0.0f64, 0.0, 0.0f64);
+        for (c, e, o) in per_row {
+            largest = largest.max(c);
+            mismatch += e;
+            worst = worst.max(o);
+        }
+        Ok((largest, mismatch, worst))
+    }
+
     /// The forward fit's sliding sums for heights in texel units.
     fn moments_fit(&self, h: usize) -> Result<crate::fit::BandFit> {
         let opts = crate::Options::new()
@@ -241,6 +375,11 @@ impl Patch {
             .with_strength(crate::Strength::Scale(1.0));
         Ok(crate::fit::BandFit::new(self.w, h, &opts)?.with_unit(1.0))
     }
+}
+
+/// [`Patch::refit_by_lines`] for an image of `w` × `h` and patch `n`.
+pub(super) fn refit_by_lines(w: usize, h: usize, n: usize) -> bool {
+    w.min(h) < 8 * n
 }
 
 /// One row of [`Patch::update_ratios`]: the patch moments `m` ([Cx, Cy,
@@ -354,59 +493,87 @@ fn ratio_texel(a: f64, m: [f64; 3], gx: f64, gy: f64, out: &mut f64, dir: &mut i
     (term, change.abs(), off)
 }
 
-/// The conjugate gradients' iterations at most.
-const CG_ITERATIONS: usize = 2000;
+/// The period's multiplicities of `patch`'s axes (a mirrored axis holds
+/// its texels but the two edge ones twice), per column and per row.
+fn multiplicities(patch: &Patch, h: usize) -> (Vec<f64>, Vec<f64>) {
+    let multiplicity =
+        |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
+    let w = patch.w;
+    (
+        (0..w).map(|x| multiplicity(w, patch.borders.x, x)).collect(),
+        (0..h).map(|y| multiplicity(h, patch.borders.y, y)).collect(),
+    )
+}
 
-/// Conjugate gradients on the normal equations (DxᵀDx + DyᵀDy + λ) z =
-/// Dxᵀgx + Dyᵀgy with the exact operator, from the nearest transform's
-/// solution (clamp as a half-sample reflection), until the residual falls
-/// below 1e-12 of the right-hand side's or the iterations run out.
-fn conjugate_gradients(
+/// The vertical solve of `slopes` in `dense`'s bases, into `z`.
+fn dense_solve(
     patch: &Patch,
+    dense: &DenseSolver,
     slopes: Slopes<'_>,
     lambda: f64,
-    opts: &HeightOptions,
+    null: f64,
     z: &mut [f64],
+) -> Result<()> {
+    let len = z.len();
+    let (wx, wy) = multiplicities(patch, len / patch.w);
+    let (mut gx, mut gy, mut b) = (try_filled(len, 0.0)?, try_filled(len, 0.0)?, try_filled(len, 0.0)?);
+    DenseSolver::right_hand_side(patch, slopes, (&wx, &wy), (&mut gx, &mut gy), &mut b);
+    drop((gx, gy));
+    dense.solve(&mut b, lambda, null, (&wx, &wy), z)
+}
+
+/// The conjugate gradients' iterations at most, over every solve of one
+/// inverse: each is a few passes over the texels whatever N, so the time
+/// is bounded by the texels; past it the heights are the closest found,
+/// unsettled.
+const CG_ITERATIONS: usize = 2000;
+
+/// ε of the conjugate gradients' preconditioner: the weight of the
+/// transform's null modes, which the exact operator sees where patches
+/// reach past a clamped edge.
+const PRECONDITIONER_EPSILON: f64 = 1e-4;
+
+/// The conjugate gradients stop when the normal equations' residual has
+/// fallen to this fraction of the right-hand side (in norm): the round
+/// trips and the dense solves of `tests/height.rs` hold at 1e-8 as at
+/// 1e-13, and each decade costs some 50 iterations on a 128² map.
+const CG_TOLERANCE: f64 = 1e-10;
+
+/// Conjugate gradients on the normal equations (DxᵀWDx + DyᵀWDy + λ) z =
+/// DxᵀWgx + DyᵀWgy with the exact operator, preconditioned by the nearest
+/// transform's solve `nearest` (clamp as a half-sample reflection, exact for
+/// N = 3), from its solution or (`warm`) from `z`, until the residual falls
+/// below [`CG_TOLERANCE`] of the right-hand side's or `budget` (the
+/// iterations left) runs out. Returns whether it met the tolerance, and
+/// the nearest solve's noise gain (0 when `warm`).
+fn conjugate_gradients(
+    patch: &Patch,
+    nearest: Option<&Solver>,
+    slopes: Slopes<'_>,
+    lambda: f64,
+    z: &mut [f64],
+    warm: bool,
+    budget: &mut usize,
 ) -> Result<(bool, f64)> {
     let w = patch.w;
     let len = z.len();
     let h = len / w;
     // The start: clamp read as a half-sample reflection, exact for N = 3.
-    let start = Solver::nearest(w, h, opts.fit.borders, opts.fit.patch, Model::Exact)
-        .map(|s| s.solve(slopes, lambda, z).map(|st| st.noise_gain))
-        .transpose()?
-        .unwrap_or(0.0);
-    let (box_xt, ramp_xt, box_yt, ramp_yt) =
-        (patch.box_x.transposed(), patch.ramp_x.transposed(), patch.box_y.transposed(), patch.ramp_y.transposed());
+    let start = match nearest {
+        Some(s) if !warm => s.solve(slopes, lambda, z)?.noise_gain,
+        _ => 0.0,
+    };
     let alloc = || -> Result<Vec<f64>> {
         let mut v = try_vec(len)?;
         v.resize(len, 0.0);
         Ok(v)
     };
     let (mut gx, mut gy) = (alloc()?, alloc()?);
-    // Dᵀ applied to (gx, gy): Dxᵀ = box_yᵀ ramp_xᵀ / A, Dyᵀ = ramp_yᵀ box_xᵀ / A.
-    let adjoint = |gx: &mut [f64], gy: &mut [f64], out: &mut [f64]| {
-        gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).for_each(|(rx, ry)| {
-            let (mut tx, mut ty) = (vec![0.0; w], vec![0.0; w]);
-            ramp_xt.row(rx, &mut tx);
-            box_xt.row(ry, &mut ty);
-            rx.copy_from_slice(&tx);
-            ry.copy_from_slice(&ty);
-        });
-        let (gx, gy) = (&*gx, &*gy);
-        out.par_chunks_mut(w).enumerate().for_each(|(y, o)| {
-            let mut t = vec![0.0; w];
-            box_yt.column(gx, w, y, o, |v| v);
-            ramp_yt.column(gy, w, y, &mut t, |v| v);
-            o.iter_mut().zip(&t).for_each(|(a, b)| *a = (*a + b) / patch.a);
-        });
-    };
+    // Dᵀ applied to (gx, gy), which it overwrites.
+    let adjoint = |gx: &mut [f64], gy: &mut [f64], out: &mut [f64]| patch.adjoint(gx, gy, out);
     // Least squares over the period: a mirrored axis counts its texels but
     // the two edge ones twice (the period holds them twice).
-    let multiplicity =
-        |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
-    let wx: Vec<f64> = (0..w).map(|x| multiplicity(w, opts.fit.borders.x, x)).collect();
-    let wy: Vec<f64> = (0..h).map(|y| multiplicity(h, opts.fit.borders.y, y)).collect();
+    let (wx, wy) = multiplicities(patch, h);
     let weigh = |y: usize, rx: &mut [f64], ry: &mut [f64]| {
         for ((gx, gy), m) in rx.iter_mut().zip(ry.iter_mut()).zip(&wx) {
             *gx *= m * wy[y];
@@ -414,10 +581,8 @@ fn conjugate_gradients(
         }
     };
     let apply = |z: &[f64], gx: &mut [f64], gy: &mut [f64]| {
-        gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| {
-            patch.slopes(z, y, rx, ry);
-            weigh(y, rx, ry);
-        });
+        patch.slopes(z, gx, gy);
+        gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| weigh(y, rx, ry));
     };
     let dot = |a: &[f64], b: &[f64]| -> f64 {
         let rows: Vec<f64> =
@@ -436,30 +601,47 @@ fn conjugate_gradients(
         adjoint(gx, gy, out);
         out.iter_mut().zip(v).for_each(|(o, v)| *o += lambda * v);
     };
-    // Preconditioned by the period's multiplicities W: the steps are then
-    // W-orthogonal to the null space, and the solution keeps the start's
-    // minimum W-norm there, as the transforms' solutions have it.
-    let inverse_weight = |r: &[f64], out: &mut [f64]| {
-        out.par_chunks_mut(w).zip(r.par_chunks(w)).enumerate().for_each(|(y, (o, r))| {
+    // Preconditioned by the nearest transform's solve M = (DₙᵀWDₙ + λ + ε)⁻¹
+    // (`Solver::inverse`, which takes its right-hand side times W⁻¹): the
+    // exact operator differs from it only where a patch reaches past a
+    // clamped edge, so few iterations are needed whatever N and the size,
+    // where the period's multiplicities W alone needed more than the
+    // conditioning (P² at the lowest frequencies, and the box's near zeros
+    // of a wide patch) and ran to the cap. M is symmetric, and the null
+    // modes the exact operator shares with the transform (the constant, and
+    // along a wrapped or mirrored axis its alternating and box-zero modes)
+    // are its eigenvectors: the steps stay orthogonal to them, and the
+    // solution keeps the start's minimum norm there, as the transforms'
+    // solutions have it.
+    let mut weighted = alloc()?;
+    let mut precondition = |r: &[f64], out: &mut [f64]| -> Result<()> {
+        weighted.par_chunks_mut(w).zip(r.par_chunks(w)).enumerate().for_each(|(y, (o, r))| {
             for ((o, r), m) in o.iter_mut().zip(r).zip(&wx) {
                 *o = r / (m * wy[y]);
             }
         });
+        match nearest {
+            Some(solver) => solver.inverse(&weighted, lambda, PRECONDITIONER_EPSILON, out),
+            None => {
+                out.copy_from_slice(&weighted);
+                Ok(())
+            }
+        }
     };
     let mut r = alloc()?;
     normal(z, &mut r, &mut gx, &mut gy);
     r.iter_mut().zip(&rhs).for_each(|(r, b)| *r = b - *r);
     let mut y = alloc()?;
-    inverse_weight(&r, &mut y);
+    precondition(&r, &mut y)?;
     let mut p = y.clone();
     let mut ap = alloc()?;
-    let target = 1e-26 * dot(&rhs, &rhs);
+    let target = CG_TOLERANCE * CG_TOLERANCE * dot(&rhs, &rhs);
     let mut ry = dot(&r, &y);
     let mut converged = dot(&r, &r) <= target;
-    for _ in 0..CG_ITERATIONS {
-        if converged {
-            break;
-        }
+    let mut dbg_its = 0;
+    while !converged && *budget > 0 {
+        *budget -= 1;
+        dbg_its += 1;
         normal(&p, &mut ap, &mut gx, &mut gy);
         let pap = dot(&p, &ap);
         if pap <= 0.0 {
@@ -469,11 +651,20 @@ fn conjugate_gradients(
         z.iter_mut().zip(&p).for_each(|(z, p)| *z += alpha * p);
         r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
         converged = dot(&r, &r) <= target;
-        inverse_weight(&r, &mut y);
+        if converged {
+            break;
+        }
+        precondition(&r, &mut y)?;
         let next = dot(&r, &y);
         let beta = next / ry;
         ry = next;
         p.iter_mut().zip(&y).for_each(|(p, y)| *p = y + beta * *p);
+    }
+    if std::env::var("NF_DEBUG").is_ok() {
+        eprintln!(
+            "CG: {dbg_its} iterations, converged {converged}, residual {:e}",
+            (dot(&r, &r) / dot(&rhs, &rhs)).sqrt()
+        );
     }
     Ok((converged, start))
 }

@@ -68,8 +68,10 @@
 //! derivative iω and no box, for normal maps that normalfit did not make
 //! (baked, scanned) or whose N is unknown.
 
+mod dense;
 mod gauss_newton;
 mod iterative;
+mod line;
 mod patch;
 mod solve;
 
@@ -290,7 +292,8 @@ pub struct HeightReport {
     /// Texels with nz ≤ 0 or a non-finite component, taken as flat.
     pub bad_texels: usize,
     /// Solves run (1 for the vertical fit's transforms; the orthogonal
-    /// fit's Gauss–Newton steps count one per inner iteration).
+    /// fit's Gauss–Newton steps count one per inner iteration; 0 for a
+    /// map without a slope, whose heights are 0 with nothing to solve).
     pub iterations: usize,
     /// Whether the iteration (orthogonal fit, clamp with N ≥ 5) met its
     /// tolerance; always true for a single solve.
@@ -429,6 +432,11 @@ impl SlopeField {
         Ok(SlopeField { width, height, x, y, bad })
     }
 
+    /// Whether every slope is 0 (a flat map, or none with a slope).
+    fn is_flat(&self) -> bool {
+        self.x.par_iter().all(|&v| v == 0.0) && self.y.par_iter().all(|&v| v == 0.0)
+    }
+
     /// Row `y`'s slopes under the convention of sign `sigma`: gx = −nx/nz,
     /// gy = −σ ny/nz.
     fn row(&self, y: usize, sigma: f64, gx: &mut [f64], gy: &mut [f64]) {
@@ -463,16 +471,37 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
     let q = opts.step / 12f64.sqrt();
     let lambda = opts.regularisation.unwrap_or(q * q / periods);
     let mut z = try_filled(len, 0.0)?;
-    let (iterations, converged, noise_gain) = match opts.model {
-        Model::Generic => {
-            // Frankot–Chellappa knows no clamp: its nearest transform is mirror's.
-            let borders = Borders { x: generic_border(opts.fit.borders.x), y: generic_border(opts.fit.borders.y) };
-            let solver = solve::Solver::new(width, height, borders, 3, Model::Generic)
-                .ok_or_else(|| Error::InvalidOption("no transform for these borders".into()))?;
-            let stats = solver.solve(&slopes, lambda, &mut z)?;
-            (1, true, stats.noise_gain)
+    // Frankot–Chellappa knows no clamp: its nearest transform is mirror's.
+    let generic = || {
+        let borders = Borders { x: generic_border(opts.fit.borders.x), y: generic_border(opts.fit.borders.y) };
+        solve::Solver::new(width, height, borders, 3, Model::Generic)
+            .ok_or_else(|| Error::InvalidOption("no transform for these borders".into()))
+    };
+    let (iterations, converged, noise_gain) = if field.is_flat() {
+        // No slope anywhere: the heights are 0 (the least-squares answer of
+        // least norm, for every model, fit and border), with nothing to
+        // solve; only the quantisation's figure needs the solve's sums.
+        let noise_gain = if opts.step > 0.0 {
+            let solver = match opts.model {
+                Model::Generic => generic()?,
+                Model::Exact => {
+                    let (b, n) = (opts.fit.borders, opts.fit.patch);
+                    let exact = solve::Solver::new(width, height, b, n, Model::Exact);
+                    exact
+                        .or_else(|| solve::Solver::nearest(width, height, b, n, Model::Exact))
+                        .ok_or_else(|| Error::InvalidOption("no transform for these borders".into()))?
+                }
+            };
+            solver.noise_gain(lambda).noise_gain
+        } else {
+            0.0
+        };
+        (0, true, noise_gain)
+    } else {
+        match opts.model {
+            Model::Generic => (1, true, generic()?.solve(&slopes, lambda, &mut z)?.noise_gain),
+            Model::Exact => iterative::exact(&slopes, width, height, opts, lambda, &mut z)?,
         }
-        Model::Exact => iterative::exact(&slopes, width, height, opts, lambda, &mut z)?,
     };
 
     let scale = opts.scale_for_width(width);

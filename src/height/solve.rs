@@ -62,6 +62,7 @@ use crate::par::prelude::*;
 use crate::samples::{try_filled, try_vec};
 
 use super::Model;
+use super::line::{Line, Work, columns_in_place, rows};
 
 type C = Complex<f64>;
 
@@ -75,6 +76,16 @@ type RhsRows<'a> = &'a (dyn Fn(std::ops::Range<usize>, &mut [f64]) + Sync);
 /// small one: rounding leaves the exact zeros at about 1e-32, while the
 /// lowest frequency of an image of 2^20 texels a side gives about 4e-11.
 const NULL: f64 = 1e-20;
+
+/// Patches of radius up to this form the right-hand side a block of rows
+/// at a time, each texel's patch added outright (O(N) a texel, and no plane
+/// besides the spectra); wider ones by the line sums of `line.rs`, a plane
+/// at a time (a few operations a texel whatever N).
+pub(super) const RHS_DIRECT_RADIUS: usize = 4;
+
+/// Patches of radius up to this add their responses' terms outright
+/// (O(r) a frequency); wider ones take their closed forms.
+const RESPONSE_DIRECT_RADIUS: usize = 16;
 
 /// Rows per task in the row passes.
 const ROWS_PER_TASK: usize = 8;
@@ -166,16 +177,27 @@ impl Axis {
         let p = self.period as f64;
         let mut s = Vec::with_capacity(count);
         let mut b = Vec::with_capacity(count);
+        // Σ_{m=1..r} m^(2j+2), for the series of S at low frequencies.
+        let powers: Vec<f64> = if model == Model::Exact && r > RESPONSE_DIRECT_RADIUS {
+            (0..SERIES_TERMS).map(|j| (1..=r).map(|m| (m as f64).powi(2 * j as i32 + 2)).sum()).collect()
+        } else {
+            Vec::new()
+        };
         for k in 0..count {
             let omega = std::f64::consts::TAU * k as f64 / p;
             match model {
-                Model::Exact => {
+                Model::Exact if r <= RESPONSE_DIRECT_RADIUS => {
                     let (mut sk, mut bk) = (0.0, 1.0);
                     for m in 1..=r {
                         let (sin, cos) = (m as f64 * omega).sin_cos();
                         sk += 2.0 * m as f64 * sin;
                         bk += 2.0 * cos;
                     }
+                    s.push(sk);
+                    b.push(bk);
+                }
+                Model::Exact => {
+                    let (sk, bk) = closed_responses(signed(k, self.period), r, &powers);
                     s.push(sk);
                     b.push(bk);
                 }
@@ -196,6 +218,45 @@ impl Axis {
         }
         (s, b)
     }
+}
+
+/// Terms of the series of S where r|ω| < 1: the ratio of the j-th to the
+/// first is below 3/((2j + 1)!(2j + 3)), 1e-26 at j = 12.
+const SERIES_TERMS: usize = 13;
+
+/// Frequency k of a period p as an angle in (−π, π].
+fn signed(k: usize, p: usize) -> f64 {
+    let k = if 2 * k > p { k as f64 - p as f64 } else { k as f64 };
+    std::f64::consts::TAU * k / p as f64
+}
+
+/// S(ω) = 2 Σ_{m=1..r} m sin(mω) and B(ω) = 1 + 2 Σ_{m=1..r} cos(mω) in
+/// closed form, ω in (−π, π]: B = sin((r + ½)ω) / sin(ω/2) (N at 0), and
+/// S = ((r + 1) sin(rω) − r sin((r + 1)ω)) / (2 sin²(ω/2)) where r|ω| ≥ 1;
+/// below, where that difference cancels, its series
+/// S = 2 Σ_j (−1)^j ω^(2j+1) / (2j + 1)! · Σ_m m^(2j+2) (`powers`), whose
+/// terms fall fast and whose first dominates. Both are the sums' values to
+/// a few units of rounding relative (the sums themselves round by r of
+/// them), and exact zeros come out at rounding level, far below the
+/// solve's null threshold.
+fn closed_responses(omega: f64, r: usize, powers: &[f64]) -> (f64, f64) {
+    if omega == 0.0 {
+        return (0.0, (2 * r + 1) as f64);
+    }
+    let rf = r as f64;
+    let half = (0.5 * omega).sin();
+    let b = ((rf + 0.5) * omega).sin() / half;
+    let s = if rf * omega.abs() < 1.0 {
+        let (w2, mut term, mut sum) = (omega * omega, omega, 0.0);
+        for (j, p) in powers.iter().enumerate() {
+            sum += term * p;
+            term *= -w2 / ((2 * j + 2) as f64 * (2 * j + 3) as f64);
+        }
+        2.0 * sum
+    } else {
+        ((rf + 1.0) * (rf * omega).sin() - rf * ((rf + 1.0) * omega).sin()) / (2.0 * half * half)
+    };
+    (s, b)
 }
 
 /// What a solve found besides the heights.
@@ -328,16 +389,87 @@ impl Solver {
     /// slopes are closest to the slopes `slopes(y, gx, gy)` fills for row
     /// y (gx = ∂z/∂x, gy = ∂z/∂y, y down), into `out` (w × h).
     pub fn solve(&self, slopes: SlopeRows<'_>, lambda: f64, out: &mut [f64]) -> Result<SolveStats> {
-        let fill = |rows: std::ops::Range<usize>, dst: &mut [f64]| {
-            if let Some(r) = self.radius {
-                self.right_hand_side(slopes, r, rows, dst);
-            }
-        };
+        let whole = self.x.ext == Extension::Whole;
         match self.radius {
-            Some(_) if self.x.ext == Extension::Whole => self.solve_real(&fill, lambda, None, out),
-            Some(_) => self.solve_complex(&fill, lambda, None, out),
+            Some(r) if r > RHS_DIRECT_RADIUS => {
+                // The right-hand side as a plane, in `out`, which the last
+                // pass overwrites with the heights.
+                self.right_hand_side_plane(slopes, r, out)?;
+                if whole {
+                    self.solve_real(None, lambda, None, out)
+                } else {
+                    self.solve_complex(None, lambda, None, out)
+                }
+            }
+            Some(r) => {
+                let fill = |rows: std::ops::Range<usize>, dst: &mut [f64]| self.right_hand_side(slopes, r, rows, dst);
+                if whole {
+                    self.solve_real(Some(&fill), lambda, None, out)
+                } else {
+                    self.solve_complex(Some(&fill), lambda, None, out)
+                }
+            }
             None => self.solve_two_planes(slopes, lambda, out),
         }
+    }
+
+    /// The noise gain of [`Self::solve`] without solving (the same sums,
+    /// in the same order): for a map without slopes, whose heights are 0.
+    pub fn noise_gain(&self, lambda: f64) -> SolveStats {
+        let partial: Vec<f64> = (0..self.kx.div_ceil(COLUMNS_PER_TASK))
+            .into_par_iter()
+            .map(|block| {
+                let columns = block * COLUMNS_PER_TASK..((block + 1) * COLUMNS_PER_TASK).min(self.kx);
+                let mut noise = 0.0;
+                for kxi in columns {
+                    let mut column_noise = 0.0;
+                    for ky in 0..self.y.period {
+                        column_noise += self.inverse_response(kxi, ky, lambda, None).1;
+                    }
+                    noise += self.column_weight(kxi) * column_noise;
+                }
+                noise
+            })
+            .collect();
+        self.stats(&partial)
+    }
+
+    /// The right-hand side Dxᵀgx + Dyᵀgy of [`Self::right_hand_side`] for
+    /// every row, into `out` (w × h), by the line sums of `line.rs`: the
+    /// ramp of gx (odd along x) and the box of gy (even) along each row,
+    /// then the box of the first (even along y) and the ramp of the second
+    /// (odd) down each column. A few operations a texel whatever N, and
+    /// one plane more than the spectra.
+    ///
+    /// Errors: [`crate::Error::Limits`] when the plane's memory is not there.
+    fn right_hand_side_plane(&self, slopes: SlopeRows<'_>, r: usize, out: &mut [f64]) -> Result<()> {
+        let w = self.w;
+        let line = |axis: &Axis, odd: bool| {
+            Line::periodic(axis.n, r, (0..axis.period).map(|t| axis.map(t as isize, odd)).collect())
+        };
+        let (x_odd, x_even, y_even, y_odd) =
+            (line(&self.x, true), line(&self.x, false), line(&self.y, false), line(&self.y, true));
+        let mut v = try_filled(out.len(), 0.0)?;
+        rows(w, &mut [&mut *out, &mut v], |y, row, work| {
+            let Work { scratch, temps } = work;
+            let [gx, gy, ..] = temps;
+            slopes(y, gx, gy);
+            let [u, v] = row else { unreachable!() };
+            x_odd.apply(gx, None, Some(&mut u[..]), scratch);
+            x_even.apply(gy, Some(&mut v[..]), None, scratch);
+        });
+        let scale = -1.0 / self.a;
+        columns_in_place(w, &mut [out, &mut v], |_, cols, work| {
+            let Work { scratch, temps } = work;
+            let [boxed, ramped, ..] = temps;
+            let [u, v] = cols else { unreachable!() };
+            y_even.apply(u, Some(&mut boxed[..]), None, scratch);
+            y_odd.apply(v, None, Some(&mut ramped[..]), scratch);
+            for ((u, b), r) in u.iter_mut().zip(boxed.iter()).zip(ramped.iter()) {
+                *u = scale * (b + r);
+            }
+        });
+        Ok(())
     }
 
     /// (DᵀD + λ + ε)⁻¹ b for a right-hand side `b` given on the texels
@@ -354,8 +486,8 @@ impl Solver {
             dst.copy_from_slice(&b[rows.start * w..rows.end * w]);
         };
         match self.radius {
-            Some(_) if self.x.ext == Extension::Whole => self.solve_real(&fill, lambda, Some(epsilon), out),
-            _ => self.solve_complex(&fill, lambda, Some(epsilon), out),
+            Some(_) if self.x.ext == Extension::Whole => self.solve_real(Some(&fill), lambda, Some(epsilon), out),
+            _ => self.solve_complex(Some(&fill), lambda, Some(epsilon), out),
         }
         .map(|_| ())
     }
@@ -442,7 +574,7 @@ impl Solver {
     /// by the response, inverse FFT; rows: inverse real FFT.
     fn solve_complex(
         &self,
-        fill: RhsRows<'_>,
+        fill: Option<RhsRows<'_>>,
         lambda: f64,
         epsilon: Option<f64>,
         out: &mut [f64],
@@ -450,11 +582,12 @@ impl Solver {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let mut a = self.plane(&self.spare, C::default())?;
         let chunk = kx * RHS_ROWS_PER_TASK;
+        let given: &[f64] = out;
         a.par_chunks_mut(chunk).enumerate().for_each(|(block, spectra)| {
             let y0 = block * RHS_ROWS_PER_TASK;
             let rows = spectra.len() / kx;
-            let mut rhs = vec![0.0; rows * w];
-            fill(y0..y0 + rows, &mut rhs);
+            let mut filled = Vec::new();
+            let rhs = right_hand_side_rows(fill, given, y0..y0 + rows, w, &mut filled);
             let mut ext = self.r2c.make_input_vec();
             let mut scratch = self.r2c.make_scratch_vec();
             for (row, spectrum) in rhs.chunks(w).zip(spectra.chunks_mut(kx)) {
@@ -500,15 +633,22 @@ impl Solver {
     /// The exact model for a mirrored x: the right-hand side is even along
     /// x, so its rows' spectra are real (the type-I cosine transform), one
     /// plane of f64, and the columns real FFTs.
-    fn solve_real(&self, fill: RhsRows<'_>, lambda: f64, epsilon: Option<f64>, out: &mut [f64]) -> Result<SolveStats> {
+    fn solve_real(
+        &self,
+        fill: Option<RhsRows<'_>>,
+        lambda: f64,
+        epsilon: Option<f64>,
+        out: &mut [f64],
+    ) -> Result<SolveStats> {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let mut a = self.plane(&self.spare_real, 0.0)?;
         let chunk = kx * RHS_ROWS_PER_TASK;
+        let given: &[f64] = out;
         a.par_chunks_mut(chunk).enumerate().for_each(|(block, spectra)| {
             let y0 = block * RHS_ROWS_PER_TASK;
             let rows = spectra.len() / kx;
-            let mut rhs = vec![0.0; rows * w];
-            fill(y0..y0 + rows, &mut rhs);
+            let mut filled = Vec::new();
+            let rhs = right_hand_side_rows(fill, given, y0..y0 + rows, w, &mut filled);
             let mut ext = self.r2c.make_input_vec();
             let mut spectrum = self.r2c.make_output_vec();
             let mut scratch = self.r2c.make_scratch_vec();
@@ -682,6 +822,25 @@ impl Solver {
         drop(b);
         self.inverse_rows(&mut a, out);
         Ok(self.stats(&partial))
+    }
+}
+
+/// The right-hand side's rows `rows`: `fill`'s into `filled`, or (`fill`
+/// None) those `given` already holds.
+fn right_hand_side_rows<'a>(
+    fill: Option<RhsRows<'_>>,
+    given: &'a [f64],
+    rows: std::ops::Range<usize>,
+    w: usize,
+    filled: &'a mut Vec<f64>,
+) -> &'a [f64] {
+    match fill {
+        Some(fill) => {
+            filled.resize(rows.len() * w, 0.0);
+            fill(rows, filled);
+            filled
+        }
+        None => &given[rows.start * w..rows.end * w],
     }
 }
 

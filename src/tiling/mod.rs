@@ -296,9 +296,10 @@ pub fn shift_half<T: Copy>(texels: &[T], width: usize, height: usize) -> Result<
 /// one; the fit's rule),
 /// [`Error::BufferSize`] when a plane is shorter than `width * height`,
 /// [`Error::NonFiniteHeight`] naming the first texel in row order whose
-/// height is NaN or infinite when the planes are judged as a height map (a
-/// score from heights some of which are not numbers would be a verdict on
-/// nothing; a normal map's non-finite components count as 0),
+/// height is NaN or infinite when the planes are judged as a height map,
+/// [`Error::NonFiniteNormal`] the first whose normal has a NaN or infinite
+/// component when they are judged as a normal map (a score from samples
+/// some of which are not numbers would be a verdict on nothing),
 /// [`Error::Limits`] when the profiles need more memory than the process
 /// may take.
 pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOptions) -> Result<TilingReport> {
@@ -312,10 +313,11 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
         KindChoice::Height => ImageKind::Height,
         KindChoice::Normal => ImageKind::Normal,
     };
-    if kind == ImageKind::Height
-        && let Some((x, y)) = Profiles::first_non_finite_height(planes, len, width)
-    {
-        return Err(Error::NonFiniteHeight { x, y });
+    if let Some((x, y)) = Profiles::first_non_finite(planes, len, width) {
+        return Err(match kind {
+            ImageKind::Height => Error::NonFiniteHeight { x, y },
+            ImageKind::Normal => Error::NonFiniteNormal { x, y },
+        });
     }
     let (cols, rows) = (Cut::of(width), Cut::of(height));
     let all_rows = Cut::whole(height);

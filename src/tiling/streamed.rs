@@ -95,6 +95,8 @@ pub struct HeightSeams {
     y_rows: usize,
     /// A row's kept columns, converted.
     kept: Vec<f32>,
+    /// Whether a NaN or infinite height is an error rather than 0.
+    refuse_non_finite: bool,
 }
 
 impl HeightSeams {
@@ -123,7 +125,47 @@ impl HeightSeams {
             y,
             y_rows: 0,
             kept: Vec::with_capacity(cols.kept()),
+            refuse_non_finite: false,
         })
+    }
+
+    /// The same check refusing a NaN or infinite height among the lines it
+    /// reads, as [`check`](super::check) refuses one anywhere: each push
+    /// holding one fails with [`Error::NonFiniteHeight`] naming its texel
+    /// in the image (the first in the order pushed), and pushes nothing.
+    /// Without it such heights count as 0 (the rule `--border auto` needs
+    /// for maps with nodata holes). Python's `normalfit.dask.check_tiling`
+    /// refuses them, as `normalfit.check_tiling` of the whole array does.
+    #[must_use]
+    pub fn refusing_non_finite(mut self) -> Self {
+        self.refuse_non_finite = true;
+        self
+    }
+
+    /// [`Error::NonFiniteHeight`] for the first NaN or infinite height of
+    /// `count` rows of `per_row` values, converted to the contract's f32
+    /// units, when this check refuses them; `at(row, column)` places a
+    /// value in the image.
+    fn refuse_non_finite<H: crate::Sample>(
+        &self,
+        texels: &[H],
+        per_row: usize,
+        count: usize,
+        at: impl Fn(usize, usize) -> (usize, usize),
+    ) -> Result<()> {
+        if !self.refuse_non_finite || per_row == 0 {
+            return Ok(());
+        }
+        let mut row = try_vec(per_row)?;
+        row.resize(per_row, 0.0f32);
+        for (i, part) in texels.chunks_exact(per_row).take(count).enumerate() {
+            convert_row(part, &mut row);
+            if let Some((k, _)) = crate::samples::first_non_finite(&row, per_row) {
+                let (x, y) = at(i, k);
+                return Err(Error::NonFiniteHeight { x, y });
+            }
+        }
+        Ok(())
     }
 
     /// The bytes a check of a `width` × `height` image holds (its profiles,
@@ -160,8 +202,9 @@ impl HeightSeams {
         self.x.rows
     }
 
-    /// Adds the next row, `width` heights. Non-finite values count as 0, as
-    /// in [`check`](super::check).
+    /// Adds the next row, `width` heights. Non-finite values count as 0
+    /// (unlike [`check`](super::check), which refuses them): this check
+    /// settles `--border auto` for maps with nodata holes.
     ///
     /// Errors: [`Error::BufferSize`] when `row.len() != width`,
     /// [`Error::InvalidOption`] when all `height` rows are in already, or
@@ -174,6 +217,7 @@ impl HeightSeams {
         }
         self.check_room(1)?;
         let y = self.x.rows;
+        self.refuse_non_finite(row, w, 1, |_, x| (x, y))?;
         let is_kept = |y: usize| self.rows.ranges().iter().any(|r| r.contains(&y));
         if self.y.is_some() && is_kept(y) && self.rows.line(self.y_rows) != y {
             return Err(Error::InvalidOption("the tiling check was given edge rows and whole rows both".into()));
@@ -213,6 +257,8 @@ impl HeightSeams {
     pub fn push_heights<H: crate::Sample>(&mut self, heights: &[H]) -> Result<()> {
         let w = self.width;
         let count = whole_rows(heights.len(), w, self.height - self.x.rows)?;
+        let first = self.x.rows;
+        self.refuse_non_finite(heights, w, count, |i, x| (x, first + i))?;
         let mut row = try_vec(w)?;
         row.resize(w, 0.0f32);
         for rows in heights.chunks_exact(w.max(1)).take(count) {
@@ -232,6 +278,8 @@ impl HeightSeams {
     pub fn push_edge_columns<H: crate::Sample>(&mut self, texels: &[H]) -> Result<()> {
         let n = self.cols.kept();
         let count = whole_rows(texels.len(), n, self.height - self.x.rows)?;
+        let (first, cols) = (self.x.rows, self.cols);
+        self.refuse_non_finite(texels, n, count, |i, k| (cols.line(k), first + i))?;
         let mut row = std::mem::take(&mut self.kept);
         row.resize(n, 0.0);
         for part in texels.chunks_exact(n.max(1)).take(count) {
@@ -250,13 +298,16 @@ impl HeightSeams {
     /// then).
     pub fn push_edge_rows<H: crate::Sample>(&mut self, heights: &[H]) -> Result<()> {
         let w = self.width;
-        let Some(y) = self.y.as_mut() else {
+        let Some(left) = self.y.as_ref().map(|y| y.height - y.rows) else {
             return match heights.is_empty() {
                 true => Ok(()),
                 false => Err(Error::BufferSize { expected: 0, actual: heights.len() }),
             };
         };
-        let count = whole_rows(heights.len(), w, y.height - y.rows)?;
+        let count = whole_rows(heights.len(), w, left)?;
+        let (pushed, rows) = (self.y_rows, self.rows);
+        self.refuse_non_finite(heights, w, count, |i, x| (x, rows.line(pushed + i)))?;
+        let Some(y) = self.y.as_mut() else { return Ok(()) };
         let mut row = try_vec(w)?;
         row.resize(w, 0.0f32);
         for rows in heights.chunks_exact(w.max(1)).take(count) {

@@ -21,10 +21,11 @@ impl Profiles {
         2 * levels * h * 8 + (crate::par::current_num_threads() as u64 + 1) * per_thread
     }
 
-    /// The first texel (x, y) in row order whose height, as [`measure`](Self::measure)
-    /// judges a height map, is NaN or infinite: the luma of R, G and B is
-    /// when one of them is; a gray image's is its first plane.
-    pub(super) fn first_non_finite_height(planes: &[&[f32]], len: usize, width: usize) -> Option<(usize, usize)> {
+    /// The first texel (x, y) in row order where a plane
+    /// [`measure`](Self::measure) judges is NaN or infinite: R, G or B
+    /// (a height map's luma of them, a normal map's components), or a
+    /// gray image's first plane.
+    pub(super) fn first_non_finite(planes: &[&[f32]], len: usize, width: usize) -> Option<(usize, usize)> {
         let judged = if planes.len() >= 3 { &planes[..3] } else { &planes[..1] };
         judged.iter().filter_map(|p| crate::samples::first_non_finite(&p[..len], width)).min_by_key(|&(x, y)| (y, x))
     }

@@ -167,8 +167,9 @@ def normals(
     chunks. An axis in one chunk takes no halo (the library maps every
     border's reads into the chunk).
 
-    The options are checked now (ValueError, TypeError as for
-    normalfit.normals). A chunk that fails when computed (a NaN height, a
+    The options and the array's shape are checked now (ValueError,
+    TypeError as for normalfit.normals: an array without texels raises
+    ValueError, as there). A chunk that fails when computed (a NaN height, a
     wrong dtype) raises, from its task, the library's exception with the
     chunk's block index and rows and columns before its message.
     """
@@ -182,6 +183,7 @@ def normals(
     # halo it plans: r texels, beyond the image's edges along an axis that
     # wraps (x, y).
     r, (beyond_x, beyond_y) = _normalfit.window_plan(
+        (w, h),
         array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads
     )
     out_dtype = np.dtype(dtype)
@@ -250,6 +252,11 @@ def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> T
     array: a 2-D dask.array of uint8, uint16, float32 or float64 heights.
     threshold: as for normalfit.check_tiling. kind: "auto" or "height"
     (a 2-D array is a height map; "normal" is refused).
+
+    A NaN or infinite height among the lines read raises ValueError naming
+    its texel, as normalfit.check_tiling does for the whole array; one
+    elsewhere is not read, so not judged. An array without texels raises
+    ValueError.
     """
     array = da.asarray(array)
     if array.ndim != 2:
@@ -257,7 +264,9 @@ def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> T
     if kind not in ("auto", "height"):
         raise ValueError(f"invalid option: kind of a 2-D array of heights must be auto or height, got {kind!r}")
     (h, w) = (int(array.shape[0]), int(array.shape[1]))
-    seams = _normalfit._HeightSeams(w, h)
+    # A NaN or infinite height among the lines read raises ValueError, as
+    # normalfit.check_tiling of the whole array does.
+    seams = _normalfit._HeightSeams(w, h, True)
     # The library says which lines it reads: every row's edge columns
     # (the whole row of a narrow array) and the edge rows whole (none when
     # the columns are whole rows: they serve both axes).

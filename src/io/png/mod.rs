@@ -74,7 +74,14 @@ fn decode_png(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         (png::ColorType::Rgba, png::BitDepth::Eight) => ColorType::Rgba8,
         (png::ColorType::Rgba, png::BitDepth::Sixteen) => ColorType::Rgba16,
         (color, depth) => {
-            return Err(Error::Unsupported(format!("png of {color:?} at {} bits is not supported", depth as u8)));
+            let color = match color {
+                png::ColorType::Grayscale => "gray",
+                png::ColorType::GrayscaleAlpha => "gray and alpha",
+                png::ColorType::Rgb => "RGB",
+                png::ColorType::Rgba => "RGBA",
+                png::ColorType::Indexed => "palette",
+            };
+            return Err(Error::Unsupported(format!("png of {} bits {color} is not supported", depth as u8)));
         }
     };
     let (names, sample) = layout(color)?;

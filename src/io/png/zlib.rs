@@ -266,7 +266,7 @@ pub(crate) fn verify_zlib(mut png: impl BufRead) -> Result<()> {
             let input = &input[..input.len().min(left as usize)];
             let (used, made) = inflater.read(input, &mut out, filled, false).map_err(|e| match e {
                 fdeflate::DecompressionError::WrongChecksum => checksum_mismatch(),
-                e => Error::Decode(format!("png: corrupt deflate stream: {e:?}")),
+                e => Error::Decode(format!("png: corrupt deflate stream: {}", deflate_words(&e))),
             })?;
             png.consume(used);
             left -= used as u64;
@@ -280,6 +280,25 @@ pub(crate) fn verify_zlib(mut png: impl BufRead) -> Result<()> {
             }
         }
         png.read_exact(&mut [0u8; 4]).map_err(eof)?;
+    }
+}
+
+/// What an fdeflate error means, in words (its `Debug` is a Rust name and
+/// it has no `Display`).
+fn deflate_words(e: &fdeflate::DecompressionError) -> &'static str {
+    use fdeflate::DecompressionError as D;
+    match e {
+        D::BadZlibHeader => "bad zlib header",
+        D::InsufficientInput => "the stream ends early",
+        D::InvalidBlockType => "invalid block type",
+        D::InvalidUncompressedBlockLength => "invalid stored block length",
+        D::InvalidHlit | D::InvalidHdist => "too many Huffman codes",
+        D::InvalidCodeLengthRepeat | D::BadCodeLengthHuffmanTree => "invalid code lengths",
+        D::BadLiteralLengthHuffmanTree | D::BadDistanceHuffmanTree => "invalid Huffman tree",
+        D::InvalidLiteralLengthCode | D::InvalidDistanceCode => "invalid Huffman code",
+        D::InputStartsWithRun | D::DistanceTooFarBack => "a back-reference before the start",
+        D::WrongChecksum => "wrong checksum",
+        D::ExtraInput => "data past the end of the stream",
     }
 }
 

@@ -94,7 +94,7 @@ pub(crate) fn layout(color: ColorType) -> Result<(&'static [&'static str], Sampl
         Rgb32F => (RGB, SampleType::Float),
         Rgba32F => (RGBA, SampleType::Float),
         other => {
-            return Err(Error::Unsupported(format!("pixel layout {other:?} is not supported")));
+            return Err(Error::Unsupported(format!("pixel layout {} is not supported", layout_words(other))));
         }
     })
 }
@@ -105,7 +105,7 @@ pub(crate) fn deinterleave(buf: &[u8], names: &[&str], sample: SampleType, texel
         SampleType::Int { bits: 8 } => 1,
         SampleType::Int { bits: 16 } => 2,
         SampleType::Float => 4,
-        other => return Err(Error::Unsupported(format!("{other:?} samples are not read from interleaved pixels"))),
+        other => return Err(Error::Unsupported(format!("{other} are not read from interleaved pixels"))),
     };
     let stride = bytes * names.len();
     if buf.len() != texels.saturating_mul(stride) {
@@ -139,4 +139,18 @@ fn from_image_error(e: ImageError) -> Error {
         ImageError::IoError(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
         other => Error::Decode(message(&other.to_string())),
     }
+}
+
+/// An `image` pixel layout in words ("RGB of 32-bit floats"); its `Debug`
+/// is a Rust name.
+fn layout_words(color: ColorType) -> String {
+    let channels = match color.channel_count() {
+        1 => "gray",
+        2 => "gray and alpha",
+        3 => "RGB",
+        _ => "RGBA",
+    };
+    let bits = color.bits_per_pixel() / u16::from(color.channel_count().max(1));
+    let kind = if matches!(color, ColorType::Rgb32F | ColorType::Rgba32F) { "float" } else { "integer" };
+    format!("{channels} of {bits}-bit {kind}s")
 }

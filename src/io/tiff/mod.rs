@@ -95,6 +95,16 @@ impl TiffGray {
         }
     }
 
+    /// The layout as messages name it: "32-bit float", ….
+    fn name(self) -> String {
+        let (format, bits) = match self.sample() {
+            SampleType::Float => (SampleFormat::IEEEFP, self.bytes() * 8),
+            SampleType::Int { bits } => (SampleFormat::Uint, usize::from(bits)),
+            SampleType::SignedInt { bits } => (SampleFormat::Int, usize::from(bits)),
+        };
+        format!("{bits}-bit {}", format_name(format))
+    }
+
     /// What was stored, for [`Raster::sample`].
     fn sample(self) -> SampleType {
         use TiffGray::*;
@@ -140,8 +150,11 @@ impl TiffLayout {
             Ok(Some(formats)) => match formats.first() {
                 Some(&f) if formats.iter().all(|&g| g == f) => SampleFormat::from_u16_exhaustive(f),
                 Some(_) => {
+                    let names: Vec<String> =
+                        formats.iter().map(|&g| format_name(SampleFormat::from_u16_exhaustive(g))).collect();
                     return Err(Error::Unsupported(format!(
-                        "bands of different sample formats ({formats:?}) are not read"
+                        "bands of different sample formats ({}) are not read",
+                        names.join(", ")
                     )));
                 }
                 None => return Ok(None),
@@ -166,7 +179,7 @@ impl TiffLayout {
 /// How `tiff` names a colour type it reads no bands from, for the error.
 fn describe_colortype(decoder: &mut tiff::decoder::Decoder<Cursor<&[u8]>>) -> String {
     match decoder.colortype() {
-        Ok(color) => format!("{color:?}").to_lowercase(),
+        Ok(color) => color_words(color),
         Err(e) => from_tiff_error(e).to_string(),
     }
 }
@@ -201,6 +214,7 @@ fn decode_band(
     let len = plane.checked_mul(bands).ok_or_else(too_big)?;
     let planar =
         bands > 1 && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
+    check_stored_bytes(&mut decoder, len as u64)?;
     let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
     let data = if planar {
         // Only the band's own strips or tiles are read. The whole image's
@@ -213,9 +227,10 @@ fn decode_band(
         let buffer = decoder.image_buffer_layout().map_err(from_tiff_error)?;
         if buffer.planes != 1 || buffer.complete_len != len {
             return Err(Error::Decode(format!(
-                "tiff layout of {} bytes in {} planes does not match {width} × {height} texels of {bands} {kind:?} \
-                 samples",
-                buffer.complete_len, buffer.planes
+                "tiff layout of {} bytes in {} planes does not match {width} × {height} texels of {bands} {} samples",
+                buffer.complete_len,
+                buffer.planes,
+                kind.name()
             )));
         }
         memory::check_memory("decoding", (len as u64).saturating_add(8 * texels as u64))?;
@@ -233,6 +248,49 @@ fn decode_band(
         planes: vec![Plane { name: "Y".into(), data }],
         georef: None,
     })
+}
+
+/// Refuses a TIFF whose strips or tiles, as stored, cannot decode to the
+/// `decoded` bytes its header describes, before those bytes are allocated:
+/// a forged width, height or band count in a file of a few hundred bytes
+/// would otherwise have its whole image allocated (and zeroed) first.
+/// Uncompressed chunks hold their bytes as they are; each compression
+/// `tiff` decodes here expands by at most a known ratio (PackBits 128
+/// bytes from 2, Deflate 1032:1, an LZW code of at least 9 bits at most
+/// 4096 bytes, JPEG a generous 1024:1 for a block coded in a few bits).
+/// Other compressions are not bounded here; the memory check still is.
+fn check_stored_bytes<R: Read + Seek>(decoder: &mut tiff::decoder::Decoder<R>, decoded: u64) -> Result<()> {
+    // The codes of TIFF 6.0 and its technical notes.
+    let ratio: u64 = match decoder.find_tag_unsigned::<u16>(Tag::Compression).map_err(from_tiff_error)?.unwrap_or(1) {
+        1 => 1,
+        32773 => 64,
+        8 | 32946 => 1032,
+        5 => 4096 * 8 / 9 + 1,
+        6 | 7 => 1024,
+        _ => return Ok(()),
+    };
+    let counts = match decoder.get_chunk_type() {
+        tiff::decoder::ChunkType::Strip => Tag::StripByteCounts,
+        tiff::decoder::ChunkType::Tile => Tag::TileByteCounts,
+    };
+    let stored = decoder.find_tag_unsigned_vec::<u64>(counts).map_err(from_tiff_error)?.unwrap_or_default();
+    // A count past the end of the file is forged: no chunk holds more
+    // bytes than the file.
+    let reader = decoder.inner();
+    let here = reader.stream_position().map_err(Error::Io)?;
+    let file = reader.seek(std::io::SeekFrom::End(0)).map_err(Error::Io)?;
+    reader.seek(std::io::SeekFrom::Start(here)).map_err(Error::Io)?;
+    let chunks = stored.len() as u64;
+    let stored: u64 = stored.iter().fold(0, |sum, &n| sum.saturating_add(n.min(file)));
+    // JPEG chunks share tables kept elsewhere: a few hundred bytes each.
+    let most = stored.saturating_add(if ratio == 1024 { chunks.saturating_mul(1024) } else { 0 }).saturating_mul(ratio);
+    if most < decoded {
+        return Err(Error::Decode(format!(
+            "tiff strips or tiles of {stored} bytes in all cannot hold the {decoded} bytes of samples its header \
+             describes"
+        )));
+    }
+    Ok(())
 }
 
 /// The sample layout of `layout` and the 0-based index of the band read:
@@ -333,8 +391,28 @@ fn format_name(format: SampleFormat) -> String {
         SampleFormat::Int => "signed integer".into(),
         SampleFormat::IEEEFP => "float".into(),
         SampleFormat::Void => "untyped".into(),
-        other => format!("{other:?}").to_lowercase(),
+        other => format!("sample format {}", other.to_u16()),
     }
+}
+
+/// A TIFF colour type as messages name it: "8-bit palette", "3 bands of
+/// 16 bits", ….
+fn color_words(color: tiff::ColorType) -> String {
+    use tiff::ColorType as C;
+    let (what, bits) = match color {
+        C::Gray(b) => ("gray", b),
+        C::RGB(b) => ("RGB", b),
+        C::Palette(b) => ("palette", b),
+        C::GrayA(b) => ("gray and alpha", b),
+        C::RGBA(b) => ("RGBA", b),
+        C::CMYK(b) => ("CMYK", b),
+        C::CMYKA(b) => ("CMYK and alpha", b),
+        C::YCbCr(b) => ("YCbCr", b),
+        C::Lab(b) => ("CIE L*a*b*", b),
+        C::Multiband { bit_depth, num_samples } => return format!("{num_samples} bands of {bit_depth} bits"),
+        _ => return "a colour type not read".into(),
+    };
+    format!("{bits}-bit {what}")
 }
 
 /// The georeferencing tags of the first image, checked (a tag of the
@@ -524,6 +602,8 @@ impl<R: Read + Seek> TiffBand<R> {
         let (w, h) = (to_usize(width.into())?, to_usize(height.into())?);
         let planar = bands > 1
             && decoder.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(from_tiff_error)? == Some(2);
+        let described = (w as u64).saturating_mul(h as u64).saturating_mul((bands * kind.bytes()) as u64);
+        check_stored_bytes(&mut decoder, described)?;
         let mut decoder = decoder.with_limits(tiff_limits(opts, kind, if planar { 1 } else { bands }));
         // `tiff` checks the chunk geometry here.
         decoder.image_buffer_layout().map_err(from_tiff_error)?;
@@ -727,5 +807,21 @@ fn sample_value(kind: TiffGray, p: &[u8]) -> f64 {
         TiffGray::I16 => f64::from(i16::from_ne_bytes(ne(p))) / 65535.0,
         TiffGray::I32 => f64::from(i32::from_ne_bytes(ne(p))) / U32_TOP,
         TiffGray::I64 => i64::from_ne_bytes(ne(p)) as f64 / U64_TOP,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Messages name layouts in words, never as Rust values.
+    #[test]
+    fn layouts_are_named_in_words() {
+        assert_eq!(TiffGray::F32.name(), "32-bit float");
+        assert_eq!(TiffGray::U16.name(), "16-bit unsigned integer");
+        assert_eq!(TiffGray::I64.name(), "64-bit signed integer");
+        assert_eq!(format_name(SampleFormat::from_u16_exhaustive(7)), "sample format 7");
+        assert_eq!(color_words(tiff::ColorType::Palette(8)), "8-bit palette");
+        assert_eq!(color_words(tiff::ColorType::Multiband { bit_depth: 16, num_samples: 5 }), "5 bands of 16 bits");
     }
 }

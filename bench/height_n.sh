@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# `normalfit height`'s time and memory against the patch size N (issue 32,
+# point 4), as a user calls it: each normal map made by `normalfit convert`
+# with the options the row names, then `normalfit height` of it with the
+# same. Prints a Markdown table: wall time and peak RSS (GNU time), one run
+# each; given an older build, it runs that one too, on the same files in
+# the same run, and prints the ratio of the times.
+#
+#   bench/height_n.sh                     # this build only
+#   bench/height_n.sh /tmp/nf-before      # and an older binary beside it
+#   TIMEOUT=60 bench/height_n.sh …        # seconds a run may take (default 120)
+#
+# Maps: ridged fractal noise (examples/heightmap.rs) of 64², 512² and
+# 1024²; a flat map of 1 × 5000 (a PGM of zeros). Needs a Rust toolchain
+# and GNU time (apt-get install -y time).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+before=${1:-}
+timeout=${TIMEOUT:-120}
+target=${CARGO_TARGET_DIR:-target}
+work=bench/.work/height_n
+mkdir -p "$work"
+cargo build --release --locked --bin normalfit --example heightmap
+bin=$target/release/normalfit
+for size in 64 512 1024; do
+  [ -f "$work/h$size.png" ] || "$target/release/examples/heightmap" "$size" "$work/h$size.png" >/dev/null
+done
+# A flat map one texel wide: a binary PGM of zeros.
+{ printf 'P5\n1 5000\n255\n'; head -c 5000 /dev/zero; } > "$work/flat1x5000.pgm"
+
+# "wall-seconds peak-MiB" of one run of "$@", or ">T -" past the timeout.
+measure() {
+  if /usr/bin/time -f '%e %M' -o "$work/time.txt" timeout "$timeout" "$@" >/dev/null 2>"$work/stderr.txt"; then
+    read -r t m < "$work/time.txt"
+    echo "$t $((m / 1024))"
+  elif grep -q 'Command exited with non-zero status 124' "$work/time.txt"; then
+    echo ">$timeout -"
+  else
+    echo "failed -"
+    cat "$work/stderr.txt" >&2
+  fi
+}
+
+if [ -n "$before" ]; then
+  echo "| map | N | options | before | after | before / after | RSS before | RSS after |"
+  echo "|---|---|---|---|---|---|---|---|"
+else
+  echo "| map | N | options | wall | peak RSS |"
+  echo "|---|---|---|---|---|"
+fi
+# row MAP N OPTIONS…: convert, then height, with -s 8 -n N and the options.
+row() {
+  local map=$1 n=$2; shift 2
+  local label=${*:-default (orthogonal, wrap)}
+  "$bin" convert "$work/$map" -o "$work/n.exr" -s 8 -n "$n" "$@" -q
+  read -r ta ma < <(measure "$bin" height "$work/n.exr" -o "$work/back.exr" -s 8 -n "$n" "$@" -q)
+  if [ -n "$before" ]; then
+    read -r tb mb < <(measure "$before" height "$work/n.exr" -o "$work/back_before.exr" -s 8 -n "$n" "$@" -q)
+    ratio=$(python3 -c "
+a, b = '$ta', '$tb'
+print('' if '-' in a + b or 'f' in a + b else f'{(float(b.lstrip(\">\")) / max(float(a), 0.01)):.0f}' + ('+' if b.startswith('>') else ''))")
+    echo "| ${map%.*} | $n | $label | $tb s | $ta s | $ratio | $mb MiB | $ma MiB |"
+  else
+    echo "| ${map%.*} | $n | $label | $ta s | $ma MiB |"
+  fi
+}
+for map in h64.png h512.png; do
+  for n in 3 63 255 1023; do
+    row "$map" "$n"
+    row "$map" "$n" --fit vertical
+    row "$map" "$n" --border clamp
+  done
+done
+for n in 3 63 255 1023; do
+  row flat1x5000.pgm "$n"
+  row flat1x5000.pgm "$n" --border clamp
+done
+for n in 3 255; do
+  row h1024.png "$n"
+done
