@@ -62,11 +62,8 @@ pub(super) fn bytes_needed(w: usize, h: usize, opts: &HeightOptions) -> Result<u
 /// (three planes of it), and every thread's scratch.
 pub(super) fn gauss_newton_bytes(w: usize, h: usize, opts: &HeightOptions) -> u64 {
     let texels = (w as u64).saturating_mul(h as u64);
-    let preconditioner = if has_transform(w, h, opts) {
-        spectra_pieces(w, h)
-    } else {
-        2 * plane(w, h) + null_list(w, h)
-    };
+    let preconditioner =
+        if has_transform(w, h, opts) { spectra_pieces(w, h) } else { 2 * plane(w, h) + null_list(w, h) };
     texels
         .saturating_mul(super::gauss_newton::BYTES_PER_TEXEL)
         .saturating_add(preconditioner)
