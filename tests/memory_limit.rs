@@ -237,3 +237,33 @@ fn tightening_limits_never_abort_a_path_that_grows_with_n() {
         assert_eq!(outcomes.last().unwrap().1, Outcome::Ran, "{what}: refused at 1000 MiB");
     }
 }
+
+/// The inverse where no transform fits (clamp borders, N ≥ 5) solves in
+/// dense bases (`height/dense.rs`: per axis several n × n matrices while
+/// they are made, and the null modes' projection), a cost the shape sets,
+/// not N's line sums: on a 600 × 3 map at N = 255, limits from 200 MiB to
+/// 1000 MiB in steps of 100 each run or refuse in one line, never an
+/// abort; refused at the first step, run at the last.
+#[test]
+#[cfg_attr(not(target_os = "linux"), ignore = "the memory rule reads the process's use in /proc (Linux)")]
+fn tightening_limits_never_abort_the_inverse_in_dense_bases() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("out");
+    fs::create_dir(&folder).unwrap();
+    let (png, normals) = (dir.path().join("h600x3.png"), dir.path().join("n600x3.png"));
+    write_gray16(&png, 600, 3);
+    let r = run(&["convert", s(&png), "-o", s(&normals), "--bits", "16", "-n", "255", "--border", "clamp"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let exr = folder.join("h.exr");
+    let args = ["height", s(&normals), "-o", s(&exr), "-n", "255", "--border", "clamp"];
+    let outcomes: Vec<(u64, Outcome)> = (2..=10)
+        .map(|k| {
+            let mib = 100 * k;
+            (mib, check(mib << 20, &format!("height, clamp, at {mib} MiB"), &args, None, &normals, &exr))
+        })
+        .collect();
+    let ran: Vec<u64> = outcomes.iter().filter(|(_, o)| *o == Outcome::Ran).map(|(m, _)| *m).collect();
+    println!("height, clamp: ran at {ran:?} MiB");
+    assert_ne!(outcomes[0].1, Outcome::Ran, "200 MiB is too little, yet it ran");
+    assert_eq!(outcomes.last().unwrap().1, Outcome::Ran, "refused at 1000 MiB");
+}
