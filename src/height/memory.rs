@@ -11,7 +11,7 @@
 //! several n × n matrices per axis while they are made) and their null
 //! modes. A change to what the solve holds belongs here too.
 
-use super::dense::{MAX_DENSE, MAX_NULLS};
+use super::dense::MAX_DENSE;
 use super::solve::{Axis, RHS_DIRECT_RADIUS, Solver};
 use super::{HeightOptions, Model, SlopeField};
 use crate::error::Result;
@@ -175,13 +175,14 @@ fn dense_making(w: usize, h: usize) -> u64 {
 /// One dense solve beside the bases: the right-hand side and its two
 /// slope planes (three planes) with the adjoint's column pass, then the
 /// right-hand side, a plane of work and the null modes found
-/// ([`null_list`]), then those modes' projection ([`null_projection`]).
+/// ([`null_list`]). Those modes' projection is checked where the solve
+/// has counted them (`dense.rs`): a handful as a rule, up to 4096 (some
+/// 160 MiB at 1024 × 1024) for an operator that sees next to nothing.
 fn dense_solve(w: usize, h: usize) -> u64 {
     let p = plane(w, h);
     let right_hand_side = 3 * p + column_pieces(w, h, 1);
     let apply = 2 * p + null_list(w, h);
-    let projection = p + null_list(w, h) + null_projection(w, h);
-    right_hand_side.max(apply).max(projection)
+    right_hand_side.max(apply)
 }
 
 /// The null modes a dense solve lists, at most one a texel: 16 bytes
@@ -189,14 +190,6 @@ fn dense_solve(w: usize, h: usize) -> u64 {
 /// by doubling (up to twice its length).
 fn null_list(w: usize, h: usize) -> u64 {
     (w as u64).saturating_mul(h as u64).saturating_mul(64)
-}
-
-/// Taking the null modes out of the heights: for each of up to
-/// [`MAX_NULLS`] modes its two axis vectors, their Gram matrix and its
-/// right-hand side.
-fn null_projection(w: usize, h: usize) -> u64 {
-    let count = ((w as u64).saturating_mul(h as u64)).min(MAX_NULLS as u64);
-    F64 * (count * count + count * (w as u64 + h as u64 + 1)) + 48 * count
 }
 
 /// The line sums' column pass (`line.rs`) over `outs` planes of `w` × `h`:
