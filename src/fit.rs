@@ -84,6 +84,7 @@ pub use band::BandFit;
 use emit::store_normals;
 use masked::row_has_hole;
 use plan::Plan;
+pub(crate) use request::work_bytes;
 pub use request::{FitRequest, Heights};
 use sums::{RowRef, SourceRows, WindowSums};
 pub use window::{Halo, HaloPlan, Window};

@@ -203,6 +203,7 @@ pub mod height;
 pub mod inspect;
 pub mod io;
 mod light;
+mod memory;
 pub mod normal_map;
 pub mod options;
 mod par;

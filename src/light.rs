@@ -116,7 +116,7 @@ pub fn shade(
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    Ok(shade_with(normals, Lamp::light(light, convention)))
+    shade_with(normals, Lamp::light(light, convention))
 }
 
 /// The hillshade of `normals` under `sun`, as `gdaldem hillshade` draws it:
@@ -143,14 +143,17 @@ pub fn shade_sun(
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    Ok(shade_with(normals, Lamp::sun(sun, affine, convention)))
+    shade_with(normals, Lamp::sun(sun, affine, convention))
 }
 
 /// Every texel's grey under `lamp`.
-pub(crate) fn shade_with(normals: &[[f32; 3]], lamp: Lamp) -> Vec<u8> {
-    let mut grey = vec![0u8; normals.len()];
+///
+/// Errors: [`Error::Limits`] when the memory for the greys is not there.
+pub(crate) fn shade_with(normals: &[[f32; 3]], lamp: Lamp) -> Result<Vec<u8>> {
+    let mut grey = crate::samples::try_vec(normals.len())?;
+    grey.resize(normals.len(), 0u8);
     lamp.grey_row(normals, &mut grey);
-    grey
+    Ok(grey)
 }
 
 /// A light resolved for one image: its direction in the fit's frame
@@ -350,7 +353,7 @@ pub fn tile_2x2(pixels: &[u8], width: usize, height: usize) -> Result<Vec<u8>> {
     let out_len = len
         .checked_mul(4)
         .ok_or_else(|| Error::InvalidOption(format!("a 2×2 tiling of {width}×{height} texels is too large")))?;
-    let mut out = Vec::with_capacity(out_len);
+    let mut out = crate::samples::try_vec(out_len)?;
     for _ in 0..2 {
         for row in pixels.chunks_exact(width) {
             out.extend_from_slice(row);

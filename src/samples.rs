@@ -181,6 +181,14 @@ impl Samples {
         }
     }
 
+    /// The height of a stored value of 1 ([`Sample::UNIT`] of the type held).
+    pub(crate) fn unit(&self) -> f64 {
+        fn unit_of<H: Sample>(_: &[H]) -> f64 {
+            H::UNIT
+        }
+        with_slice!(self, s => unit_of(s))
+    }
+
     /// The first (x, y) in row order whose value is NaN or infinite.
     pub(crate) fn first_non_finite(&self, width: usize) -> Option<(usize, usize)> {
         with_slice!(self, s => first_non_finite(s, width))
@@ -224,6 +232,24 @@ pub(crate) fn try_vec<T>(len: usize) -> Result<Vec<T>> {
     v.try_reserve_exact(len)
         .map_err(|_| Error::Limits(format!("cannot allocate {len} values of {} bytes", size_of::<T>())))?;
     Ok(v)
+}
+
+/// `values` appended to `v`, or [`Error::Limits`] if the memory for them
+/// is not there.
+pub(crate) fn try_extend<T: Copy>(v: &mut Vec<T>, values: &[T]) -> Result<()> {
+    v.try_reserve(values.len())
+        .map_err(|_| Error::Limits(format!("cannot allocate {} values of {} bytes", values.len(), size_of::<T>())))?;
+    v.extend_from_slice(values);
+    Ok(())
+}
+
+/// `v` resized to `len` (new values `value`), or [`Error::Limits`] if the
+/// memory for them is not there.
+pub(crate) fn try_resize<T: Clone>(v: &mut Vec<T>, len: usize, value: T) -> Result<()> {
+    v.try_reserve(len.saturating_sub(v.len()))
+        .map_err(|_| Error::Limits(format!("cannot allocate {len} values of {} bytes", size_of::<T>())))?;
+    v.resize(len, value);
+    Ok(())
 }
 
 /// [`try_vec`] holding `len` copies of `value`, written in parallel. The

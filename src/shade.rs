@@ -393,7 +393,7 @@ fn lit(raster: Cow<'_, Raster>, opts: &LitOptions) -> Result<LitView> {
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    let lit = shade_with(&normals, lamp);
+    let lit = shade_with(&normals, lamp)?;
     let (pixels, width, height) = if opts.tile { (tile_2x2(&lit, w, h)?, 2 * w, 2 * h) } else { (lit, w, h) };
     Ok(LitView { pixels, width, height, kind, warnings: Vec::new(), georef, missing: 0 })
 }

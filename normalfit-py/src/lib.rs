@@ -934,14 +934,17 @@ fn tiling_report_object(
 
 /// A file API's error. `ValueError` for an option (and for an output the
 /// options cannot make, such as 8-bit EXR), and for an input whose
-/// extension names another format than its content, the file named; else `OSError`
-/// naming the file: `OSError(errno, message, filename)` when the system
-/// gave an errno (so a missing file is `FileNotFoundError`), else the
-/// library's line after the file's name.
+/// extension names another format than its content, the file named;
+/// `MemoryError` naming the file for one too large (for `max_texels`, or
+/// for the memory the process may take: the command line's line); else
+/// `OSError` naming the file: `OSError(errno, message, filename)` when the
+/// system gave an errno (so a missing file is `FileNotFoundError`), else
+/// the library's line after the file's name.
 fn file_error(path: &Path, e: Error, output: bool) -> PyErr {
     let shown = path.display().to_string();
     match &e {
         Error::InvalidOption(_) | Error::Misnamed { .. } => PyValueError::new_err(format!("{shown}: {e}")),
+        Error::Limits(_) => PyMemoryError::new_err(format!("{shown}: {e}")),
         Error::Unsupported(_) if output => PyValueError::new_err(format!("{shown}: {e}")),
         Error::Io(io) if io.raw_os_error().is_some() => PyOSError::new_err((io.raw_os_error(), e.to_string(), shown)),
         _ => PyOSError::new_err(format!("{shown}: {e}")),

@@ -114,7 +114,7 @@ def test_convert_errors(tmp_path: Path) -> None:
     ]:
         with pytest.raises(ValueError, match=message):
             normalfit.convert(ROCK, tmp_path / "o.png", **kwargs)  # type: ignore[arg-type]
-    with pytest.raises(OSError, match="too large"):
+    with pytest.raises(MemoryError, match="too large"):
         normalfit.convert(ROCK, tmp_path / "o.png", max_texels=1000)
     assert not (tmp_path / "o.png").exists(), "a failed conversion leaves no output"
 
@@ -232,19 +232,21 @@ def forged_png(width: int, height: int) -> bytes:
 
 
 @pytest.mark.parametrize(
-    "make",
+    ("make", "error"),
     [
-        lambda p: p.write_bytes(b""),
-        lambda p: p.write_bytes(ROCK.read_bytes()[:3000]),
-        lambda p: p.write_bytes(forged_png(100_000, 100_000)),
-        lambda p: p.write_bytes(forged_png(2**31 - 1, 1)),
-        lambda p: p.write_bytes(forged_png(300, 200)),
-        lambda p: p.write_bytes(np.random.default_rng(9).integers(0, 256, 5000, dtype=np.uint8).tobytes()),
-        lambda p: p.mkdir(),
+        (lambda p: p.write_bytes(b""), OSError),
+        (lambda p: p.write_bytes(ROCK.read_bytes()[:3000]), OSError),
+        # Headers claiming more texels than max_texels are too large, as
+        # the command line's line says: MemoryError, before any pixel.
+        (lambda p: p.write_bytes(forged_png(100_000, 100_000)), MemoryError),
+        (lambda p: p.write_bytes(forged_png(2**31 - 1, 1)), MemoryError),
+        (lambda p: p.write_bytes(forged_png(300, 200)), OSError),
+        (lambda p: p.write_bytes(np.random.default_rng(9).integers(0, 256, 5000, dtype=np.uint8).tobytes()), OSError),
+        (lambda p: p.mkdir(), OSError),
     ],
     ids=["empty", "truncated", "huge-header", "wide-header", "short-data", "noise", "a-folder"],
 )
-def test_hostile_files_are_os_errors(make, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_hostile_files_are_os_or_memory_errors(make, error: type[Exception], tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     bad = tmp_path / "bad.png"
     make(bad)
     for call in (
@@ -254,7 +256,9 @@ def test_hostile_files_are_os_errors(make, tmp_path: Path) -> None:  # type: ign
         lambda: normalfit.lit_view(bad),
         lambda: normalfit.check_tiling(bad),
     ):
-        with pytest.raises(OSError) as caught:
+        with pytest.raises(error) as caught:
             call()
         assert "bad.png" in str(caught.value) and "\n" not in str(caught.value)
+        if error is MemoryError:
+            assert "too large: " in str(caught.value), caught.value
     assert not (tmp_path / "o.png").exists()

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use super::sink::{
-    self, InMemory, Output, check_assembly_memory, check_encode_memory, encode_residual, write_all, write_to, zeroed,
+    self, InMemory, Output, check_assembly_memory, check_whole_memory, encode_residual, write_all, write_to, zeroed,
 };
 use super::source::{Reopen, Rows};
 use super::stage::{Texels, fitted};
@@ -142,11 +142,13 @@ impl Job<'_> {
         if let Stage::Lit { lighting, tile, .. } = self.stage {
             return self.lit_whole(&heights, (width, height), &fit, (lighting, tile), normals);
         }
-        // Named by the first output to be written.
-        let first = if normals.is_some() { Place::Output } else { Place::Residual };
         let to_writer = matches!(normals, Some(Output::Writer(_)));
-        check_encode_memory(&self.encoding, to_writer, normals.is_some(), residual.is_some(), width, height)
-            .map_err(ConvertError::at(first))?;
+        let holes = fit.nodata.is_some();
+        let work = crate::fit::work_bytes(&fit, (width, height), heights.unit(), holes, residual.is_some())
+            .map_err(&in_failure)?;
+        let outputs = (normals.is_some(), residual.is_some(), holes);
+        // Named by the input, as a streamed conversion's bands are.
+        check_whole_memory(&self.encoding, to_writer, outputs, (width, height), work).map_err(&in_failure)?;
         let mut distances = residual.as_ref().map(|_| zeroed::<f32>(heights.len())).transpose().map_err(&in_failure)?;
         let mut valid = match fit.nodata {
             Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
@@ -159,8 +161,14 @@ impl Job<'_> {
         // An alpha of heights takes them in contract units, as f32; an
         // alpha of validity, 1 and 0.
         let heights = match (self.encoding.layout(), &valid) {
-            (Layout::RgbValid, Some(valid)) => valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect(),
-            (Layout::RgbValid, None) => vec![1.0; width * height],
+            (Layout::RgbValid, valid) => {
+                let mut alpha = crate::samples::try_vec(width * height).map_err(&in_failure)?;
+                match valid {
+                    Some(valid) => alpha.extend(valid.iter().map(|&v| if v { 1.0 } else { 0.0 })),
+                    None => alpha.resize(width * height, 1.0),
+                }
+                alpha
+            }
             (layout, _) if layout.needs_heights() => heights.into_f32().map_err(&in_failure)?,
             _ => Vec::new(),
         };
@@ -385,9 +393,13 @@ impl Job<'_> {
         let in_failure = ConvertError::at(Place::Input);
         let texels = (width as u64).saturating_mul(height as u64);
         // The normals (12 bytes a texel), the validity (1), the greys (1),
-        // tiled four times over (4).
+        // tiled four times over (4); and the fit's own work, which grows
+        // with N.
         let per_texel = 12 + 1 + if tile { 5 } else { 1 };
-        io::check_memory("lighting the view", texels.saturating_mul(per_texel)).map_err(&in_failure)?;
+        let holes = fit.nodata.is_some();
+        let work = crate::fit::work_bytes(fit, (width, height), heights.unit(), holes, false).map_err(&in_failure)?;
+        io::check_memory("lighting the view", texels.saturating_mul(per_texel).saturating_add(work))
+            .map_err(&in_failure)?;
         let mut valid = match fit.nodata {
             Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
             None => None,
@@ -395,7 +407,7 @@ impl Job<'_> {
         let normals: Vec<[f32; 3]> =
             fitted(heights, width, height, fit, None, valid.as_deref_mut()).map_err(&in_failure)?;
         let lamp = lighting.lamp(self.georef, fit.convention);
-        let mut greys = crate::light::shade_with(&normals, lamp);
+        let mut greys = crate::light::shade_with(&normals, lamp).map_err(&in_failure)?;
         drop(normals);
         if let Some(valid) = &valid {
             for (g, _) in greys.iter_mut().zip(valid).filter(|(_, v)| !**v) {

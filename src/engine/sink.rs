@@ -142,11 +142,15 @@ pub(crate) fn encode_residual(
     }
 }
 
-/// Refuses an encode that the memory limits leave no room for, before it
-/// starts: past our own buffers the encoders allocate as they go, and a
-/// failure there would abort the process. Bytes held per texel, from what
-/// the encoders do:
+/// Refuses a whole-image conversion that the memory limits leave no room
+/// for, in one line, before the fit allocates anything: a failure past our
+/// own buffers (the encoders allocate as they go) would abort the process.
+/// `fit_work` is what the fit allocates beyond its outputs
+/// ([`crate::fit::work_bytes`]: its sums, which grow with N, on every
+/// thread). Bytes held per texel, from what the fit and the encoders do:
 /// * the normal map: 3, 6 or 12 (8-bit, 16-bit, float);
+/// * with holes (`holes`), which texels have a normal (1);
+/// * an alpha of heights or of validity: its f32 plane (4);
 /// * PNG (c samples of s bytes a texel): the samples laid out, unless RGB
 ///   (c·s); for 16 bits, the native-endian and `image`'s big-endian
 ///   copies (2·c·s); the whole zlib stream, which `png` assembles in
@@ -155,13 +159,12 @@ pub(crate) fn encode_residual(
 /// * the residual: its distances (4), and for its one-channel encode no
 ///   more than 10;
 /// * for a writer, the encoded file: at most about its raw size.
-pub(crate) fn check_encode_memory(
+pub(crate) fn check_whole_memory(
     encoding: &Encoding,
     to_writer: bool,
-    normals: bool,
-    residual: bool,
-    w: usize,
-    h: usize,
+    (normals, residual, holes): (bool, bool, bool),
+    (w, h): (usize, usize),
+    fit_work: u64,
 ) -> Result<()> {
     let layout = encoding.layout();
     let c: u64 = match layout {
@@ -182,9 +185,13 @@ pub(crate) fn check_encode_memory(
         Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => (12, 0, 4 * c),
     };
     let assembled = if to_writer { raw } else { 0 };
-    let per_texel = map + if normals { encode + assembled } else { 0 } + if residual { 4 + 10 } else { 0 };
+    let alpha = if layout.needs_heights() { 4 } else { 0 };
+    let per_texel = map
+        + if normals { encode + assembled + alpha } else { 0 }
+        + if residual { 4 + 10 } else { 0 }
+        + u64::from(holes);
     let texels = (w as u64).saturating_mul(h as u64);
-    io::check_memory("encoding the normal map", texels.saturating_mul(per_texel))
+    io::check_memory("fitting and encoding the normal map", texels.saturating_mul(per_texel).saturating_add(fit_work))
 }
 
 /// Refuses to assemble an EXR for a writer in memory when the memory

@@ -146,6 +146,20 @@ impl BandFit {
         self.fit_band_with(rows, row, out, Some(valid))
     }
 
+    /// The bytes fitting one band allocates beyond the caller's buffers,
+    /// for rows of `H` values: the fit's sums on every thread
+    /// ([`Plan::work_bytes`], which grow with N), and with holes (`masked`,
+    /// or [`Options::nodata`] set) which rows hold one and which texels
+    /// have a normal. Callers that stream check it, with their bands,
+    /// against the memory rule ([`crate::memory`]) before the first band.
+    pub(crate) fn work_bytes<H: Sample>(&self, masked: bool) -> u64 {
+        let unit = self.unit.unwrap_or(H::UNIT);
+        let rows = self.band_rows.max(self.plan.r).min(self.height);
+        let masked = masked || self.plan.nodata.is_some();
+        let holes = if masked { (rows + 2 * self.plan.r + rows * self.plan.width) as u64 } else { 0 };
+        self.plan.work_bytes(unit, (self.plan.width, rows), masked, false).saturating_add(holes)
+    }
+
     /// Whether the fit has holes ([`Options::nodata`] is set): then
     /// [`fit_band`](Self::fit_band) writes missing texels flat, and
     /// [`fit_band_masked`](Self::fit_band_masked) says which they are.
@@ -212,7 +226,7 @@ impl BandFit {
             x0: 0,
             holes: holes.get((v - first) as usize).copied().unwrap_or(true),
         };
-        let mut own = if valid.is_none() { vec![false; out.len()] } else { Vec::new() };
+        let mut own = if valid.is_none() { crate::samples::try_filled(out.len(), false)? } else { Vec::new() };
         let valid = match valid {
             Some(valid) => valid,
             None => &mut own[..],

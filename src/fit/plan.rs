@@ -56,6 +56,18 @@ pub(super) struct Strip<'t, T> {
     pub(super) valid: Option<(Vec<&'t mut [bool]>, f64)>,
 }
 
+/// How a strip's sums are made ([`Plan::kernel`]).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(super) enum Kernel {
+    /// Running sums of stored integers: a ring of N rows' sums.
+    Sliding,
+    /// Each patch summed outright (floats, N ≤ 7): N rows' sums.
+    Direct,
+    /// Suffixes and prefixes of blocks aligned on the image (floats):
+    /// 2N rows' sums and N window sums.
+    Blocked,
+}
+
 /// Everything about a conversion that is the same for every tile.
 pub(super) struct Plan {
     pub(super) width: usize,
@@ -168,10 +180,14 @@ impl Plan {
                 None => (None, None),
             };
             let first = tasks.len();
+            // A piece of each of the tile's rows (16 bytes), sized once:
+            // a 2^24-row column has 2^24 of them.
+            let rows_here = len / w;
             for x0 in cols.clone().step_by(strip) {
                 let has_residual = tile_residual.is_some();
-                let valid = nodata.map(|nd| (Vec::new(), nd));
-                tasks.push(Strip { y0: y, x0, out: Vec::new(), residual: has_residual.then(Vec::new), valid });
+                let valid = nodata.map(|nd| (Vec::with_capacity(rows_here), nd));
+                let residual = has_residual.then(|| Vec::with_capacity(rows_here));
+                tasks.push(Strip { y0: y, x0, out: Vec::with_capacity(rows_here), residual, valid });
             }
             if let Some(tile_valid) = tile_valid {
                 for row in tile_valid.chunks_exact_mut(w) {
@@ -197,20 +213,87 @@ impl Plan {
             rest_residual = residual_tail;
             rest_valid = valid_tail;
         }
+        let kernel = self.kernel(unit);
         // Map units take every value as it is given (a DEM's metres).
         let unit = if self.spacing.is_some() { 1.0 } else { unit };
         // The product of S and the unit, once: every path that fits these
         // samples forms the same gain, and so the same bits.
         let gain = self.scale * unit;
-        // A unit below 1 is that of stored integers (1/255, 1/65535).
-        let integers = unit != 1.0;
-        tasks.into_par_iter().for_each(|task| match (integers, self.n) {
-            (true, _) => self.fit_strip_sliding(rows, gain, task),
-            (false, 3) => self.fit_strip_direct::<H, T, 3>(rows, gain, task),
-            (false, 5) => self.fit_strip_direct::<H, T, 5>(rows, gain, task),
-            (false, 7) => self.fit_strip_direct::<H, T, 7>(rows, gain, task),
-            (false, _) => self.fit_strip_blocked(rows, gain, task),
+        tasks.into_par_iter().for_each(|task| match (kernel, self.n) {
+            (Kernel::Sliding, _) => self.fit_strip_sliding(rows, gain, task),
+            (Kernel::Direct, 3) => self.fit_strip_direct::<H, T, 3>(rows, gain, task),
+            (Kernel::Direct, 5) => self.fit_strip_direct::<H, T, 5>(rows, gain, task),
+            (Kernel::Direct, 7) => self.fit_strip_direct::<H, T, 7>(rows, gain, task),
+            _ => self.fit_strip_blocked(rows, gain, task),
         });
+    }
+
+    /// How [`Self::fit_rows`] sums samples whose height is value × `unit`
+    /// ([`Sample::UNIT`], or the caller's): stored integers (a unit below
+    /// 1: 1/255, 1/65535) by running sums, unless map units take the
+    /// values as given; floats outright for N ≤ 7, else by blocks.
+    pub(super) fn kernel(&self, unit: f64) -> Kernel {
+        if self.spacing.is_none() && unit != 1.0 {
+            Kernel::Sliding
+        } else if self.n <= 7 {
+            Kernel::Direct
+        } else {
+            Kernel::Blocked
+        }
+    }
+
+    /// The bytes [`Self::fit_rows`] allocates, beyond its caller's
+    /// buffers, to fit `rows` output rows of `cols` columns from samples
+    /// of `unit`: the tasks and their lists of row pieces (of the normals,
+    /// and of the residual and validity when asked for), and a strip's
+    /// sums ([`Self::strip_bytes`]) on every thread at once. This grows
+    /// with N (a strip holds up to 2N rows' sums of at least 8·N columns)
+    /// and with the width only up to a strip's. An upper bound: a vector
+    /// grown by doubling counts twice its length. The memory rule
+    /// ([`crate::memory`]) compares it with what the process may take.
+    pub(super) fn work_bytes(&self, unit: f64, (cols, rows): (usize, usize), holes: bool, residual: bool) -> u64 {
+        let strip = self.strip_cols();
+        let (w, strips) = (cols.min(strip) as u64, cols.div_ceil(strip) as u64);
+        // The top r rows, then blocks: one tile more than whole blocks.
+        let tasks = strips.saturating_mul(rows.div_ceil(self.block_rows) as u64 + 1);
+        let buffers = 1 + u64::from(residual) + u64::from(holes);
+        // 16 bytes a piece of a row; a task about 100, in a vector grown
+        // by doubling.
+        let lists = tasks.saturating_mul(2 * 128).saturating_add(strips * rows as u64 * 16 * buffers);
+        let running = (crate::par::current_num_threads() as u64).clamp(1, tasks.max(1));
+        // A strip's sums are many rows of a strip's width, which the
+        // allocator keeps in the thread's heaps.
+        let strip = crate::memory::in_heaps(self.strip_bytes(self.kernel(unit), w, holes));
+        lists.saturating_add(running.saturating_mul(strip))
+    }
+
+    /// The bytes one strip of `w` columns holds while `kernel` fits it.
+    fn strip_bytes(&self, kernel: Kernel, w: u64, holes: bool) -> u64 {
+        let n = self.n as u64;
+        // A row's heights with their borders, w + 2r (grown in up to
+        // three steps: at most twice that).
+        let padded = 2 * (w + n);
+        // A row's sums: three planes and its padded heights, and `extra`.
+        let row = |extra: u64| 8 * (3 * w + padded) + extra;
+        // The window sums: four planes, and which patches hold a hole.
+        let window = 32 * w + if holes { w } else { 0 };
+        let sums = match kernel {
+            // A ring of N rows' sums, and the row entering.
+            Kernel::Sliding => (n + 1) * row(0) + window,
+            // N rows' sums and their squares.
+            Kernel::Direct => n * row(8 * padded) + window,
+            // 2N rows' sums, each with a block's suffixes and prefixes (N
+            // of 24 bytes each); N suffixes of window sums, a prefix, the
+            // sums and a zero.
+            Kernel::Blocked => 2 * n * row(48 * n) + (n + 3) * window,
+        };
+        // The normals' three planes; in map units, the unequal spacing's
+        // matrices and Newton planes (about 160 bytes a column).
+        let emit = 24 * w + if self.spacing.is_some() { 160 * w } else { 0 };
+        // Holes: the mask's running sums and valid row (about 100 bytes a
+        // column), the masked patches' moments and Newton planes (300).
+        let mask = if holes { 400 * w + padded } else { 0 };
+        sums + emit + mask
     }
 
     /// The holes of one strip: `None` when no row it reads holds one (every

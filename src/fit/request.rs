@@ -3,7 +3,7 @@
 use super::{FromNormal, Plan, RowRef, Window, checked_len, row_has_hole};
 use crate::error::{Error, Result};
 use crate::options::{Borders, Options};
-use crate::samples::{Sample, Samples, first_non_finite, with_slice};
+use crate::samples::{Sample, Samples, first_non_finite, try_filled, try_vec, with_slice};
 
 /// A fit of heights held in memory: [`Options`], and what else the caller
 /// asks for, then [`normals_into`](Self::normals_into) runs it.
@@ -182,7 +182,10 @@ impl<'a> FitRequest<'a> {
     /// (naming it); [`Error::BufferSize`] for a buffer of the wrong length
     /// (heights, `out`, the residual, `valid`); without holes,
     /// [`Error::NonFiniteHeight`] for the first NaN or infinite height in
-    /// row order (at its image texel).
+    /// row order (at its image texel); [`Error::Limits`] when the fit's
+    /// sums (which grow with N: a strip holds up to 2N rows of them, on
+    /// every thread) do not fit in the memory the process may still take
+    /// under its limits (`ulimit -v`; see [`check_memory`](crate::io::check_memory)).
     pub fn normals_into<S: Heights + ?Sized, T: FromNormal>(
         self,
         heights: &S,
@@ -236,9 +239,16 @@ impl<'a> FitRequest<'a> {
             let y = plan.borders.y.map(held_y.start + y as isize, image.1);
             return Err(Error::NonFiniteHeight { x, y });
         }
+        // The memory rule, before the fit allocates: its sums grow with N.
+        let work = plan.work_bytes(H::UNIT, (ow, oh), masked, residual.is_some());
+        let own_valid = if masked && valid.is_none() { out_len as u64 } else { 0 };
+        let hole_rows = if masked { height as u64 } else { 0 };
+        crate::memory::check_memory("fitting the normals", work + own_valid + hole_rows)?;
         let nodata = plan.nodata.unwrap_or(f64::NAN);
         let holes: Vec<bool> = if masked {
-            heights.chunks_exact(width).map(|row| row_has_hole(row, nodata)).collect()
+            let mut holes = try_vec(height)?;
+            holes.extend(heights.chunks_exact(width).map(|row| row_has_hole(row, nodata)));
+            holes
         } else {
             Vec::new()
         };
@@ -254,7 +264,7 @@ impl<'a> FitRequest<'a> {
             plan.fit_rows(&rows, H::UNIT, (oy, cols), out, residual, None);
             return Ok(0);
         }
-        let mut own = if valid.is_none() { vec![false; out_len] } else { Vec::new() };
+        let mut own = if valid.is_none() { try_filled(out_len, false)? } else { Vec::new() };
         let valid = match valid {
             Some(valid) => valid,
             None => &mut own[..],
@@ -262,6 +272,26 @@ impl<'a> FitRequest<'a> {
         plan.fit_rows(&rows, H::UNIT, (oy, cols), out, residual, Some((&mut *valid, nodata)));
         Ok(valid.iter().filter(|&&v| !v).count())
     }
+}
+
+/// The bytes a fit of a whole `width` × `height` image, of samples whose
+/// height is value × `unit` ([`Sample::UNIT`]), allocates beyond its
+/// heights and the caller's outputs (normals, residual, validity): what
+/// [`FitRequest::normals_into`] checks against the memory rule, for a
+/// caller that checks it up front with its own buffers (the engine).
+///
+/// Errors: those of the options and the size.
+pub(crate) fn work_bytes(
+    opts: &Options,
+    (width, height): (usize, usize),
+    unit: f64,
+    holes: bool,
+    residual: bool,
+) -> Result<u64> {
+    let plan = Plan::new(width, height, opts)?;
+    let holes = holes || plan.nodata.is_some();
+    let hole_rows = if holes { height as u64 } else { 0 };
+    Ok(plan.work_bytes(unit, (width, height), holes, residual).saturating_add(hole_rows))
 }
 
 mod sealed {

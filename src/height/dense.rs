@@ -67,7 +67,7 @@ pub(super) const ORTHOGONAL_NULL: f64 = 1e-7;
 const RANK: f64 = 1e-11;
 
 /// The null modes the solve takes out of its heights at most.
-const MAX_NULLS: usize = 4096;
+pub(super) const MAX_NULLS: usize = 4096;
 
 /// One axis's basis: U (n × n, row-major: U[i][k] = component i of basis
 /// vector k), what the ramp and the box see of each basis vector (the
@@ -135,8 +135,7 @@ impl DenseSolver {
         z: &mut [f64],
     ) -> Result<()> {
         let nulls = self.apply(b, lambda, null, None, z)?;
-        self.remove_null_modes(&nulls, weights, z);
-        Ok(())
+        self.remove_null_modes(&nulls, weights, z)
     }
 
     /// (DᵀWD + (λ + ε)W)⁻¹ W b, W's part in each basis vector's own
@@ -217,12 +216,22 @@ impl DenseSolver {
     /// (W is W_y ⊗ W_x), solved by Gaussian elimination. Past
     /// [`MAX_NULLS`] of them (an operator seeing next to nothing) z is left
     /// as it is.
-    fn remove_null_modes(&self, nulls: &[(usize, usize)], (wx, wy): (&[f64], &[f64]), z: &mut [f64]) {
+    ///
+    /// Errors: [`crate::Error::Limits`] when the projection's memory
+    /// ([`null_projection_bytes`]) is not there. It is checked here, with
+    /// the count found, rather than up front: the count depends on the
+    /// slopes, and is a handful where the worst case is [`MAX_NULLS`]
+    /// (a Gram matrix of 128 MiB).
+    fn remove_null_modes(&self, nulls: &[(usize, usize)], (wx, wy): (&[f64], &[f64]), z: &mut [f64]) -> Result<()> {
         let count = nulls.len();
         if count == 0 || count > MAX_NULLS {
-            return;
+            return Ok(());
         }
         let (w, h) = (self.w, self.h);
+        crate::memory::check_memory(
+            "taking the fit's null modes out of the heights",
+            null_projection_bytes(count, w, h),
+        )?;
         let column = |basis: &Basis, n: usize, k: usize| -> Vec<f64> { (0..n).map(|i| basis.u[i * n + k]).collect() };
         let modes: Vec<(Vec<f64>, Vec<f64>)> =
             nulls.iter().map(|&(k, l)| (column(&self.x, w, k), column(&self.y, h, l))).collect();
@@ -238,7 +247,7 @@ impl DenseSolver {
             .iter()
             .map(|(u, v)| z.chunks(w).enumerate().map(|(y, row)| v[y] * wy[y] * dot(u, row, wx)).sum())
             .collect();
-        let Some(alpha) = gauss(&mut gram, &mut rhs, count) else { return };
+        let Some(alpha) = gauss(&mut gram, &mut rhs, count) else { return Ok(()) };
         z.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             for ((u, v), a) in modes.iter().zip(&alpha) {
                 let f = a * v[y];
@@ -247,6 +256,7 @@ impl DenseSolver {
                 }
             }
         });
+        Ok(())
     }
 
     /// The right-hand side DᵀWg of `slopes` into `b`, W the period's
@@ -399,6 +409,14 @@ fn gauss(a: &mut [f64], b: &mut [f64], n: usize) -> Option<Vec<f64>> {
         x[row] = (b[row] - s) / a[row * n + row];
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// What taking `count` null modes out of a `w` × `h` map holds: each
+/// mode's two axis vectors, their Gram matrix and its right-hand side and
+/// solution, and the list of them.
+fn null_projection_bytes(count: usize, w: usize, h: usize) -> u64 {
+    let count = count as u64;
+    8 * (count * count + count * (w as u64 + h as u64 + 2)) + 48 * count
 }
 
 /// out = m · U (`transposed`: m · Uᵀ), m of rows of `w`, U w × w.

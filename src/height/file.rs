@@ -201,8 +201,7 @@ impl HeightConversion {
             _ => None,
         };
         let options = HeightOptions { step: self.step.unwrap_or(stored.step()), ..self.options.clone() };
-        let texels = (w as u64).saturating_mul(h as u64);
-        io::check_memory("finding the heights", texels.saturating_mul(per_texel(&options, w, h))).map_err(fail_in)?;
+        super::memory::check(w, h, &options).map_err(fail_in)?;
         let row = |y: usize, out: &mut [[f64; 3]]| {
             for (c, plane) in planes.iter().enumerate() {
                 with_slice!(plane, s => {
@@ -300,27 +299,3 @@ impl HeightConversion {
 
 /// Rows of heights converted to f32 at a time for an EXR.
 const EXR_ROWS: usize = 256;
-
-/// Bytes a conversion holds per texel besides the decoded image: the
-/// slopes ([`SlopeField`], 16), the solve's row spectra ([`super::solve::Solver::memory`]: 8 bytes a texel
-/// for the exact model with a wrapped or mirrored x, 16 clamped; the
-/// generic model's two complex planes 16 or 32), the heights (8), the orthogonal
-/// fit's ratios and kept heights (24), the conjugate gradients' vectors
-/// (56, clamp with N ≥ 5), the right-hand side's second plane (8, the exact
-/// model with N ≥ 11), the re-fit's patch sums where the image is small
-/// for N (24, [`super::iterative::refit_by_lines`]), the output's samples
-/// (4).
-fn per_texel(options: &HeightOptions, width: usize, height: usize) -> u64 {
-    let fit = &options.fit;
-    let spectra = super::solve::Solver::memory(width, 1, fit.borders, options.model);
-    let clamp = fit.borders.x == crate::Border::Clamp || fit.borders.y == crate::Border::Clamp;
-    let iterative = if clamp && fit.patch > 3 { 56 } else { 0 };
-    let orthogonal = match fit.fit {
-        crate::Fit::Orthogonal if super::iterative::refit_by_lines(width, height, fit.patch) => 48,
-        crate::Fit::Orthogonal => 24,
-        _ => 0,
-    };
-    let wide = options.model == super::Model::Exact && fit.patch / 2 > super::solve::RHS_DIRECT_RADIUS;
-    let rhs = if wide { 8 } else { 0 };
-    SlopeField::BYTES_PER_TEXEL + spectra.div_ceil(width.max(1) as u64) + 8 + orthogonal + iterative + rhs + 4
-}

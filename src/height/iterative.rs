@@ -185,7 +185,7 @@ pub(crate) fn exact(
     let precision = opts.step.max(f64::from(f32::EPSILON));
     let room = crate::io::check_memory(
         "the orthogonal fit's Gauss–Newton steps",
-        (len as u64).saturating_mul(super::gauss_newton::BYTES_PER_TEXEL),
+        super::memory::gauss_newton_bytes(w, h, opts),
     );
     let weights = multiplicities(&patch, h);
     let preconditioner = match (&solver, &dense) {

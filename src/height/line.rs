@@ -56,7 +56,7 @@ use crate::par::prelude::*;
 pub(super) const DIRECT_RADIUS: usize = 3;
 
 /// Columns gathered per task of [`columns`].
-const COLUMNS_PER_TASK: usize = 16;
+pub(super) const COLUMNS_PER_TASK: usize = 16;
 
 /// How a line extends past its ends.
 #[derive(Clone, Debug)]

@@ -81,6 +81,7 @@ use crate::par::prelude::*;
 use crate::samples::try_filled;
 
 pub mod file;
+mod memory;
 
 /// Which operator the heights are fitted through.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -375,6 +376,7 @@ pub fn heights_of_rows(
     opts: &HeightOptions,
 ) -> Result<Heights> {
     opts.validate()?;
+    memory::check(width, height, opts)?;
     heights_of_slopes(&SlopeField::of_rows(row, width, height)?, opts)
 }
 

@@ -91,9 +91,9 @@ const RESPONSE_DIRECT_RADIUS: usize = 16;
 const ROWS_PER_TASK: usize = 8;
 /// Rows per task in the right-hand side's pass (which reads r rows more
 /// on either side of its block).
-const RHS_ROWS_PER_TASK: usize = 32;
+pub(super) const RHS_ROWS_PER_TASK: usize = 32;
 /// Columns per task in the column pass.
-const COLUMNS_PER_TASK: usize = 8;
+pub(super) const COLUMNS_PER_TASK: usize = 8;
 
 /// How an axis extends to its period.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -22,7 +22,6 @@ mod atomic;
 pub mod encoding;
 pub(crate) mod exr;
 mod identity;
-mod memory;
 pub(crate) mod png;
 pub mod read;
 pub mod rows;
@@ -39,12 +38,12 @@ use crate::error::{Error, Result, one_line};
 use crate::par::prelude::*;
 use crate::samples::{Samples, try_vec};
 
+pub use crate::memory::check_memory;
 pub use encoding::{
     Alpha, Encoding, ExrDepth, ExrOptions, Layout, OutputChannels, OutputFormat, PngCompression, PngDepth, PngOptions,
 };
 pub use exr::rows::ExrRows;
 pub use identity::{FileId, same_file};
-pub use memory::check_memory;
 pub use png::rows::PngRows;
 pub use read::{
     Affine, ByteOrder, Channel, FormatInfo, Georef, ModelType, PackedElevation, RasterType, RawOptions, decode,

@@ -137,10 +137,15 @@ fn checked_tail<'a>(tail: Option<&'a [f64]>, w: usize, h: usize, opts: &Options)
     }
 }
 
-/// The heights of the image's `rows` in contract units, one row after the
-/// other, for a layout that writes them (an alpha of heights).
-fn heights_of<H: RowValue>(rows: Range<usize>, row: &Rows<'_, H>, unit: f64) -> Vec<f32> {
-    rows.flat_map(|y| row(y).iter().map(move |&v| (v.to_f64() * unit) as f32)).collect()
+/// The heights of the image's `rows` (of `w` values) in contract units,
+/// one row after the other, for a layout that writes them (an alpha of
+/// heights).
+///
+/// Errors: [`Error::Limits`] when the memory for them is not there.
+fn heights_of<H: RowValue>(rows: Range<usize>, row: &Rows<'_, H>, unit: f64, w: usize) -> Result<Vec<f32>> {
+    let mut heights = crate::samples::try_vec(rows.len() * w)?;
+    heights.extend(rows.flat_map(|y| row(y).iter().map(move |&v| (v.to_f64() * unit) as f32)));
+    Ok(heights)
 }
 
 /// A band of rows between stages: its first row and its values (heights,
@@ -258,8 +263,10 @@ fn lit_greys(lamp: crate::light::Lamp, normals: &[[f32; 3]], valid: &[f32], grey
 /// band's samples, or its bytes deflated or stored, never more) of the
 /// band being fitted, two queued, the one being written and one given
 /// back to be filled again. Besides, a copy of the first 2r rows, the
-/// tail and a row of heights for `visit`.
-fn check_stream_memory<H, T>(fit: &BandFit, tail_len: usize) -> Result<()> {
+/// tail, a row of heights for `visit`, and the fit's own work on a band
+/// ([`BandFit::work_bytes`]: its sums, which grow with N, on every thread;
+/// with holes, the band's validity).
+fn check_stream_memory<H: Sample, T>(fit: &BandFit, tail_len: usize) -> Result<()> {
     let (w, h, r, band) = (fit.width() as u64, fit.height() as u64, fit.radius() as u64, fit.band_rows() as u64);
     // No more rows than the image has.
     let height_rows = (6 * band).min(h);
@@ -271,7 +278,8 @@ fn check_stream_memory<H, T>(fit: &BandFit, tail_len: usize) -> Result<()> {
         + tail_len as u64 * (8 + height_bytes)
         + output_rows * w * output_bytes
         + 4 * w;
-    crate::io::check_memory("converting by rows", bytes)
+    // Two threads of its own beside the pool's: decoding and fitting.
+    crate::memory::check_work("converting by rows", bytes.saturating_add(fit.work_bytes::<H>(false)), 2)
 }
 
 /// Decodes bands of `band` rows and sends them on; stops at the first
@@ -297,7 +305,15 @@ fn decode_stage<H: RowValue>(
         // room for the bands was checked before the stages started.
         let mut heights = match spares.try_recv() {
             Ok(spare) if spare.len() == n * w => spare,
-            _ => vec![H::default(); n * w],
+            // Reserved fallibly besides: an estimate that fell short is
+            // an error, not an abort.
+            _ => match crate::samples::try_filled(n * w, H::default()) {
+                Ok(heights) => heights,
+                Err(e) => {
+                    let _ = tx.send(Err(e));
+                    return;
+                }
+            },
         };
         let result = heights.chunks_exact_mut(w).try_for_each(|row| {
             H::read(rows, row)?;
@@ -387,7 +403,10 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
             match incoming.next() {
                 Some(Ok((first, rows))) => {
                     let wanted = (head_rows * w).saturating_sub(head.len()).min(rows.len());
-                    head.extend_from_slice(&rows[..wanted]);
+                    if let Err(e) = crate::samples::try_extend(&mut head, &rows[..wanted]) {
+                        let _ = tx.send(Err(e));
+                        return;
+                    }
                     decoded = first + rows.len() / w;
                     window.push_back((first, rows));
                 }
@@ -417,22 +436,34 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
         };
         // One buffer for every band's texels, each overwritten whole by the
         // fit: no zeroing per band.
-        normals.resize((y1 - y0) * w, T::default());
+        let grown = crate::samples::try_resize(&mut normals, (y1 - y0) * w, T::default());
+        if let Err(e) = grown.and_then(|()| match fit.has_nodata() {
+            true => crate::samples::try_resize(&mut valid, (y1 - y0) * w, false),
+            false => Ok(()),
+        }) {
+            let _ = tx.send(Err(e));
+            return;
+        }
         let fitted = if fit.has_nodata() {
-            valid.resize(normals.len(), false);
             fit.fit_band_masked(rows.clone(), &row, &mut normals, &mut valid).map(|_| ())
         } else {
             valid.clear();
             fit.fit_band(rows.clone(), &row, &mut normals)
         };
-        let result = fitted.map(|()| {
+        let result = fitted.and_then(|()| {
             let extra = match needs_heights {
                 Extra::None => Vec::new(),
-                Extra::Heights => heights_of(rows.clone(), &row, unit),
-                Extra::Valid if valid.is_empty() => vec![1.0; normals.len()],
-                Extra::Valid => valid.iter().map(|&v| if v { 1.0 } else { 0.0 }).collect(),
+                Extra::Heights => heights_of(rows.clone(), &row, unit, w)?,
+                Extra::Valid => {
+                    let mut extra = crate::samples::try_vec(normals.len())?;
+                    match valid.is_empty() {
+                        true => extra.resize(normals.len(), 1.0),
+                        false => extra.extend(valid.iter().map(|&v| if v { 1.0 } else { 0.0 })),
+                    }
+                    extra
+                }
             };
-            prepare(rows, &mut normals, extra)
+            Ok(prepare(rows, &mut normals, extra))
         });
         let failed = result.is_err();
         if tx.send(result.map(|values| (y0, values))).is_err() || failed {

@@ -17,7 +17,26 @@ pub fn bin() -> Command {
 /// output. A run that takes over a minute (a folder loop, a hang) is
 /// killed and fails the test instead of hanging it.
 pub fn run(args: &[&str]) -> Output {
-    let mut child = bin()
+    run_command(bin(), args)
+}
+
+/// The binary under test with its address space limited to `bytes`
+/// (`ulimit -v`, set by sh, which then becomes the binary: the arguments
+/// pass through untouched).
+pub fn bin_within(bytes: u64) -> Command {
+    let mut command = Command::new("sh");
+    command.arg("-c").arg(format!("ulimit -v {} && exec \"$0\" \"$@\"", bytes / 1024));
+    command.arg(env!("CARGO_BIN_EXE_normalfit"));
+    command
+}
+
+/// [`run`] with the address space limited to `bytes` ([`bin_within`]).
+pub fn run_within(bytes: u64, args: &[&str]) -> Output {
+    run_command(bin_within(bytes), args)
+}
+
+fn run_command(mut command: Command, args: &[&str]) -> Output {
+    let mut child = command
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())

@@ -1,5 +1,6 @@
 //! Files built byte by byte for the hostile-input and awkward-input tests,
-//! and a way to run the binary that never waits forever.
+//! and a way to run the binary that never waits forever, under a 1 GiB
+//! address-space limit.
 //!
 //! PNG, OpenEXR and TIFF are written here by hand rather than by their
 //! crates' encoders, so that every field (a CRC, a window corner, a filter
@@ -462,12 +463,21 @@ fn is_summary(line: &str) -> bool {
     )
 }
 
+/// The address space every run of the corpus may take (`ulimit -v`):
+/// 1 GiB, under which every case must still be refused in one line or
+/// converted, never end in an aborted allocation (issue 32).
+pub const ADDRESS_SPACE: u64 = 1 << 30;
+
 /// Runs the binary with `args` (standard input from `stdin` if given),
-/// killing it if it outlives [`TIME_LIMIT`]: a test that hangs fails
-/// instead of waiting forever.
+/// under [`ADDRESS_SPACE`], killing it if it outlives [`TIME_LIMIT`]: a
+/// test that hangs fails instead of waiting forever.
 pub fn run_bin(args: &[&std::ffi::OsStr], stdin: Option<&Path>) -> Run {
     use std::os::unix::process::ExitStatusExt;
-    let mut command = Command::new(env!("CARGO_BIN_EXE_normalfit"));
+    // sh sets the limit, then becomes the binary ("$0", "$@": the
+    // arguments pass through unquoted by any shell).
+    let mut command = Command::new("sh");
+    let limit = format!("ulimit -v {} && exec \"$0\" \"$@\"", ADDRESS_SPACE / 1024);
+    command.arg("-c").arg(limit).arg(env!("CARGO_BIN_EXE_normalfit"));
     command.args(args).stdout(Stdio::piped()).stderr(Stdio::piped());
     command.stdin(match stdin {
         Some(path) => Stdio::from(std::fs::File::open(path).unwrap()),

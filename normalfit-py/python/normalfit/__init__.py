@@ -111,7 +111,9 @@ def normals(
     Raises TypeError for a heights or out that is not an array of the
     right number of dimensions and dtype, ValueError for an option out of
     range, a height that is NaN or infinite, an out of the wrong shape,
-    MemoryError when the memory is not there.
+    MemoryError when the memory is not there: the fit's work, which grows
+    with patch, is checked against the memory the process may take
+    (``ulimit -v``) before it starts, as the command line checks it.
     """
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
@@ -146,7 +148,9 @@ def check_tiling(
     width, height, and suggested_borders, the (x, y) borders that add no
     seam (wrap where it tiles, mirror where not).
 
-    Raises OSError naming the file for a file that cannot be read.
+    Raises OSError naming the file for a file that cannot be read,
+    MemoryError naming it for one too large (max_texels, or the memory the
+    process may take).
     """
     if isinstance(image, (str, os.PathLike)):
         return _normalfit.check_tiling_file(image, threshold, kind, channel, max_texels, layer)
@@ -221,8 +225,9 @@ def convert(
     used, streamed, tiling, warnings, nodata, missing). Raises ValueError for a bad option,
     ValueError naming the file for a src whose extension names another
     format than its content (a PNG named .exr, refused as the command line
-    refuses it), OSError naming the file for a file that cannot be read or
-    written.
+    refuses it), MemoryError naming the file for one too large (max_texels,
+    or the memory the process may take: the command line's line), OSError
+    naming the file for a file that cannot be read or written.
     """
     return _normalfit.convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
@@ -249,8 +254,8 @@ def decode_normals(
     """A normal map file's colours back to normals: n = 2c - 1 per channel
     (c the stored value in [0, 1]), or n = c for a signed float (EXR) map.
     Returns a (rows, columns, 3) float32 array (not renormalised).
-    Raises OSError naming the file, ValueError for signed with an integer
-    image."""
+    Raises OSError naming the file, MemoryError naming it for one too
+    large, ValueError for signed with an integer image."""
     return _normalfit.decode_normals(path, signed, max_texels, layer)
 
 
@@ -301,6 +306,11 @@ def lit_view(
 
     Returns the gray picture as a (rows, columns) uint8 array (twice each
     side when tiled), the pixels ``normalfit shade`` writes.
+
+    Raises ValueError for a bad option, MemoryError naming the file for one
+    too large (max_texels, or the memory the process may take: the fit's
+    work grows with patch; the command line's line), OSError naming the
+    file for a file that cannot be read.
     """
     return _normalfit.lit_view(
         path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
@@ -349,7 +359,8 @@ def height(
 
     Raises TypeError for an array of the wrong dimensions or dtype,
     ValueError for a bad option or shape, MemoryError when the memory is
-    not there.
+    not there (what the solve holds, which grows with patch, is checked
+    against the memory the process may take before it starts).
     """
     return _normalfit.height(
         normals, patch, fit, border, convention, scale, relief, invert, model, step, threads
@@ -383,8 +394,8 @@ def height_file(
     The output appears whole or not at all and never replaces src.
 
     Returns a HeightInfo (with warnings, one line each). Raises ValueError
-    for a bad option, OSError naming the file for a file that cannot be
-    read or written.
+    for a bad option, MemoryError naming the file for one too large,
+    OSError naming the file for a file that cannot be read or written.
     """
     return _normalfit.height_file(
         src, dst, patch, fit, border, convention, scale, relief, invert, model, signed, format,

@@ -13,8 +13,8 @@ use crate::par::prelude::*;
 
 use self::subsampled as exr_subsampled;
 use crate::error::{Error, Result};
-use crate::io::memory;
 use crate::io::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, to_usize};
+use crate::memory;
 use crate::samples::{Samples, try_vec};
 
 /// The four bytes every OpenEXR file starts with.
@@ -47,7 +47,7 @@ pub(crate) fn decode_exr_from<R: BufRead + Seek + Send>(
     check_exr_meta(&meta, file_len, opts)?;
     let choice = choose_exr_layer(&exr_parts(&meta.headers), opts.layer.as_deref())?;
     // `exr` allocates the image itself, and aborts if that fails.
-    memory::check_memory("decoding", memory::exr_decode_bytes(&meta.headers[choice.part]))?;
+    memory::check_memory("decoding", exr_decode_bytes(&meta.headers[choice.part]))?;
     use exr::prelude::ReadLayers;
     let channels = exr::prelude::read().no_deep_data().largest_resolution_level().all_channels();
     from_start(&mut read)?;
@@ -367,4 +367,20 @@ pub(crate) fn from_exr_error(e: exr::error::Error) -> Error {
         E::Io(e) => Error::Decode(format!("truncated or corrupt: {}", message(&e.to_string()))),
         E::Aborted => Error::Decode("reading was aborted".into()),
     }
+}
+
+/// The bytes the `exr` crate holds for a whole-image read of the part
+/// `header` describes (every channel at full resolution, as stored), plus
+/// one converted `f32` plane for half or u32 channels.
+fn exr_decode_bytes(header: &exr::meta::header::Header) -> u64 {
+    let texels = (header.layer_size.0 as u64).saturating_mul(header.layer_size.1 as u64);
+    let stored: u64 = header
+        .channels
+        .list
+        .iter()
+        .map(|c| texels.saturating_mul(c.sample_type.bytes_per_sample() as u64))
+        .fold(0, u64::saturating_add);
+    let all_f32 = header.channels.list.iter().all(|c| c.sample_type == exr::meta::attribute::SampleType::F32);
+    let converted = if all_f32 { 0 } else { texels.saturating_mul(4) };
+    stored.saturating_add(converted)
 }

@@ -13,9 +13,9 @@ use image::ColorType;
 
 use self::zlib::{self as png_zlib, IdatWatch, finish_checked, png_error};
 use crate::error::{Error, Result};
-use crate::io::memory;
 use crate::io::read::image_crate::{deinterleave, image_limits, layout};
 use crate::io::{InputFormat, Raster, ReadOptions, check_size, to_usize};
+use crate::memory;
 use crate::samples::try_vec;
 
 /// Decodes a PNG: the size its header claims checked first

@@ -9,8 +9,8 @@ use crate::par::prelude::*;
 use image::{ColorType, ImageDecoder, ImageError, ImageFormat, ImageReader, Limits};
 
 use crate::error::{Error, Result};
-use crate::io::memory;
 use crate::io::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
+use crate::memory;
 use crate::samples::{Samples, try_vec};
 
 /// Decodes with the `image` crate as `format` (ours: `ours`): header

@@ -13,7 +13,7 @@
 //! for a PNG of the same depth: height = value / (2^bits − 1).
 
 use crate::error::{Error, Result};
-use crate::io::memory;
+use crate::memory;
 use crate::options::named_values;
 use crate::samples::{Samples, try_vec};
 

@@ -18,10 +18,10 @@ use image::ImageFormat;
 use tiff::tags::{SampleFormat, Tag};
 
 use crate::error::{Error, Result};
-use crate::io::memory;
 use crate::io::read::georef::{self, Georef, tags as georef_tags};
 use crate::io::read::image_crate::decode_with_image;
 use crate::io::{InputFormat, Plane, Raster, ReadOptions, SampleType, check_size, message, par_collect, to_usize};
+use crate::memory;
 use crate::samples::{Samples, try_vec};
 
 /// Decodes a TIFF: its georeferencing always; its samples here when
