@@ -895,6 +895,22 @@ fn a_fifo_output_is_written_into_and_stays_a_fifo() {
     let (r, bytes) = run_into_fifo(&["shade", s(&input), "-o", s(&fifo)], &fifo);
     assert!(r.status.success(), "shade: {}", String::from_utf8_lossy(&r.stderr));
     assert_eq!((pixels(&bytes).width, pixels(&bytes).height), (40, 30));
+    // A GeoTIFF band's lit view, which streams into a file: into the
+    // FIFO, the same pixels, read whole.
+    let dem = dir.path().join("dem.tif");
+    write_dem(&dem);
+    let lit = dir.path().join("lit.png");
+    assert!(run(&["shade", s(&dem), "-o", s(&lit), "--units", "map"]).status.success());
+    let (r, bytes) = run_into_fifo(&["shade", s(&dem), "-o", s(&fifo), "--units", "map"], &fifo);
+    assert!(r.status.success(), "shade of a DEM: {}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(pixels(&bytes), pixels(&fs::read(&lit).unwrap()), "shade of a DEM");
+    // The DEM, its lit view and the lit view's sidecars (none beside the FIFO).
+    for made in fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().path()) {
+        let name = made.file_name().unwrap().to_string_lossy().into_owned();
+        if name.starts_with("dem.") || name.starts_with("lit.") {
+            fs::remove_file(&made).unwrap();
+        }
+    }
     let normals = dir.path().join("n.png");
     assert!(run(&["convert", s(&input), "-o", s(&normals)]).status.success());
     let (r, bytes) = run_into_fifo(&["height", s(&normals), "-o", s(&fifo), "--format", "exr"], &fifo);
@@ -927,7 +943,10 @@ fn a_device_output_is_written_into_not_replaced() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("h.png");
     write_gray8(&input, 40, 30);
-    let inputs = Untouched::of(&[&input]);
+    // A GeoTIFF band streams where a PNG's lit view is read whole.
+    let dem = dir.path().join("dem.tif");
+    write_dem(&dem);
+    let inputs = Untouched::of(&[&input, &dem]);
     // A null device of the test's own, so that a failure cannot replace
     // the system's /dev/null.
     let null = dir.path().join("null");
@@ -947,6 +966,9 @@ fn a_device_output_is_written_into_not_replaced() {
             vec!["convert", s(&input), "-o", s(named), "--format", "exr"],
             vec!["convert", s(&input), "-o", s(named), "--format", "tiff"],
             vec!["shade", s(&input), "-o", s(named)],
+            vec!["shade", s(&dem), "-o", s(named)],
+            vec!["shade", s(&dem), "-o", s(named), "--units", "map"],
+            vec!["convert", s(&dem), "-o", s(named), "--units", "map"],
         ] {
             let r = run(&args);
             assert!(r.status.success(), "{args:?}: {}", String::from_utf8_lossy(&r.stderr));
@@ -960,7 +982,7 @@ fn a_device_output_is_written_into_not_replaced() {
     assert!(fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
     let mut names = listing(dir.path());
     names.sort();
-    assert_eq!(names, ["h.png", "null", "null-link"], "no temporary file, no sidecar");
+    assert_eq!(names, ["dem.tif", "h.png", "null", "null-link"], "no temporary file, no sidecar");
     inputs.check("device");
 }
 

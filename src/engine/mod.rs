@@ -165,11 +165,20 @@ impl Stage {
     /// Whether this stage can take rows as they stream into `output`
     /// (`None`: no file, the pixels kept): the lit view only whole when
     /// tiled, and streamed only into a file (its PNG takes its top rows
-    /// last, in room kept after the header).
+    /// last, in room kept after the header), not a device, FIFO or socket
+    /// named as one (`-o /dev/null`), which is written as a writer.
     pub(crate) fn streams_into(&self, output: Option<&Output<'_>>) -> bool {
         match self {
             Stage::Normals(_) => true,
-            Stage::Lit { tile, .. } => !tile && matches!(output, Some(Output::File { .. })),
+            Stage::Lit { tile, .. } => {
+                let into_file = match output {
+                    Some(Output::File { path, .. }) => {
+                        !matches!(io::output_target(path), Ok(io::OutputTarget::Stream(_)))
+                    }
+                    _ => false,
+                };
+                !tile && into_file
+            }
         }
     }
 }
