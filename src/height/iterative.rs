@@ -303,7 +303,7 @@ impl Patch {
     /// 512² image took 60 ms at N = 1023 by it). The line sums take a few
     /// operations a texel whatever N, and three planes.
     pub(super) fn refit_by_lines(&self, h: usize) -> bool {
-        refit_by_lines(self.w, h, self.patch)
+        super::line::refit_by_lines(self.w, h, self.patch)
     }
 
     /// [`Self::update_ratios`] with the patch sums from the line sums:
@@ -375,11 +375,6 @@ impl Patch {
             .with_strength(crate::Strength::Scale(1.0));
         Ok(crate::fit::BandFit::new(self.w, h, &opts)?.with_unit(1.0))
     }
-}
-
-/// [`Patch::refit_by_lines`] for an image of `w` × `h` and patch `n`.
-pub(super) fn refit_by_lines(w: usize, h: usize, n: usize) -> bool {
-    w.min(h) < 8 * n
 }
 
 /// One row of [`Patch::update_ratios`]: the patch moments `m` ([Cx, Cy,

@@ -542,3 +542,12 @@ fn column_pass(
         }
     });
 }
+
+/// Whether the orthogonal fit's re-fit of a `w` × `h` image with patch `n`
+/// takes its patch sums from these line sums rather than the forward
+/// fit's (`Patch::refit_by_lines` in `iterative.rs` says why): an image
+/// less than 8N texels wide or tall. Here, below both the solver and its
+/// memory estimate, which ask it.
+pub(super) fn refit_by_lines(w: usize, h: usize, n: usize) -> bool {
+    w.min(h) < 8 * n
+}

@@ -132,7 +132,7 @@ fn exact_bytes(w: usize, h: usize, opts: &HeightOptions) -> Result<u64> {
     if opts.fit.fit != Fit::Orthogonal {
         return Ok(solve);
     }
-    let refit = if super::iterative::refit_by_lines(w, h, opts.fit.patch) {
+    let refit = if super::line::refit_by_lines(w, h, opts.fit.patch) {
         // Three planes of line sums and their column pass.
         p.saturating_mul(3).saturating_add(column_pieces(w, h, 3))
     } else {
