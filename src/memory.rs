@@ -100,6 +100,15 @@ pub(crate) fn check_work(what: &str, needed: u64, spawned: usize) -> Result<()> 
     )))
 }
 
+/// The tighter of the process's soft memory limits (address space, data),
+/// `None` when neither is set or they cannot be read (not Unix). Work
+/// under a limit is checked by [`check_memory`]; a program may also do
+/// less at once under one (the command line's batches take one file at a
+/// time by default).
+pub fn memory_limit() -> Option<u64> {
+    [limits::address_space(), limits::data()].into_iter().flatten().min()
+}
+
 /// The sizes of the thread pools the rule has seen.
 static POOLS_SEEN: Mutex<Vec<usize>> = Mutex::new(Vec::new());
 

@@ -267,3 +267,42 @@ fn tightening_limits_never_abort_the_inverse_in_dense_bases() {
     assert_ne!(outcomes[0].1, Outcome::Ran, "200 MiB is too little, yet it ran");
     assert_eq!(outcomes.last().unwrap().1, Outcome::Ran, "refused at 1000 MiB");
 }
+
+/// Many files at once under a limit: a batch starts threads for its jobs,
+/// each file's stages and exr's block decoders, and glibc would give each
+/// a heap that reserves 64 MiB of address space. Eight small files of
+/// three formats, four at a time (`-j 4`), under 512 MiB, all convert; and
+/// the default under a limit (one at a time) gives the same files.
+#[test]
+#[cfg_attr(not(target_os = "linux"), ignore = "the memory rule reads the process's use in /proc (Linux)")]
+fn a_batch_of_small_files_converts_whole_under_a_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut names = Vec::new();
+    for k in 0..4u32 {
+        let png = dir.path().join(format!("p{k}.png"));
+        write_gray16(&png, 24 + k, 16);
+        let exr = dir.path().join(format!("e{k}.exr"));
+        let r = run(&["convert", s(&png), "-o", s(&exr)]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        names.extend([png, exr]);
+    }
+    let inputs: Vec<&str> = names.iter().map(|p| s(p)).collect();
+    for (jobs, folder) in [(Some("4"), "four"), (None, "default")] {
+        let out = dir.path().join(folder);
+        let mut args = vec!["convert"];
+        args.extend(&inputs);
+        args.extend(["--border", "clamp", "-o", s(&out)]);
+        if let Some(jobs) = jobs {
+            args.extend(["-j", jobs]);
+        }
+        let r = limited(512 << 20, &args, None);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{folder}: {stderr}");
+        assert_eq!(stderr.lines().filter(|l| !is_summary(l)).count(), 0, "{folder}: {stderr}");
+        assert_eq!(listing(&out).len(), 8, "{folder}: {:?}", listing(&out));
+    }
+    for name in listing(&dir.path().join("four")) {
+        let (a, b) = (dir.path().join("four").join(&name), dir.path().join("default").join(&name));
+        assert!(fs::read(a).unwrap() == fs::read(b).unwrap(), "{name}: the same bytes at once or one at a time");
+    }
+}

@@ -217,7 +217,9 @@ pub struct BatchArgs {
 
     /// Files done at once. Each file's fit already uses every core; more
     /// jobs overlap the decoding, compressing and syncing of small files,
-    /// which run on one thread. Default: twice the cores, at most 8.
+    /// which run on one thread. Default: twice the cores, at most 8; one
+    /// under a memory limit (`ulimit -v`), where each file is checked
+    /// against the memory left when it starts.
     #[arg(short, long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=256))]
     pub jobs: Option<u16>,
 

@@ -6,6 +6,7 @@ pub mod batch;
 pub mod completions;
 pub mod convert;
 pub mod fitting;
+pub mod heaps;
 pub mod height;
 pub mod input;
 pub mod man;
@@ -31,6 +32,7 @@ pub mod exit {
 
 /// Parses the arguments, runs the command, and maps the outcome to an exit code.
 pub fn main() -> ExitCode {
+    heaps::share_under_a_limit();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => {

@@ -38,7 +38,7 @@ use crate::error::{Error, Result, one_line};
 use crate::par::prelude::*;
 use crate::samples::{Samples, try_vec};
 
-pub use crate::memory::check_memory;
+pub use crate::memory::{check_memory, memory_limit};
 pub use encoding::{
     Alpha, Encoding, ExrDepth, ExrOptions, Layout, OutputChannels, OutputFormat, PngCompression, PngDepth, PngOptions,
 };
