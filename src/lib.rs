@@ -204,6 +204,7 @@ pub mod inspect;
 pub mod io;
 mod light;
 mod memory;
+pub mod mips;
 pub mod normal_map;
 pub mod options;
 mod par;

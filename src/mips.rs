@@ -1,0 +1,286 @@
+//! Mip chains of normal maps: every level down to 1 × 1, made two ways.
+//!
+//! * **fit** ([`fit_chain`]): each level's normals are the plane fit of
+//!   that level's heights. The heights of level k are the box filter of the
+//!   finest heights over the level's texel (its footprint, [`box_reduce`]);
+//!   the fit runs with the same options (N, fit, borders: wrap stays wrap,
+//!   so every level tiles), its texels spaced as far apart as their
+//!   footprints (W / w_k by H / h_k finest texels) and the finest level's
+//!   gain, so a slope keeps its meaning at every level.
+//! * **average** ([`average_chain`]): each level's normal is the
+//!   renormalised mean of the finer level's unit normals its footprint
+//!   covers (four at even sizes), the way mip chains of normal maps given
+//!   as images are made.
+//!
+//! Sizes follow Direct3D and Vulkan ([`level_sizes`]): each side
+//! max(1, ⌊n / 2⌋) until both are 1.
+//!
+//! [`mean_lengths`] measures what a level loses: the length |n̄| of the
+//! mean of the finest unit normals under each of its texels, 1 where they
+//! agree and less where detail cancels out (Toksvig's measure).
+
+use crate::error::{Error, Result};
+use crate::fit::FitRequest;
+use crate::options::{Options, Spacing, Strength, Units};
+use crate::samples::{Sample, try_vec};
+
+/// One level of a chain: its size and its texels, row-major.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MipLevel<T> {
+    /// Texels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// `width × height` texels.
+    pub texels: Vec<T>,
+}
+
+/// The sizes of a chain's levels, the finest first: each side
+/// max(1, ⌊n / 2⌋) of the level before, down to 1 × 1 (Direct3D's and
+/// Vulkan's count: 1 + ⌊log₂ max(w, h)⌋ levels).
+///
+/// ```
+/// use normalfit::mips::level_sizes;
+/// assert_eq!(level_sizes(300, 7), [(300, 7), (150, 3), (75, 1), (37, 1), (18, 1), (9, 1), (4, 1), (2, 1), (1, 1)]);
+/// ```
+#[must_use]
+pub fn level_sizes(width: usize, height: usize) -> Vec<(usize, usize)> {
+    let mut sizes = vec![(width, height)];
+    let (mut w, mut h) = (width, height);
+    while w > 1 || h > 1 {
+        (w, h) = ((w / 2).max(1), (h / 2).max(1));
+        sizes.push((w, h));
+    }
+    sizes
+}
+
+/// The weights of a box filter from `n` texels to `m` (m ≤ n) along one
+/// axis: texel i of `m` covers [i·n/m, (i + 1)·n/m) of the `n`, and each
+/// texel j of those takes its overlap with that span, over the span's
+/// length. Returned per texel of `m`: the first texel covered and the
+/// weights, which sum to 1. The overlaps are whole multiples of 1/m, so
+/// each weight is an integer over n, exact where n is a power of two.
+fn box_weights(n: usize, m: usize) -> Vec<(usize, Vec<f64>)> {
+    (0..m)
+        .map(|i| {
+            // In units of 1/m of a texel: the span is [i·n, (i + 1)·n),
+            // texel j is [j·m, (j + 1)·m).
+            let (start, end) = (i * n, (i + 1) * n);
+            let (first, last) = (start / m, (end - 1) / m);
+            let weights = (first..=last)
+                .map(|j| {
+                    let overlap = end.min((j + 1) * m) - start.max(j * m);
+                    overlap as f64 / n as f64
+                })
+                .collect();
+            (first, weights)
+        })
+        .collect()
+}
+
+/// The box filter of `values` (`width × height`, row-major) to
+/// `(w, h)` texels (each at most the input's): each output texel the mean
+/// of the input over its footprint, texels partly covered weighted by the
+/// part. NaN values are missing: a texel's mean is over the valid part of
+/// its footprint, and NaN where none of it is valid.
+///
+/// Errors: [`Error::InvalidOption`] for a size of zero or larger than the
+/// input's; [`Error::BufferSize`] when `values` does not hold the input.
+pub fn box_reduce(values: &[f64], (width, height): (usize, usize), (w, h): (usize, usize)) -> Result<Vec<f64>> {
+    if w == 0 || h == 0 || w > width || h > height {
+        return Err(Error::InvalidOption(format!("cannot reduce {width} × {height} texels to {w} × {h}")));
+    }
+    if values.len() != width * height {
+        return Err(Error::BufferSize { expected: width * height, actual: values.len() });
+    }
+    let (along_x, along_y) = (box_weights(width, w), box_weights(height, h));
+    // Sums of weight × value and of the weights of valid values: rows
+    // first (w × height), then columns.
+    let mut sums: Vec<f64> = try_vec(w * height)?;
+    let mut cover: Vec<f64> = try_vec(w * height)?;
+    for row in values.chunks_exact(width) {
+        for (first, weights) in &along_x {
+            let (mut sum, mut weight) = (0.0, 0.0);
+            for (value, k) in row[*first..].iter().zip(weights) {
+                if !value.is_nan() {
+                    sum += k * value;
+                    weight += k;
+                }
+            }
+            sums.push(sum);
+            cover.push(weight);
+        }
+    }
+    let mut out: Vec<f64> = try_vec(w * h)?;
+    for (first, weights) in &along_y {
+        for x in 0..w {
+            let (mut sum, mut weight) = (0.0, 0.0);
+            for (j, k) in weights.iter().enumerate() {
+                let at = (first + j) * w + x;
+                sum += k * sums[at];
+                weight += k * cover[at];
+            }
+            out.push(if weight > 0.0 { sum / weight } else { f64::NAN });
+        }
+    }
+    Ok(out)
+}
+
+/// The mip chain of the normals of `heights` (`width × height`, row-major,
+/// any [`Sample`] type, read as [`FitRequest`] reads them) by the fit of
+/// each level's heights (the module's docs): level 0 is the fit of the
+/// heights themselves, bit for bit what [`FitRequest::normals_into`]
+/// gives; level k the fit of their box filter to the level's size, its
+/// texels spaced W / w_k by H / h_k finest texels apart (the spacing of
+/// [`Units::Map`] times that), with the finest level's gain. Texels the
+/// options call missing ([`Options::nodata`], NaN) are left out of the
+/// box filter; a level texel with none under it is missing too, and its
+/// normal is (0, 0, 1).
+///
+/// Errors: those of [`FitRequest::normals_into`] for any level.
+pub fn fit_chain<H: Sample>(
+    heights: &[H],
+    (width, height): (usize, usize),
+    opts: &Options,
+) -> Result<Vec<MipLevel<[f32; 3]>>> {
+    let mut finest = MipLevel { width, height, texels: try_vec(width * height)? };
+    finest.texels.resize(width * height, [0.0; 3]);
+    FitRequest::new(opts).normals_into(heights, width, height, &mut finest.texels)?;
+    let sizes = level_sizes(width, height);
+    let mut chain = try_vec(sizes.len())?;
+    chain.push(finest);
+    if sizes.len() == 1 {
+        return Ok(chain);
+    }
+    // The heights in the fit's units, missing ones NaN.
+    let unit = match opts.units {
+        Units::Texels => H::UNIT,
+        Units::Map(_) => 1.0,
+    };
+    let nodata = opts.nodata;
+    let mut values: Vec<f64> = try_vec(heights.len())?;
+    values.extend(heights.iter().map(|&v| {
+        let stored = v.to_f64();
+        let missing = !v.is_finite() || nodata.is_some_and(|n| stored == n);
+        if missing { f64::NAN } else { stored * unit }
+    }));
+    let gain = opts.scale_for_width(width);
+    for &(w, h) in &sizes[1..] {
+        let reduced = box_reduce(&values, (width, height), (w, h))?;
+        let (fx, fy) = (width as f64 / w as f64, height as f64 / h as f64);
+        let spacing = match &opts.units {
+            Units::Texels => Spacing::Uniform { x: fx, y: fy },
+            Units::Map(Spacing::Uniform { x, y }) => Spacing::Uniform { x: x * fx, y: y * fy },
+            Units::Map(Spacing::Rows(rows)) => {
+                // Each level row's spacing is the mean of the rows it covers.
+                let (xs, ys): (Vec<f64>, Vec<f64>) = rows.iter().map(|&[x, y]| (x, y)).unzip();
+                let (xs, ys) = (box_reduce(&xs, (1, height), (1, h))?, box_reduce(&ys, (1, height), (1, h))?);
+                Spacing::Rows(xs.iter().zip(&ys).map(|(x, y)| [x * fx, y * fy]).collect())
+            }
+        };
+        let level_opts = opts
+            .clone()
+            .with_units(Units::Map(spacing))
+            .with_strength(Strength::Scale(gain))
+            .with_invert(false)
+            .with_nodata(Some(f64::NAN));
+        let mut texels: Vec<[f32; 3]> = try_vec(w * h)?;
+        texels.resize(w * h, [0.0; 3]);
+        FitRequest::new(&level_opts).normals_into(&reduced, w, h, &mut texels)?;
+        chain.push(MipLevel { width: w, height: h, texels });
+    }
+    Ok(chain)
+}
+
+/// The mip chain of a normal map (`width × height` unit normals, row-major)
+/// by averaging: level 0 is the map; each next level's normal is the mean
+/// of the finer level's normals over its footprint (the box filter of
+/// [`box_reduce`]: four at even sizes), renormalised; (0, 0, 1) where the
+/// mean has no length.
+///
+/// Errors: [`Error::BufferSize`] when `normals` does not hold the map;
+/// [`Error::InvalidOption`] for a size of zero.
+pub fn average_chain(normals: &[[f32; 3]], (width, height): (usize, usize)) -> Result<Vec<MipLevel<[f32; 3]>>> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidOption(format!("a normal map of {width} × {height} texels has no levels")));
+    }
+    if normals.len() != width * height {
+        return Err(Error::BufferSize { expected: width * height, actual: normals.len() });
+    }
+    let sizes = level_sizes(width, height);
+    let mut chain: Vec<MipLevel<[f32; 3]>> = try_vec(sizes.len())?;
+    chain.push(MipLevel { width, height, texels: normals.to_vec() });
+    for &(w, h) in &sizes[1..] {
+        let finer = chain.last().expect("level 0 is in");
+        let mean = mean_of(&finer.texels, (finer.width, finer.height), (w, h))?;
+        let texels = mean
+            .into_iter()
+            .map(|n| {
+                let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if length > 0.0 { n.map(|c| (c / length) as f32) } else { [0.0, 0.0, 1.0] }
+            })
+            .collect();
+        chain.push(MipLevel { width: w, height: h, texels });
+    }
+    Ok(chain)
+}
+
+/// For each level of the chain of a `width × height` normal map, the
+/// length |n̄| of the mean of the map's unit normals under each of its
+/// texels (level 0: the lengths of the normals themselves): 1 where they
+/// agree, less where detail cancels out. The input to a Toksvig-style
+/// roughness.
+///
+/// Errors: as [`average_chain`].
+pub fn mean_lengths(normals: &[[f32; 3]], (width, height): (usize, usize)) -> Result<Vec<MipLevel<f32>>> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidOption(format!("a normal map of {width} × {height} texels has no levels")));
+    }
+    if normals.len() != width * height {
+        return Err(Error::BufferSize { expected: width * height, actual: normals.len() });
+    }
+    level_sizes(width, height)
+        .into_iter()
+        .map(|(w, h)| {
+            let mean = mean_of(normals, (width, height), (w, h))?;
+            let texels = mean.iter().map(|n| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() as f32).collect();
+            Ok(MipLevel { width: w, height: h, texels })
+        })
+        .collect()
+}
+
+/// The box filter of each component of `normals` to `(w, h)`.
+fn mean_of(normals: &[[f32; 3]], size: (usize, usize), (w, h): (usize, usize)) -> Result<Vec<[f64; 3]>> {
+    let mut mean: Vec<[f64; 3]> = try_vec(w * h)?;
+    mean.resize(w * h, [0.0; 3]);
+    for c in 0..3 {
+        let plane: Vec<f64> = normals.iter().map(|n| f64::from(n[c])).collect();
+        for (m, v) in mean.iter_mut().zip(box_reduce(&plane, size, (w, h))?) {
+            m[c] = v;
+        }
+    }
+    Ok(mean)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_weights_cover_each_span_once() {
+        for (n, m) in [(8, 4), (7, 3), (300, 150), (75, 37), (5, 1), (3, 3)] {
+            let weights = box_weights(n, m);
+            let mut per_source = vec![0.0; n];
+            for (first, w) in &weights {
+                assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{n} → {m}");
+                for (j, k) in w.iter().enumerate() {
+                    per_source[first + j] += k;
+                }
+            }
+            // Every source texel is counted m / n in all.
+            for total in per_source {
+                assert!((total - m as f64 / n as f64).abs() < 1e-12, "{n} → {m}");
+            }
+        }
+    }
+}
