@@ -11,7 +11,7 @@
 //! `Iterator`'s take values) is a function here ([`fold_reduce`]).
 //!
 //! The results are the same bits either way: the library's promise that
-//! they do not depend on the number of threads (tests/fit_reference.rs
+//! they do not depend on the number of threads (tests/integration/fit_reference.rs
 //! runs pools of 1 to 8) covers the build without threads too, and CI
 //! runs the reference tests in that build.
 

@@ -29,10 +29,10 @@
 //! write, on this machine's Linux, then completing a write over a 0600
 //! file (a scratch program outside the repository):
 //! `tempfile`'s `NamedTempFile::persist` left `.tmpXXXXXX` beside the old
-//! file, which breaks the promise tests/faults.rs
+//! file, which breaks the promise tests/integration/faults.rs
 //! (`a_conversion_killed_mid_write_leaves_the_old_output_and_nothing_else`)
-//! proves, and its files are 0600, which tests/io_formats.rs
-//! (`write_atomically_gives_ordinary_permissions`) and tests/cli.rs refuse.
+//! proves, and its files are 0600, which tests/integration/io_formats.rs
+//! (`write_atomically_gives_ordinary_permissions`) and tests/integration/cli.rs refuse.
 //! `atomic-write-file` 0.3 with its `unnamed-tmpfile` feature (O_TMPFILE,
 //! as here) left nothing, and new files get 0666 minus the umask: it keeps
 //! every promise those tests check. It differs only where no test looks:

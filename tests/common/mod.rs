@@ -6,3 +6,5 @@ pub mod reference;
 // GeoTIFFs of every layout, made with the `tiff` crate's encoder.
 #[cfg(feature = "tiff")]
 pub mod geotiff;
+// `../shared/data`'s real textures.
+pub mod shared_data;

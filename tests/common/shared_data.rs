@@ -1,5 +1,5 @@
-//! What the tests on `../shared/data`'s real textures share (included by
-//! path, so those tests need nothing else of `common`).
+//! What the tests on `../shared/data`'s real textures share.
+#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 

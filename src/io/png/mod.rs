@@ -136,7 +136,7 @@ fn decode_png(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 /// the PNG spec makes an error. `png` 0.18.1 does not check it, and panics
 /// (a slice index out of range) expanding such a palette into the first
 /// row, whole-image and streamed alike. Found by fuzzing
-/// (tests/fuzz_regressions.rs); the `png` crate's header has the palette
+/// (tests/integration/fuzz_regressions.rs); the `png` crate's header has the palette
 /// before any row is decoded.
 pub(crate) fn check_png_palette(info: &png::Info) -> Result<()> {
     match info.palette.as_deref() {

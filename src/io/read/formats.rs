@@ -293,7 +293,7 @@ impl InputFormat {
     /// The format's entry in the registry.
     #[must_use]
     pub fn info(&self) -> &'static FormatInfo {
-        // Every variant has an entry (tests/io_formats.rs checks).
+        // Every variant has an entry (tests/integration/io_formats.rs checks).
         FORMATS.iter().find(|f| f.format == *self).unwrap_or(&FORMATS[0])
     }
 

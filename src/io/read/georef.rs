@@ -304,7 +304,7 @@ pub const WGS84_F: f64 = 1.0 / 298.257_223_563;
 /// scaled to one degree, the right measure for the spacing of neighbouring
 /// texels (a whole degree's arc differs by under 1e-5 relative).
 /// At the equator 111319.49 m east and 110574.28 m north; at 45°, 78846.84 m
-/// and 111131.78 m (tests/geotiff.rs checks them against published tables
+/// and 111131.78 m (tests/integration/terrain_io.rs checks them against published tables
 /// and the series expansions of both lengths).
 #[must_use]
 pub fn metres_per_degree(latitude: f64) -> (f64, f64) {

@@ -1,7 +1,7 @@
 """Writes the luminance/chroma (subsampled) OpenEXR files beside this script
 with OpenEXR's own library (the Python bindings, `pip install openexr`,
 3.5.3 when made), so normalfit's reader is checked against files it did not
-write. Run: python3 make.py. tests/exr_layouts.rs knows the values:
+write. Run: python3 make.py. tests/integration/exr_layouts.rs knows the values:
 
   Y(x, y)  = ((3x + 5y) mod 17) / 8 - 1          (exact in half and float)
   A(x, y)  = ((x + 2y) mod 5) / 4
