@@ -128,7 +128,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         pool.install(|| {
             // 8-bit alone (no block compression), the floor.
-            let e: Vec<f64> = map.n.iter().map(|t| angle_xy(*t, f32::from(u8_of(t[0])), f32::from(u8_of(t[1])))).collect();
+            let e: Vec<f64> =
+                map.n.iter().map(|t| angle_xy(*t, f32::from(u8_of(t[0])), f32::from(u8_of(t[1])))).collect();
             let (mean, p99) = stats(e);
             println!("| {name} | RG8, no blocks | — | {mean:.3} | {p99:.3} | — |");
 
@@ -152,14 +153,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             row("normalfit bc4.rs, from 8-bit", "BC5", &b, s, false);
 
             let (b, s) = timed(texels, || {
-                let surface = intel_tex_2::RgSurface { width: map.w as u32, height: map.h as u32, stride: map.w as u32 * 2, data: &rg8 };
+                let surface = intel_tex_2::RgSurface {
+                    width: map.w as u32,
+                    height: map.h as u32,
+                    stride: map.w as u32 * 2,
+                    data: &rg8,
+                };
                 intel_tex_2::bc5::compress_blocks(&surface)
             });
             row("intel_tex_2 0.5", "BC5", &b, s, false);
 
             let (b, s) = timed(texels, || {
                 let mut out = vec![0u8; texels];
-                block_compression::encode::compress_rgba8(CompressionVariant::BC5, &rgba8_xy, &mut out, map.w as u32, map.h as u32, map.w as u32 * 4);
+                block_compression::encode::compress_rgba8(
+                    CompressionVariant::BC5,
+                    &rgba8_xy,
+                    &mut out,
+                    map.w as u32,
+                    map.h as u32,
+                    map.w as u32 * 4,
+                );
                 out
             });
             row("block_compression 0.11 (CPU)", "BC5", &b, s, false);
@@ -176,19 +189,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ("fast", BC7Settings::opaque_fast(), intel_tex_2::bc7::opaque_fast_settings()),
             ] {
                 let (b, s) = timed(texels, || {
-                    let surface = intel_tex_2::RgbaSurface { width: map.w as u32, height: map.h as u32, stride: map.w as u32 * 4, data: &rgba8 };
+                    let surface = intel_tex_2::RgbaSurface {
+                        width: map.w as u32,
+                        height: map.h as u32,
+                        stride: map.w as u32 * 4,
+                        data: &rgba8,
+                    };
                     intel_tex_2::bc7::compress_blocks(&isettings, &surface)
                 });
                 row(&format!("intel_tex_2 0.5, {label}"), "BC7", &b, s, true);
                 let (b, s) = timed(texels, || {
                     let mut out = vec![0u8; texels];
-                    block_compression::encode::compress_rgba8(CompressionVariant::BC7(settings), &rgba8, &mut out, map.w as u32, map.h as u32, map.w as u32 * 4);
+                    block_compression::encode::compress_rgba8(
+                        CompressionVariant::BC7(settings),
+                        &rgba8,
+                        &mut out,
+                        map.w as u32,
+                        map.h as u32,
+                        map.w as u32 * 4,
+                    );
                     out
                 });
                 row(&format!("block_compression 0.11 (CPU), {label}"), "BC7", &b, s, true);
             }
             // RGB8 alone, the floor of BC7.
-            let e: Vec<f64> = map.n.iter().map(|t| angle(*t, [0, 1, 2].map(|c| f64::from(u8_of(t[c])) / 127.5 - 1.0))).collect();
+            let e: Vec<f64> =
+                map.n.iter().map(|t| angle(*t, [0, 1, 2].map(|c| f64::from(u8_of(t[c])) / 127.5 - 1.0))).collect();
             let (mean, p99) = stats(e);
             println!("| {name} | RGB8, no blocks | — | {mean:.3} | {p99:.3} | — |");
         });
