@@ -19,15 +19,19 @@
 //! ([`crate::engine`]) joins reading and writing through a stage.
 
 mod atomic;
+pub(crate) mod dds;
 pub mod encoding;
 pub(crate) mod exr;
+pub mod gpu;
 mod identity;
+pub(crate) mod ktx2;
 pub(crate) mod png;
 pub mod read;
 pub mod rows;
 pub mod sidecar;
 mod target;
 pub(crate) mod texels;
+pub(crate) mod texture;
 #[cfg(feature = "tiff")]
 pub(crate) mod tiff;
 pub mod write;
