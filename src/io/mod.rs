@@ -45,6 +45,7 @@ use crate::samples::{Samples, try_vec};
 pub use crate::memory::{check_memory, memory_limit};
 pub use encoding::{
     Alpha, Encoding, ExrDepth, ExrOptions, Layout, OutputChannels, OutputFormat, PngCompression, PngDepth, PngOptions,
+    TextureCompression, TextureOptions,
 };
 pub use exr::rows::ExrRows;
 pub use identity::{FileId, same_file};
