@@ -31,13 +31,13 @@ use normalfit::inspect;
 use normalfit::io::{
     ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
+use normalfit::mips::{MipChoice, MipLevel};
 use normalfit::normal_map::ImageKind;
 use normalfit::normal_map::{self, Storage};
 use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, TilingOptions};
 use normalfit::units::MapSpacing;
-use normalfit::mips::{MipChoice, MipLevel};
 use normalfit::{Border, Convention, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
 use numpy::ndarray::ArrayView2;
 use numpy::{
@@ -546,10 +546,18 @@ fn mips<'py>(
                     )));
                 }
                 let values = match sample_kind(base, "roughness_base")? {
-                    SampleKind::U8 => Samples::U8(row_order(&base.cast::<PyArray2<u8>>()?.readonly().as_array()).map_err(to_py_err)?),
-                    SampleKind::U16 => Samples::U16(row_order(&base.cast::<PyArray2<u16>>()?.readonly().as_array()).map_err(to_py_err)?),
-                    SampleKind::F32 => Samples::F32(row_order(&base.cast::<PyArray2<f32>>()?.readonly().as_array()).map_err(to_py_err)?),
-                    SampleKind::F64 => Samples::F64(row_order(&base.cast::<PyArray2<f64>>()?.readonly().as_array()).map_err(to_py_err)?),
+                    SampleKind::U8 => {
+                        Samples::U8(row_order(&base.cast::<PyArray2<u8>>()?.readonly().as_array()).map_err(to_py_err)?)
+                    }
+                    SampleKind::U16 => Samples::U16(
+                        row_order(&base.cast::<PyArray2<u16>>()?.readonly().as_array()).map_err(to_py_err)?,
+                    ),
+                    SampleKind::F32 => Samples::F32(
+                        row_order(&base.cast::<PyArray2<f32>>()?.readonly().as_array()).map_err(to_py_err)?,
+                    ),
+                    SampleKind::F64 => Samples::F64(
+                        row_order(&base.cast::<PyArray2<f64>>()?.readonly().as_array()).map_err(to_py_err)?,
+                    ),
                 };
                 Some(values.to_f32().map_err(to_py_err)?)
             }
@@ -557,7 +565,10 @@ fn mips<'py>(
         };
         let finest = &chain[0].texels;
         let levels = py
-            .detach(|| normalfit::mips::mean_lengths(finest, (w, h)).and_then(|l| normalfit::mips::roughness_chain(&l, base.as_deref())))
+            .detach(|| {
+                normalfit::mips::mean_lengths(finest, (w, h))
+                    .and_then(|l| normalfit::mips::roughness_chain(&l, base.as_deref()))
+            })
             .map_err(to_py_err)?;
         let mut arrays = Vec::with_capacity(levels.len());
         for level in levels {

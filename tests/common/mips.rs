@@ -36,4 +36,3 @@ pub fn heights(w: usize, h: usize) -> Vec<u16> {
         })
         .collect()
 }
-

@@ -83,7 +83,8 @@ fn fitted_levels_in_dds_and_png_are_the_reference_fit_of_the_filtered_heights() 
     succeeds(&[&["convert", s(&input), "-o", s(&dds), "--compress", "none"], &common[..]].concat());
     succeeds(&[&["convert", s(&input), "-o", s(&png), "--bits", "16"], &common[..]].concat());
 
-    let opts = Options::new().with_patch(5).with_borders(Borders::both(Border::Clamp)).with_strength(Strength::Scale(6.0));
+    let opts =
+        Options::new().with_patch(5).with_borders(Borders::both(Border::Clamp)).with_strength(Strength::Scale(6.0));
     let values: Vec<f64> = samples.iter().map(|&v| f64::from(v) / 65535.0).collect();
     let gain = reference::gain(&opts, w);
     let sizes = level_sizes(w, h);
@@ -238,7 +239,20 @@ fn bad_requests_exit_2_naming_the_file() {
     let out = dir.path().join("out.png");
     let cases: [(Vec<&str>, &Path); 3] = [
         (vec!["convert", s(&map), "-o", s(&out), "--mips", "fit"], &map),
-        (vec!["convert", s(&heights_png), "-o", s(&out), "--mips", "--roughness-base", s(&small)], &small),
+        (
+            vec![
+                "convert",
+                s(&heights_png),
+                "-o",
+                s(&out),
+                "--mips",
+                "--border",
+                "clamp",
+                "--roughness-base",
+                s(&small),
+            ],
+            &small,
+        ),
         (vec!["convert", s(&heights_png), "-o", s(&out), "--compress", "bc5"], &out),
     ];
     for (args, named) in cases {
