@@ -114,6 +114,7 @@ fn bc_bound(values: &[f64]) -> f64 {
 
 /// Checks decoded BC4/BC5 texels against the source values (`source(i)`:
 /// the channels of texel i in code units), each within its block's bound.
+#[allow(clippy::needless_range_loop, reason = "c indexes each texel's channels, not `decoded`")]
 fn check_bc(decoded: &[Vec<f64>], (w, h): (usize, usize), source: impl Fn(usize) -> Vec<f64>, what: &str) {
     for by in 0..h.div_ceil(4) {
         for bx in 0..w.div_ceil(4) {

@@ -19,6 +19,13 @@
 //! | RG16F | R16G16_FLOAT = 34 | R16G16_SFLOAT = 83 | 1 × 1 | 4 |
 //! | R16F | R16_FLOAT = 54 | R16_SFLOAT = 76 | 1 × 1 | 2 |
 
+use crate::error::{Error, Result};
+
+/// A size as a container's 32-bit header field, or [`Error::Limits`].
+pub(crate) fn word(value: usize, what: &str) -> Result<u32> {
+    u32::try_from(value).map_err(|_| Error::Limits(format!("{what} {value} does not fit a 32-bit header field")))
+}
+
 /// A GPU texture format a chain is stored in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TextureFormat {

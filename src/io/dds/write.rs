@@ -12,8 +12,8 @@
 
 use std::io::Write;
 
-use crate::error::{Error, Result};
-use crate::io::texture::TextureFormat;
+use crate::error::Result;
+use crate::io::texture::{TextureFormat, word};
 
 /// Bytes before the first level: the magic, `DDS_HEADER`, `DDS_HEADER_DXT10`.
 pub(crate) const HEADER_BYTES: usize = 4 + 124 + 20;
@@ -30,11 +30,6 @@ const DDSCAPS_COMPLEX: u32 = 0x8;
 const DDSCAPS_TEXTURE: u32 = 0x1000;
 const DDSCAPS_MIPMAP: u32 = 0x40_0000;
 const D3D10_RESOURCE_DIMENSION_TEXTURE2D: u32 = 3;
-
-/// A size as a header word, or the error of one too large for it.
-pub(crate) fn word(value: usize, what: &str) -> Result<u32> {
-    u32::try_from(value).map_err(|_| Error::Limits(format!("{what} {value} does not fit a 32-bit header field")))
-}
 
 /// Writes the DDS file of a chain whose finest level is `size`, its
 /// levels' bytes (`levels`, the finest first, each as

@@ -34,8 +34,7 @@
 use std::io::Write;
 
 use crate::error::Result;
-use crate::io::dds::write::word;
-use crate::io::texture::TextureFormat;
+use crate::io::texture::{TextureFormat, word};
 
 /// The file identifier.
 pub(crate) const IDENTIFIER: [u8; 12] = [0xAB, b'K', b'T', b'X', b' ', b'2', b'0', 0xBB, b'\r', b'\n', 0x1A, b'\n'];
@@ -214,11 +213,11 @@ mod tests {
         };
         let (o0, o1, o2) = (entry(0).0, entry(1).0, entry(2).0);
         assert!(o2 < o1 && o1 < o0, "{o2} {o1} {o0}");
-        for k in 0..3 {
+        for (k, level) in levels.iter().enumerate() {
             let (offset, length, uncompressed) = entry(k);
             assert_eq!(offset % 4, 0);
-            assert_eq!((length, uncompressed), (levels[k].len(), levels[k].len()));
-            assert_eq!(&out[offset..offset + length], &levels[k][..]);
+            assert_eq!((length, uncompressed), (level.len(), level.len()));
+            assert_eq!(&out[offset..offset + length], &level[..]);
         }
         assert_eq!(out.len(), o0 + 15);
     }
