@@ -438,13 +438,16 @@ fn levels_as_arrays<'py>(
     PyList::new(py, arrays)
 }
 
+/// A chain of normals, the finest level first.
+type Chain = Vec<MipLevel<[f32; 3]>>;
+
 /// The fit chain of a 2-D array of heights of sample type `H`, its
 /// borders settled as `normals` settles them.
 fn fit_chain_typed<H: Stored>(
     heights: &Bound<'_, PyUntypedArray>,
     opts: &Options,
     choices: BorderChoices,
-) -> PyResult<(Vec<MipLevel<[f32; 3]>>, usize, usize)> {
+) -> PyResult<(Chain, usize, usize)> {
     let py = heights.py();
     let (h, w) = (heights.shape()[0], heights.shape()[1]);
     let source = heights.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;

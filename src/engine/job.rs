@@ -530,11 +530,11 @@ impl Job<'_> {
         // read whole.
         let rows = match rows {
             Rows::Png(_, input) | Rows::Exr(_, input) if matches!(self.stage, Stage::Mips(_)) => Rows::Whole(Box::new(
-                io::read_path(&input, &self.settings.read).map_err(ConvertError::at(Place::Input))?,
+                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
             )),
             #[cfg(feature = "tiff")]
             Rows::Tiff(_, input) if matches!(self.stage, Stage::Mips(_)) => Rows::Whole(Box::new(
-                io::read_path(&input, &self.settings.read).map_err(ConvertError::at(Place::Input))?,
+                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
             )),
             rows => rows,
         };
