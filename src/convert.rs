@@ -45,16 +45,18 @@
 //! [`Opened::encoding`] gives the encoding for a name, and
 //! [`Opened::write`] converts.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::Options;
 pub use crate::borders::{BorderChoice, BorderChoices, Warning};
-use crate::engine::{self, Settings, Sink, Stage};
-pub use crate::engine::{ConvertError, Input, Observer, Output, Place, Summary, read_all};
+use crate::engine::{self, MipStage, Settings, Sink, Stage};
+pub use crate::engine::{ConvertError, Input, Observer, Output, Place, Summary, level_path, read_all, roughness_path};
 use crate::error::Error;
 use crate::io::{
     Channel, Encoding, InputFormat, Layout, OutputFormat, PngCompression, ReadOptions, Replace, SampleType,
+    TextureCompression, TextureOptions,
 };
+pub use crate::mips::MipChoice;
 use crate::units::MapSpacing;
 
 /// Every choice of a conversion. The defaults are the contract's: the
@@ -94,6 +96,23 @@ pub struct Conversion {
     /// georeferencing sidecars may replace (default: any). All of them are
     /// checked before any is written, and they appear together.
     pub replace: Replace,
+    /// A mip chain ([`crate::mips`]): every level, fitted from the heights
+    /// or averaged from a normal map's normals ([`MipChoice`]); `None`:
+    /// the finest level alone. A `.dds` or `.ktx2` output holds the chain
+    /// in one file; an image output takes level 0 at its name and level
+    /// k ≥ 1 at `<stem>_mip<k>.<ext>` ([`level_path`]). The image is read
+    /// whole. Default: none.
+    pub mips: Option<MipChoice>,
+    /// How a `.dds` or `.ktx2` output's normals are stored (default BC5);
+    /// an error for other outputs.
+    pub compress: Option<TextureCompression>,
+    /// A roughness chain beside the normals, at `<stem>_roughness.<ext>`
+    /// ([`roughness_path`]; [`crate::mips::roughness_chain`]: Toksvig's
+    /// variance added to the base's α²). Default: off.
+    pub roughness: bool,
+    /// The base roughness of the roughness chain: a gray image of the
+    /// input's size, perceptual roughness in [0, 1]. Default: none (0).
+    pub roughness_base: Option<PathBuf>,
 }
 
 impl Default for Conversion {
@@ -112,6 +131,10 @@ impl Default for Conversion {
             residual: false,
             map_units: None,
             replace: Replace::Always,
+            mips: None,
+            compress: None,
+            roughness: false,
+            roughness_base: None,
         }
     }
 }
@@ -202,6 +225,30 @@ impl Conversion {
         self
     }
 
+    /// Making a mip chain (`Some`), fitted, averaged or as the input
+    /// says; `None`: the finest level alone.
+    #[must_use]
+    pub fn with_mips(mut self, mips: Option<MipChoice>) -> Conversion {
+        self.mips = mips;
+        self
+    }
+
+    /// Storing a `.dds` or `.ktx2` output's normals so (`None`: BC5).
+    #[must_use]
+    pub fn with_compress(mut self, compress: Option<TextureCompression>) -> Conversion {
+        self.compress = compress;
+        self
+    }
+
+    /// Making the roughness chain too, from this base roughness (`None`:
+    /// 0) if given.
+    #[must_use]
+    pub fn with_roughness(mut self, roughness: bool, base: Option<PathBuf>) -> Conversion {
+        self.roughness = roughness;
+        self.roughness_base = base;
+        self
+    }
+
     /// Making the residual map too (read whole).
     #[must_use]
     pub fn with_residual(mut self, residual: bool) -> Conversion {
@@ -216,8 +263,9 @@ impl Conversion {
     /// ([`crate::io::read_path`], [`crate::io::decode`]).
     pub fn open(&self, input: Input<'_>) -> Result<Opened, ConvertError> {
         // A residual map is made from the whole image.
-        let source = engine::Source::open(input, &self.read, self.channel.clone(), !self.residual)
-            .map_err(ConvertError::at(Place::Input))?;
+        let source =
+            engine::Source::open(input, &self.read, self.channel.clone(), !self.residual && self.mips.is_none())
+                .map_err(ConvertError::at(Place::Input))?;
         Ok(Opened { conversion: self.clone(), source })
     }
 
@@ -291,7 +339,21 @@ impl Opened {
     pub fn encoding(&self, path: Option<&Path>) -> Result<Encoding, ConvertError> {
         let (c, sample) = (&self.conversion, self.sample());
         OutputFormat::choose(path, c.format, (self.input_format(), sample))
-            .and_then(|format| Encoding::choose(format, c.bits, c.signed, c.layout, c.compression, sample))
+            .and_then(|format| match (format.container(), c.compress) {
+                (Some(container), compress) => {
+                    TextureOptions::choose(container, compress, c.bits, c.signed, c.layout).map(Encoding::Texture)
+                }
+                (None, Some(compress)) => Err(Error::InvalidOption(format!(
+                    "compression {compress} is for GPU textures: name the output .dds or .ktx2"
+                ))),
+                (None, None) => Encoding::choose(format, c.bits, c.signed, c.layout, c.compression, sample),
+            })
+            .and_then(|encoding| match (c.roughness || c.roughness_base.is_some(), c.mips, encoding) {
+                (true, None, _) => {
+                    Err(Error::InvalidOption("a roughness chain is made beside a mip chain: ask for mips".into()))
+                }
+                _ => Ok(encoding),
+            })
             .map_err(ConvertError::at(Place::Output))
     }
 
@@ -324,8 +386,18 @@ impl Opened {
             channel: c.channel.clone(),
             map_units: c.map_units,
             replace: c.replace,
+            roughness_base: c.roughness_base.as_deref(),
+        };
+        let stage = match (c.mips, encoding) {
+            (None, Encoding::Texture(_)) | (Some(_), _) => Stage::Mips(MipStage {
+                choice: c.mips.unwrap_or_default(),
+                all: c.mips.is_some(),
+                encoding: *encoding,
+                roughness: c.roughness || c.roughness_base.is_some(),
+            }),
+            (None, _) => Stage::Normals(*encoding),
         };
         let sink = Sink { main: normals, residual };
-        engine::run(source, Stage::Normals(*encoding), sink, settings, observer).map(|(summary, _)| summary)
+        engine::run(source, stage, sink, settings, observer).map(|(summary, _)| summary)
     }
 }

@@ -183,6 +183,7 @@
 //! | `parallel` | fits, decoding and encoding on rayon's pool, EXR blocks on threads | on |
 //! | `all-formats` | every input decoder below | on |
 //! | `tiff`, `jpeg`, `tga`, `bmp`, `webp`, `gif`, `hdr`, `pnm`, `qoi` | reading that format | via `all-formats` |
+//! | `bc7` | BC7 blocks in GPU textures ([`io::gpu`]; `block_compression`'s encoder) | on |
 //!
 //! Without `parallel` the same code runs serially and gives the same bits:
 //! results never depend on the number of threads. A format whose feature

@@ -21,8 +21,26 @@
 
 use crate::error::{Error, Result};
 use crate::fit::FitRequest;
-use crate::options::{Options, Spacing, Strength, Units};
+use crate::options::{Options, Spacing, Strength, Units, named_values};
 use crate::samples::{Sample, try_vec};
+
+/// How a chain of normals is made: by the fit of each level's heights
+/// ([`fit_chain`]: a height map's), by renormalised means
+/// ([`average_chain`]: a normal map's), or as the input says (`auto`:
+/// fit for a height map, average for a normal map).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum MipChoice {
+    /// Fit for a height map, average for a normal map. The default.
+    #[default]
+    Auto,
+    /// Each level the fit of its box-filtered heights (height maps only).
+    Fit,
+    /// Each level the renormalised mean of the finer level's normals.
+    Average,
+}
+
+named_values!(MipChoice, "mip chain", { Auto => "auto", Fit => "fit", Average => "average" | "mean" });
 
 /// One level of a chain: its size and its texels, row-major.
 #[derive(Clone, Debug, PartialEq)]
@@ -247,6 +265,77 @@ pub fn mean_lengths(normals: &[[f32; 3]], (width, height): (usize, usize)) -> Re
             Ok(MipLevel { width: w, height: h, texels })
         })
         .collect()
+}
+
+/// Toksvig's variance of the normals under a texel from the length |n̄|
+/// of their mean: σ² = (1 − |n̄|) / |n̄| (0 for |n̄| ≥ 1; |n̄| taken at
+/// least 10⁻⁶).
+#[must_use]
+pub fn toksvig_variance(length: f32) -> f64 {
+    let length = f64::from(length).clamp(1e-6, 1.0);
+    (1.0 - length) / length
+}
+
+/// The perceptual roughness r of a texel whose surface has GGX roughness
+/// α_base (α_base² given) and whose normals vary by σ² (Toksvig):
+/// α² = α_base² + σ², clamped to [0, 1], and r = √α (α = r²).
+#[must_use]
+pub fn perceptual_roughness(base_alpha2: f64, variance: f64) -> f32 {
+    let alpha2 = (base_alpha2 + variance).clamp(0.0, 1.0);
+    alpha2.sqrt().sqrt() as f32
+}
+
+/// The roughness chain of a normal map from the mean lengths of its
+/// finest normals ([`mean_lengths`]), each texel's perceptual roughness
+/// r = √α with α² = α_base² + σ², σ² Toksvig's variance
+/// ([`toksvig_variance`]) and α_base = r_base² the base's roughness,
+/// clamped to [0, 1]. Level 0 holds the finest normals themselves: its σ²
+/// is 0. `base` (the finest level's size, perceptual roughness in [0, 1];
+/// none: 0) is box-filtered to each level as α² = r_base⁴, the quantity
+/// the lobes add up in, not as r.
+///
+/// Errors: [`Error::BufferSize`] for a base that is not the finest
+/// level's size; [`Error::InvalidOption`] for a base value outside
+/// [0, 1] or NaN, or no levels.
+pub fn roughness_chain(lengths: &[MipLevel<f32>], base: Option<&[f32]>) -> Result<Vec<MipLevel<f32>>> {
+    let Some(finest) = lengths.first() else {
+        return Err(Error::InvalidOption("a roughness chain needs at least one level".into()));
+    };
+    let (width, height) = (finest.width, finest.height);
+    let base_alpha2: Option<Vec<f64>> = match base {
+        None => None,
+        Some(base) if base.len() != width * height => {
+            return Err(Error::BufferSize { expected: width * height, actual: base.len() });
+        }
+        Some(base) => {
+            if let Some(at) = base.iter().position(|r| !(0.0..=1.0).contains(r)) {
+                let (x, y) = (at % width, at / width);
+                return Err(Error::InvalidOption(format!(
+                    "the base roughness at texel (x {x}, y {y}) is {}: perceptual roughness is in [0, 1]",
+                    base[at]
+                )));
+            }
+            let mut alpha2 = try_vec(base.len())?;
+            alpha2.extend(base.iter().map(|&r| f64::from(r).powi(4)));
+            Some(alpha2)
+        }
+    };
+    let mut chain = try_vec(lengths.len())?;
+    for (k, level) in lengths.iter().enumerate() {
+        let (w, h) = (level.width, level.height);
+        let base = match &base_alpha2 {
+            Some(alpha2) if k == 0 => alpha2.clone(),
+            Some(alpha2) => box_reduce(alpha2, (width, height), (w, h))?,
+            None => Vec::new(),
+        };
+        let mut texels: Vec<f32> = try_vec(w * h)?;
+        texels.extend(level.texels.iter().enumerate().map(|(i, &length)| {
+            let variance = if k == 0 { 0.0 } else { toksvig_variance(length) };
+            perceptual_roughness(base.get(i).copied().unwrap_or(0.0), variance)
+        }));
+        chain.push(MipLevel { width: w, height: h, texels });
+    }
+    Ok(chain)
 }
 
 /// The box filter of each component of `normals` to `(w, h)`.

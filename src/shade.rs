@@ -425,6 +425,7 @@ impl LitOptions {
             channel: self.channel.clone(),
             map_units: self.map_units,
             replace: self.replace,
+            roughness_base: None,
         }
     }
 }

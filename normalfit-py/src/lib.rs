@@ -31,6 +31,7 @@ use normalfit::inspect;
 use normalfit::io::{
     ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
+use normalfit::mips::{MipChoice, MipLevel};
 use normalfit::normal_map::ImageKind;
 use normalfit::normal_map::{self, Storage};
 use normalfit::options::UnitsName;
@@ -45,7 +46,7 @@ use numpy::{
 };
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyInt, PyString, PyTuple};
+use pyo3::types::{PyInt, PyList, PyString, PyTuple};
 use rayon::ThreadPool;
 
 /// The most threads `threads=` may ask for: far more than any machine's
@@ -405,6 +406,185 @@ fn borrow_error(e: numpy::BorrowError) -> PyErr {
             PyValueError::new_err("out= is read-only: give a writeable array, or none for a new one")
         }
         _ => PyValueError::new_err(format!("out must not share memory with heights ({e})")),
+    }
+}
+
+/// A chain's levels as arrays of `dtype`: the float normals, or their
+/// 8- or 16-bit RGB as the image writers round them.
+fn levels_as_arrays<'py>(
+    py: Python<'py>,
+    chain: Vec<MipLevel<[f32; 3]>>,
+    output: OutputKind,
+) -> PyResult<Bound<'py, PyList>> {
+    fn rounded<T: Element>(py: Python<'_>, level: &MipLevel<[f32; 3]>) -> PyResult<Py<PyAny>>
+    where
+        [T; 3]: FromNormal,
+    {
+        let flat: Vec<T> = level.texels.iter().flat_map(|t| <[T; 3]>::from_normal(t.map(f64::from))).collect();
+        Ok(PyArray1::from_vec(py, flat).reshape([level.height, level.width, 3])?.into_any().unbind())
+    }
+    let mut arrays = Vec::with_capacity(chain.len());
+    for level in chain {
+        arrays.push(match output {
+            OutputKind::F32 => {
+                let (w, h) = (level.width, level.height);
+                let flat: Vec<f32> = level.texels.into_iter().flatten().collect();
+                PyArray1::from_vec(py, flat).reshape([h, w, 3])?.into_any().unbind()
+            }
+            OutputKind::U8 => rounded::<u8>(py, &level)?,
+            OutputKind::U16 => rounded::<u16>(py, &level)?,
+        });
+    }
+    PyList::new(py, arrays)
+}
+
+/// A chain of normals, the finest level first.
+type Chain = Vec<MipLevel<[f32; 3]>>;
+
+/// The fit chain of a 2-D array of heights of sample type `H`, its
+/// borders settled as `normals` settles them.
+fn fit_chain_typed<H: Stored>(
+    heights: &Bound<'_, PyUntypedArray>,
+    opts: &Options,
+    choices: BorderChoices,
+) -> PyResult<(Chain, usize, usize)> {
+    let py = heights.py();
+    let (h, w) = (heights.shape()[0], heights.shape()[1]);
+    let source = heights.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
+    let values = row_order(&source.as_array()).map_err(to_py_err)?;
+    py.detach(|| -> Result<_, Error> {
+        let borders = choices.settle(&values, w, h)?;
+        let opts = opts.clone().with_borders(borders);
+        Ok((normalfit::mips::fit_chain(&values, (w, h), &opts)?, w, h))
+    })
+    .map_err(to_py_err)
+}
+
+/// The unit normals of a (rows, columns, 3) array: floats n itself,
+/// integers the encoded (n + 1)/2 read back as a normal map file is
+/// (c = v / max as f32, n = 2c − 1).
+fn normals_of<T: Element + Copy>(
+    normals: &Bound<'_, PyUntypedArray>,
+    planes: impl Fn(Vec<T>) -> Samples,
+    signed: bool,
+) -> PyResult<(Vec<[f32; 3]>, usize, usize)> {
+    let shape = normals.shape();
+    let (h, w) = (shape[0], shape[1]);
+    if shape[2] != 3 {
+        return Err(PyValueError::new_err(format!("normals must have shape (rows, columns, 3), got {shape:?}")));
+    }
+    let source = normals.cast::<PyArray3<T>>()?.try_readonly().map_err(borrow_error)?;
+    let view = source.as_array();
+    let mut channels = Vec::with_capacity(3);
+    for c in 0..3 {
+        let plane: Vec<T> = (0..h).flat_map(|y| (0..w).map(move |x| (y, x))).map(|(y, x)| view[[y, x, c]]).collect();
+        channels.push(planes(plane).to_f32().map_err(to_py_err)?);
+    }
+    let stored = |c: f32| if signed { c } else { 2.0 * c - 1.0 };
+    let normals = (0..w * h).map(|k| [0, 1, 2].map(|c| stored(channels[c][k]))).collect();
+    Ok((normals, w, h))
+}
+
+/// `mips` with every argument given (see `normalfit.mips`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (array, way, patch, fit, border, convention, scale, relief, invert, dtype, roughness, roughness_base))]
+fn mips<'py>(
+    py: Python<'py>,
+    array: &Bound<'py, PyAny>,
+    way: &str,
+    patch: &Bound<'py, PyAny>,
+    fit: &str,
+    border: &Bound<'py, PyAny>,
+    convention: &str,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    dtype: &Bound<'py, PyAny>,
+    roughness: bool,
+    roughness_base: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let way: MipChoice = parse_named(way)?;
+    let output = output_kind(py, dtype)?;
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let array = as_array(array, "array", &[2, 3])?;
+    let kind = sample_kind(array, "array")?;
+    let average = match (way, array.ndim()) {
+        (MipChoice::Fit, 3) => {
+            return Err(PyValueError::new_err(
+                "invalid option: a (rows, columns, 3) array is a normal map: a fitted chain needs heights (way=\"average\")",
+            ));
+        }
+        (MipChoice::Average, 2) => {
+            return Err(PyValueError::new_err(
+                "invalid option: way=\"average\" takes normals, a (rows, columns, 3) array: heights take way=\"fit\"",
+            ));
+        }
+        (_, n) => n == 3,
+    };
+    let (chain, w, h) = if average {
+        let (normals, w, h) = match kind {
+            SampleKind::U8 => normals_of::<u8>(array, Samples::U8, false),
+            SampleKind::U16 => normals_of::<u16>(array, Samples::U16, false),
+            SampleKind::F32 => normals_of::<f32>(array, Samples::F32, true),
+            SampleKind::F64 => normals_of::<f64>(array, Samples::F64, true),
+        }?;
+        (py.detach(|| normalfit::mips::average_chain(&normals, (w, h))).map_err(to_py_err)?, w, h)
+    } else {
+        match kind {
+            SampleKind::U8 => fit_chain_typed::<u8>(array, &opts, borders),
+            SampleKind::U16 => fit_chain_typed::<u16>(array, &opts, borders),
+            SampleKind::F32 => fit_chain_typed::<f32>(array, &opts, borders),
+            SampleKind::F64 => fit_chain_typed::<f64>(array, &opts, borders),
+        }?
+    };
+    let rough = if roughness || roughness_base.is_some() {
+        let base = match roughness_base {
+            Some(base) => {
+                let base = as_array(base, "roughness_base", &[2])?;
+                if base.shape() != [h, w] {
+                    return Err(PyValueError::new_err(format!(
+                        "invalid option: roughness_base is {:?}, the input ({h}, {w}): a base roughness has the input's size",
+                        base.shape()
+                    )));
+                }
+                let values = match sample_kind(base, "roughness_base")? {
+                    SampleKind::U8 => {
+                        Samples::U8(row_order(&base.cast::<PyArray2<u8>>()?.readonly().as_array()).map_err(to_py_err)?)
+                    }
+                    SampleKind::U16 => Samples::U16(
+                        row_order(&base.cast::<PyArray2<u16>>()?.readonly().as_array()).map_err(to_py_err)?,
+                    ),
+                    SampleKind::F32 => Samples::F32(
+                        row_order(&base.cast::<PyArray2<f32>>()?.readonly().as_array()).map_err(to_py_err)?,
+                    ),
+                    SampleKind::F64 => Samples::F64(
+                        row_order(&base.cast::<PyArray2<f64>>()?.readonly().as_array()).map_err(to_py_err)?,
+                    ),
+                };
+                Some(values.to_f32().map_err(to_py_err)?)
+            }
+            None => None,
+        };
+        let finest = &chain[0].texels;
+        let levels = py
+            .detach(|| {
+                normalfit::mips::mean_lengths(finest, (w, h))
+                    .and_then(|l| normalfit::mips::roughness_chain(&l, base.as_deref()))
+            })
+            .map_err(to_py_err)?;
+        let mut arrays = Vec::with_capacity(levels.len());
+        for level in levels {
+            arrays.push(PyArray1::from_vec(py, level.texels).reshape([level.height, level.width])?.into_any().unbind());
+        }
+        Some(PyList::new(py, arrays)?)
+    } else {
+        None
+    };
+    let levels = levels_as_arrays(py, chain, output)?;
+    match rough {
+        Some(r) => Ok(PyTuple::new(py, [levels.into_any(), r.into_any()])?.into_any()),
+        None => Ok(levels.into_any()),
     }
 }
 
@@ -1424,6 +1604,7 @@ fn height_file(
 #[pymodule]
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals, m)?)?;
+    m.add_function(wrap_pyfunction!(mips, m)?)?;
     m.add_function(wrap_pyfunction!(_kept_pools, m)?)?;
     m.add_function(wrap_pyfunction!(window_normals, m)?)?;
     m.add_function(wrap_pyfunction!(window_plan, m)?)?;

@@ -12,7 +12,9 @@ use normalfit::convert::{BorderChoices, Conversion};
 use normalfit::height::{ConventionChoice, HeightOptions, Model};
 use normalfit::io::{
     Alpha, ByteOrder, Channel, OutputChannels, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
+    TextureCompression,
 };
+use normalfit::mips::MipChoice;
 use normalfit::normal_map::KindChoice;
 use normalfit::options::UnitsName;
 use normalfit::shade::{Light, LitOptions};
@@ -127,9 +129,11 @@ pub struct ConvertArgs {
     #[arg(long, value_name = "BITS", value_parser = parse_bits)]
     pub bits: Option<u8>,
 
-    /// Output format; default: the output file's extension (.png, .exr, .tif),
-    /// else the input's format (PNG for integer images, EXR for float ones).
-    /// TIFF from a GeoTIFF is a GeoTIFF: its georeferencing tags copied.
+    /// Output format; default: the output file's extension (.png, .exr, .tif,
+    /// .dds, .ktx2), else the input's format (PNG for integer images, EXR
+    /// for float ones). TIFF from a GeoTIFF is a GeoTIFF: its georeferencing
+    /// tags copied. DDS and KTX2 are GPU textures: the mip chain with
+    /// --mips, else level 0 alone.
     #[arg(long, value_parser = named::<OutputFormat>(OutputFormat::ALL))]
     pub format: Option<OutputFormat>,
 
@@ -148,6 +152,9 @@ pub struct ConvertArgs {
 
     #[command(flatten)]
     pub read: ReadArgs,
+
+    #[command(flatten)]
+    pub mips: MipArgs,
 
     // The groups with a help heading come after the options without one,
     // which a heading would otherwise cover.
@@ -175,6 +182,40 @@ pub struct ConvertArgs {
 
     #[command(flatten)]
     pub fit: FitArgs,
+}
+
+/// Mip chains and GPU textures (docs/mips.md).
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Mip chains")]
+pub struct MipArgs {
+    /// Write every mip level down to 1 × 1: fit (each level the plane fit
+    /// of the heights box-filtered to its size; height maps only) or
+    /// average (the renormalised mean of the finer level's normals; normal
+    /// maps). Alone, or auto: fit for a height map, average for a normal
+    /// map. A .dds or .ktx2 output holds the chain; an image output holds
+    /// level 0 and level k ≥ 1 goes to `<stem>_mip<k>.<ext>` beside it.
+    #[arg(long, value_name = "WAY", num_args = 0..=1, default_missing_value = "auto",
+          value_parser = named::<MipChoice>(MipChoice::ALL))]
+    pub mips: Option<MipChoice>,
+
+    /// A .dds or .ktx2 output's normals: bc5 (x and y; the default), bc7
+    /// (x, y, z; builds with the bc7 feature) or none (RGBA8, RG8 with
+    /// --channels rg, half floats with --bits 16).
+    #[arg(long, value_parser = named::<TextureCompression>(TextureCompression::ALL))]
+    pub compress: Option<TextureCompression>,
+
+    /// With --mips, a roughness chain too: `<stem>_roughness.<ext>` (BC4,
+    /// R8 or R16F in a texture; gray in an image, its levels named as the
+    /// normals'), each texel's perceptual roughness from what the level's
+    /// normals lose (Toksvig): α² = α_base² + (1 − |n̄|)/|n̄|, r = √α.
+    #[arg(long)]
+    pub roughness: bool,
+
+    /// The base perceptual roughness the chain adds to: a gray image of the
+    /// input's size (8 or 16 bits, or float, in [0, 1]). Implies
+    /// --roughness.
+    #[arg(long, value_name = "FILE")]
+    pub roughness_base: Option<PathBuf>,
 }
 
 /// What the output holds besides the normal, for pipelines.
@@ -381,6 +422,9 @@ pub struct HeightArgs {
 
     #[command(flatten)]
     pub read: ReadArgs,
+
+    #[command(flatten)]
+    pub mips: MipArgs,
 
     // The groups with a help heading come last: a heading would otherwise
     // cover the options after it.
@@ -692,6 +736,8 @@ macro_rules! named_value {
 }
 
 named_value!(
+    MipChoice,
+    TextureCompression,
     Fit,
     UnitsName,
     Convention,

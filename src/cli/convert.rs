@@ -77,6 +77,9 @@ impl Plan {
             .with_compression(args.compression)
             .with_layout(layout)
             .with_residual(residual.is_some())
+            .with_mips(args.mips.mips)
+            .with_compress(args.mips.compress)
+            .with_roughness(args.mips.roughness, args.mips.roughness_base.clone())
             .with_map_units(normalfit::units::MapSpacing::choose(args.units.units, args.units.pixel_size));
         conversion.bits = args.bits;
         Ok(Plan { conversion, destination, residual, suffix: args.suffix.clone(), quiet: args.batch.quiet })
@@ -128,6 +131,7 @@ impl Plan {
                 match place {
                     Place::Input => input.name(),
                     Place::Residual => target.residual.as_ref().map_or(input.name(), |r| &r.path),
+                    Place::RoughnessBase => self.conversion.roughness_base.as_deref().unwrap_or(input.name()),
                     _ => output::name(target.path.as_deref()),
                 },
                 error,

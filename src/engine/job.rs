@@ -8,15 +8,18 @@ use super::sink::{
 };
 use super::source::{Reopen, Rows};
 use super::stage::{Texels, fitted};
-use super::{ConvertError, Observer, Place, Settings, Sink, Stage, Summary};
+use super::{ConvertError, MipStage, Observer, Place, Settings, Sink, Stage, Summary, level_path, roughness_path};
 use crate::borders::{BorderChoice, Warning};
 use crate::error::Error;
 use crate::io::encoding::TiffTags;
+use crate::io::gpu::{self, Chain};
 use crate::io::{self, Encoding, FileSet, Georef, Layout, OutputFormat, Raster};
 use crate::light::Lighting;
-use crate::normal_map::KindChoice;
+use crate::mips::{MipChoice, MipLevel};
+use crate::normal_map::{ImageKind, KindChoice, kind_of};
 use crate::pipeline::{self, StoredRows};
 use crate::samples::Samples;
+use crate::samples::with_slice;
 use crate::tiling::{HeightSeams, TilingOptions, TilingReport};
 use crate::{Border, Options};
 
@@ -44,7 +47,7 @@ impl Job<'_> {
         match self.stage {
             // GDAL's nodata: missing texels are grey 0, lit ones at least 1.
             Stage::Lit { tile, .. } => TiffTags { georef: if tile { None } else { self.georef }, nodata: Some(0.0) },
-            Stage::Normals(_) => TiffTags { georef: self.georef, nodata: None },
+            Stage::Normals(_) | Stage::Mips(_) => TiffTags { georef: self.georef, nodata: None },
         }
     }
 
@@ -90,14 +93,10 @@ impl Job<'_> {
         sink::prepare(output, self.input).map_err(ConvertError::at(place))
     }
 
-    /// The whole-image conversion: the heights in memory, fitted straight
-    /// into the output's texel type.
-    fn whole(
-        &mut self,
-        raster: Raster,
-        normals: Option<Output<'_>>,
-        residual: Option<(Output<'_>, OutputFormat)>,
-    ) -> Result<(), ConvertError> {
+    /// The heights of a whole image in the units the fit takes (holes,
+    /// map units), the tiling check run when the borders need it, and the
+    /// fit's options with the borders settled.
+    fn heights_and_fit(&mut self, raster: Raster) -> Result<(Samples, Options), ConvertError> {
         let (width, height) = (raster.width, raster.height);
         (self.summary.width, self.summary.height) = (width, height);
         let conversion = self.settings;
@@ -139,6 +138,27 @@ impl Job<'_> {
         if let Some(units) = units {
             fit = fit.with_units(units);
         }
+        Ok((heights, fit))
+    }
+
+    /// The whole-image conversion: the heights in memory, fitted straight
+    /// into the output's texel type.
+    fn whole(
+        &mut self,
+        raster: Raster,
+        normals: Option<Output<'_>>,
+        residual: Option<(Output<'_>, OutputFormat)>,
+    ) -> Result<(), ConvertError> {
+        if let Stage::Mips(stage) = self.stage {
+            if residual.is_some() {
+                let problem = "a residual map is not made beside a mip chain";
+                return Err(ConvertError { place: Place::Residual, error: Error::InvalidOption(problem.into()) });
+            }
+            return self.mips_whole(raster, stage, normals);
+        }
+        let (width, height) = (raster.width, raster.height);
+        let (heights, fit) = self.heights_and_fit(raster)?;
+        let in_failure = ConvertError::at(Place::Input);
         if let Stage::Lit { lighting, tile, .. } = self.stage {
             return self.lit_whole(&heights, (width, height), &fit, (lighting, tile), normals);
         }
@@ -188,6 +208,150 @@ impl Job<'_> {
             let scale = fit.scale_for_width(width);
             write_to(out, &mut files, |w| encode_residual(distances, (width, height), scale, (format, tags), w))
                 .map_err(ConvertError::at(Place::Residual))?;
+        }
+        self.files = files;
+        Ok(())
+    }
+
+    /// A mip chain of the whole image: fitted from its heights, or averaged
+    /// from a normal map's normals; written as one texture, or an image a
+    /// level ([`level_path`]); its roughness beside ([`roughness_path`]).
+    fn mips_whole(&mut self, raster: Raster, stage: MipStage, out: Option<Output<'_>>) -> Result<(), ConvertError> {
+        let (width, height) = (raster.width, raster.height);
+        (self.summary.width, self.summary.height) = (width, height);
+        let in_failure = ConvertError::at(Place::Input);
+        let Some(out) = out else {
+            let problem = "nothing to write: no output given";
+            return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
+        };
+        let channel = self.settings.channel.as_ref();
+        let average = match (stage.all, stage.choice) {
+            (false, _) | (true, MipChoice::Fit) => false,
+            (true, MipChoice::Average) => true,
+            (true, MipChoice::Auto) => {
+                kind_of(&raster, KindChoice::Auto, channel).map_err(&in_failure)? == ImageKind::Normal
+            }
+        };
+        if stage.all
+            && stage.choice == MipChoice::Fit
+            && kind_of(&raster, KindChoice::Auto, channel).map_err(&in_failure)? == ImageKind::Normal
+        {
+            let problem = "is a normal map: a fitted mip chain needs a height map (average its normals instead, \
+                           or name the height channel)";
+            return Err(in_failure(Error::InvalidOption(problem.into())));
+        }
+        // The normals (12 bytes a texel, a third more for the levels), the
+        // heights box-filtered (8 a level texel, twice), the texture's or
+        // the level's bytes.
+        let texels = (width as u64).saturating_mul(height as u64);
+        io::check_memory("making the mip chain", texels.saturating_mul(16 + 24 + 8)).map_err(&in_failure)?;
+        let chain = if average {
+            let normals = crate::normal_map::decode(&raster, false).map_err(&in_failure)?;
+            drop(raster);
+            crate::mips::average_chain(&normals, (width, height)).map_err(&in_failure)?
+        } else {
+            let (heights, fit) = self.heights_and_fit(raster)?;
+            let work = crate::fit::work_bytes(&fit, (width, height), heights.unit(), fit.nodata.is_some(), false)
+                .map_err(&in_failure)?;
+            io::check_memory("fitting the mip chain", texels.saturating_mul(16 + 24 + 8).saturating_add(work))
+                .map_err(&in_failure)?;
+            if stage.all {
+                with_slice!(&heights, h => crate::mips::fit_chain(h, (width, height), &fit)).map_err(&in_failure)?
+            } else {
+                let texels = fitted::<[f32; 3]>(&heights, width, height, &fit, None, None).map_err(&in_failure)?;
+                vec![MipLevel { width, height, texels }]
+            }
+        };
+        let roughness = match stage.roughness {
+            false => None,
+            true => {
+                let mut lengths = crate::mips::mean_lengths(&chain[0].texels, (width, height)).map_err(&in_failure)?;
+                lengths.truncate(chain.len());
+                let base = match self.settings.roughness_base {
+                    Some(path) => Some(read_base(path, self.settings.read, (width, height))?),
+                    None => None,
+                };
+                Some(crate::mips::roughness_chain(&lengths, base.as_deref()).map_err(&in_failure)?)
+            }
+        };
+        self.prepare(&out, Place::Output)?;
+        let mut files = std::mem::take(&mut self.files);
+        let tags = self.tiff_tags();
+        let encoding = stage.encoding;
+        let out_failure = ConvertError::at(Place::Output);
+        let roughness_out = |out: &Output<'_>| match out {
+            Output::File { path, create_folder } => Ok((roughness_path(path), *create_folder)),
+            Output::Writer(_) => {
+                let problem = "a roughness chain beside a writer needs its own file: name the output";
+                Err(ConvertError { place: Place::Roughness, error: Error::InvalidOption(problem.into()) })
+            }
+        };
+        match encoding {
+            Encoding::Texture(texture) => {
+                let encoded = gpu::encode_chain(Chain::Normals(&chain), texture.compression).map_err(&out_failure)?;
+                let rough = match &roughness {
+                    Some(levels) => Some((
+                        roughness_out(&out)?,
+                        gpu::encode_chain(Chain::Values(levels), texture.values())
+                            .map_err(ConvertError::at(Place::Roughness))?,
+                    )),
+                    None => None,
+                };
+                write_to(out, &mut files, |w| gpu::write_encoded(w, &encoded, texture.container))
+                    .map_err(&out_failure)?;
+                if let Some(((path, create_folder), encoded)) = rough {
+                    let rough_out = Output::File { path: &path, create_folder };
+                    self.prepare(&rough_out, Place::Roughness)?;
+                    write_to(rough_out, &mut files, |w| gpu::write_encoded(w, &encoded, texture.container))
+                        .map_err(ConvertError::at(Place::Roughness))?;
+                }
+            }
+            _ => {
+                if encoding.layout().needs_heights() {
+                    let problem = "mip levels hold no alpha of heights or of validity: leave the alpha out";
+                    return Err(out_failure(Error::InvalidOption(problem.into())));
+                }
+                let (path, create_folder) = match out {
+                    Output::File { path, create_folder } => (path, create_folder),
+                    Output::Writer(writer) if chain.len() == 1 && roughness.is_none() => {
+                        let level = &chain[0];
+                        let size = (level.width, level.height);
+                        return write_to(Output::Writer(writer), &mut files, |w| {
+                            io::write::encode_normals_tagged(&level.texels, None, size, &encoding, tags, w)
+                        })
+                        .map_err(&out_failure)
+                        .map(|()| self.files = files);
+                    }
+                    Output::Writer(_) => {
+                        let problem = "mip levels written as images need a file: each level is a file of its own";
+                        return Err(out_failure(Error::InvalidOption(problem.into())));
+                    }
+                };
+                for (k, level) in chain.iter().enumerate() {
+                    let at = level_path(path, k);
+                    let level_out = Output::File { path: &at, create_folder };
+                    self.prepare(&level_out, Place::Output)?;
+                    let size = (level.width, level.height);
+                    write_to(level_out, &mut files, |w| {
+                        io::write::encode_normals_tagged(&level.texels, None, size, &encoding, tags, w)
+                    })
+                    .map_err(&out_failure)?;
+                }
+                if let Some(levels) = &roughness {
+                    let base = roughness_path(path);
+                    let format = encoding.format();
+                    for (k, level) in levels.iter().enumerate() {
+                        let at = level_path(&base, k);
+                        let level_out = Output::File { path: &at, create_folder };
+                        self.prepare(&level_out, Place::Roughness)?;
+                        let size = (level.width, level.height);
+                        write_to(level_out, &mut files, |w| {
+                            encode_residual(&level.texels, size, 1.0, (format, tags), w)
+                        })
+                        .map_err(ConvertError::at(Place::Roughness))?;
+                    }
+                }
+            }
         }
         self.files = files;
         Ok(())
@@ -283,7 +447,7 @@ impl Job<'_> {
         let tags = self.tiff_tags();
         let lamp = match self.stage {
             Stage::Lit { lighting, .. } => Some(lighting.lamp(self.georef, fit.convention)),
-            Stage::Normals(_) => None,
+            Stage::Normals(_) | Stage::Mips(_) => None,
         };
         let result = match (lamp, out, self.encoding) {
             // The lit view streams into a file alone ([`Stage::streams_into`]).
@@ -345,6 +509,7 @@ impl Job<'_> {
             }
             #[cfg(not(feature = "tiff"))]
             (None, _, Encoding::Tiff(_)) => Err(io::write::no_tiff()),
+            (None, _, Encoding::Texture(_)) => Err(io::write::not_a_chain()),
         };
         self.summary.missing = missing;
         let place = if input_failed { Place::Input } else { Place::Output };
@@ -361,6 +526,18 @@ impl Job<'_> {
     pub(super) fn run(&mut self, rows: Rows, sink: Sink<'_, '_>) -> Result<(), ConvertError> {
         let Sink { main, residual } = sink;
         let stored = self.settings.map_units.is_some();
+        // A mip chain needs the whole image: a file opened to stream is
+        // read whole.
+        let rows = match rows {
+            Rows::Png(_, input) | Rows::Exr(_, input) if matches!(self.stage, Stage::Mips(_)) => Rows::Whole(Box::new(
+                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
+            )),
+            #[cfg(feature = "tiff")]
+            Rows::Tiff(_, input) if matches!(self.stage, Stage::Mips(_)) => Rows::Whole(Box::new(
+                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
+            )),
+            rows => rows,
+        };
         match (rows, main) {
             (Rows::Whole(raster), main) => self.whole(*raster, main, residual),
             (_, None) => {
@@ -431,4 +608,22 @@ impl Job<'_> {
         self.files = files;
         Ok(())
     }
+}
+
+/// The base roughness of a mip chain: the gray image at `path`, its
+/// values in [0, 1] (integer samples over their maximum, floats as
+/// stored), the size of the input.
+///
+/// Errors ([`Place::RoughnessBase`]): those of reading it; a size other
+/// than `(width, height)`.
+fn read_base(path: &Path, read: &io::ReadOptions, (width, height): (usize, usize)) -> Result<Vec<f32>, ConvertError> {
+    let failure = ConvertError::at(Place::RoughnessBase);
+    let raster = io::read_path(path, read).map_err(&failure)?;
+    if (raster.width, raster.height) != (width, height) {
+        return Err(failure(Error::InvalidOption(format!(
+            "is {} × {}, the input {width} × {height}: a base roughness has the input's size",
+            raster.width, raster.height
+        ))));
+    }
+    raster.heights(None).map_err(&failure)
 }

@@ -42,8 +42,8 @@ use crate::tiling::TilingReport;
 use crate::units::MapSpacing;
 use crate::{Borders, Options};
 
-pub use self::sink::Output;
 pub(crate) use self::sink::write_to;
+pub use self::sink::{Output, level_path, roughness_path};
 pub(crate) use self::source::decode_whole;
 pub use self::source::{Input, Source, read_all};
 
@@ -57,6 +57,10 @@ pub enum Place {
     Output,
     /// The residual map written.
     Residual,
+    /// The base roughness read (`roughness_base`).
+    RoughnessBase,
+    /// The roughness chain written.
+    Roughness,
 }
 
 /// An error of a conversion, and which file it concerns.
@@ -142,9 +146,26 @@ pub struct Summary {
     pub missing: usize,
 }
 
+/// A mip chain's stage: how the chain is made, whether all of it is
+/// written, in which encoding, and whether a roughness chain goes beside.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct MipStage {
+    /// Fit, average, or as the input says.
+    pub choice: crate::mips::MipChoice,
+    /// Every level; else level 0 alone (a texture asked for without mips),
+    /// fitted from the heights.
+    pub all: bool,
+    /// A texture holding the chain, or an image a level.
+    pub encoding: Encoding,
+    /// A roughness chain beside, at [`roughness_path`].
+    pub roughness: bool,
+}
+
 /// What is computed from the heights.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Stage {
+    /// A mip chain of normals (the whole image), its roughness beside.
+    Mips(MipStage),
     /// The normal map in this encoding (an alpha of validity where there
     /// are holes), and its residual when a residual output is given (the
     /// whole image).
@@ -170,6 +191,7 @@ impl Stage {
     pub(crate) fn streams_into(&self, output: Option<&Output<'_>>) -> bool {
         match self {
             Stage::Normals(_) => true,
+            Stage::Mips(_) => false,
             Stage::Lit { tile, .. } => {
                 let into_file = match output {
                     Some(Output::File { path, .. }) => {
@@ -200,6 +222,8 @@ pub(crate) struct Settings<'a> {
     pub map_units: Option<MapSpacing>,
     /// Which existing files the outputs (and their sidecars) may replace.
     pub replace: io::Replace,
+    /// A mip chain's base roughness: a gray image of the input's size.
+    pub roughness_base: Option<&'a std::path::Path>,
 }
 
 /// Where a run's results go: the main output (none: a lit view's pixels
@@ -295,6 +319,7 @@ impl Stage {
     fn encoding(&self) -> Encoding {
         match *self {
             Stage::Normals(encoding) => encoding,
+            Stage::Mips(mips) => mips.encoding,
             Stage::Lit { tiff: true, .. } => io::encoding::TiffOptions::new(io::encoding::TiffDepth::Eight).into(),
             Stage::Lit { tiff: false, .. } => {
                 io::PngOptions::new(io::PngDepth::Eight).with_compression(io::PngCompression::Default).into()

@@ -72,6 +72,33 @@ pub(crate) fn or_stream<'a: 's, 's>(output: Output<'a>, stream: &'s mut Option<s
     }
 }
 
+/// Where level `k` of a mip chain written as images goes: level 0 at
+/// `path`, level k ≥ 1 at `<stem>_mip<k>.<ext>` beside it.
+#[must_use]
+pub fn level_path(path: &Path, k: usize) -> std::path::PathBuf {
+    if k == 0 {
+        return path.to_path_buf();
+    }
+    let stem = path.file_stem().map_or_else(|| "image".into(), |s| s.to_string_lossy().into_owned());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}_mip{k}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_mip{k}"),
+    };
+    path.with_file_name(name)
+}
+
+/// Where the roughness chain beside the normal map at `path` goes:
+/// `<stem>_roughness.<ext>` (its levels named from it by [`level_path`]).
+#[must_use]
+pub fn roughness_path(path: &Path) -> std::path::PathBuf {
+    let stem = path.file_stem().map_or_else(|| "image".into(), |s| s.to_string_lossy().into_owned());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}_roughness.{}", ext.to_string_lossy()),
+        None => format!("{stem}_roughness"),
+    };
+    path.with_file_name(name)
+}
+
 /// Writes a file of the run's set `files` (named with the others at its
 /// commit), or assembles the bytes in memory (EXR seeks while writing) and
 /// gives them to a writer.
@@ -139,6 +166,9 @@ pub(crate) fn encode_residual(
             };
             io::write::encode_gray_tagged(&stored, (w, h), &encoding, tags, out)
         }
+        OutputFormat::Dds | OutputFormat::Ktx2 => {
+            Err(Error::Unsupported("a residual map is written as .png, .exr or .tif, not as a GPU texture".into()))
+        }
     }
 }
 
@@ -183,6 +213,8 @@ pub(crate) fn check_whole_memory(
         Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => (3, 0, c),
         Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => (6, 0, 2 * c),
         Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => (12, 0, 4 * c),
+        // The float normals, and the texture's bytes (at most 8 a texel).
+        Encoding::Texture(_) => (12, 8, 8),
     };
     let assembled = if to_writer { raw } else { 0 };
     let alpha = if layout.needs_heights() { 4 } else { 0 };

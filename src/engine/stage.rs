@@ -29,6 +29,7 @@ impl Texels {
         valid: Option<&mut [bool]>,
     ) -> Result<Texels> {
         Ok(match encoding {
+            Encoding::Texture(_) => return Err(crate::io::write::not_a_chain()),
             Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => {
                 Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
             }

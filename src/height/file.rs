@@ -266,6 +266,9 @@ impl HeightConversion {
             }),
             #[cfg(not(feature = "tiff"))]
             OutputFormat::Tiff => Err(io::write::no_tiff()),
+            OutputFormat::Dds | OutputFormat::Ktx2 => {
+                Err(Error::Unsupported("heights are written as .exr, .tif or .png, not as a GPU texture".into()))
+            }
             OutputFormat::Png => {
                 let span = hi - lo;
                 let mut stored: Vec<u16> = try_vec(values.len()).map_err(fail_out)?;

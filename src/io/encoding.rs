@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use super::gpu::{Compression, Container, Uncompressed};
 use super::{InputFormat, SampleType};
 use crate::error::{Error, Result};
 use crate::options::named_values;
@@ -21,9 +22,16 @@ pub enum OutputFormat {
     /// EXR does; a GeoTIFF when the input is one (its georeferencing tags
     /// copied), so the map overlays its source in GIS tools.
     Tiff,
+    /// DirectDraw Surface (DX10 header): a GPU texture holding a mip chain
+    /// ([`crate::io::gpu`]), block-compressed or not.
+    Dds,
+    /// KTX 2.0: a GPU texture holding a mip chain, as DDS does.
+    Ktx2,
 }
 
-named_values!(OutputFormat, "format", { Png => "png", Exr => "exr", Tiff => "tiff" | "tif" });
+named_values!(OutputFormat, "format", {
+    Png => "png", Exr => "exr", Tiff => "tiff" | "tif", Dds => "dds", Ktx2 => "ktx2"
+});
 
 impl OutputFormat {
     /// The format a file name's extension names (`.png`, `.exr`, in any
@@ -37,9 +45,11 @@ impl OutputFormat {
             "png" => Ok(Some(OutputFormat::Png)),
             "exr" => Ok(Some(OutputFormat::Exr)),
             "tif" | "tiff" => Ok(Some(OutputFormat::Tiff)),
-            other => {
-                Err(Error::Unsupported(format!("cannot write .{other} files: name the output .png, .exr or .tif")))
-            }
+            "dds" => Ok(Some(OutputFormat::Dds)),
+            "ktx2" => Ok(Some(OutputFormat::Ktx2)),
+            other => Err(Error::Unsupported(format!(
+                "cannot write .{other} files: name the output .png, .exr, .tif, .dds or .ktx2"
+            ))),
         }
     }
 
@@ -83,6 +93,111 @@ impl OutputFormat {
             OutputFormat::Png => "png",
             OutputFormat::Exr => "exr",
             OutputFormat::Tiff => "tif",
+            OutputFormat::Dds => "dds",
+            OutputFormat::Ktx2 => "ktx2",
+        }
+    }
+
+    /// The GPU container this format is, if it is one (DDS, KTX2).
+    #[must_use]
+    pub fn container(self) -> Option<Container> {
+        match self {
+            OutputFormat::Dds => Some(Container::Dds),
+            OutputFormat::Ktx2 => Some(Container::Ktx2),
+            _ => None,
+        }
+    }
+}
+
+/// How a GPU texture's normals are stored, as callers ask for them
+/// (`--compress`, `compress=`): BC5 blocks (x and y; the default), BC7
+/// blocks (x, y and z; the `bc7` feature), or none (8-bit RGBA, or RG with
+/// red-green channels; half floats with 16 bits).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum TextureCompression {
+    /// BC5: x and y, a byte a texel. The default.
+    #[default]
+    Bc5,
+    /// BC7: x, y, z, a byte a texel.
+    Bc7,
+    /// No blocks.
+    None,
+}
+
+named_values!(TextureCompression, "compression", { Bc5 => "bc5", Bc7 => "bc7", None => "none" });
+
+/// A GPU texture's container and how its texels are stored: the normal
+/// map's, and its one-channel companions' (a roughness chain:
+/// [`TextureOptions::values`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub struct TextureOptions {
+    /// DDS or KTX2.
+    pub container: Container,
+    /// The normals' storage.
+    pub compression: Compression,
+}
+
+impl TextureOptions {
+    /// The texture for these options: `compression` (default BC5);
+    /// without blocks, RGBA8 (RG8 with [`Layout::Rg`]), or half floats with
+    /// 16 `bits`.
+    ///
+    /// Errors: [`Error::InvalidOption`] for `bits` beside blocks, or other
+    /// than 8 and 16; an alpha (a texture's alpha is opaque); `signed`
+    /// (half floats store n itself already, 8 bits (n + 1)/2).
+    pub fn choose(
+        container: Container,
+        compression: Option<TextureCompression>,
+        bits: Option<u8>,
+        signed: bool,
+        layout: Layout,
+    ) -> Result<TextureOptions> {
+        let ext = container.extension();
+        if signed {
+            return Err(Error::InvalidOption(format!(
+                "a .{ext} texture has no signed option: its half floats store n itself, its bytes (n + 1)/2"
+            )));
+        }
+        if !matches!(layout, Layout::Rgb | Layout::Rg | Layout::RgbOpaque) {
+            return Err(Error::InvalidOption(format!(
+                "a .{ext} texture holds no alpha of heights: leave the alpha out (BC5 holds x and y, BC7 and RGBA an opaque alpha)"
+            )));
+        }
+        let rg = layout == Layout::Rg;
+        let compression = match (compression.unwrap_or_default(), bits) {
+            (TextureCompression::Bc5, None) => Compression::Bc5,
+            (TextureCompression::Bc7, None) => Compression::Bc7,
+            (TextureCompression::None, None | Some(8)) if rg => Compression::None(Uncompressed::Rg8),
+            (TextureCompression::None, None | Some(8)) => Compression::None(Uncompressed::Rgba8),
+            (TextureCompression::None, Some(16)) if rg => Compression::None(Uncompressed::Rg16f),
+            (TextureCompression::None, Some(16)) => Compression::None(Uncompressed::Rgba16f),
+            (TextureCompression::None, Some(b)) => {
+                return Err(Error::InvalidOption(format!(
+                    "a .{ext} texture without blocks holds 8 bits (RGBA8) or 16 (half floats), not {b}"
+                )));
+            }
+            (c, Some(b)) => {
+                return Err(Error::InvalidOption(format!(
+                    "{b} bits with compression {c}: bits are for a texture without blocks (compression none)"
+                )));
+            }
+        };
+        Ok(TextureOptions { container, compression })
+    }
+
+    /// How a one-channel chain beside the normals is stored: BC4 beside
+    /// blocks, one byte beside 8-bit texels, a half float beside half
+    /// floats.
+    #[must_use]
+    pub fn values(self) -> Compression {
+        match self.compression {
+            Compression::Bc5 | Compression::Bc7 | Compression::Bc4 => Compression::Bc4,
+            Compression::None(Uncompressed::Rgba16f | Uncompressed::Rg16f | Uncompressed::R16f) => {
+                Compression::None(Uncompressed::R16f)
+            }
+            Compression::None(_) => Compression::None(Uncompressed::R8),
         }
     }
 }
@@ -260,6 +375,9 @@ pub enum Encoding {
     Exr(ExrOptions),
     /// TIFF.
     Tiff(TiffOptions),
+    /// A GPU texture (DDS, KTX2): a mip chain, written whole
+    /// ([`crate::io::gpu`]).
+    Texture(TextureOptions),
 }
 
 impl Encoding {
@@ -319,6 +437,10 @@ impl Encoding {
             (OutputFormat::Tiff, Some(b)) => {
                 return Err(Error::Unsupported(format!("TIFF output holds 8, 16 or 32 (float) bits, not {b}")));
             }
+            (OutputFormat::Dds | OutputFormat::Ktx2, bits) => {
+                let container = format.container().expect("a GPU format");
+                Encoding::Texture(TextureOptions::choose(container, None, bits, signed, layout)?)
+            }
         };
         match encoding {
             Encoding::Png(_) if signed => {
@@ -343,6 +465,10 @@ impl Encoding {
             Encoding::Png(_) => OutputFormat::Png,
             Encoding::Exr(_) => OutputFormat::Exr,
             Encoding::Tiff(_) => OutputFormat::Tiff,
+            Encoding::Texture(o) => match o.container {
+                Container::Dds => OutputFormat::Dds,
+                Container::Ktx2 => OutputFormat::Ktx2,
+            },
         }
     }
 
@@ -353,6 +479,10 @@ impl Encoding {
             Encoding::Png(o) => o.layout,
             Encoding::Exr(o) => o.layout,
             Encoding::Tiff(o) => o.layout,
+            Encoding::Texture(o) => match o.compression {
+                Compression::None(Uncompressed::Rg8 | Uncompressed::Rg16f) => Layout::Rg,
+                _ => Layout::Rgb,
+            },
         }
     }
 
@@ -363,6 +493,8 @@ impl Encoding {
             Encoding::Png(o) => Encoding::Png(o.with_layout(layout)),
             Encoding::Exr(o) => Encoding::Exr(o.with_layout(layout)),
             Encoding::Tiff(o) => Encoding::Tiff(o.with_layout(layout)),
+            // A texture's channels are its compression's.
+            Encoding::Texture(o) => Encoding::Texture(o),
         }
     }
 }

@@ -19,15 +19,19 @@
 //! ([`crate::engine`]) joins reading and writing through a stage.
 
 mod atomic;
+pub(crate) mod dds;
 pub mod encoding;
 pub(crate) mod exr;
+pub mod gpu;
 mod identity;
+pub(crate) mod ktx2;
 pub(crate) mod png;
 pub mod read;
 pub mod rows;
 pub mod sidecar;
 mod target;
 pub(crate) mod texels;
+pub(crate) mod texture;
 #[cfg(feature = "tiff")]
 pub(crate) mod tiff;
 pub mod write;
@@ -41,6 +45,7 @@ use crate::samples::{Samples, try_vec};
 pub use crate::memory::{check_memory, memory_limit};
 pub use encoding::{
     Alpha, Encoding, ExrDepth, ExrOptions, Layout, OutputChannels, OutputFormat, PngCompression, PngDepth, PngOptions,
+    TextureCompression, TextureOptions,
 };
 pub use exr::rows::ExrRows;
 pub use identity::{FileId, same_file};

@@ -77,6 +77,7 @@ fn mismatch(texels: &str, encoding: &Encoding) -> Error {
         Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => "an 8-bit TIFF takes u8 samples",
         Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => "a 16-bit TIFF takes u16 samples",
         Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => "a float TIFF takes f32 samples",
+        Encoding::Texture(_) => "a GPU texture takes a mip chain (io::gpu)",
     };
     Error::InvalidOption(format!("{texels} samples for this encoding: {wanted}"))
 }
@@ -132,6 +133,7 @@ impl NormalTexel for [f32; 3] {
             Ok(out)
         }
         match encoding {
+            Encoding::Texture(_) => Err(not_a_chain()),
             Encoding::Exr(o) => exr_normals(texels, heights, size, *o, out),
             Encoding::Png(o) => match o.depth {
                 PngDepth::Eight => png_normals(&quantised::<[u8; 3]>(texels)?, heights, size, o, out),
@@ -299,6 +301,12 @@ fn tiff_normals<S>(
 #[cfg(not(feature = "tiff"))]
 fn tiff_gray<S>(_: &[S], _: (usize, usize), _: TiffTags<'_>, _: impl Write + Seek) -> Result<()> {
     Err(no_tiff())
+}
+
+/// The error of a GPU texture given to an image writer: its writer takes
+/// a mip chain ([`super::gpu::write_chain`]).
+pub(crate) fn not_a_chain() -> Error {
+    Error::InvalidOption("a .dds or .ktx2 texture is written from a mip chain (io::gpu::write_chain)".into())
 }
 
 /// The error of TIFF output in a build without the `tiff` feature.

@@ -2,6 +2,7 @@
 // Runs the program, which only the `cli` feature builds.
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod mips;
 pub mod reference;
 // GeoTIFFs of every layout, made with the `tiff` crate's encoder.
 #[cfg(feature = "tiff")]

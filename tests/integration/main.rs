@@ -71,6 +71,8 @@ mod cli_completions_man;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_height;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
+mod cli_mips;
+#[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_nodata;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_shade;

@@ -34,6 +34,7 @@ __all__ = [
     "height",
     "height_file",
     "lit_view",
+    "mips",
     "normals",
 ]
 
@@ -118,6 +119,62 @@ def normals(
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
         None if pixel_size is None else _pair(pixel_size), nodata,
+    )
+
+
+def mips(
+    array: Any,
+    *,
+    way: str = "auto",
+    patch: int = 3,
+    fit: str = "orthogonal",
+    border: str | tuple[str, str] = "wrap",
+    convention: str = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    dtype: Any = np.float32,
+    roughness: bool = False,
+    roughness_base: Any = None,
+) -> Any:
+    """The mip chain of a height map or a normal map: ``normalfit convert
+    --mips`` on an array (docs/mips.md).
+
+    array: a 2-D (rows, columns) height map, as ``normals`` takes it, or a
+        3-D (rows, columns, 3) normal map: floats n itself, uint8 / uint16
+        the encoded (n + 1) / 2 as ``normals(dtype=...)`` and PNGs store it.
+    way: "fit" (each level the plane fit of the heights box-filtered to its
+        size, its texels spaced by their footprint, the finest level's gain;
+        height maps only), "average" (each level the renormalised mean of
+        the finer level's normals; normal maps only), or "auto" (the
+        default): fit for a 2-D array, average for a 3-D one.
+    patch, fit, border, convention, scale, relief, invert: as ``normals``
+        (the fit's options; the average takes none of them).
+    dtype: np.float32 (the unit normals), or np.uint8 / np.uint16 for the
+        encoded RGB: bit for bit the levels ``normalfit convert --mips``
+        writes as 8- or 16-bit PNGs, and (uint8) the RGB of a .dds / .ktx2
+        written with ``--compress none``.
+    roughness: also return the roughness chain: each level's perceptual
+        roughness r = sqrt(alpha), alpha^2 = alpha_base^2 + (1 - |n|) / |n|
+        (Toksvig), |n| the length of the mean of the finest normals under
+        each texel (level 0: 0 plus the base). The result is then
+        (levels, roughness_levels).
+    roughness_base: a 2-D array of the input's size, perceptual roughness
+        in [0, 1] (uint8 / uint16 over their maximum, floats as they are),
+        box-filtered to each level as alpha^2; implies roughness.
+
+    Returns a list of arrays, the finest first, level k (rows_k, columns_k,
+    3) with each side max(1, side // 2) of the level before, down to 1 x 1;
+    with roughness, a pair (levels, roughness levels of float32 (rows_k,
+    columns_k)).
+
+    Raises TypeError for an array that is not one, ValueError for an option
+    out of range, a way the array does not take, a base of another size,
+    MemoryError when the memory is not there.
+    """
+    return _normalfit.mips(
+        array, way, patch, fit, border, convention, scale, relief, invert, dtype,
+        roughness, roughness_base,
     )
 
 

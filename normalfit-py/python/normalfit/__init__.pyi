@@ -20,6 +20,7 @@ __all__ = [
     "height",
     "height_file",
     "lit_view",
+    "mips",
     "normals",
 ]
 
@@ -73,6 +74,21 @@ def normals(
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | None = None,
     nodata: float | None = None,
+) -> Any: ...
+def mips(
+    array: _Heights,
+    *,
+    way: Literal["auto", "fit", "average", "mean"] = "auto",
+    patch: int = 3,
+    fit: Literal["orthogonal", "vertical"] = "orthogonal",
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
+    convention: Literal["opengl", "gl", "directx", "dx"] = "opengl",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    dtype: npt.DTypeLike = ...,
+    roughness: bool = False,
+    roughness_base: _Heights | None = None,
 ) -> Any: ...
 @final
 class ConversionSummary:

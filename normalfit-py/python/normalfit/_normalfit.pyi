@@ -48,6 +48,20 @@ def normals(
     pixel_size: tuple[float, float] | None,
     nodata: float | None,
 ) -> Any: ...
+def mips(
+    array: Any,
+    way: str,
+    patch: Any,
+    fit: str,
+    border: Any,
+    convention: str,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
+    dtype: Any,
+    roughness: bool,
+    roughness_base: Any | None,
+) -> Any: ...
 def check_tiling(image: Any, threshold: float, kind: str) -> TilingReport: ...
 def check_tiling_file(
     path: str | os.PathLike[str], threshold: float, kind: str, channel: str | None, max_texels: int | None, layer: str | None
