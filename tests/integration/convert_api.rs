@@ -124,7 +124,10 @@ fn the_output_format_comes_from_the_name_the_options_then_the_input() {
     assert_eq!(OutputFormat::choose(None, None, tiff_float).unwrap(), OutputFormat::Exr);
     assert_eq!(OutputFormat::choose(None, None, (&InputFormat::Exr, SampleType::Float)).unwrap(), OutputFormat::Exr);
     let e = OutputFormat::choose(p("a.jpg"), None, png16).unwrap_err();
-    assert!(matches!(&e, Error::Unsupported(m) if m.contains(".jpg") && m.contains(".png, .exr, .tif, .dds or .ktx2")), "{e}");
+    assert!(
+        matches!(&e, Error::Unsupported(m) if m.contains(".jpg") && m.contains(".png, .exr, .tif, .dds or .ktx2")),
+        "{e}"
+    );
     assert_eq!(OutputFormat::choose(p("a.tif"), None, png16).unwrap(), OutputFormat::Tiff);
     assert_eq!(OutputFormat::choose(p("a.TIFF"), None, png16).unwrap(), OutputFormat::Tiff);
     assert_eq!(OutputFormat::choose(p("a"), Some(OutputFormat::Tiff), png16).unwrap(), OutputFormat::Tiff);
@@ -492,7 +495,10 @@ fn border_choices_parse_as_the_command_line_spells_them() {
 fn output_and_check_options_parse_by_the_names_every_front_end_uses() {
     use normalfit::io::{Alpha, OutputChannels};
     assert_eq!("EXR".parse::<OutputFormat>().unwrap(), OutputFormat::Exr);
-    assert_eq!(OutputFormat::ALL.iter().map(|f| f.to_string()).collect::<Vec<_>>(), ["png", "exr", "tiff", "dds", "ktx2"]);
+    assert_eq!(
+        OutputFormat::ALL.iter().map(|f| f.to_string()).collect::<Vec<_>>(),
+        ["png", "exr", "tiff", "dds", "ktx2"]
+    );
     assert_eq!("tif".parse::<OutputFormat>().unwrap(), OutputFormat::Tiff);
     assert_eq!("small".parse::<PngCompression>().unwrap(), PngCompression::Default);
     assert_eq!("fast".parse::<PngCompression>().unwrap(), PngCompression::Fast);

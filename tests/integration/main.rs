@@ -25,6 +25,7 @@ mod features;
 mod fit_reference;
 mod fit_request;
 mod fuzz_regressions;
+mod gpu_containers;
 mod height;
 mod mips;
 mod nodata;
