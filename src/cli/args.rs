@@ -423,9 +423,6 @@ pub struct HeightArgs {
     #[command(flatten)]
     pub read: ReadArgs,
 
-    #[command(flatten)]
-    pub mips: MipArgs,
-
     // The groups with a help heading come last: a heading would otherwise
     // cover the options after it.
     #[command(flatten)]
