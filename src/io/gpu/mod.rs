@@ -62,9 +62,9 @@ use half::f16;
 
 use blocks::BlockGrid;
 
+use super::atomic::write_atomically;
 use super::dds::write::write_dds;
 use super::ktx2::write::write_ktx2;
-use super::write::write_atomically;
 use crate::error::{Error, Result};
 use crate::fit::FromNormal;
 use crate::mips::level_sizes;
