@@ -101,7 +101,7 @@ def test_convert_errors(tmp_path: Path) -> None:
         normalfit.convert(copy, copy)
     for kwargs, message in [
         ({"patch": 4}, "patch size must be odd"),
-        ({"format": "jpeg"}, "unknown format 'jpeg': use png, exr or tiff"),
+        ({"format": "jpeg"}, "unknown format 'jpeg': use png, exr, tiff, dds or ktx2"),
         ({"compression": "zip"}, "unknown compression 'zip'"),
         ({"alpha": "height", "channels": "rg"}, "has no alpha"),
         ({"alpha": "half"}, "unknown alpha 'half'"),
