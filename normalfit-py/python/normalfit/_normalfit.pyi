@@ -7,6 +7,7 @@ from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionS
 
 __all__ = [
     "normals",
+    "mips",
     "window_normals",
     "window_plan",
     "window_halo",
