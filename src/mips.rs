@@ -403,13 +403,13 @@ fn reduce_levels<const C: usize>(
     for &(_, h) in sizes {
         let mut rows = vec![Vec::new(); height];
         for (i, span) in spans(height, h).into_iter().enumerate() {
-            for r in span.first..=span.last {
+            for (r, targets) in rows.iter_mut().enumerate().take(span.last + 1).skip(span.first) {
                 let weight = match r {
                     r if r == span.first => span.first_weight,
                     r if r == span.last => span.last_weight,
                     _ => span.inner_weight,
                 };
-                rows[r].push((i, weight));
+                targets.push((i, weight));
             }
         }
         rows_of.push(rows);
@@ -428,6 +428,8 @@ fn reduce_levels<const C: usize>(
     let mut row: Vec<([f64; C], f64)> = try_vec(width)?;
     let mut running: Vec<([f64; C], f64)> = try_vec(width + 1)?;
     for y in 0..height {
+        // The level rows each level's row of this one adds to.
+        let targets_of = rows_of.iter().map(|rows| &rows[y]);
         row.clear();
         row.extend((0..width).map(|x| {
             let v = texel(y * width + x);
@@ -437,14 +439,13 @@ fn reduce_levels<const C: usize>(
         running.push(([0.0; C], 0.0));
         let mut total = ([0.0; C], 0.0);
         for (v, valid) in &row {
-            for c in 0..C {
-                total.0[c] += v[c];
+            for (t, c) in total.0.iter_mut().zip(v) {
+                *t += c;
             }
             total.1 += valid;
             running.push(total);
         }
-        for (k, spans) in along_x.iter().enumerate() {
-            let targets = &rows_of[k][y];
+        for ((k, spans), targets) in along_x.iter().enumerate().zip(targets_of) {
             let w = spans.len();
             for (x, span) in spans.iter().enumerate() {
                 let (v, valid) = row[span.first];
