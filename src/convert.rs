@@ -46,14 +46,17 @@
 //! [`Opened::write`] converts.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use crate::Options;
 pub use crate::borders::{BorderChoice, BorderChoices, Warning};
 use crate::engine::{self, MipStage, Settings, Sink, Stage};
-pub use crate::engine::{ConvertError, Input, Observer, Output, Place, Summary, level_path, read_all, roughness_path};
+pub use crate::engine::{
+    ConvertError, Input, Observer, Output, Place, Summary, chain_stem, level_path, read_all, roughness_path,
+};
 use crate::error::Error;
 use crate::io::{
-    Channel, Encoding, InputFormat, Layout, OutputFormat, PngCompression, ReadOptions, Replace, SampleType,
+    Channel, Encoding, InputFormat, Inputs, Layout, OutputFormat, PngCompression, ReadOptions, Replace, SampleType,
     TextureCompression, TextureOptions,
 };
 pub use crate::mips::MipChoice;
@@ -113,6 +116,12 @@ pub struct Conversion {
     /// The base roughness of the roughness chain: a gray image of the
     /// input's size, perceptual roughness in [0, 1]. Default: none (0).
     pub roughness_base: Option<PathBuf>,
+    /// Files no output may replace, besides the input itself (which none
+    /// ever does): a batch's other inputs. Every file a conversion writes
+    /// (a mip chain's levels and roughness included) is checked against
+    /// them, and against [`Conversion::replace`], before the work starts.
+    /// Default: none.
+    pub inputs: Arc<Inputs>,
 }
 
 impl Default for Conversion {
@@ -135,6 +144,7 @@ impl Default for Conversion {
             compress: None,
             roughness: false,
             roughness_base: None,
+            inputs: Arc::default(),
         }
     }
 }
@@ -249,6 +259,13 @@ impl Conversion {
         self
     }
 
+    /// Never writing over any of `inputs` (a batch's inputs).
+    #[must_use]
+    pub fn with_inputs(mut self, inputs: Arc<Inputs>) -> Conversion {
+        self.inputs = inputs;
+        self
+    }
+
     /// Making the residual map too (read whole).
     #[must_use]
     pub fn with_residual(mut self, residual: bool) -> Conversion {
@@ -357,6 +374,27 @@ impl Opened {
             .map_err(ConvertError::at(Place::Output))
     }
 
+    /// Every file the normal map written at `path` with `encoding` makes,
+    /// `path` first: a mip chain's levels written as images
+    /// (`<stem>_mip<k>.<ext>`, [`level_path`]) and its roughness
+    /// ([`roughness_path`], and its levels) too; the residual and
+    /// georeferencing sidecars aside. What a caller claims before it
+    /// writes (the command line: no two inputs of a batch write one file),
+    /// and what [`Conversion::replace`] and [`Conversion::inputs`] are
+    /// checked against.
+    #[must_use]
+    pub fn outputs(&self, encoding: &Encoding, path: &Path) -> Vec<PathBuf> {
+        let c = &self.conversion;
+        let texture = matches!(encoding, Encoding::Texture(_));
+        if c.mips.is_none() && !texture {
+            return vec![path.to_path_buf()];
+        }
+        let (width, height) = self.source.size();
+        let count = if c.mips.is_some() { crate::mips::level_sizes(width, height).len() } else { 1 };
+        let roughness = c.roughness || c.roughness_base.is_some();
+        engine::chain_files(path, texture, count, roughness).into_iter().map(|(p, _)| p).collect()
+    }
+
     /// Converts: the normal map to `normals` with `encoding` (see
     /// [`Opened::encoding`]), and the residual (if the conversion makes
     /// one) to `residual` in its format. Either may be left out (an output
@@ -387,6 +425,7 @@ impl Opened {
             map_units: c.map_units,
             replace: c.replace,
             roughness_base: c.roughness_base.as_deref(),
+            inputs: c.inputs.clone(),
         };
         let stage = match (c.mips, encoding) {
             (None, Encoding::Texture(_)) | (Some(_), _) => Stage::Mips(MipStage {

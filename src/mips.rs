@@ -219,12 +219,7 @@ pub fn fit_chain<H: Sample>(
 /// Errors: [`Error::BufferSize`] when `normals` does not hold the map;
 /// [`Error::InvalidOption`] for a size of zero.
 pub fn average_chain(normals: &[[f32; 3]], (width, height): (usize, usize)) -> Result<Vec<MipLevel<[f32; 3]>>> {
-    if width == 0 || height == 0 {
-        return Err(Error::InvalidOption(format!("a normal map of {width} × {height} texels has no levels")));
-    }
-    if normals.len() != width * height {
-        return Err(Error::BufferSize { expected: width * height, actual: normals.len() });
-    }
+    check_map(normals.len(), (width, height))?;
     let sizes = level_sizes(width, height);
     let mut chain: Vec<MipLevel<[f32; 3]>> = try_vec(sizes.len())?;
     chain.push(MipLevel { width, height, texels: normals.to_vec() });
@@ -249,22 +244,237 @@ pub fn average_chain(normals: &[[f32; 3]], (width, height): (usize, usize)) -> R
 /// agree, less where detail cancels out. The input to a Toksvig-style
 /// roughness.
 ///
+/// The mean is the box filter of the finest normals over the texel's
+/// footprint ([`box_reduce`]'s, texels partly covered weighted by the
+/// part), made for every level in one pass over the map ([`box_levels`]).
+///
 /// Errors: as [`average_chain`].
 pub fn mean_lengths(normals: &[[f32; 3]], (width, height): (usize, usize)) -> Result<Vec<MipLevel<f32>>> {
+    check_map(normals.len(), (width, height))?;
+    let sizes = level_sizes(width, height);
+    let length = |n: [f64; 3]| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() as f32;
+    let mut chain = try_vec(sizes.len())?;
+    let mut finest: Vec<f32> = try_vec(normals.len())?;
+    finest.extend(normals.iter().map(|n| length(n.map(f64::from))));
+    chain.push(MipLevel { width, height, texels: finest });
+    let means = reduce_levels(|i| normals[i].map(f64::from), (width, height), &sizes[1..])?;
+    for (&(w, h), mean) in sizes[1..].iter().zip(means) {
+        chain.push(MipLevel { width: w, height: h, texels: mean.into_iter().map(length).collect() });
+    }
+    Ok(chain)
+}
+
+/// The first `count` levels of the chain of a `width × height` map of
+/// values (row-major): level 0 the values themselves, level k their box
+/// filter to the level's size, as [`box_reduce`] makes it (within
+/// rounding: NaN values are missing, a texel with none valid under it is
+/// NaN), every level in one pass over the map. The heights of a chain
+/// (an alpha of heights), a base roughness's α².
+///
+/// Errors: as [`average_chain`].
+pub fn box_levels(values: &[f64], (width, height): (usize, usize), count: usize) -> Result<Vec<MipLevel<f64>>> {
+    check_map(values.len(), (width, height))?;
+    let mut sizes = level_sizes(width, height);
+    sizes.truncate(count.max(1));
+    let mut chain = try_vec(sizes.len())?;
+    let mut finest = try_vec(values.len())?;
+    finest.extend_from_slice(values);
+    chain.push(MipLevel { width, height, texels: finest });
+    let means = reduce_levels(|i| [values[i]], (width, height), &sizes[1..])?;
+    for (&(w, h), mean) in sizes[1..].iter().zip(means) {
+        chain.push(MipLevel { width: w, height: h, texels: mean.into_iter().map(|[v]| v).collect() });
+    }
+    Ok(chain)
+}
+
+/// The heights of the first `count` levels of a chain, for an alpha of
+/// heights ([`crate::io::Layout::RgbHeight`]) at every level: level 0 the
+/// heights in contract units as f32, as a single image's alpha holds
+/// them (SPEC §1: an integer sample over its maximum, a float as it is;
+/// [`crate::Samples::to_f32`]); level k their box filter to its size
+/// ([`box_levels`]), texels the fit calls missing (`nodata`, NaN) left
+/// out, and 0 where none under a texel is valid (a NaN or infinite height
+/// of level 0 is 0 too).
+///
+/// Errors: as [`average_chain`].
+pub fn height_levels<H: Sample>(
+    heights: &[H],
+    (width, height): (usize, usize),
+    nodata: Option<f64>,
+    count: usize,
+) -> Result<Vec<MipLevel<f32>>> {
+    check_map(heights.len(), (width, height))?;
+    let mut values: Vec<f64> = try_vec(heights.len())?;
+    values.extend(heights.iter().map(|&v| {
+        let stored = v.to_f64();
+        let missing = !v.is_finite() || nodata.is_some_and(|n| stored == n);
+        if missing { f64::NAN } else { stored * H::UNIT }
+    }));
+    let mut levels = box_levels(&values, (width, height), count)?.into_iter();
+    let mut chain = try_vec(count.clamp(1, 64))?;
+    // Level 0 as the single image's alpha: every sample as stored.
+    let finest = levels.next().expect("a level at least");
+    let mut texels: Vec<f32> = try_vec(heights.len())?;
+    texels.extend(heights.iter().map(|&v| {
+        let h = (v.to_f64() * H::UNIT) as f32;
+        if h.is_finite() { h } else { 0.0 }
+    }));
+    chain.push(MipLevel { width: finest.width, height: finest.height, texels });
+    drop(finest);
+    chain.extend(levels.map(|level| MipLevel {
+        width: level.width,
+        height: level.height,
+        texels: level.texels.into_iter().map(|v| if v.is_nan() { 0.0 } else { v as f32 }).collect(),
+    }));
+    Ok(chain)
+}
+
+/// Refuses a map of no texels, or a buffer of `len` texels that is not
+/// `width × height`.
+fn check_map(len: usize, (width, height): (usize, usize)) -> Result<()> {
     if width == 0 || height == 0 {
-        return Err(Error::InvalidOption(format!("a normal map of {width} × {height} texels has no levels")));
+        return Err(Error::InvalidOption(format!("a map of {width} × {height} texels has no levels")));
     }
-    if normals.len() != width * height {
-        return Err(Error::BufferSize { expected: width * height, actual: normals.len() });
+    let expected = width.checked_mul(height).ok_or(Error::BufferSize { expected: usize::MAX, actual: len })?;
+    if len != expected {
+        return Err(Error::BufferSize { expected, actual: len });
     }
-    level_sizes(width, height)
-        .into_iter()
-        .map(|(w, h)| {
-            let mean = mean_of(normals, (width, height), (w, h))?;
-            let texels = mean.iter().map(|n| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() as f32).collect();
-            Ok(MipLevel { width: w, height: h, texels })
+    Ok(())
+}
+
+/// One texel of a coarser grid along an axis, as [`box_weights`] weighs
+/// the finer texels it covers: the first and the last (their parts
+/// covered) and those between (whole, each m / n).
+#[derive(Clone, Copy)]
+struct Span {
+    first: usize,
+    last: usize,
+    first_weight: f64,
+    inner_weight: f64,
+    last_weight: f64,
+}
+
+/// The spans of `m` texels over `n` (m ≤ n): [`box_weights`]' weights,
+/// the same values, without a list per texel.
+fn spans(n: usize, m: usize) -> Vec<Span> {
+    (0..m)
+        .map(|i| {
+            let (start, end) = (i * n, (i + 1) * n);
+            let (first, last) = (start / m, (end - 1) / m);
+            let overlap = |j: usize| (end.min((j + 1) * m) - start.max(j * m)) as f64 / n as f64;
+            Span {
+                first,
+                last,
+                first_weight: overlap(first),
+                inner_weight: m as f64 / n as f64,
+                last_weight: overlap(last),
+            }
         })
         .collect()
+}
+
+/// The box filter ([`box_reduce`]'s: each texel the mean over its
+/// footprint, texels partly covered weighted by the part, NaN values
+/// missing) of a `width × height` map of `C` values a texel (`texel(i)`,
+/// row-major; a texel with a NaN value is missing) to each of `sizes`, in
+/// one pass over the map's rows, whatever the number of levels:
+///
+/// * along x, each row's running sums (of the valid values, and of their
+///   count) give a span's whole texels at once, and its two ends are
+///   added by the part they cover: each level's row costs its own width,
+///   not the map's;
+/// * along y, each finer row is added, weighted by the part covered, to
+///   the one or two rows of each level whose footprint it crosses.
+///
+/// So a level's mean is the mean of the finest texels under it (in f64,
+/// equal to [`box_reduce`]'s within rounding), at every size, odd ones
+/// included, where a mean of the level before's means would not be (a
+/// texel of 75 covers parts of three texels of 150 whose footprints
+/// overlap its neighbours'). Cost: the map's texels a few times over, and
+/// (C + 1) f64 per texel of the coarser levels (a third of the map's).
+fn reduce_levels<const C: usize>(
+    texel: impl Fn(usize) -> [f64; C],
+    (width, height): (usize, usize),
+    sizes: &[(usize, usize)],
+) -> Result<Vec<Vec<[f64; C]>>> {
+    let along_x: Vec<Vec<Span>> = sizes.iter().map(|&(w, _)| spans(width, w)).collect();
+    // For each level, the level rows (and weights) each finer row adds to.
+    let mut rows_of: Vec<Vec<Vec<(usize, f64)>>> = try_vec(sizes.len())?;
+    for &(_, h) in sizes {
+        let mut rows = vec![Vec::new(); height];
+        for (i, span) in spans(height, h).into_iter().enumerate() {
+            for (r, targets) in rows.iter_mut().enumerate().take(span.last + 1).skip(span.first) {
+                let weight = match r {
+                    r if r == span.first => span.first_weight,
+                    r if r == span.last => span.last_weight,
+                    _ => span.inner_weight,
+                };
+                targets.push((i, weight));
+            }
+        }
+        rows_of.push(rows);
+    }
+    let mut sums: Vec<Vec<[f64; C]>> = try_vec(sizes.len())?;
+    let mut covers: Vec<Vec<f64>> = try_vec(sizes.len())?;
+    for &(w, h) in sizes {
+        let mut sum = try_vec(w * h)?;
+        sum.resize(w * h, [0.0; C]);
+        let mut cover = try_vec(w * h)?;
+        cover.resize(w * h, 0.0);
+        sums.push(sum);
+        covers.push(cover);
+    }
+    // A row's values (missing ones 0) and validity, and their running sums.
+    let mut row: Vec<([f64; C], f64)> = try_vec(width)?;
+    let mut running: Vec<([f64; C], f64)> = try_vec(width + 1)?;
+    for y in 0..height {
+        // The level rows each level's row of this one adds to.
+        let targets_of = rows_of.iter().map(|rows| &rows[y]);
+        row.clear();
+        row.extend((0..width).map(|x| {
+            let v = texel(y * width + x);
+            if v.iter().any(|c| c.is_nan()) { ([0.0; C], 0.0) } else { (v, 1.0) }
+        }));
+        running.clear();
+        running.push(([0.0; C], 0.0));
+        let mut total = ([0.0; C], 0.0);
+        for (v, valid) in &row {
+            for (t, c) in total.0.iter_mut().zip(v) {
+                *t += c;
+            }
+            total.1 += valid;
+            running.push(total);
+        }
+        for ((k, spans), targets) in along_x.iter().enumerate().zip(targets_of) {
+            let w = spans.len();
+            for (x, span) in spans.iter().enumerate() {
+                let (v, valid) = row[span.first];
+                let mut sum = v.map(|c| span.first_weight * c);
+                let mut cover = span.first_weight * valid;
+                if span.last > span.first {
+                    let (inner, ends) = (&running[span.first + 1], &running[span.last]);
+                    let (v, valid) = row[span.last];
+                    for c in 0..C {
+                        sum[c] += span.inner_weight * (ends.0[c] - inner.0[c]) + span.last_weight * v[c];
+                    }
+                    cover += span.inner_weight * (ends.1 - inner.1) + span.last_weight * valid;
+                }
+                for &(i, weight) in targets {
+                    let at = i * w + x;
+                    for c in 0..C {
+                        sums[k][at][c] += weight * sum[c];
+                    }
+                    covers[k][at] += weight * cover;
+                }
+            }
+        }
+    }
+    for (sum, cover) in sums.iter_mut().zip(&covers) {
+        for (s, &weight) in sum.iter_mut().zip(cover) {
+            *s = if weight > 0.0 { s.map(|c| c / weight) } else { [f64::NAN; C] };
+        }
+    }
+    Ok(sums)
 }
 
 /// Toksvig's variance of the normals under a texel from the length |n̄|
@@ -302,7 +512,7 @@ pub fn roughness_chain(lengths: &[MipLevel<f32>], base: Option<&[f32]>) -> Resul
         return Err(Error::InvalidOption("a roughness chain needs at least one level".into()));
     };
     let (width, height) = (finest.width, finest.height);
-    let base_alpha2: Option<Vec<f64>> = match base {
+    let base_alpha2: Option<Vec<MipLevel<f64>>> = match base {
         None => None,
         Some(base) if base.len() != width * height => {
             return Err(Error::BufferSize { expected: width * height, actual: base.len() });
@@ -317,17 +527,13 @@ pub fn roughness_chain(lengths: &[MipLevel<f32>], base: Option<&[f32]>) -> Resul
             }
             let mut alpha2 = try_vec(base.len())?;
             alpha2.extend(base.iter().map(|&r| f64::from(r).powi(4)));
-            Some(alpha2)
+            Some(box_levels(&alpha2, (width, height), lengths.len())?)
         }
     };
     let mut chain = try_vec(lengths.len())?;
     for (k, level) in lengths.iter().enumerate() {
         let (w, h) = (level.width, level.height);
-        let base = match &base_alpha2 {
-            Some(alpha2) if k == 0 => alpha2.clone(),
-            Some(alpha2) => box_reduce(alpha2, (width, height), (w, h))?,
-            None => Vec::new(),
-        };
+        let base = base_alpha2.as_ref().and_then(|levels| levels.get(k)).map_or(&[][..], |level| &level.texels[..]);
         let mut texels: Vec<f32> = try_vec(w * h)?;
         texels.extend(level.texels.iter().enumerate().map(|(i, &length)| {
             let variance = if k == 0 { 0.0 } else { toksvig_variance(length) };
@@ -371,5 +577,29 @@ mod tests {
                 assert!((total - m as f64 / n as f64).abs() < 1e-12, "{n} → {m}");
             }
         }
+    }
+
+    #[test]
+    fn every_level_in_one_pass_is_the_box_filter_of_the_finest() {
+        for (w, h) in [(300, 7), (13, 11), (16, 8), (1, 9), (5, 1)] {
+            let mut values: Vec<f64> = (0..w * h).map(|i| ((i * 37 % 101) as f64 * 0.173).sin()).collect();
+            // Missing values: a few texels, and a whole run of them.
+            for i in (0..w * h).step_by(7).chain(0..3.min(w * h)) {
+                values[i] = f64::NAN;
+            }
+            let levels = box_levels(&values, (w, h), usize::MAX).unwrap();
+            assert_eq!(levels.len(), level_sizes(w, h).len());
+            for level in &levels[1..] {
+                let want = box_reduce(&values, (w, h), (level.width, level.height)).unwrap();
+                for (t, (got, want)) in level.texels.iter().zip(&want).enumerate() {
+                    let same = (got.is_nan() && want.is_nan()) || (got - want).abs() < 1e-12;
+                    assert!(same, "{w} × {h} → {} × {}, texel {t}: {got}, want {want}", level.width, level.height);
+                }
+            }
+            assert!(levels[0].texels.iter().zip(&values).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+        assert_eq!(box_levels(&[1.0; 12], (4, 3), 2).unwrap().len(), 2);
+        assert!(box_levels(&[1.0; 11], (4, 3), 2).is_err());
+        assert!(box_levels(&[], (0, 3), 2).is_err());
     }
 }

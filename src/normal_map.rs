@@ -215,10 +215,25 @@ pub fn kind_of(raster: &Raster, choice: KindChoice, channel: Option<&Channel>) -
 pub fn decode(raster: &Raster, signed: bool) -> Result<Vec<[f32; 3]>> {
     let planes = rgb_planes(raster)?.ok_or_else(no_rgb)?;
     Storage::of_file(raster.sample, signed)?;
+    decode_planes(planes.each_ref().map(Vec::as_slice), signed)
+}
+
+/// The normals of R, G and B planes of stored values in [0, 1] (integers
+/// over their top value, floats as they are: [`rgb_planes`]): each
+/// component 2c − 1 (c = (n + 1)/2 stored), or c itself when `signed`
+/// (floats that hold n), in f32. The one decoding of stored colours:
+/// [`decode`]'s, and the Python package's for arrays.
+///
+/// Errors: [`Error::BufferSize`] for planes of different lengths;
+/// [`Error::Limits`] when the memory is not there.
+pub fn decode_planes(planes: [&[f32]; 3], signed: bool) -> Result<Vec<[f32; 3]>> {
+    let len = planes[0].len();
+    if let Some(p) = planes.iter().find(|p| p.len() != len) {
+        return Err(Error::BufferSize { expected: len, actual: p.len() });
+    }
     let stored = |c: f32| if signed { c } else { 2.0 * c - 1.0 };
-    let len = raster.width * raster.height;
     let mut normals = crate::samples::try_vec(len)?;
-    normals.extend((0..len).map(|k| planes.each_ref().map(|p| stored(p[k]))));
+    normals.extend((0..len).map(|k| planes.map(|p| stored(p[k]))));
     Ok(normals)
 }
 

@@ -426,6 +426,7 @@ impl LitOptions {
             map_units: self.map_units,
             replace: self.replace,
             roughness_base: None,
+            inputs: std::sync::Arc::default(),
         }
     }
 }

@@ -462,7 +462,8 @@ fn fit_chain_typed<H: Stored>(
 
 /// The unit normals of a (rows, columns, 3) array: floats n itself,
 /// integers the encoded (n + 1)/2 read back as a normal map file is
-/// (c = v / max as f32, n = 2c − 1).
+/// (c = v / max as f32, then the library's
+/// `normal_map::decode_planes`: n = 2c − 1).
 fn normals_of<T: Element + Copy>(
     normals: &Bound<'_, PyUntypedArray>,
     planes: impl Fn(Vec<T>) -> Samples,
@@ -480,8 +481,8 @@ fn normals_of<T: Element + Copy>(
         let plane: Vec<T> = (0..h).flat_map(|y| (0..w).map(move |x| (y, x))).map(|(y, x)| view[[y, x, c]]).collect();
         channels.push(planes(plane).to_f32().map_err(to_py_err)?);
     }
-    let stored = |c: f32| if signed { c } else { 2.0 * c - 1.0 };
-    let normals = (0..w * h).map(|k| [0, 1, 2].map(|c| stored(channels[c][k]))).collect();
+    let planes = [&channels[0][..], &channels[1][..], &channels[2][..]];
+    let normals = normalfit::normal_map::decode_planes(planes, signed).map_err(to_py_err)?;
     Ok((normals, w, h))
 }
 

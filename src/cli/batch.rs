@@ -11,12 +11,12 @@ use std::collections::HashSet;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 
-use normalfit::io::{InputFormat, Replace};
+use normalfit::io::{InputFormat, Inputs, Replace};
 
 use super::args::{BatchArgs, OverwriteArg};
-use super::input::{Input, InputIds};
+use super::input::Input;
 use super::output;
 use super::progress::Progress;
 use super::report::{Failure, print_line, warn};
@@ -112,7 +112,10 @@ fn is_input_name(path: &Path, suffix: &str) -> bool {
         return false;
     }
     let stem = path.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default();
-    let ours = (!suffix.is_empty() && stem.ends_with(suffix)) || stem.ends_with(RESIDUAL_SUFFIX);
+    let normal_map = |stem: &str| !suffix.is_empty() && stem.ends_with(suffix);
+    // A mip chain's levels and roughness, named from a normal map's stem.
+    let chain = normalfit::convert::chain_stem(&stem).is_some_and(normal_map);
+    let ours = normal_map(&stem) || chain || stem.ends_with(RESIDUAL_SUFFIX);
     !ours
 }
 
@@ -142,17 +145,30 @@ pub struct Batch<'a> {
     listing: Listing,
     settings: &'a BatchArgs,
     words: Words,
+    inputs: Arc<Inputs>,
 }
 
 impl<'a> Batch<'a> {
     /// Gathers the inputs (folders searched as [`gather`] says, skipping
     /// files whose stem ends in `suffix`, this command's outputs).
     pub fn gather(inputs: &[PathBuf], settings: &'a BatchArgs, suffix: &str, words: Words) -> Batch<'a> {
-        Batch { listing: gather(inputs, settings.recursive, suffix), settings, words }
+        let listing = gather(inputs, settings.recursive, suffix);
+        let files = listing.jobs.iter().filter_map(|j| match &j.input {
+            Input::File(p) => Some(p.as_path()),
+            Input::Stdin => None,
+        });
+        let inputs = Arc::new(Inputs::of(files));
+        Batch { listing, settings, words, inputs }
     }
 
     /// Whether the run has more than one file (or a folder of them): the
     /// outputs then go into folders, and a summary line ends the run.
+    /// The files named or found as inputs, which no output may replace
+    /// (the library checks every file a job writes against them).
+    pub fn inputs(&self) -> Arc<Inputs> {
+        self.inputs.clone()
+    }
+
     pub fn many(&self) -> bool {
         self.listing.jobs.len() + self.listing.failures.len() > 1 || self.listing.any_folder
     }
@@ -162,7 +178,7 @@ impl<'a> Batch<'a> {
     /// (many files, not `--quiet`). Returns the number of failures (folders
     /// that could not be listed included), all already reported.
     pub fn run(self, one: impl Fn(&Job, &Turn) -> Result<Outcome, Failure> + Sync) -> usize {
-        let Batch { listing, settings, words } = self;
+        let Batch { listing, settings, words, inputs: self_inputs } = self;
         let many = listing.jobs.len() + listing.failures.len() > 1 || listing.any_folder;
         listing.failures.iter().for_each(Failure::report);
         if !settings.quiet {
@@ -172,15 +188,8 @@ impl<'a> Batch<'a> {
             }
         }
         let jobs = &listing.jobs;
-        let files: Vec<PathBuf> = jobs
-            .iter()
-            .filter_map(|j| match &j.input {
-                Input::File(p) => Some(p.clone()),
-                Input::Stdin => None,
-            })
-            .collect();
         let shared = Shared {
-            ids: InputIds::of(&files),
+            ids: self_inputs,
             claimed: Mutex::new(HashSet::new()),
             claims: ClaimOrder::new(jobs.len()),
             prints: ClaimOrder::new(jobs.len()),
@@ -244,7 +253,7 @@ fn default_jobs() -> usize {
 /// What the files of one run share while they are done at once.
 struct Shared {
     /// The inputs' identities, so that no output replaces one.
-    ids: InputIds,
+    ids: Arc<Inputs>,
     /// The outputs claimed so far.
     claimed: Mutex<HashSet<PathBuf>>,
     claims: ClaimOrder,
@@ -406,6 +415,12 @@ mod tests {
             ("rock_normal.png", false),
             ("rock_residual.exr", false),
             ("normal.png", true),
+            ("rock_normal_mip3.png", false),
+            ("rock_normal_roughness.png", false),
+            ("rock_normal_roughness_mip12.exr", false),
+            ("rock_mip3.png", true),
+            ("rock_normal_mipmap.png", true),
+            ("rock_normal_mip0.png", true),
         ] {
             assert_eq!(is_input_name(Path::new(name), suffix), taken, "{name}");
         }

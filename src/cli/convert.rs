@@ -41,7 +41,8 @@ enum ResidualPlace {
 pub fn run(args: ConvertArgs) -> Result<usize, Failure> {
     let words = Words { done: "converted", purpose: "to convert" };
     let batch = Batch::gather(&args.inputs, &args.batch, &args.suffix, words);
-    let plan = Plan::from_args(&args, batch.many())?;
+    let mut plan = Plan::from_args(&args, batch.many())?;
+    plan.conversion = plan.conversion.with_inputs(batch.inputs());
     Ok(batch.run(|job, turn| plan.convert_one(job, turn)))
 }
 
@@ -97,8 +98,13 @@ impl Plan {
             conversion.open(source(input, &mut bytes)?).map_err(|e| Failure::file(input.name(), e))?
         };
         let target = self.target(job, &opened)?;
-        self.claim(job, &target, turn)?;
-        let write_normals = turn.wanted(target.path.as_deref(), input);
+        // Every file the normal map makes (a mip chain's levels and
+        // roughness too), as the library names them.
+        let files = target.path.as_deref().map(|p| opened.outputs(&target.encoding, p)).unwrap_or_default();
+        self.claim(job, &target, &files, turn)?;
+        // Skipped when `--overwrite` keeps every one; a set it keeps part
+        // of is refused by the library, in one line, before any work.
+        let write_normals = files.is_empty() || files.iter().any(|f| turn.wanted(Some(f), input));
         let residual = target.residual.as_ref().filter(|r| turn.wanted(Some(&r.path), input));
         if !write_normals && residual.is_none() {
             return Ok(Outcome::Skipped);
@@ -169,13 +175,13 @@ impl Plan {
     /// Refuses an output that is an input, or that an earlier input of this
     /// run (in the order of the command line, whichever finishes first)
     /// writes too.
-    fn claim(&self, job: &Job, target: &Target, turn: &Turn) -> Result<(), Failure> {
+    fn claim(&self, job: &Job, target: &Target, files: &[PathBuf], turn: &Turn) -> Result<(), Failure> {
         let outputs: Vec<&Path> =
-            target.path.iter().chain(target.residual.as_ref().map(|r| &r.path)).map(PathBuf::as_path).collect();
-        if let [normals, residual] = outputs[..]
-            && normals == residual
+            files.iter().chain(target.residual.as_ref().map(|r| &r.path)).map(PathBuf::as_path).collect();
+        if let Some(residual) = &target.residual
+            && files.contains(&residual.path)
         {
-            return Err(Failure::file(normals, "is named for both the normal map and the residual"));
+            return Err(Failure::file(&residual.path, "is named for both the normal map and the residual"));
         }
         turn.claim(&job.input, &outputs)
     }

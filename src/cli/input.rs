@@ -4,8 +4,9 @@
 use std::path::{Path, PathBuf};
 
 use normalfit::convert;
-use normalfit::io::{self, FileId, Raster, ReadOptions};
+use normalfit::io::{self, Raster, ReadOptions};
 
+use super::args::library_message;
 use super::report::Failure;
 
 /// One input: a file, or `-` for standard input.
@@ -78,27 +79,13 @@ pub fn stdin_at_most_once(inputs: &[PathBuf]) -> Result<(), Failure> {
     Ok(())
 }
 
-/// The identity of every input file (the library's same-file rule,
-/// [`FileId`]), so that no output replaces one, whether named directly,
-/// through a symbolic link or as a hard link.
-pub struct InputIds(Vec<FileId>);
-
-impl InputIds {
-    pub fn of(inputs: &[PathBuf]) -> InputIds {
-        InputIds(inputs.iter().filter_map(|p| FileId::of(p)).collect())
+/// Refuses `output` if it is (or links to) one of the run's `inputs` (the
+/// library's rule, [`io::Inputs`], which every conversion applies to each
+/// file it writes too), or a folder.
+pub fn refuse_overwrite(inputs: &io::Inputs, output: &Path) -> Result<(), Failure> {
+    inputs.refuse(output).map_err(|e| Failure::file(output, library_message(&e)))?;
+    if output.is_dir() {
+        return Err(Failure::file(output, "is a folder: cannot write the output there"));
     }
-
-    /// Refuses `output` if it is (or links to) one of the inputs.
-    pub fn refuse_overwrite(&self, output: &Path) -> Result<(), Failure> {
-        if FileId::of(output).is_some_and(|id| self.0.contains(&id)) {
-            return Err(Failure::file(
-                output,
-                "is one of the inputs (or a link to one): normalfit never writes over an input",
-            ));
-        }
-        if output.is_dir() {
-            return Err(Failure::file(output, "is a folder: cannot write the output there"));
-        }
-        Ok(())
-    }
+    Ok(())
 }

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use normalfit::convert::{ConvertError, Output, Place};
 
-use super::input::{Input, InputIds};
+use super::input::{Input, refuse_overwrite};
 use super::report::Failure;
 
 /// How messages name standard output.
@@ -77,8 +77,13 @@ impl Destination {
 
 /// Refuses `output` (of `input`) if it is an input, or if an earlier input
 /// of this run already wrote it (`written` keeps their absolute paths).
-pub fn claim(output: &Path, input: &Input, ids: &InputIds, written: &mut HashSet<PathBuf>) -> Result<(), Failure> {
-    ids.refuse_overwrite(output)?;
+pub fn claim(
+    output: &Path,
+    input: &Input,
+    ids: &normalfit::io::Inputs,
+    written: &mut HashSet<PathBuf>,
+) -> Result<(), Failure> {
+    refuse_overwrite(ids, output)?;
     let key = std::path::absolute(output).unwrap_or_else(|_| output.to_path_buf());
     if !written.insert(key) {
         return Err(Failure::file(

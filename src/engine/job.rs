@@ -8,7 +8,7 @@ use super::sink::{
 };
 use super::source::{Reopen, Rows};
 use super::stage::{Texels, fitted};
-use super::{ConvertError, MipStage, Observer, Place, Settings, Sink, Stage, Summary, level_path, roughness_path};
+use super::{ConvertError, MipStage, Observer, Place, Settings, Sink, Stage, Summary, chain_files};
 use crate::borders::{BorderChoice, Warning};
 use crate::error::Error;
 use crate::io::encoding::TiffTags;
@@ -214,8 +214,11 @@ impl Job<'_> {
     }
 
     /// A mip chain of the whole image: fitted from its heights, or averaged
-    /// from a normal map's normals; written as one texture, or an image a
-    /// level ([`level_path`]); its roughness beside ([`roughness_path`]).
+    /// from a normal map's normals, with an alpha of each level's heights
+    /// if asked; written as one texture, or an image a level
+    /// ([`level_path`]); its roughness beside ([`roughness_path`]). Every
+    /// file is checked before the chain is made ([`chain_files`]): none
+    /// may be an input, and the policy must let each be written.
     fn mips_whole(&mut self, raster: Raster, stage: MipStage, out: Option<Output<'_>>) -> Result<(), ConvertError> {
         let (width, height) = (raster.width, raster.height);
         (self.summary.width, self.summary.height) = (width, height);
@@ -224,6 +227,37 @@ impl Job<'_> {
             let problem = "nothing to write: no output given";
             return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
         };
+        let encoding = stage.encoding;
+        let texture = matches!(encoding, Encoding::Texture(_));
+        let count = if stage.all { crate::mips::level_sizes(width, height).len() } else { 1 };
+        if encoding.layout() == Layout::RgbValid {
+            let problem = "mip levels hold no alpha of validity: leave the alpha out";
+            return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
+        }
+        // Where every file goes, each checked before any work.
+        let files = match &out {
+            Output::File { path, .. } => chain_files(path, texture, count, stage.roughness),
+            Output::Writer(_) if stage.roughness => {
+                let problem = "a roughness chain beside a writer needs its own file: name the output";
+                return Err(ConvertError { place: Place::Roughness, error: Error::InvalidOption(problem.into()) });
+            }
+            Output::Writer(_) if !texture && count > 1 => {
+                let problem = "mip levels written as images need a file: each level is a file of its own";
+                return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
+            }
+            Output::Writer(_) => Vec::new(),
+        };
+        for (k, (path, place)) in files.iter().enumerate() {
+            let named = |e: Error| match e {
+                // The first file is the output's own name; the others are named.
+                Error::InvalidOption(problem) if k > 0 => {
+                    Error::InvalidOption(format!("{}: {problem}", path.display()))
+                }
+                e => e,
+            };
+            sink::refuse_input(path, self.input).map_err(named).map_err(ConvertError::at(*place))?;
+            self.files.check(path).map_err(ConvertError::at(*place))?;
+        }
         let channel = self.settings.channel.as_ref();
         let average = match (stage.all, stage.choice) {
             (false, _) | (true, MipChoice::Fit) => false,
@@ -240,27 +274,42 @@ impl Job<'_> {
                            or name the height channel)";
             return Err(in_failure(Error::InvalidOption(problem.into())));
         }
+        let with_heights = encoding.layout() == Layout::RgbHeight;
+        if average && with_heights {
+            let problem = "is a normal map: an alpha of heights needs a height map (leave the alpha out)";
+            return Err(in_failure(Error::InvalidOption(problem.into())));
+        }
         // The normals (12 bytes a texel, a third more for the levels), the
         // heights box-filtered (8 a level texel, twice), the texture's or
-        // the level's bytes.
+        // the level's bytes; an alpha of heights: their levels (8 a texel
+        // while made, 4 kept).
         let texels = (width as u64).saturating_mul(height as u64);
-        io::check_memory("making the mip chain", texels.saturating_mul(16 + 24 + 8)).map_err(&in_failure)?;
-        let chain = if average {
+        let per_texel = 16 + 24 + 8 + if with_heights { 16 } else { 0 };
+        io::check_memory("making the mip chain", texels.saturating_mul(per_texel)).map_err(&in_failure)?;
+        let (chain, alpha) = if average {
             let normals = crate::normal_map::decode(&raster, false).map_err(&in_failure)?;
             drop(raster);
-            crate::mips::average_chain(&normals, (width, height)).map_err(&in_failure)?
+            (crate::mips::average_chain(&normals, (width, height)).map_err(&in_failure)?, None)
         } else {
             let (heights, fit) = self.heights_and_fit(raster)?;
             let work = crate::fit::work_bytes(&fit, (width, height), heights.unit(), fit.nodata.is_some(), false)
                 .map_err(&in_failure)?;
-            io::check_memory("fitting the mip chain", texels.saturating_mul(16 + 24 + 8).saturating_add(work))
+            io::check_memory("fitting the mip chain", texels.saturating_mul(per_texel).saturating_add(work))
                 .map_err(&in_failure)?;
-            if stage.all {
+            let chain = if stage.all {
                 with_slice!(&heights, h => crate::mips::fit_chain(h, (width, height), &fit)).map_err(&in_failure)?
             } else {
                 let texels = fitted::<[f32; 3]>(&heights, width, height, &fit, None, None).map_err(&in_failure)?;
                 vec![MipLevel { width, height, texels }]
-            }
+            };
+            let alpha = match with_heights {
+                true => Some(
+                    with_slice!(&heights, h => crate::mips::height_levels(h, (width, height), fit.nodata, count))
+                        .map_err(&in_failure)?,
+                ),
+                false => None,
+            };
+            (chain, alpha)
         };
         let roughness = match stage.roughness {
             false => None,
@@ -274,86 +323,66 @@ impl Job<'_> {
                 Some(crate::mips::roughness_chain(&lengths, base.as_deref()).map_err(&in_failure)?)
             }
         };
-        self.prepare(&out, Place::Output)?;
-        let mut files = std::mem::take(&mut self.files);
+        let mut set = std::mem::take(&mut self.files);
         let tags = self.tiff_tags();
-        let encoding = stage.encoding;
         let out_failure = ConvertError::at(Place::Output);
-        let roughness_out = |out: &Output<'_>| match out {
-            Output::File { path, create_folder } => Ok((roughness_path(path), *create_folder)),
-            Output::Writer(_) => {
-                let problem = "a roughness chain beside a writer needs its own file: name the output";
-                Err(ConvertError { place: Place::Roughness, error: Error::InvalidOption(problem.into()) })
+        let create_folder = matches!(out, Output::File { create_folder: true, .. });
+        let mut next = files.iter();
+        if let Encoding::Texture(texture) = encoding {
+            let normals = match &alpha {
+                Some(alpha) => Chain::NormalsAlpha(&chain, alpha),
+                None => Chain::Normals(&chain),
+            };
+            let encoded = gpu::encode_chain(normals, texture.compression).map_err(&out_failure)?;
+            let rough = match &roughness {
+                Some(levels) => Some(
+                    gpu::encode_chain(Chain::Values(levels), texture.values())
+                        .map_err(ConvertError::at(Place::Roughness))?,
+                ),
+                None => None,
+            };
+            let main = match out {
+                Output::Writer(writer) => Output::Writer(writer),
+                Output::File { .. } => file(&next.next().expect("the texture's file").0, create_folder),
+            };
+            self.prepare(&main, Place::Output)?;
+            write_to(main, &mut set, |w| gpu::write_encoded(w, &encoded, texture.container)).map_err(&out_failure)?;
+            if let (Some(encoded), Some((path, place))) = (rough, next.next()) {
+                self.prepare(&file(path, create_folder), *place)?;
+                write_to(file(path, create_folder), &mut set, |w| gpu::write_encoded(w, &encoded, texture.container))
+                    .map_err(ConvertError::at(*place))?;
             }
-        };
-        match encoding {
-            Encoding::Texture(texture) => {
-                let encoded = gpu::encode_chain(Chain::Normals(&chain), texture.compression).map_err(&out_failure)?;
-                let rough = match &roughness {
-                    Some(levels) => Some((
-                        roughness_out(&out)?,
-                        gpu::encode_chain(Chain::Values(levels), texture.values())
-                            .map_err(ConvertError::at(Place::Roughness))?,
-                    )),
-                    None => None,
-                };
-                write_to(out, &mut files, |w| gpu::write_encoded(w, &encoded, texture.container))
-                    .map_err(&out_failure)?;
-                if let Some(((path, create_folder), encoded)) = rough {
-                    let rough_out = Output::File { path: &path, create_folder };
-                    self.prepare(&rough_out, Place::Roughness)?;
-                    write_to(rough_out, &mut files, |w| gpu::write_encoded(w, &encoded, texture.container))
-                        .map_err(ConvertError::at(Place::Roughness))?;
-                }
-            }
-            _ => {
-                if encoding.layout().needs_heights() {
-                    let problem = "mip levels hold no alpha of heights or of validity: leave the alpha out";
-                    return Err(out_failure(Error::InvalidOption(problem.into())));
-                }
-                let (path, create_folder) = match out {
-                    Output::File { path, create_folder } => (path, create_folder),
-                    Output::Writer(writer) if chain.len() == 1 && roughness.is_none() => {
-                        let level = &chain[0];
-                        let size = (level.width, level.height);
-                        return write_to(Output::Writer(writer), &mut files, |w| {
-                            io::write::encode_normals_tagged(&level.texels, None, size, &encoding, tags, w)
-                        })
-                        .map_err(&out_failure)
-                        .map(|()| self.files = files);
-                    }
-                    Output::Writer(_) => {
-                        let problem = "mip levels written as images need a file: each level is a file of its own";
-                        return Err(out_failure(Error::InvalidOption(problem.into())));
-                    }
-                };
-                for (k, level) in chain.iter().enumerate() {
-                    let at = level_path(path, k);
-                    let level_out = Output::File { path: &at, create_folder };
-                    self.prepare(&level_out, Place::Output)?;
+        } else {
+            let alpha_of = |k: usize| alpha.as_ref().map(|a| &a[k].texels[..]);
+            if let Output::Writer(writer) = out {
+                // One level, no roughness: checked above.
+                let level = &chain[0];
+                let size = (level.width, level.height);
+                write_to(Output::Writer(writer), &mut set, |w| {
+                    io::write::encode_normals_tagged(&level.texels, alpha_of(0), size, &encoding, tags, w)
+                })
+                .map_err(&out_failure)?;
+            } else {
+                for (k, (level, (path, place))) in chain.iter().zip(next.by_ref()).enumerate() {
+                    self.prepare(&file(path, create_folder), *place)?;
                     let size = (level.width, level.height);
-                    write_to(level_out, &mut files, |w| {
-                        io::write::encode_normals_tagged(&level.texels, None, size, &encoding, tags, w)
+                    write_to(file(path, create_folder), &mut set, |w| {
+                        io::write::encode_normals_tagged(&level.texels, alpha_of(k), size, &encoding, tags, w)
                     })
-                    .map_err(&out_failure)?;
+                    .map_err(ConvertError::at(*place))?;
                 }
-                if let Some(levels) = &roughness {
-                    let base = roughness_path(path);
-                    let format = encoding.format();
-                    for (k, level) in levels.iter().enumerate() {
-                        let at = level_path(&base, k);
-                        let level_out = Output::File { path: &at, create_folder };
-                        self.prepare(&level_out, Place::Roughness)?;
-                        let size = (level.width, level.height);
-                        write_to(level_out, &mut files, |w| {
-                            encode_residual(&level.texels, size, 1.0, (format, tags), w)
-                        })
-                        .map_err(ConvertError::at(Place::Roughness))?;
-                    }
+                let format = encoding.format();
+                for (level, (path, place)) in roughness.iter().flatten().zip(next) {
+                    self.prepare(&file(path, create_folder), *place)?;
+                    let size = (level.width, level.height);
+                    write_to(file(path, create_folder), &mut set, |w| {
+                        encode_residual(&level.texels, size, 1.0, (format, tags), w)
+                    })
+                    .map_err(ConvertError::at(*place))?;
                 }
             }
         }
-        self.files = files;
+        self.files = set;
         Ok(())
     }
 
@@ -608,6 +637,11 @@ impl Job<'_> {
         self.files = files;
         Ok(())
     }
+}
+
+/// The file output at `path`.
+fn file(path: &Path, create_folder: bool) -> Output<'_> {
+    Output::File { path, create_folder }
 }
 
 /// The base roughness of a mip chain: the gray image at `path`, its

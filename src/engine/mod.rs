@@ -42,8 +42,9 @@ use crate::tiling::TilingReport;
 use crate::units::MapSpacing;
 use crate::{Borders, Options};
 
+pub(crate) use self::sink::chain_files;
 pub(crate) use self::sink::write_to;
-pub use self::sink::{Output, level_path, roughness_path};
+pub use self::sink::{Output, chain_stem, level_path, roughness_path};
 pub(crate) use self::source::decode_whole;
 pub use self::source::{Input, Source, read_all};
 
@@ -224,6 +225,9 @@ pub(crate) struct Settings<'a> {
     pub replace: io::Replace,
     /// A mip chain's base roughness: a gray image of the input's size.
     pub roughness_base: Option<&'a std::path::Path>,
+    /// Files no output may replace besides the input: a batch's other
+    /// inputs.
+    pub inputs: std::sync::Arc<io::Inputs>,
 }
 
 /// Where a run's results go: the main output (none: a lit view's pixels
@@ -300,7 +304,7 @@ pub(crate) fn run(
             nodata,
             missing: 0,
         },
-        files: io::FileSet::new(settings.replace),
+        files: io::FileSet::new(settings.replace).keeping(settings.inputs.clone()),
     };
     // The sidecars first: they are known from the georeferencing, and one
     // that is an input or that the policy keeps stops the run before any

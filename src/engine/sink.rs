@@ -4,8 +4,9 @@
 //! before it starts.
 
 use std::io::{Cursor, Seek, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use super::Place;
 use crate::error::{Error, Result};
 use crate::io::encoding::{TiffDepth, TiffOptions, TiffTags};
 use crate::io::{self, Encoding, ExrDepth, ExrOptions, FileSet, Layout, OutputFormat, PngDepth, PngOptions};
@@ -75,7 +76,7 @@ pub(crate) fn or_stream<'a: 's, 's>(output: Output<'a>, stream: &'s mut Option<s
 /// Where level `k` of a mip chain written as images goes: level 0 at
 /// `path`, level k ≥ 1 at `<stem>_mip<k>.<ext>` beside it.
 #[must_use]
-pub fn level_path(path: &Path, k: usize) -> std::path::PathBuf {
+pub fn level_path(path: &Path, k: usize) -> PathBuf {
     if k == 0 {
         return path.to_path_buf();
     }
@@ -90,13 +91,53 @@ pub fn level_path(path: &Path, k: usize) -> std::path::PathBuf {
 /// Where the roughness chain beside the normal map at `path` goes:
 /// `<stem>_roughness.<ext>` (its levels named from it by [`level_path`]).
 #[must_use]
-pub fn roughness_path(path: &Path) -> std::path::PathBuf {
+pub fn roughness_path(path: &Path) -> PathBuf {
     let stem = path.file_stem().map_or_else(|| "image".into(), |s| s.to_string_lossy().into_owned());
     let name = match path.extension() {
         Some(ext) => format!("{stem}_roughness.{}", ext.to_string_lossy()),
         None => format!("{stem}_roughness"),
     };
     path.with_file_name(name)
+}
+
+/// The stem of the normal map whose chain a file of stem `stem` is part
+/// of (`rock` of `rock_mip3`, `rock_roughness`, `rock_roughness_mip3`:
+/// [`level_path`]'s and [`roughness_path`]'s names), or `None` for a stem
+/// that is not named so. A folder's search skips a chain's files as it
+/// skips normal maps.
+///
+/// ```
+/// use normalfit::convert::chain_stem;
+/// assert_eq!(chain_stem("rock_mip3"), Some("rock"));
+/// assert_eq!(chain_stem("rock_roughness"), Some("rock"));
+/// assert_eq!(chain_stem("rock_roughness_mip12"), Some("rock"));
+/// assert_eq!(chain_stem("rock_mipmap"), None);
+/// assert_eq!(chain_stem("rock"), None);
+/// ```
+#[must_use]
+pub fn chain_stem(stem: &str) -> Option<&str> {
+    let level = stem
+        .rsplit_once("_mip")
+        .and_then(|(base, k)| (!k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()) && k != "0").then_some(base));
+    let base = level.unwrap_or(stem);
+    match base.strip_suffix("_roughness") {
+        Some(base) => Some(base),
+        None => level,
+    }
+}
+
+/// Every file a mip chain of `count` levels written at `path` makes, in
+/// the order it is written, and which output each is: a texture at
+/// `path`, its roughness at [`roughness_path`]; images a level at
+/// [`level_path`]s, then the roughness's levels. The one list the engine
+/// checks before it starts and writes, and callers claim
+/// ([`crate::convert::Opened::outputs`]).
+pub(crate) fn chain_files(path: &Path, texture: bool, count: usize, roughness: bool) -> Vec<(PathBuf, Place)> {
+    let levels = if texture { 1 } else { count };
+    let normals = (0..levels).map(|k| (level_path(path, k), Place::Output));
+    let rough = roughness_path(path);
+    let rough = (0..if roughness { levels } else { 0 }).map(|k| (level_path(&rough, k), Place::Roughness));
+    normals.chain(rough).collect()
 }
 
 /// Writes a file of the run's set `files` (named with the others at its
@@ -297,18 +338,26 @@ impl Seek for InMemory {
 /// folder cannot be made.
 pub(crate) fn prepare(output: &Output<'_>, input: Option<&Path>) -> Result<()> {
     let Output::File { path, create_folder } = *output else { return Ok(()) };
+    refuse_input(path, input)?;
+    if let (true, Some(parent)) = (create_folder, path.parent())
+        && !parent.as_os_str().is_empty()
+    {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}"))))?;
+    }
+    Ok(())
+}
+
+/// Refuses a file output at `path` that is `input` (or a link to it).
+///
+/// Errors: [`Error::InvalidOption`].
+pub(crate) fn refuse_input(path: &Path, input: Option<&Path>) -> Result<()> {
     if let Some(input) = input
         && io::same_file(input, path)
     {
         return Err(Error::InvalidOption(
             "the output is the input (or a link to it): normalfit never writes over an input".into(),
         ));
-    }
-    if let (true, Some(parent)) = (create_folder, path.parent())
-        && !parent.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(parent)
-            .map_err(|e| Error::Io(std::io::Error::new(e.kind(), format!("cannot create the output folder: {e}"))))?;
     }
     Ok(())
 }

@@ -128,6 +128,18 @@ impl Source {
         self.sample
     }
 
+    /// The image's columns and rows.
+    #[must_use]
+    pub fn size(&self) -> (usize, usize) {
+        match &self.rows {
+            Rows::Whole(raster) => (raster.width, raster.height),
+            Rows::Png(rows, _) => (rows.width(), rows.height()),
+            Rows::Exr(rows, _) => (rows.width(), rows.height()),
+            #[cfg(feature = "tiff")]
+            Rows::Tiff(rows, _) => (rows.width(), rows.height()),
+        }
+    }
+
     /// Whether its rows stream (else it is decoded whole).
     #[must_use]
     pub fn streams(&self) -> bool {

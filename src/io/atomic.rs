@@ -47,8 +47,10 @@ use std::ffi::OsStr;
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use super::identity::Inputs;
 use super::target::{OutputTarget, open_stream, output_target};
 use crate::error::{Error, Result};
 
@@ -145,12 +147,15 @@ impl Replace {
 /// file is new, or every file is as before. Dropped without a commit, the
 /// set leaves every target as it was and no temporary file.
 ///
-/// A file is checked against the set's [`Replace`] policy before a byte
-/// of it is written. A device, FIFO or socket is written into at once (a
-/// stream: the promise does not apply to it).
+/// A file is checked against the set's [`Replace`] policy, and against
+/// the [`Inputs`] it must keep, before a byte of it is written
+/// ([`FileSet::check`]; a command that writes several files checks them
+/// all before it starts). A device, FIFO or socket is written into at
+/// once (a stream: the promise does not apply to it).
 #[derive(Default)]
 pub struct FileSet {
     replace: Replace,
+    inputs: Arc<Inputs>,
     staged: Vec<Staged>,
 }
 
@@ -168,7 +173,40 @@ impl FileSet {
     /// A set that may replace the files `replace` allows.
     #[must_use]
     pub fn new(replace: Replace) -> FileSet {
-        FileSet { replace, staged: Vec::new() }
+        FileSet { replace, inputs: Arc::default(), staged: Vec::new() }
+    }
+
+    /// The same set, refusing to write any of `inputs`.
+    #[must_use]
+    pub fn keeping(mut self, inputs: Arc<Inputs>) -> FileSet {
+        self.inputs = inputs;
+        self
+    }
+
+    /// Whether a file may be written at `path`: not one of the inputs the
+    /// set keeps, and a file the policy lets it replace (or none). A
+    /// device, FIFO or socket passes: it is written into, not replaced.
+    ///
+    /// Errors: [`Error::InvalidOption`] for an input, naming `path`;
+    /// [`Error::Io`] of kind `AlreadyExists` when the policy keeps an
+    /// existing file there; [`Error::Io`] for a link not followed.
+    pub fn check(&self, path: &Path) -> Result<()> {
+        match output_target(path)? {
+            OutputTarget::File(target) => self.check_target(&target),
+            OutputTarget::Stream(_) => Ok(()),
+        }
+    }
+
+    /// [`FileSet::check`] of a file target.
+    fn check_target(&self, target: &Path) -> Result<()> {
+        if let Err(Error::InvalidOption(problem)) = self.inputs.refuse(target) {
+            return Err(Error::InvalidOption(format!("{} {problem}", target.display())));
+        }
+        if !self.replace.allows(target) {
+            let kept = format!("{} exists and is kept (--overwrite): nothing written", target.display());
+            return Err(Error::Io(io::Error::new(io::ErrorKind::AlreadyExists, kept)));
+        }
+        Ok(())
     }
 
     /// Writes the file at `path` with the bytes `write` produces, to be
@@ -192,10 +230,7 @@ impl FileSet {
             OutputTarget::File(target) => target,
             OutputTarget::Stream(target) => return write_stream(&target, write),
         };
-        if !self.replace.allows(&target) {
-            let kept = format!("{} exists and is kept (--overwrite): nothing written", target.display());
-            return Err(Error::Io(io::Error::new(io::ErrorKind::AlreadyExists, kept)));
-        }
+        self.check_target(&target)?;
         let name = target
             .file_name()
             .ok_or_else(|| Error::Io(io::Error::new(io::ErrorKind::InvalidInput, "output path has no file name")))?;

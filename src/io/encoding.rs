@@ -137,6 +137,9 @@ pub struct TextureOptions {
     pub container: Container,
     /// The normals' storage.
     pub compression: Compression,
+    /// The alpha holds each level's heights ([`Layout::RgbHeight`]: BC7,
+    /// RGBA8 or RGBA16F), else it is opaque (or absent).
+    pub heights: bool,
 }
 
 impl TextureOptions {
@@ -144,9 +147,13 @@ impl TextureOptions {
     /// without blocks, RGBA8 (RG8 with [`Layout::Rg`]), or half floats with
     /// 16 `bits`.
     ///
+    /// With [`Layout::RgbHeight`] the alpha holds the heights: BC7, RGBA8
+    /// or RGBA16F (BC5 and red-green have no alpha).
+    ///
     /// Errors: [`Error::InvalidOption`] for `bits` beside blocks, or other
-    /// than 8 and 16; an alpha (a texture's alpha is opaque); `signed`
-    /// (half floats store n itself already, 8 bits (n + 1)/2).
+    /// than 8 and 16; an alpha of heights in BC5 (the default), or an
+    /// alpha of validity; `signed` (half floats store n itself already, 8
+    /// bits (n + 1)/2).
     pub fn choose(
         container: Container,
         compression: Option<TextureCompression>,
@@ -160,9 +167,13 @@ impl TextureOptions {
                 "a .{ext} texture has no signed option: its half floats store n itself, its bytes (n + 1)/2"
             )));
         }
-        if !matches!(layout, Layout::Rgb | Layout::Rg | Layout::RgbOpaque) {
+        let heights = layout == Layout::RgbHeight;
+        if layout == Layout::RgbValid {
+            return Err(Error::InvalidOption(format!("a .{ext} texture holds no alpha of validity")));
+        }
+        if heights && compression.unwrap_or_default() == TextureCompression::Bc5 {
             return Err(Error::InvalidOption(format!(
-                "a .{ext} texture holds no alpha of heights: leave the alpha out (BC5 holds x and y, BC7 and RGBA an opaque alpha)"
+                "a .{ext} texture in BC5 (the default) holds x and y alone, no alpha: an alpha of heights takes compression bc7 or none"
             )));
         }
         let rg = layout == Layout::Rg;
@@ -184,7 +195,7 @@ impl TextureOptions {
                 )));
             }
         };
-        Ok(TextureOptions { container, compression })
+        Ok(TextureOptions { container, compression, heights })
     }
 
     /// How a one-channel chain beside the normals is stored: BC4 beside
@@ -481,6 +492,7 @@ impl Encoding {
             Encoding::Tiff(o) => o.layout,
             Encoding::Texture(o) => match o.compression {
                 Compression::None(Uncompressed::Rg8 | Uncompressed::Rg16f) => Layout::Rg,
+                _ if o.heights => Layout::RgbHeight,
                 _ => Layout::Rgb,
             },
         }

@@ -2,7 +2,10 @@
 //! from replacing an input, whether it is named directly, through a
 //! symbolic link or as a hard link.
 
+use std::collections::HashSet;
 use std::path::Path;
+
+use crate::error::{Error, Result};
 
 /// What identifies a file: its device and inode on Unix, its canonical
 /// path elsewhere.
@@ -54,6 +57,40 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     match (FileId::of(a), FileId::of(b)) {
         (Some(a), Some(b)) => a == b,
         _ => false,
+    }
+}
+
+/// The files no output may replace: a run's inputs, by identity
+/// ([`FileId`]: links and hard links are the file they lead to). The
+/// command line gathers its inputs here once; a conversion's
+/// [`FileSet`](super::FileSet) refuses each file it would write that is
+/// one of them, level by level of a mip chain.
+#[derive(Clone, Debug, Default)]
+pub struct Inputs(HashSet<FileId>);
+
+impl Inputs {
+    /// The identities of the files at `paths` (those that exist).
+    #[must_use]
+    pub fn of<P: AsRef<Path>>(paths: impl IntoIterator<Item = P>) -> Inputs {
+        Inputs(paths.into_iter().filter_map(|p| FileId::of(p.as_ref())).collect())
+    }
+
+    /// Whether the file at `path` (followed through links) is one of them.
+    #[must_use]
+    pub fn contains(&self, path: &Path) -> bool {
+        !self.0.is_empty() && FileId::of(path).is_some_and(|id| self.0.contains(&id))
+    }
+
+    /// Refuses an output at `path` that is one of them.
+    ///
+    /// Errors: [`Error::InvalidOption`], saying so.
+    pub fn refuse(&self, path: &Path) -> Result<()> {
+        if self.contains(path) {
+            return Err(Error::InvalidOption(
+                "is one of the inputs (or a link to one): normalfit never writes over an input".into(),
+            ));
+        }
+        Ok(())
     }
 }
 

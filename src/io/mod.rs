@@ -48,7 +48,7 @@ pub use encoding::{
     TextureCompression, TextureOptions,
 };
 pub use exr::rows::ExrRows;
-pub use identity::{FileId, same_file};
+pub use identity::{FileId, Inputs, same_file};
 pub use png::rows::PngRows;
 pub use read::{
     Affine, ByteOrder, Channel, FormatInfo, Georef, ModelType, PackedElevation, RasterType, RawOptions, decode,

@@ -281,3 +281,247 @@ fn a_bad_file_does_not_stop_a_batch() {
     assert!(out.join("a_normal.dds").exists());
     assert!(!out.join("b_normal.dds").exists());
 }
+
+/// The fourth plane of a DDS or KTX2 level's RGBA texels, `per` bytes a
+/// texel, read by `value`.
+fn alpha_of(bytes: &[u8], per: usize, value: impl Fn(&[u8]) -> f64) -> Vec<f64> {
+    bytes.chunks_exact(per).map(|t| value(&t[per / 4 * 3..])).collect()
+}
+
+/// A KTX2 file's levels (the finest first), by its level index (Khronos
+/// KTX 2.0: 80 bytes of header and index, then 24 bytes a level: offset,
+/// length, uncompressed length), and its `vkFormat`.
+fn ktx2_levels(path: &Path) -> (u32, Vec<Vec<u8>>) {
+    let bytes = fs::read(path).unwrap();
+    assert_eq!(&bytes[..12], b"\xABKTX 20\xBB\r\n\x1A\n");
+    let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+    let u64_at = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+    let count = u32_at(40) as usize;
+    let levels = (0..count).map(|k| bytes[u64_at(80 + 24 * k)..][..u64_at(88 + 24 * k)].to_vec()).collect();
+    (u32_at(12), levels)
+}
+
+/// `--alpha height` with `--mips`: each level's alpha holds that level's
+/// heights, the box filter of the finest (contract units: 16-bit samples
+/// over 65535), in a DDS without blocks (RGBA8), a KTX2 of half floats
+/// (RGBA16F) and 16-bit PNG levels; level 0's alpha is the single image's
+/// `--alpha height` bit for bit.
+#[test]
+fn an_alpha_of_heights_holds_each_levels_heights() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (37, 20);
+    let samples = heights(w, h);
+    let input = dir.path().join("h.png");
+    write_heights(&input, &samples, (w, h));
+    let (dds, ktx2, png, single) =
+        (dir.path().join("n.dds"), dir.path().join("n.ktx2"), dir.path().join("n.png"), dir.path().join("one.png"));
+    let common = ["--mips", "--alpha", "height", "--border", "clamp"];
+    succeeds(&[&["convert", s(&input), "-o", s(&dds), "--compress", "none"], &common[..]].concat());
+    succeeds(&[&["convert", s(&input), "-o", s(&ktx2), "--compress", "none", "--bits", "16"], &common[..]].concat());
+    succeeds(&[&["convert", s(&input), "-o", s(&png), "--bits", "16"], &common[..]].concat());
+    succeeds(&["convert", s(&input), "-o", s(&single), "--bits", "16", "--alpha", "height", "--border", "clamp"]);
+
+    let values: Vec<f64> = samples.iter().map(|&v| f64::from(v) / 65535.0).collect();
+    let sizes = level_sizes(w, h);
+    let (count, texture) = dds_levels(&dds);
+    assert_eq!(count as usize, sizes.len());
+    let (format, halves) = ktx2_levels(&ktx2);
+    assert_eq!((format, halves.len()), (97, sizes.len()), "R16G16B16A16_SFLOAT, every level");
+    let mut offset = 0;
+    for (k, &(lw, lh)) in sizes.iter().enumerate() {
+        let want = if k == 0 { values.clone() } else { box_filter(&values, (w, h), (lw, lh)) };
+        let bytes = &texture[offset..offset + lw * lh * 4];
+        offset += lw * lh * 4;
+        let in_dds = alpha_of(bytes, 4, |a| f64::from(a[0]));
+        let in_ktx2 = alpha_of(&halves[k], 8, |a| f64::from(half::f16::from_le_bytes([a[0], a[1]]).to_f32()));
+        let level_png = if k == 0 { png.clone() } else { dir.path().join(format!("n_mip{k}.png")) };
+        let (pw, ph, a) = planes(&level_png, &["A"]);
+        assert_eq!((pw, ph, in_dds.len(), in_ktx2.len()), (lw, lh, lw * lh, lw * lh), "level {k}");
+        for (t, &v) in want.iter().enumerate() {
+            let at = format!("level {k} ({lw} × {lh}) texel {t}");
+            assert!((in_dds[t] - 255.0 * v).abs() <= 0.5 + 1e-6, "DDS {at}: {} for {v}", in_dds[t]);
+            assert!((in_ktx2[t] - v).abs() <= v * 2f64.powi(-11) + 1e-7, "KTX2 {at}: {} for {v}", in_ktx2[t]);
+            assert!((f64::from(a[0][t]) - v).abs() <= 0.6 / 65535.0, "PNG {at}: {} for {v}", a[0][t]);
+        }
+    }
+    // Level 0 as the single image holds it, bit for bit.
+    let level0 = normalfit::io::read_path(&png, &Default::default()).unwrap();
+    let one = normalfit::io::read_path(&single, &Default::default()).unwrap();
+    assert_eq!(level0.plane("A").unwrap().data, one.plane("A").unwrap().data);
+    assert_eq!(level0.plane("R").unwrap().data, one.plane("R").unwrap().data);
+}
+
+/// An alpha of heights where there are none, or in a texture without an
+/// alpha (BC5, the default): exit 2, one line naming the file, nothing
+/// written.
+#[test]
+fn an_alpha_of_heights_needs_heights_and_a_texture_with_an_alpha() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (16, 8);
+    let heights_png = dir.path().join("h.png");
+    write_heights(&heights_png, &heights(w, h), (w, h));
+    let map = dir.path().join("map.png");
+    write_normal_map(&map, &bumpy_normals(w, h).1, (w, h));
+    let (dds, png) = (dir.path().join("out.dds"), dir.path().join("out.png"));
+    let cases: [(Vec<&str>, &Path, &str); 3] = [
+        (vec!["convert", s(&heights_png), "-o", s(&dds), "--mips", "--alpha", "height"], &dds, "bc7 or none"),
+        (
+            vec!["convert", s(&heights_png), "-o", s(&dds), "--mips", "--alpha", "height", "--compress", "bc5"],
+            &dds,
+            "no alpha",
+        ),
+        (vec!["convert", s(&map), "-o", s(&png), "--mips", "--alpha", "height"], &map, "needs a height map"),
+    ];
+    for (args, named, says) in cases {
+        let r = run(&args);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {stderr}");
+        let lines: Vec<&str> = stderr.lines().collect();
+        assert_eq!(lines.len(), 1, "{args:?}: {stderr}");
+        assert!(lines[0].contains(s(named)) && lines[0].contains(says), "{args:?}: {stderr}");
+    }
+    assert!(!dds.exists() && !png.exists());
+}
+
+/// The names of the files in `dir`, sorted, and each one's bytes.
+fn contents(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), fs::read(&p).unwrap()))
+        .collect();
+    files.sort();
+    files
+}
+
+/// Every file of a chain goes through `--overwrite`: a level that exists
+/// (not level 0) is kept under `never` and `older` (newer than the input),
+/// the command exits 2 with one line naming it and writes nothing; a chain
+/// whose every file exists is skipped; with the default every file is
+/// replaced.
+#[test]
+fn every_file_of_a_chain_goes_through_overwrite() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (16, 8);
+    let input = dir.path().join("h.png");
+    write_heights(&input, &heights(w, h), (w, h));
+    let out = dir.path().join("x.png");
+    let level1 = dir.path().join("x_mip1.png");
+    let rough2 = dir.path().join("x_roughness_mip2.png");
+    for (kept, extra) in [(&level1, &[][..]), (&rough2, &["--roughness"][..])] {
+        for policy in ["never", "older"] {
+            fs::write(kept, b"kept").unwrap();
+            // Newer than the input: `older` keeps it too.
+            let later = std::time::SystemTime::now() + std::time::Duration::from_secs(3600);
+            fs::File::options().write(true).open(kept).unwrap().set_modified(later).unwrap();
+            let before = contents(dir.path());
+            let args = [&["convert", s(&input), "-o", s(&out), "--mips", "--overwrite", policy], extra].concat();
+            let r = run(&args);
+            let stderr = String::from_utf8_lossy(&r.stderr);
+            assert_eq!(r.status.code(), Some(2), "{args:?}: {stderr}");
+            assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+            assert!(stderr.contains(s(kept)) && stderr.contains("exists and is kept"), "{args:?}: {stderr}");
+            assert_eq!(contents(dir.path()), before, "{args:?}: nothing written");
+            fs::remove_file(kept).unwrap();
+        }
+    }
+    // Every file there: skipped, untouched.
+    succeeds(&["convert", s(&input), "-o", s(&out), "--mips", "--roughness"]);
+    let chain = contents(dir.path());
+    assert_eq!(chain.len(), 1 + 2 * level_sizes(w, h).len());
+    let r = run(&["convert", s(&input), "-o", s(&out), "--mips", "--roughness", "--overwrite", "never"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(contents(dir.path()), chain);
+    // The default replaces them all.
+    fs::write(&level1, b"old").unwrap();
+    succeeds(&["convert", s(&input), "-o", s(&out), "--mips", "--roughness"]);
+    assert_eq!(contents(dir.path()), chain);
+}
+
+/// No file of a chain replaces an input: an input named as a level or a
+/// roughness output of its own chain, or of another input's in a batch,
+/// is refused in one line (exit 2) and nothing of that chain is written;
+/// the batch goes on. The library refuses it too, without the command
+/// line's claims.
+#[test]
+fn no_file_of_a_chain_replaces_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (16, 8);
+    let samples = heights(w, h);
+    // Its own chain: g.png's level 1 is the input.
+    let own = dir.path().join("g_mip1.png");
+    write_heights(&own, &samples, (w, h));
+    let out = dir.path().join("g.png");
+    let r = run(&["convert", s(&own), "-o", s(&out), "--mips"]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!((r.status.code(), stderr.lines().count()), (Some(2), 1), "{stderr}");
+    assert!(stderr.contains("g_mip1.png") && stderr.contains("never writes over an input"), "{stderr}");
+    assert!(!out.exists());
+    let roughness = dir.path().join("r_roughness.png");
+    write_heights(&roughness, &samples, (w, h));
+    let r = run(&["convert", s(&roughness), "-o", s(&dir.path().join("r.png")), "--mips", "--roughness"]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("r_roughness.png") && stderr.contains("never writes over an input"), "{stderr}");
+    assert!(!dir.path().join("r.png").exists());
+    assert_eq!(fs::read(&own).unwrap(), fs::read(&roughness).unwrap(), "the inputs are as they were");
+
+    // A batch, outputs beside the inputs: a.png's level 2 is b's input.
+    let batch = dir.path().join("batch");
+    fs::create_dir(&batch).unwrap();
+    let (a, b) = (batch.join("a.png"), batch.join("a_normal_mip2.png"));
+    write_heights(&a, &samples, (w, h));
+    write_heights(&b, &samples, (w, h));
+    let b_bytes = fs::read(&b).unwrap();
+    let r = run(&["convert", s(&a), s(&b), "--mips"]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(stderr.lines().any(|l| l.contains("a_normal_mip2.png") && l.contains("never writes over an input")));
+    assert_eq!(fs::read(&b).unwrap(), b_bytes);
+    assert!(!batch.join("a_normal.png").exists() && !batch.join("a_normal_mip1.png").exists());
+    assert!(batch.join("a_normal_mip2_normal_mip3.png").exists(), "the other input is converted");
+
+    // The library: the input itself, and the batch's inputs it is given.
+    use normalfit::convert::{Conversion, MipChoice};
+    let mips = Conversion::new().with_mips(Some(MipChoice::Fit));
+    let err = mips.convert_file(&own, &out).unwrap_err();
+    assert!(err.to_string().contains("never writes over an input"), "{err}");
+    let other = dir.path().join("c.png");
+    write_heights(&other, &samples, (w, h));
+    let inputs = std::sync::Arc::new(normalfit::io::Inputs::of([&other, &own]));
+    let err = mips.clone().with_inputs(inputs).convert_file(&other, &dir.path().join("g.png")).unwrap_err();
+    assert!(err.to_string().contains("g_mip1.png is one of the inputs"), "{err}");
+    assert!(!out.exists());
+}
+
+/// A folder searched again skips the chains an earlier run wrote beside
+/// its images (`<stem>_normal_mip<k>`, `_roughness`), as it skips their
+/// normal maps; a file of it whose chain cannot be written does not stop
+/// the others.
+#[test]
+fn a_folder_skips_earlier_chains_and_goes_on_past_a_kept_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (16, 8);
+    for name in ["a.png", "b.png"] {
+        write_heights(&dir.path().join(name), &heights(w, h), (w, h));
+    }
+    let kept = dir.path().join("a_normal_mip3.png");
+    write_heights(&kept, &heights(2, 1), (2, 1));
+    let later = std::time::SystemTime::now() + std::time::Duration::from_secs(3600);
+    fs::File::options().write(true).open(&kept).unwrap().set_modified(later).unwrap();
+    let r = run(&["convert", s(dir.path()), "--mips", "--roughness", "--border", "clamp", "--overwrite", "never"]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !common::cli::is_summary(l)).collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(lines[0].contains("a_normal_mip3.png") && lines[0].contains("exists and is kept"), "{stderr}");
+    assert!(dir.path().join("b_normal_mip3.png").exists() && dir.path().join("b_normal_roughness.png").exists());
+    assert!(!dir.path().join("a_normal.png").exists());
+    // Again, every file replaced: the chains of the first run are not inputs.
+    let r = run(&["convert", s(dir.path()), "--mips", "--roughness", "--border", "clamp"]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{stderr}");
+    let summary = stderr.lines().find_map(common::cli::summary_counts).expect("a summary line");
+    assert_eq!(summary.1, 2, "two images converted: {stderr}");
+}

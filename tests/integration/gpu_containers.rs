@@ -12,7 +12,7 @@ use normalfit::io::gpu::{
     Chain, Compression, Container, EncodedChain, MipLevel, TextureFormat, Uncompressed, encode_chain, write_chain,
     write_chain_file,
 };
-use normalfit::mips::{average_chain, level_sizes, mean_lengths};
+use normalfit::mips::{average_chain, box_levels, level_sizes, mean_lengths};
 
 // ---------------------------------------------------------------- inputs
 
@@ -41,6 +41,27 @@ fn normals_chain(width: usize, height: usize) -> Vec<MipLevel<[f32; 3]>> {
 
 fn values_chain(width: usize, height: usize) -> Vec<MipLevel<f32>> {
     mean_lengths(&bumpy(width, height), (width, height)).unwrap()
+}
+
+/// Heights in [0, 1] (a slope and a wave) box-filtered down the chain: an
+/// alpha of heights.
+fn heights_chain(width: usize, height: usize) -> Vec<MipLevel<f32>> {
+    let values: Vec<f64> = (0..width * height)
+        .map(|k| {
+            let (x, y) = ((k % width) as f64 / width as f64, (k / width) as f64 / height as f64);
+            0.2 + 0.4 * x + 0.25 * (0.5 + 0.5 * (3.0 * y + x).sin())
+        })
+        .collect();
+    let levels = box_levels(&values, (width, height), usize::MAX).unwrap();
+    levels
+        .into_iter()
+        .map(|l| MipLevel { width: l.width, height: l.height, texels: l.texels.iter().map(|&v| v as f32).collect() })
+        .collect()
+}
+
+/// An alpha's byte: round(255 a), a in [0, 1].
+fn alpha_byte(a: f32) -> u8 {
+    (f64::from(a) * 255.0).round() as u8
 }
 
 /// A normal's component as the 8-bit encoding codes it, unrounded.
@@ -393,6 +414,51 @@ fn ktx2_of_normals_in_every_layout_reads_back() {
     }
 }
 
+/// Normals with an alpha of heights: RGBA8 and RGBA16F hold it in their
+/// fourth channel, read back from the KTX2 (and the DDS) byte for byte;
+/// formats without an alpha refuse it.
+#[test]
+fn an_alpha_goes_into_rgba8_and_rgba16f_at_every_level() {
+    let (w, h) = (300, 7);
+    let (chain, alpha) = (normals_chain(w, h), heights_chain(w, h));
+    let sizes = level_sizes(w, h);
+    for layout in [Uncompressed::Rgba8, Uncompressed::Rgba16f] {
+        let compression = Compression::None(layout);
+        let with_alpha = Chain::NormalsAlpha(&chain, &alpha);
+        let file = ktx2_of(with_alpha, compression);
+        let format = compression.format(&with_alpha).unwrap();
+        let levels = check_ktx2(&file, format, &sizes);
+        for (k, (bytes, (level, a))) in levels.iter().zip(chain.iter().zip(&alpha)).enumerate() {
+            let mut want = expected_normal_bytes(level, layout);
+            for (t, texel) in want.chunks_exact_mut(if layout == Uncompressed::Rgba8 { 4 } else { 8 }).enumerate() {
+                match layout {
+                    Uncompressed::Rgba8 => texel[3] = alpha_byte(a.texels[t]),
+                    _ => texel[6..].copy_from_slice(&half(a.texels[t])),
+                }
+            }
+            assert_eq!(bytes, &want, "level {k} of {layout}");
+        }
+        assert_eq!(read_dds(&dds_of(with_alpha, compression), format, &sizes), levels, "{layout}");
+    }
+    let bad = |chain: Chain<'_>, compression: Compression| {
+        let mut out = Vec::new();
+        let err = write_chain(&mut out, chain, Container::Ktx2, compression).unwrap_err();
+        assert!(out.is_empty(), "nothing written before the error");
+        err
+    };
+    for compression in [Compression::Bc5, Compression::None(Uncompressed::Rg8), Compression::None(Uncompressed::Rg16f)]
+    {
+        let err = bad(Chain::NormalsAlpha(&chain, &alpha), compression);
+        assert!(matches!(&err, Error::InvalidOption(m) if m.contains("has no alpha")), "{compression}: {err}");
+    }
+    let err = bad(Chain::NormalsAlpha(&chain, &alpha[..3]), Compression::None(Uncompressed::Rgba8));
+    assert!(matches!(&err, Error::InvalidOption(m) if m.contains("alpha's levels")), "{err}");
+    let mut nan = alpha.clone();
+    nan[1].texels[4] = f32::NAN;
+    let err = bad(Chain::NormalsAlpha(&chain, &nan), Compression::None(Uncompressed::Rgba8));
+    assert!(matches!(&err, Error::InvalidOption(m) if m.contains("of level 1")), "{err}");
+}
+
 #[test]
 fn bc5_levels_decode_within_the_block_bound() {
     for (w, h) in [(300, 7), (64, 40), (2, 2), (1, 1), (5, 3)] {
@@ -628,35 +694,40 @@ fn pillow_decodes_every_level() {
     // smooth normals.
     let chain = average_chain(&bumps(w, h, 3.0), (w, h)).unwrap();
     let values = mean_lengths(&bumps(w, h, 3.0), (w, h)).unwrap();
+    let alpha = heights_chain(w, h);
     let sizes = level_sizes(w, h);
-    let mut cases: Vec<(Compression, TextureFormat, Vec<u8>)> = vec![
-        (Compression::Bc5, TextureFormat::Bc5, dds_of(Chain::Normals(&chain), Compression::Bc5)),
-        (Compression::Bc4, TextureFormat::Bc4, dds_of(Chain::Values(&values), Compression::Bc4)),
-        (
-            Compression::None(Uncompressed::Rgba8),
-            TextureFormat::Rgba8,
-            dds_of(Chain::Normals(&chain), Compression::None(Uncompressed::Rgba8)),
-        ),
+    let rgba8 = Compression::None(Uncompressed::Rgba8);
+    // Each case: its compression, format and file, and whether its alpha
+    // holds `alpha` (else it is opaque).
+    let mut cases: Vec<(Compression, TextureFormat, Vec<u8>, bool)> = vec![
+        (Compression::Bc5, TextureFormat::Bc5, dds_of(Chain::Normals(&chain), Compression::Bc5), false),
+        (Compression::Bc4, TextureFormat::Bc4, dds_of(Chain::Values(&values), Compression::Bc4), false),
+        (rgba8, TextureFormat::Rgba8, dds_of(Chain::Normals(&chain), rgba8), false),
+        (rgba8, TextureFormat::Rgba8, dds_of(Chain::NormalsAlpha(&chain, &alpha), rgba8), true),
     ];
     if cfg!(feature = "bc7") {
-        cases.push((Compression::Bc7, TextureFormat::Bc7, dds_of(Chain::Normals(&chain), Compression::Bc7)));
+        cases.push((Compression::Bc7, TextureFormat::Bc7, dds_of(Chain::Normals(&chain), Compression::Bc7), false));
+        let with_alpha = dds_of(Chain::NormalsAlpha(&chain, &alpha), Compression::Bc7);
+        cases.push((Compression::Bc7, TextureFormat::Bc7, with_alpha, true));
     }
     let mut files = Vec::new();
-    for (compression, format, file) in &cases {
+    for (case, (compression, format, file, _)) in cases.iter().enumerate() {
         for k in 0..sizes.len() {
-            let path = dir.path().join(format!("{compression}-{k}.dds"));
+            let path = dir.path().join(format!("{compression}-{case}-{k}.dds"));
             std::fs::write(&path, single_level_dds(file, *format, &sizes, k)).unwrap();
             files.push(path);
         }
     }
     let decoded = pillow_decode(&files);
     let mut next = decoded.iter();
-    for (compression, _, _) in &cases {
+    for (compression, _, _, with_alpha) in &cases {
         for (k, level) in chain.iter().enumerate() {
             let rgba = next.next().unwrap();
             let (lw, lh) = (level.width, level.height);
             assert_eq!(rgba.len(), lw * lh * 4, "{compression} level {k}");
-            let what = format!("{compression} level {k} ({lw} × {lh}) by Pillow");
+            let alpha_in = if *with_alpha { " with an alpha" } else { "" };
+            let what = format!("{compression}{alpha_in} level {k} ({lw} × {lh}) by Pillow");
+            let want_alpha = |t: usize| if *with_alpha { alpha_byte(alpha[k].texels[t]) } else { 255 };
             match compression {
                 Compression::Bc5 => {
                     let got: Vec<Vec<f64>> =
@@ -672,8 +743,9 @@ fn pillow_decodes_every_level() {
                     check_bc_rounded(&got, (lw, lh), source, &what);
                 }
                 Compression::None(_) => {
-                    let want: Vec<u8> =
-                        level.texels.iter().flat_map(|n| [byte(n[0]), byte(n[1]), byte(n[2]), 255]).collect();
+                    let want: Vec<u8> = (level.texels.iter().enumerate())
+                        .flat_map(|(t, n)| [byte(n[0]), byte(n[1]), byte(n[2]), want_alpha(t)])
+                        .collect();
                     assert_eq!(rgba, &want, "{what}");
                 }
                 _ => {
@@ -693,7 +765,49 @@ fn pillow_decodes_every_level() {
                         sum += angle;
                     }
                     let mean = sum / level.texels.len() as f64;
-                    assert!(mean < 4.0 && worst < 10.0, "{what}: mean {mean:.3}°, worst {worst:.3}°");
+                    // With an alpha, BC7's modes give the colours fewer
+                    // bits (modes 4 to 7; no partitions of three): on
+                    // small levels of varied normals, twice the error.
+                    let (mean_limit, worst_limit) = if *with_alpha { (8.0, 20.0) } else { (4.0, 10.0) };
+                    assert!(mean < mean_limit && worst < worst_limit, "{what}: mean {mean:.3}°, worst {worst:.3}°");
+                    // The alpha: opaque, or the heights: on average within
+                    // half a step of BC7's coarsest alpha indices (four
+                    // steps: a sixth of the block's span) and 2 codes, and
+                    // each texel within half its block's span and 3 codes
+                    // (BC7's alpha has no bound in closed form: modes 6
+                    // and 7 share their indices with the colours, and on
+                    // the tiny last levels of varied normals the encoder
+                    // favours them). An alpha from another level, or
+                    // none, is further off.
+                    let block = |t: usize| (t % lw / 4, t / lw / 4);
+                    let span = |t: usize| {
+                        let (lo, hi) = (0..lw * lh)
+                            .filter(|&u| block(u) == block(t))
+                            .map(|u| f64::from(want_alpha(u)))
+                            .fold((f64::MAX, f64::MIN), |(lo, hi), a| (lo.min(a), hi.max(a)));
+                        hi - lo
+                    };
+                    let errors: Vec<f64> = (rgba.chunks_exact(4).enumerate())
+                        .map(|(t, p)| (f64::from(p[3]) - f64::from(want_alpha(t))).abs())
+                        .collect();
+                    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+                    let worst = errors.iter().fold(0.0f64, |a, &b| a.max(b));
+                    match with_alpha {
+                        true => {
+                            let half_steps = (0..lw * lh).map(|t| span(t) / 6.0).sum::<f64>() / (lw * lh) as f64;
+                            assert!(
+                                mean <= half_steps + 2.0,
+                                "{what}: alpha off by {mean:.2} on average ({half_steps:.2})"
+                            );
+                            for (t, e) in errors.iter().enumerate() {
+                                let bound = span(t) / 2.0 + 3.0;
+                                assert!(*e <= bound, "{what}: alpha of texel {t} off by {e}, bound {bound:.1}");
+                            }
+                        }
+                        // Opaque: BC7's mode 6 stores 255 as 254 where its
+                        // endpoints' shared bit is 0.
+                        false => assert!(worst <= 1.0, "{what}: an opaque alpha, {worst} off"),
+                    }
                 }
             }
         }

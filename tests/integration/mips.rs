@@ -189,3 +189,35 @@ fn wrong_sizes_are_errors() {
     assert!(mips::box_reduce(&[1.0; 6], (3, 2), (4, 1)).is_err());
     assert!(mips::box_reduce(&[1.0; 5], (3, 2), (1, 1)).is_err());
 }
+
+/// `mean_lengths` at every level is |n̄|, the length of the mean of the
+/// finest normals under each texel: their box filter by overlap areas
+/// (tests/common), from the finest level, at odd and non-square sizes
+/// where a level's footprints do not nest in the level before's.
+#[test]
+fn mean_lengths_are_the_lengths_of_the_box_filtered_finest_normals() {
+    for (w, h) in [(37, 21), (300, 7), (16, 16), (1, 5)] {
+        let normals: Vec<[f32; 3]> = (0..w * h)
+            .map(|k| {
+                let (x, y) = ((k % w) as f64, (k / w) as f64);
+                reference::unit([1.2 * (x * 0.7).sin(), 0.9 * (y * 1.1 + x * 0.3).cos(), 1.0]).map(|c| c as f32)
+            })
+            .collect();
+        let lengths = mips::mean_lengths(&normals, (w, h)).unwrap();
+        assert_eq!(lengths.len(), mips::level_sizes(w, h).len());
+        let planes: Vec<Vec<f64>> = (0..3).map(|c| normals.iter().map(|n| f64::from(n[c])).collect()).collect();
+        for (k, level) in lengths.iter().enumerate() {
+            let (lw, lh) = (level.width, level.height);
+            let means: Vec<Vec<f64>> = planes.iter().map(|p| box_filter(p, (w, h), (lw, lh))).collect();
+            let mut shortest = f64::MAX;
+            for (t, &got) in level.texels.iter().enumerate() {
+                let want = (0..3).map(|c| means[c][t] * means[c][t]).sum::<f64>().sqrt();
+                let at = format!("{w} × {h}, level {k} ({lw} × {lh}) texel {t}");
+                assert!((f64::from(got) - want).abs() < 1e-6, "{at}: {got}, want {want}");
+                shortest = shortest.min(want);
+            }
+            // Not a test of ones: detail cancels out above the finest level.
+            assert!(k == 0 || shortest < 0.999, "{w} × {h}, level {k}: shortest {shortest}");
+        }
+    }
+}

@@ -19,12 +19,15 @@ use crate::samples::try_vec;
 const BC7_BYTES: usize = 16;
 
 /// The BC7 blocks of a level of RGBA texels (`texel(x, y)`, edges repeated
-/// past the level's size), a row of blocks at a time in parallel.
-pub(crate) fn encode(grid: BlockGrid, texel: impl Fn(usize, usize) -> [u8; 4] + Sync) -> Result<Vec<u8>> {
+/// past the level's size), a row of blocks at a time in parallel: with
+/// `alpha`, by the `alpha_basic` settings (the modes that hold an alpha
+/// too), else `opaque_basic`.
+pub(crate) fn encode(grid: BlockGrid, alpha: bool, texel: impl Fn(usize, usize) -> [u8; 4] + Sync) -> Result<Vec<u8>> {
     let row_bytes = grid.across * BC7_BYTES;
     let mut out: Vec<u8> = try_vec(row_bytes * grid.down)?;
     out.resize(row_bytes * grid.down, 0);
-    let settings = CompressionVariant::BC7(BC7Settings::opaque_basic());
+    let settings =
+        CompressionVariant::BC7(if alpha { BC7Settings::alpha_basic() } else { BC7Settings::opaque_basic() });
     let strip_width = grid.across * 4;
     out.par_chunks_mut(row_bytes).enumerate().for_each(|(by, blocks)| {
         // The strip of four rows this row of blocks covers, edges repeated.

@@ -9,14 +9,18 @@
 //! | compression | normals | one channel (values in [0, 1]) |
 //! |---|---|---|
 //! | `bc5` | x, y (the shader rebuilds z = √(1 − x² − y²)) | — |
-//! | `bc7` | x, y, z, alpha 1 (feature `bc7`) | — |
+//! | `bc7` | x, y, z, alpha 1 or the alpha given (feature `bc7`) | — |
 //! | `bc4` | — | the value |
-//! | `rgba8` | x, y, z, alpha 255 | — |
+//! | `rgba8` | x, y, z, alpha 255 or round(255 a) | — |
 //! | `rg8` | x, y | — |
 //! | `r8` | — | the value, round(255 v) |
-//! | `rgba16f` | n, alpha 1, half floats | — |
+//! | `rgba16f` | n, alpha 1 or a, half floats | — |
 //! | `rg16f` | n's x, y, half floats | — |
 //! | `r16f` | — | the value, a half float |
+//!
+//! Normals with an alpha ([`Chain::NormalsAlpha`]: a height a texel, for
+//! parallax mapping) go in the formats that have one: BC7, RGBA8 and
+//! RGBA16F; BC5 and the red-green layouts refuse them.
 //!
 //! A combination the table leaves empty is [`Error::InvalidOption`]; both
 //! containers hold every format of the table ([`TextureFormat`] has the
@@ -192,7 +196,12 @@ impl Compression {
             Compression::None(Uncompressed::Rg16f) => TextureFormat::Rg16f,
             Compression::None(Uncompressed::R16f) => TextureFormat::R16f,
         };
-        let normals = matches!(chain, Chain::Normals(_));
+        let normals = matches!(chain, Chain::Normals(_) | Chain::NormalsAlpha(..));
+        if matches!(chain, Chain::NormalsAlpha(..)) && format.channels() < 4 {
+            return Err(Error::InvalidOption(format!(
+                "{self} has no alpha: normals with an alpha of heights take bc7, rgba8 or rgba16f"
+            )));
+        }
         if normals && format.channels() == 1 {
             return Err(Error::InvalidOption(format!(
                 "{self} stores one channel: a chain of normals takes bc5, bc7, rgba8, rg8, rgba16f or rg16f"
@@ -237,6 +246,11 @@ pub enum Chain<'a> {
     /// Unit normals (x, y, z in [−1, 1], tangent space, y up as OpenGL
     /// has it): [`crate::mips::fit_chain`], [`crate::mips::average_chain`].
     Normals(&'a [MipLevel<[f32; 3]>]),
+    /// Unit normals, as [`Chain::Normals`], and an alpha a texel, the
+    /// levels of the same sizes: a height in [0, 1] for the UNORM layouts
+    /// (clamped, round(255 a)), as it is in half floats (the chain of a
+    /// height map's heights: [`crate::mips::box_levels`]).
+    NormalsAlpha(&'a [MipLevel<[f32; 3]>], &'a [MipLevel<f32>]),
     /// One value a texel, in [0, 1] for the UNORM layouts (clamped): a
     /// roughness made from [`crate::mips::mean_lengths`], a height.
     Values(&'a [MipLevel<f32>]),
@@ -258,7 +272,9 @@ impl Chain<'_> {
     /// The levels' sizes, the finest first.
     fn sizes(&self) -> Vec<(usize, usize)> {
         match self {
-            Chain::Normals(levels) => levels.iter().map(|l| (l.width, l.height)).collect(),
+            Chain::Normals(levels) | Chain::NormalsAlpha(levels, _) => {
+                levels.iter().map(|l| (l.width, l.height)).collect()
+            }
             Chain::Values(levels) => levels.iter().map(|l| (l.width, l.height)).collect(),
         }
     }
@@ -292,7 +308,7 @@ impl Chain<'_> {
         }
         let not_finite = |k: usize, at: usize, w: usize| (k, at % w, at / w);
         match self {
-            Chain::Normals(levels) => {
+            Chain::Normals(levels) | Chain::NormalsAlpha(levels, _) => {
                 for level in *levels {
                     check_len(level)?;
                 }
@@ -301,6 +317,17 @@ impl Chain<'_> {
                         let (_, x, y) = not_finite(0, at, level.width);
                         return Err(Error::NonFiniteNormal { x, y });
                     }
+                }
+                if let Chain::NormalsAlpha(_, alpha) = self {
+                    let alpha_sizes: Vec<(usize, usize)> = alpha.iter().map(|l| (l.width, l.height)).collect();
+                    if alpha_sizes != sizes {
+                        return Err(Error::InvalidOption(format!(
+                            "the alpha's levels ({} of them) are not the normals' ({}) sizes",
+                            alpha.len(),
+                            sizes.len()
+                        )));
+                    }
+                    Chain::Values(alpha).check()?;
                 }
             }
             Chain::Values(levels) => {
@@ -359,7 +386,12 @@ pub fn encode_chain(chain: Chain<'_>, compression: Compression) -> Result<Encode
     let format = compression.format(&chain)?;
     chain.check()?;
     let levels = match chain {
-        Chain::Normals(levels) => levels.iter().map(|l| encode_normals(l, format)).collect::<Result<Vec<_>>>()?,
+        Chain::Normals(levels) => levels.iter().map(|l| encode_normals(l, None, format)).collect::<Result<Vec<_>>>()?,
+        Chain::NormalsAlpha(levels, alpha) => levels
+            .iter()
+            .zip(alpha)
+            .map(|(l, a)| encode_normals(l, Some(&a.texels), format))
+            .collect::<Result<Vec<_>>>()?,
         Chain::Values(levels) => levels.iter().map(|l| encode_values(l, format)).collect::<Result<Vec<_>>>()?,
     };
     Ok(EncodedChain { format, sizes: chain.sizes(), levels })
@@ -442,18 +474,33 @@ fn encode_blocks(
 
 /// Texels laid out one after the other, `per` bytes each.
 fn encode_texels<T: Copy>(texels: &[T], per: usize, bytes: impl Fn(T, &mut [u8])) -> Result<Vec<u8>> {
+    encode_indexed(texels, per, |_, t, b| bytes(t, b))
+}
+
+/// [`encode_texels`], `bytes` told each texel's index too.
+fn encode_indexed<T: Copy>(texels: &[T], per: usize, bytes: impl Fn(usize, T, &mut [u8])) -> Result<Vec<u8>> {
     let mut out: Vec<u8> = try_vec(texels.len() * per)?;
     out.resize(texels.len() * per, 0);
-    for (&t, b) in texels.iter().zip(out.chunks_exact_mut(per)) {
-        bytes(t, b);
+    for (i, (&t, b)) in texels.iter().zip(out.chunks_exact_mut(per)).enumerate() {
+        bytes(i, t, b);
     }
     Ok(out)
 }
 
-/// A level of normals in `format`.
-fn encode_normals(level: &MipLevel<[f32; 3]>, format: TextureFormat) -> Result<Vec<u8>> {
+/// An alpha's byte: round(255 a) of a clamped to [0, 1], as an 8-bit
+/// PNG's alpha of heights stores it.
+#[inline]
+fn alpha8(a: f32) -> u8 {
+    (f64::from(a.clamp(0.0, 1.0)) * 255.0).round() as u8
+}
+
+/// A level of normals in `format`, with `alpha` (one a texel) in the
+/// alpha channel, else an opaque one.
+fn encode_normals(level: &MipLevel<[f32; 3]>, alpha: Option<&[f32]>, format: TextureFormat) -> Result<Vec<u8>> {
     let grid = BlockGrid::new(level.width, level.height);
     let texels = &level.texels;
+    let a8 = |i: usize| alpha.map_or(255, |a| alpha8(a[i]));
+    let a16 = |i: usize| alpha.map_or(1.0, |a| a[i]);
     match format {
         TextureFormat::Bc5 => encode_blocks(grid, 16, |bx, by, out| {
             for c in 0..2 {
@@ -462,17 +509,18 @@ fn encode_normals(level: &MipLevel<[f32; 3]>, format: TextureFormat) -> Result<V
             }
         }),
         #[cfg(feature = "bc7")]
-        TextureFormat::Bc7 => bc7::encode(grid, |x, y| {
-            let [r, g, b] = rgb8(texels[y * grid.width + x]);
-            [r, g, b, 255]
+        TextureFormat::Bc7 => bc7::encode(grid, alpha.is_some(), |x, y| {
+            let i = y * grid.width + x;
+            let [r, g, b] = rgb8(texels[i]);
+            [r, g, b, a8(i)]
         }),
-        TextureFormat::Rgba8 => encode_texels(texels, 4, |n, b| {
+        TextureFormat::Rgba8 => encode_indexed(texels, 4, |i, n, b| {
             b[..3].copy_from_slice(&rgb8(n));
-            b[3] = 255;
+            b[3] = a8(i);
         }),
         TextureFormat::Rg8 => encode_texels(texels, 2, |n, b| b.copy_from_slice(&rgb8(n)[..2])),
-        TextureFormat::Rgba16f => encode_texels(texels, 8, |n, b| {
-            for (c, v) in [n[0], n[1], n[2], 1.0].into_iter().enumerate() {
+        TextureFormat::Rgba16f => encode_indexed(texels, 8, |i, n, b| {
+            for (c, v) in [n[0], n[1], n[2], a16(i)].into_iter().enumerate() {
                 b[2 * c..2 * c + 2].copy_from_slice(&half(v));
             }
         }),
