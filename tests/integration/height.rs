@@ -902,8 +902,8 @@ fn clamp_gradient(z: &[f64], gx: &[f64], gy: &[f64], w: usize, h: usize, n: usiz
             let taps = |f: &mut dyn FnMut(usize, f64, f64)| {
                 for j in -r..=r {
                     for i in -r..=r {
-                        let tx = source_index(x as i64 + i, w as i64, Border::Clamp);
-                        let ty = source_index(y as i64 + j, h as i64, Border::Clamp);
+                        let tx = source_index(x as i64 + i, w as i64, Border::Clamp) as usize;
+                        let ty = source_index(y as i64 + j, h as i64, Border::Clamp) as usize;
                         f(ty * w + tx, i as f64 / a, j as f64 / a);
                     }
                 }
