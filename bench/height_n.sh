@@ -8,13 +8,21 @@
 #
 #   bench/height_n.sh                     # this build only
 #   bench/height_n.sh /tmp/nf-before      # and an older binary beside it
+#   bench/height_n.sh --clamp [BEFORE]    # the clamp sweep (below) instead
 #   TIMEOUT=60 bench/height_n.sh …        # seconds a run may take (default 120)
 #
 # Maps: ridged fractal noise (examples/heightmap.rs) of 64², 512² and
-# 1024²; a flat map of 1 × 5000 (a PGM of zeros). Needs a Rust toolchain
+# 1024²; a flat map of 1 × 5000 (a PGM of zeros). The clamp sweep: 512²,
+# 1024², 2048 × 256 and 2048², N = 3, 5, 63, 255 and 1023, clamp with
+# both fits and wrap (orthogonal) for reference. Needs a Rust toolchain
 # and GNU time (apt-get install -y time).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+sweep=
+if [ "${1:-}" = --clamp ]; then
+  sweep=clamp
+  shift
+fi
 before=${1:-}
 timeout=${TIMEOUT:-120}
 target=${CARGO_TARGET_DIR:-target}
@@ -22,7 +30,7 @@ work=bench/.work/height_n
 mkdir -p "$work"
 cargo build --release --locked --bin normalfit --example heightmap
 bin=$target/release/normalfit
-for size in 64 512 1024; do
+for size in 64 512 1024 2048 2048x256; do
   [ -f "$work/h$size.png" ] || "$target/release/examples/heightmap" "$size" "$work/h$size.png" >/dev/null
 done
 # A flat map one texel wide: a binary PGM of zeros.
@@ -35,6 +43,8 @@ measure() {
     echo "$t $((m / 1024))"
   elif grep -q 'Command exited with non-zero status 124' "$work/time.txt"; then
     echo ">$timeout -"
+  elif grep -q 'solved for maps with a side of at most' "$work/stderr.txt"; then
+    echo "refused -"
   else
     echo "failed -"
     cat "$work/stderr.txt" >&2
@@ -64,6 +74,16 @@ print('' if '-' in a + b or 'f' in a + b else f'{(float(b.lstrip(\">\")) / max(f
     echo "| ${map%.*} | $n | $label | $ta s | $ma MiB |"
   fi
 }
+if [ "$sweep" = clamp ]; then
+  for map in h512.png h1024.png h2048x256.png h2048.png; do
+    for n in 3 5 63 255 1023; do
+      row "$map" "$n" --border clamp
+      row "$map" "$n" --border clamp --fit vertical
+      row "$map" "$n" --border wrap
+    done
+  done
+  exit 0
+fi
 for map in h64.png h512.png; do
   for n in 3 63 255 1023; do
     row "$map" "$n"

@@ -6,6 +6,7 @@
 //! cargo run --release --example heightmap -- 4096 /tmp/h4096.png
 //! cargo run --release --example heightmap -- 32768 /tmp/h32768.png
 //! cargo run --release --example heightmap -- 8192 /tmp/h8192.exr
+//! cargo run --release --example heightmap -- 2048x256 /tmp/h2048x256.png
 //! ```
 //!
 //! The field is ridged fractal value noise (8 octaves, periodic, so the map
@@ -28,27 +29,33 @@ const BLOCK_ROWS: usize = 64;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [size, path] = args.as_slice() else {
-        return Err("usage: heightmap SIZE OUT.png".into());
+        return Err("usage: heightmap SIZE|WIDTHxHEIGHT OUT.png".into());
     };
-    let size: usize = size.parse()?;
-    if size == 0 || size > 1 << 16 {
+    // WIDTHxHEIGHT: the top rows of the WIDTH² map (a strip for the
+    // non-square cases of the benchmarks).
+    let (size, rows): (usize, usize) = match size.split_once('x') {
+        Some((w, h)) => (w.parse()?, h.parse()?),
+        None => (size.parse()?, size.parse()?),
+    };
+    if size == 0 || size > 1 << 16 || rows == 0 || rows > 1 << 16 {
         return Err("SIZE must be 1 … 65536".into());
     }
     let noise = Noise::new(size);
     if path.ends_with(".exr") {
-        write_exr(&noise, size, path)?;
-        println!("wrote {path}: {size}×{size} float Y");
+        write_exr(&noise, size, rows, path)?;
+        println!("wrote {path}: {size}×{rows} float Y");
         return Ok(());
     }
     let file = BufWriter::with_capacity(1 << 20, File::create(path)?);
-    let mut encoder = png::Encoder::new(file, size as u32, size as u32);
+    let mut encoder = png::Encoder::new(file, size as u32, rows as u32);
     encoder.set_color(png::ColorType::Grayscale);
     encoder.set_depth(png::BitDepth::Sixteen);
     encoder.set_compression(png::Compression::Fast);
     let mut writer = encoder.write_header()?.into_stream_writer()?;
     let mut block = vec![0u8; BLOCK_ROWS * size * 2];
-    for y0 in (0..size).step_by(BLOCK_ROWS) {
-        let rows = BLOCK_ROWS.min(size - y0);
+    let height = rows;
+    for y0 in (0..height).step_by(BLOCK_ROWS) {
+        let rows = BLOCK_ROWS.min(height - y0);
         block[..rows * size * 2].par_chunks_mut(size * 2).enumerate().for_each(|(i, row)| {
             for (x, out) in row.chunks_exact_mut(2).enumerate() {
                 let v = noise.height(x, y0 + i);
@@ -58,18 +65,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         writer.write_all(&block[..rows * size * 2])?;
     }
     writer.finish()?;
-    println!("wrote {path}: {size}×{size} 16-bit gray");
+    println!("wrote {path}: {size}×{height} 16-bit gray");
     Ok(())
 }
 
 /// The heights as a float EXR; `exr` asks for the pixels block by block,
 /// so the image is never held whole.
-fn write_exr(noise: &Noise, size: usize, path: &str) -> Result<(), Box<dyn std::error::Error>> {
+fn write_exr(noise: &Noise, size: usize, rows: usize, path: &str) -> Result<(), Box<dyn std::error::Error>> {
     use exr::prelude::*;
     let channels = SpecificChannels::build()
         .with_channel("Y")
         .with_pixel_fn(|p: Vec2<usize>| (noise.height(p.x(), p.y()) as f32,));
-    let layer = Layer::new((size, size), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
+    let layer = Layer::new((size, rows), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
     Image::from_layer(layer).write().to_file(path)?;
     Ok(())
 }

@@ -76,15 +76,15 @@ pub(super) const MAX_NULLS: usize = 4096;
 /// box does not see then measures 1e-16 or so, not the 1e-12 that 1 − μ
 /// keeps of the rounding), and |u_k|².
 #[derive(Clone)]
-struct Basis {
-    u: Vec<f64>,
-    ramp: Vec<f64>,
-    boxed: Vec<f64>,
-    norm2: Vec<f64>,
+pub(super) struct Basis {
+    pub(super) u: Vec<f64>,
+    pub(super) ramp: Vec<f64>,
+    pub(super) boxed: Vec<f64>,
+    pub(super) norm2: Vec<f64>,
     /// The vectors neither the ramp nor the box sees (the last ones): null
     /// modes with every vector of the other axis, and orthogonal in W's
     /// measure to every other vector of their axis.
-    axis_null: Vec<bool>,
+    pub(super) axis_null: Vec<bool>,
 }
 
 /// The dense solve of an image's vertical fit.
@@ -213,50 +213,18 @@ impl DenseSolver {
 
     /// Takes out of `z` its W-orthogonal projection on the null modes
     /// u_k ⊗ v_l (`nulls`): their Gram matrix is the product of the axes'
-    /// (W is W_y ⊗ W_x), solved by Gaussian elimination. Past
-    /// [`MAX_NULLS`] of them (an operator seeing next to nothing) z is left
-    /// as it is.
+    /// ([`project_out`]). Past [`MAX_NULLS`] of them (an operator seeing
+    /// next to nothing) z is left as it is.
     ///
-    /// Errors: [`crate::Error::Limits`] when the projection's memory
-    /// ([`null_projection_bytes`]) is not there. It is checked here, with
-    /// the count found, rather than up front: the count depends on the
-    /// slopes, and is a handful where the worst case is [`MAX_NULLS`]
-    /// (a Gram matrix of 128 MiB).
-    fn remove_null_modes(&self, nulls: &[(usize, usize)], (wx, wy): (&[f64], &[f64]), z: &mut [f64]) -> Result<()> {
-        let count = nulls.len();
-        if count == 0 || count > MAX_NULLS {
+    /// Errors: [`crate::Error::Limits`] as [`project_out`].
+    fn remove_null_modes(&self, nulls: &[(usize, usize)], weights: (&[f64], &[f64]), z: &mut [f64]) -> Result<()> {
+        if nulls.is_empty() || nulls.len() > MAX_NULLS {
             return Ok(());
         }
-        let (w, h) = (self.w, self.h);
-        crate::memory::check_memory(
-            "taking the fit's null modes out of the heights",
-            null_projection_bytes(count, w, h),
-        )?;
         let column = |basis: &Basis, n: usize, k: usize| -> Vec<f64> { (0..n).map(|i| basis.u[i * n + k]).collect() };
         let modes: Vec<(Vec<f64>, Vec<f64>)> =
-            nulls.iter().map(|&(k, l)| (column(&self.x, w, k), column(&self.y, h, l))).collect();
-        let dot = |a: &[f64], b: &[f64], m: &[f64]| a.iter().zip(b).zip(m).map(|((a, b), m)| a * b * m).sum::<f64>();
-        let mut gram = vec![0.0; count * count];
-        for i in 0..count {
-            for j in 0..count {
-                gram[i * count + j] = dot(&modes[i].0, &modes[j].0, wx) * dot(&modes[i].1, &modes[j].1, wy);
-            }
-        }
-        // ⟨n_i, z⟩_W = Σ_y v[y] W_y Σ_x u[x] W_x z[y][x].
-        let mut rhs: Vec<f64> = modes
-            .iter()
-            .map(|(u, v)| z.chunks(w).enumerate().map(|(y, row)| v[y] * wy[y] * dot(u, row, wx)).sum())
-            .collect();
-        let Some(alpha) = gauss(&mut gram, &mut rhs, count) else { return Ok(()) };
-        z.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            for ((u, v), a) in modes.iter().zip(&alpha) {
-                let f = a * v[y];
-                if f != 0.0 {
-                    row.iter_mut().zip(u).for_each(|(z, u)| *z -= f * u);
-                }
-            }
-        });
-        Ok(())
+            nulls.iter().map(|&(k, l)| (column(&self.x, self.w, k), column(&self.y, self.h, l))).collect();
+        project_out(&modes, weights, z)
     }
 
     /// The right-hand side DᵀWg of `slopes` into `b`, W the period's
@@ -285,7 +253,7 @@ impl DenseSolver {
 impl Basis {
     /// The generalised eigenbasis of (RᵀWR, RᵀWR + BᵀWB) of an axis of `n`
     /// texels with `border`; `None` if the eigenproblem fails.
-    fn new(line: &Line, n: usize, border: Border) -> Option<Basis> {
+    pub(super) fn new(line: &Line, n: usize, border: Border) -> Option<Basis> {
         // R and B, row-major: column j is the line's response to texel j.
         let (mut r, mut b) = (vec![0.0; n * n], vec![0.0; n * n]);
         let (mut unit, mut boxed, mut ramped) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
@@ -375,10 +343,48 @@ impl Basis {
 
 impl Basis {
     /// Each basis vector's measure Σ_i W_i u_k[i]².
-    fn measure(&self, weights: &[f64]) -> Vec<f64> {
+    pub(super) fn measure(&self, weights: &[f64]) -> Vec<f64> {
         let n = weights.len();
         (0..n).map(|k| (0..n).map(|i| weights[i] * self.u[i * n + k] * self.u[i * n + k]).sum()).collect()
     }
+}
+
+/// Takes out of `z` (rows of `wx.len()`) its W-orthogonal projection on
+/// the separable modes u ⊗ v of `modes` (u along the rows, v down the
+/// columns): their Gram matrix is the product of the axes' (W is
+/// W_y ⊗ W_x), solved by Gaussian elimination.
+///
+/// Errors: [`crate::Error::Limits`] when the projection's memory
+/// ([`null_projection_bytes`]) is not there. It is checked here, with
+/// the count found, rather than up front: the count depends on the
+/// slopes, and is a handful where the worst case is [`MAX_NULLS`]
+/// (a Gram matrix of 128 MiB).
+pub(super) fn project_out(modes: &[(Vec<f64>, Vec<f64>)], (wx, wy): (&[f64], &[f64]), z: &mut [f64]) -> Result<()> {
+    let count = modes.len();
+    let (w, h) = (wx.len(), wy.len());
+    crate::memory::check_memory("taking the fit's null modes out of the heights", null_projection_bytes(count, w, h))?;
+    let dot = |a: &[f64], b: &[f64], m: &[f64]| a.iter().zip(b).zip(m).map(|((a, b), m)| a * b * m).sum::<f64>();
+    let mut gram = vec![0.0; count * count];
+    for i in 0..count {
+        for j in 0..count {
+            gram[i * count + j] = dot(&modes[i].0, &modes[j].0, wx) * dot(&modes[i].1, &modes[j].1, wy);
+        }
+    }
+    // ⟨n_i, z⟩_W = Σ_y v[y] W_y Σ_x u[x] W_x z[y][x].
+    let mut rhs: Vec<f64> = modes
+        .iter()
+        .map(|(u, v)| z.chunks(w).enumerate().map(|(y, row)| v[y] * wy[y] * dot(u, row, wx)).sum())
+        .collect();
+    let Some(alpha) = gauss(&mut gram, &mut rhs, count) else { return Ok(()) };
+    z.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for ((u, v), a) in modes.iter().zip(&alpha) {
+            let f = a * v[y];
+            if f != 0.0 {
+                row.iter_mut().zip(u).for_each(|(z, u)| *z -= f * u);
+            }
+        }
+    });
+    Ok(())
 }
 
 /// The solution of the small dense system `a x = b` (count × count) by
@@ -425,7 +431,7 @@ fn multiply_right(m: &[f64], w: usize, u: &[f64], transposed: bool, out: &mut [f
 }
 
 /// out = V · m (`transposed`: Vᵀ · m), V h × h, m of h rows of `w`.
-fn multiply_left(v: &[f64], h: usize, transposed: bool, m: &[f64], w: usize, out: &mut [f64]) {
+pub(super) fn multiply_left(v: &[f64], h: usize, transposed: bool, m: &[f64], w: usize, out: &mut [f64]) {
     product((v, h, h, transposed), (m, w, false), out);
 }
 

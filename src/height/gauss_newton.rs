@@ -38,7 +38,7 @@ use crate::error::Result;
 use crate::par::prelude::*;
 use crate::samples::try_vec;
 
-use super::dense::DenseSolver;
+use super::banded::Separable;
 use super::line::{Scratch, Work, columns, rows};
 use super::patch::Patch;
 use super::solve::SlopeRows as Slopes;
@@ -50,7 +50,7 @@ use super::solve::Solver;
 #[derive(Clone, Copy)]
 pub(super) enum Vertical<'a> {
     Transform(&'a Solver),
-    Dense(&'a DenseSolver, (&'a [f64], &'a [f64])),
+    Dense(&'a Separable, (&'a [f64], &'a [f64])),
 }
 
 impl Vertical<'_> {

@@ -14,7 +14,7 @@ use crate::options::{Border, Fit};
 use crate::par::prelude::*;
 use crate::samples::{try_filled, try_vec};
 
-use super::dense::DenseSolver;
+use super::banded::Separable;
 use super::gauss_newton::Vertical;
 use super::line::{Work, columns_in_place, rows};
 use super::patch::Patch;
@@ -34,6 +34,7 @@ pub(crate) fn exact(
     z: &mut [f64],
 ) -> Result<(usize, bool, f64)> {
     let (borders, n) = (opts.fit.borders, opts.fit.patch);
+    super::banded::check_shape(w, h, borders, n)?;
     let solver = Solver::new(w, h, borders, n, Model::Exact);
     let patch = Patch::new(w, h, opts);
     // Clamp with N ≥ 5: conjugate gradients, preconditioned by (and, the
@@ -41,8 +42,9 @@ pub(crate) fn exact(
     // budget of iterations for the whole inverse; the later solves start
     // from the last one's heights.
     let nearest = if solver.is_none() { Solver::nearest(w, h, borders, n, Model::Exact) } else { None };
-    // The exact solve in dense bases where the axes are short enough.
-    let dense = if solver.is_none() { DenseSolver::new(&patch, h) } else { None };
+    // The exact solve in dense bases where the axes are short enough, or
+    // in one dense basis and banded solves (`banded.rs`).
+    let dense = if solver.is_none() { Separable::new(&patch, h) } else { None };
     // The dense solves' null threshold: the fixed point's own first, the
     // exact least squares once it has settled (see below).
     let mut null = if opts.fit.fit == Fit::Vertical { super::dense::NULL } else { super::dense::ORTHOGONAL_NULL };
@@ -503,7 +505,7 @@ fn multiplicities(patch: &Patch, h: usize) -> (Vec<f64>, Vec<f64>) {
 /// The vertical solve of `slopes` in `dense`'s bases, into `z`.
 fn dense_solve(
     patch: &Patch,
-    dense: &DenseSolver,
+    dense: &Separable,
     slopes: Slopes<'_>,
     lambda: f64,
     null: f64,
@@ -512,7 +514,7 @@ fn dense_solve(
     let len = z.len();
     let (wx, wy) = multiplicities(patch, len / patch.w);
     let (mut gx, mut gy, mut b) = (try_filled(len, 0.0)?, try_filled(len, 0.0)?, try_filled(len, 0.0)?);
-    DenseSolver::right_hand_side(patch, slopes, (&wx, &wy), (&mut gx, &mut gy), &mut b);
+    super::dense::DenseSolver::right_hand_side(patch, slopes, (&wx, &wy), (&mut gx, &mut gy), &mut b);
     drop((gx, gy));
     dense.solve(&mut b, lambda, null, (&wx, &wy), z)
 }

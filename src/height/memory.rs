@@ -9,7 +9,9 @@
 //! grows with N is only a line's scratch (2r values a thread); what grows
 //! with the shape besides the planes is clamp's dense bases (`dense.rs`:
 //! several n × n matrices per axis while they are made) and their null
-//! modes. A change to what the solve holds belongs here too.
+//! modes, or past 1024 texels its one dense basis and the bands of the
+//! longer axis (`banded.rs`: 2r + 1 values a texel of that axis, and a
+//! factor of them on each thread). A change to what the solve holds belongs here too.
 
 use super::dense::MAX_DENSE;
 use super::solve::{Axis, RHS_DIRECT_RADIUS, Solver};
@@ -124,6 +126,12 @@ fn exact_bytes(w: usize, h: usize, opts: &HeightOptions) -> Result<u64> {
             let bases = dense_bases(w, h);
             let dense = bases.saturating_add(dense_solve(w, h));
             (bases.max(spectra), dense.max(cg), dense_making(w, h))
+        } else if let Some(band) = one_axis_band(w, h, opts) {
+            // One dense basis and the banded solves, or conjugate
+            // gradients where they cannot be made.
+            let held = one_axis_held(w, h, band);
+            let solve = held.saturating_add(one_axis_solve(w, h, band));
+            (held.max(spectra), solve.max(cg), one_axis_making(w, h, r, band))
         } else {
             (spectra, cg, 0)
         }
@@ -170,6 +178,44 @@ fn dense_bases(w: usize, h: usize) -> u64 {
 fn dense_making(w: usize, h: usize) -> u64 {
     let (x, y) = (w as u64, h as u64);
     F64 * (10 * x * x).max(x * x + 10 * y * y)
+}
+
+/// The half-bandwidth of the banded solves (`banded.rs`) where they take
+/// the map: clamp with N ≥ 5, an axis past [`MAX_DENSE`].
+fn one_axis_band(w: usize, h: usize, opts: &HeightOptions) -> Option<usize> {
+    let (m, n) = (w.min(h), w.max(h));
+    let border = if w < h { opts.fit.borders.y } else { opts.fit.borders.x };
+    let r = opts.fit.patch / 2;
+    super::banded::applies(m, n, border, r).then(|| (2 * r).min(n - 1))
+}
+
+/// What the banded solves hold between solves: the shorter axis's basis
+/// (as [`dense_bases`] counts one) and the longer axis's P and Q bands.
+fn one_axis_held(w: usize, h: usize, band: usize) -> u64 {
+    let (m, n) = (w.min(h) as u64, w.max(h) as u64);
+    F64 * (m * m + 5 * m) + 2 * F64 * n * (band as u64 + 1)
+}
+
+/// Making them: the shorter axis's basis (ten m × m matrices, as
+/// [`dense_making`]), the longer axis's rows of R and B (2r + 1 values a
+/// texel each) and its bands.
+fn one_axis_making(w: usize, h: usize, r: usize, band: usize) -> u64 {
+    let (m, n) = (w.min(h) as u64, w.max(h) as u64);
+    let rows = 2 * F64 * n * (2 * r as u64 + 1);
+    (F64 * 10 * m * m).max(rows).saturating_add(one_axis_held(w, h, band))
+}
+
+/// One banded solve beside what is held: the right-hand side as a dense
+/// solve forms it, then the right-hand side, a plane of work, a plane for
+/// the preconditioner's weighted copy or the null modes' transposed
+/// heights, every thread's factor (n (band + 1) values) and the null
+/// modes' Gram matrix (one a mode of the shorter axis at most).
+fn one_axis_solve(w: usize, h: usize, band: usize) -> u64 {
+    let (m, n) = (w.min(h) as u64, w.max(h) as u64);
+    let p = plane(w, h);
+    let factors = (crate::par::current_num_threads() as u64).saturating_mul(F64 * n * (band as u64 + 1));
+    let nulls = F64 * (m * m + m * (m + n + 2)) + 48 * m;
+    (3 * p + column_pieces(w, h, 1)).max(3 * p + factors + nulls)
 }
 
 /// One dense solve beside the bases: the right-hand side and its two

@@ -68,6 +68,7 @@
 //! derivative iω and no box, for normal maps that normalfit did not make
 //! (baked, scanned) or whose N is unknown.
 
+mod banded;
 mod dense;
 mod gauss_newton;
 mod iterative;

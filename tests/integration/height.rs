@@ -887,3 +887,104 @@ fn wide_patches_give_the_same_bits_on_any_thread_count() {
         }
     }
 }
+
+/// The least squares' gradient Dᵀ(Dz − g) of a clamped map, with D the
+/// vertical fit's operator written plainly from its definition (each
+/// texel's patch read through the reference's border rule, sparse: the
+/// dense rows of `period_texels` would not fit past 1024 texels), and
+/// Dᵀg's largest value for scale.
+fn clamp_gradient(z: &[f64], gx: &[f64], gy: &[f64], w: usize, h: usize, n: usize) -> (Vec<f64>, f64) {
+    let (r, a) = ((n / 2) as i64, a_of(n));
+    let mut gradient = vec![0.0; w * h];
+    let mut scale = vec![0.0f64; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let taps = |f: &mut dyn FnMut(usize, f64, f64)| {
+                for j in -r..=r {
+                    for i in -r..=r {
+                        let tx = source_index(x as i64 + i, w as i64, Border::Clamp) as usize;
+                        let ty = source_index(y as i64 + j, h as i64, Border::Clamp) as usize;
+                        f(ty * w + tx, i as f64 / a, j as f64 / a);
+                    }
+                }
+            };
+            let (mut dx, mut dy) = (0.0, 0.0);
+            taps(&mut |k, cx, cy| {
+                dx += cx * z[k];
+                dy += cy * z[k];
+            });
+            let (rx, ry) = (dx - gx[y * w + x], dy - gy[y * w + x]);
+            taps(&mut |k, cx, cy| {
+                gradient[k] += cx * rx + cy * ry;
+                scale[k] += cx * gx[y * w + x] + cy * gy[y * w + x];
+            });
+        }
+    }
+    let largest = scale.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    (gradient, largest)
+}
+
+/// Clamp with N ≥ 5 past 1024 texels on a side (one dense basis, on the
+/// shorter axis, and banded solves along the longer: `banded.rs`),
+/// 2048 × 256, N = 5 and 15, random slopes (a map the fit did not
+/// make): the heights are the least squares' solution, their gradient
+/// Dᵀ(Dz − g) 0 to 1e-9 of Dᵀg, D written plainly here.
+#[test]
+fn clamp_past_1024_texels_solves_the_least_squares() {
+    let mut rng = Lcg(29);
+    for (w, h) in [(2048, 256)] {
+        for n in [5, 15] {
+            let len = w * h;
+            let (gx, gy): (Vec<f64>, Vec<f64>) = (0..len).map(|_| (0.3 * rng.next(), 0.3 * rng.next())).unzip();
+            let normals: Vec<[f64; 3]> =
+                gx.iter().zip(&gy).map(|(&a, &b)| normal_of(a, b, Convention::OpenGl)).collect();
+            let opts = HeightOptions::from_fit(&vertical(n, Borders::both(Border::Clamp)));
+            let got = heights(&normals, w, h, &opts).unwrap();
+            let (gradient, scale) = clamp_gradient(&got.values, &gx, &gy, w, h, n);
+            let worst = gradient.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(worst <= 1e-9 * scale, "{w}×{h} N {n}: gradient {worst:e} of {scale:e}");
+            assert_eq!((got.report.iterations, got.report.converged), (1, true), "{w}×{h} N {n}");
+        }
+    }
+}
+
+/// Clamp past 1024 texels, the forward fit's own maps: both fits, N = 5
+/// and 15 on 2048 × 256, back to heights within 1e-4 of their range.
+#[test]
+fn clamp_round_trips_past_1024_texels_are_within_1e_4_of_the_range() {
+    for (w, h) in [(2048, 256)] {
+        let original = terrain(w, h, 37);
+        for n in [5, 15] {
+            for fit in [Fit::Vertical, Fit::Orthogonal] {
+                let opts = Options::new()
+                    .with_patch(n)
+                    .with_fit(fit)
+                    .with_borders(Borders::both(Border::Clamp))
+                    .with_strength(Strength::Scale(4.0));
+                let n32 = normals(&original, w, h, &opts).unwrap();
+                let back = heights(&n32, w, h, &HeightOptions::from_fit(&opts)).unwrap();
+                let err = round_trip_error(&original, &back.values);
+                assert!(back.report.converged, "{w}×{h} N {n} {fit:?}: not settled");
+                assert!(err < 1e-4, "{w}×{h} N {n} {fit:?}: {err:e} after {} solves", back.report.iterations);
+            }
+        }
+    }
+}
+
+/// Clamp with N ≥ 5 and both sides past 1024 texels: refused in one line
+/// naming the limit, before any solve; a flat map of that size is still
+/// solved at once (heights 0), and N = 3 (a transform) is not refused.
+#[test]
+fn clamp_past_1024_texels_a_side_is_refused_in_one_line() {
+    let (w, h) = (1030, 1025);
+    let mut tilted = vec![[0.0f32, 0.0, 1.0]; w * h];
+    tilted[w * 7 + 11] = [0.3, 0.0, 0.95];
+    let clamp = |n: usize| HeightOptions::from_fit(&vertical(n, Borders::both(Border::Clamp)));
+    let message = heights(&tilted, w, h, &clamp(5)).unwrap_err().to_string();
+    assert!(message.contains("at most 1024 texels") && message.contains("1030 × 1025"), "{message}");
+    assert!(message.contains("--border mirror") && !message.contains('\n'), "{message}");
+    let flat = vec![[0.0f32, 0.0, 1.0]; w * h];
+    let got = heights(&flat, w, h, &clamp(5)).unwrap();
+    assert!(got.values.iter().all(|&v| v == 0.0));
+    assert!(heights(&tilted, w, h, &clamp(3)).is_ok());
+}
