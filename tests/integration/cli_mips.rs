@@ -8,7 +8,7 @@
 
 use std::fs;
 use std::io::Cursor;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::common;
 
@@ -225,15 +225,22 @@ fn the_roughness_of_alternating_slopes_follows_toksvig_at_every_level() {
     }
 }
 
+/// The inputs the refusals below start from: a 16 × 8 height map
+/// (`h.png`) and a normal map (`map.png`) in `dir`.
+fn height_and_normal_maps(dir: &Path) -> (PathBuf, PathBuf) {
+    let (w, h) = (16, 8);
+    let heights_png = dir.join("h.png");
+    write_heights(&heights_png, &heights(w, h), (w, h));
+    let map = dir.join("map.png");
+    write_normal_map(&map, &bumpy_normals(w, h).1, (w, h));
+    (heights_png, map)
+}
+
 /// Errors: exit 2, one line on standard error naming the file at fault.
 #[test]
 fn bad_requests_exit_2_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
-    let (w, h) = (16, 8);
-    let heights_png = dir.path().join("h.png");
-    write_heights(&heights_png, &heights(w, h), (w, h));
-    let map = dir.path().join("map.png");
-    write_normal_map(&map, &bumpy_normals(w, h).1, (w, h));
+    let (heights_png, map) = height_and_normal_maps(dir.path());
     let small = dir.path().join("small.png");
     write_heights(&small, &heights(8, 8), (8, 8));
     let out = dir.path().join("out.png");
@@ -357,11 +364,7 @@ fn an_alpha_of_heights_holds_each_levels_heights() {
 #[test]
 fn an_alpha_of_heights_needs_heights_and_a_texture_with_an_alpha() {
     let dir = tempfile::tempdir().unwrap();
-    let (w, h) = (16, 8);
-    let heights_png = dir.path().join("h.png");
-    write_heights(&heights_png, &heights(w, h), (w, h));
-    let map = dir.path().join("map.png");
-    write_normal_map(&map, &bumpy_normals(w, h).1, (w, h));
+    let (heights_png, map) = height_and_normal_maps(dir.path());
     let (dds, png) = (dir.path().join("out.dds"), dir.path().join("out.png"));
     let cases: [(Vec<&str>, &Path, &str); 3] = [
         (vec!["convert", s(&heights_png), "-o", s(&dds), "--mips", "--alpha", "height"], &dds, "bc7 or none"),
