@@ -9,18 +9,23 @@
 #   bench/height_n.sh                     # this build only
 #   bench/height_n.sh /tmp/nf-before      # and an older binary beside it
 #   bench/height_n.sh --clamp [BEFORE]    # the clamp sweep (below) instead
+#   bench/height_n.sh --shapes [BEFORE]   # issue 32's shapes (below) instead
 #   TIMEOUT=60 bench/height_n.sh …        # seconds a run may take (default 120)
 #
 # Maps: ridged fractal noise (examples/heightmap.rs) of 64², 512² and
 # 1024²; a flat map of 1 × 5000 (a PGM of zeros). The clamp sweep: 512²,
 # 1024², 2048 × 256 and 2048², N = 3, 5, 63, 255 and 1023, clamp with
-# both fits and wrap (orthogonal) for reference. Needs a Rust toolchain
+# both fits and wrap (orthogonal) for reference. The shapes sweep: 256²,
+# 1024², the strips 1030 × 3, 2 × 1100 and 3 × 20000, and 2048 × 256, at
+# N = 3, 63, 255 and 1023, every border with both fits; and a 3 × 20000
+# map made at N = 3 inverted with N = 63 (a map not made at the N given,
+# orthogonal). Needs a Rust toolchain
 # and GNU time (apt-get install -y time).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 sweep=
-if [ "${1:-}" = --clamp ]; then
-  sweep=clamp
+if [ "${1:-}" = --clamp ] || [ "${1:-}" = --shapes ]; then
+  sweep=${1#--}
   shift
 fi
 before=${1:-}
@@ -30,7 +35,7 @@ work=bench/.work/height_n
 mkdir -p "$work"
 cargo build --release --locked --bin normalfit --example heightmap
 bin=$target/release/normalfit
-for size in 64 512 1024 2048 2048x256; do
+for size in 64 256 512 1024 2048 2048x256 1030x3 2x1100 3x20000; do
   [ -f "$work/h$size.png" ] || "$target/release/examples/heightmap" "$size" "$work/h$size.png" >/dev/null
 done
 # A flat map one texel wide: a binary PGM of zeros.
@@ -74,6 +79,21 @@ print('' if '-' in a + b or 'f' in a + b else f'{(float(b.lstrip(\">\")) / max(f
     echo "| ${map%.*} | $n | $label | $ta s | $ma MiB |"
   fi
 }
+if [ "$sweep" = shapes ]; then
+  for map in h256.png h1024.png h1030x3.png h2x1100.png h3x20000.png h2048x256.png; do
+    for n in 3 63 255 1023; do
+      for border in wrap clamp mirror; do
+        row "$map" "$n" --border "$border"
+        row "$map" "$n" --border "$border" --fit vertical
+      done
+    done
+  done
+  # A map made at N = 3, inverted with N = 63: not the fit's own map.
+  "$bin" convert "$work/h3x20000.png" -o "$work/n.exr" -s 8 -n 3 -q
+  read -r t m < <(measure "$bin" height "$work/n.exr" -o "$work/back.exr" -s 8 -n 63 -q)
+  echo "| h3x20000 made at N = 3 | 63 | default (orthogonal, wrap) | $t s | $m MiB |"
+  exit 0
+fi
 if [ "$sweep" = clamp ]; then
   for map in h512.png h1024.png h2048x256.png h2048.png; do
     for n in 3 5 63 255 1023; do

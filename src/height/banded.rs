@@ -21,16 +21,20 @@
 //! shorter axis up to [`MAX_DENSE`] texels.
 //!
 //! The modes of V that the ramp does not see (ρ_k at rounding level: the
-//! constant along the shorter axis) leave K_k = β_k P_l / A², whose null
-//! vector is the constant along the longer axis (its ramp is 0): those
-//! systems are solved with the first texel pinned (any solution of a
-//! consistent system), and their null modes, 1 ⊗ v_k, are then taken out
+//! constant along the shorter axis) leave K_k = β_k P_l / A², blind to
+//! the null vectors of the longer axis's ramp: the constant, and for some
+//! lengths and N others; the modes its box does not see leave ρ_k Q_l /
+//! A², blind to those of its box (a clamped box is singular at some
+//! lengths, as at 2048 texels, N = 5; the strips 1030 × 3, 2 × 1100,
+//! 1100 × 24 and 20 × 1040 at N = 5 need such pins). Those systems are solved
+//! with one texel pinned per null direction (any solution of a
+//! consistent system), and their null modes, u ⊗ v_k, are then taken out
 //! of the heights in W's measure (`dense::project_out`), as the dense
-//! solve does: the least squares of least norm. The modes of V that
-//! neither the ramp nor the box sees are 0. That the longer axis's ramp
-//! sees every direction but the constant, and its box every direction, is
-//! checked when the solver is made (each factorisation's pivots); where
-//! it does not hold there is no solver.
+//! solve does: the least squares of least norm. The pins are found when
+//! the solver is made, by factoring P_l (and Q_l where a mode needs it)
+//! with a pin wherever a pivot fails; each pinned solution K′⁻¹e_s must
+//! be a null vector (else the pin would change the solution: no solver),
+//! and they are the null vectors u projected out.
 
 use crate::error::Result;
 use crate::options::Border;
@@ -52,6 +56,22 @@ const MODES_PER_TASK: usize = 4;
 /// A pivot below this part of its row's diagonal is a singular system.
 const PIVOT: f64 = 1e-12;
 
+/// The most null directions pinned along the banded axis (the ramp's or
+/// the box's); more, and there is no banded solver.
+const MAX_PINS: usize = 8;
+
+/// How far c·x_s(t) may be from δ_st for the pinned texels' vectors x_s
+/// to be taken as null vectors (c the pin).
+const PIN_CHECK: f64 = 1e-6;
+
+/// The null directions of the banded axis's ramp or box: the texels
+/// pinned, and a null vector for each.
+#[derive(Default)]
+struct Nulls {
+    pins: Vec<usize>,
+    vectors: Vec<Vec<f64>>,
+}
+
 /// The solve with one dense axis.
 pub(super) struct OneAxis {
     /// The shorter (dense) axis's texels m and the longer (banded) one's n.
@@ -68,6 +88,10 @@ pub(super) struct OneAxis {
     /// i − band … i (those before 0 are 0).
     p: Vec<f64>,
     q: Vec<f64>,
+    /// The null directions of P (the constant, and for some lengths
+    /// others) and, where a mode of the dense axis needs them, of Q.
+    ramp_nulls: Nulls,
+    box_nulls: Nulls,
 }
 
 impl OneAxis {
@@ -92,17 +116,73 @@ impl OneAxis {
         let band = (2 * r).min(n - 1);
         let (p, q) = normal_bands(long_line, n, r, band);
         let basis = Basis::new(dense_line, m, dense_border)?;
-        let solver = OneAxis { m, n, transposed, a: patch.a, basis, band, p, q };
-        // The longer axis's ramp blind to the constant alone (P with its
-        // first texel pinned is definite); where a mode of the dense axis
-        // is one its box does not see, the longer axis's box blind to
-        // nothing (Q definite: its clamped box can be singular, as at
-        // 2048 texels, N = 5).
-        let mut work = vec![0.0; n * (band + 1)];
-        let pinned = solver.factor(&mut work, 1.0, 0.0, 0.0, true);
+        let mut solver = OneAxis {
+            m,
+            n,
+            transposed,
+            a: patch.a,
+            basis,
+            band,
+            p,
+            q,
+            ramp_nulls: Nulls::default(),
+            box_nulls: Nulls::default(),
+        };
+        // The longer axis's ramp blind to a few directions (the constant,
+        // and for some lengths and N others: P with those texels pinned is
+        // definite); where a mode of the dense axis is one its box does not
+        // see, the longer axis's box's null directions too (its clamped box
+        // can be singular, as at 2048 texels, N = 5, or 1030, N = 5).
+        solver.ramp_nulls = solver.nulls(1.0, 0.0)?;
         let box_blind = (0..m).any(|k| !solver.basis.axis_null[k] && solver.basis.boxed[k] <= NULL);
-        let boxed = !box_blind || solver.factor(&mut work, 0.0, 1.0, 0.0, false);
-        (pinned && boxed).then_some(solver)
+        if box_blind {
+            solver.box_nulls = solver.nulls(0.0, 1.0)?;
+        }
+        Some(solver)
+    }
+
+    /// The null directions of αP + βQ (one of them 0) along the banded
+    /// axis: the texels whose pins make it definite, found by factoring
+    /// with a pin wherever a pivot fails, and the null vectors, K'⁻¹ e_s
+    /// for each pinned texel s (K' the pinned matrix). Every pin must
+    /// stand for a null direction (K x_s = 0 to rounding: a pin where K is
+    /// merely ill-conditioned would change the solution); `None` where one
+    /// does not, or where more than [`MAX_PINS`] are needed.
+    fn nulls(&self, alpha: f64, beta: f64) -> Option<Nulls> {
+        let mut work = vec![0.0; self.n * (self.band + 1)];
+        let pins = self.factor_pinning(&mut work, alpha, beta)?;
+        if pins.is_empty() {
+            return Some(Nulls::default());
+        }
+        if !self.factor(&mut work, alpha, beta, 0.0, &pins) {
+            return None;
+        }
+        let c = self.pin_value(alpha, beta);
+        let vectors: Vec<Vec<f64>> = pins
+            .iter()
+            .map(|&s| {
+                let mut x = vec![0.0; self.n];
+                x[s] = 1.0;
+                self.substitute(&work, &mut x);
+                x
+            })
+            .collect();
+        // A null vector x_s of K has K' x_s = c x_s(S) = e_s: c·x_s(t) = δ_st.
+        let genuine = vectors.iter().enumerate().all(|(i, x)| {
+            pins.iter().enumerate().all(|(j, &t)| (c * x[t] - if i == j { 1.0 } else { 0.0 }).abs() <= PIN_CHECK)
+        });
+        genuine.then_some(Nulls { pins, vectors })
+    }
+
+    /// The value a pin adds to the diagonal: its largest entry, so the
+    /// factor stays as well conditioned as K is on the directions it sees.
+    fn pin_value(&self, alpha: f64, beta: f64) -> f64 {
+        let b = self.band;
+        let width = b + 1;
+        (0..self.n)
+            .map(|i| alpha * self.p[i * width + b] + beta * self.q[i * width + b])
+            .fold(0.0f64, f64::max)
+            .max(f64::MIN_POSITIVE)
     }
 
     /// As [`super::dense::DenseSolver::solve`]: the heights whose
@@ -115,12 +195,17 @@ impl OneAxis {
         if nulls.is_empty() || nulls.len() > super::dense::MAX_NULLS {
             return Ok(());
         }
-        // 1 ⊗ v_k in the frame of the bands (rows along the banded axis).
+        // u ⊗ v_k, u a null vector of the banded axis's ramp (or box), in
+        // the frame of the bands (rows along the banded axis).
         let dense_weights = if self.transposed { weights.0 } else { weights.1 };
         let ones = vec![1.0; self.n];
         let modes: Vec<(Vec<f64>, Vec<f64>)> = nulls
             .iter()
-            .map(|&k| (ones.clone(), (0..self.m).map(|i| self.basis.u[i * self.m + k]).collect()))
+            .flat_map(|&(k, ramp)| {
+                let v: Vec<f64> = (0..self.m).map(|i| self.basis.u[i * self.m + k]).collect();
+                let nulls = if ramp { &self.ramp_nulls } else { &self.box_nulls };
+                nulls.vectors.iter().map(move |u| (u.clone(), v.clone()))
+            })
             .collect();
         if self.transposed {
             let mut t = try_filled(z.len(), 0.0)?;
@@ -160,8 +245,9 @@ impl OneAxis {
     /// measure along the dense axis (W's where `weights` is given, else the
     /// identity's) times the identity along the banded one. Without
     /// `weights` the modes the dense axis does not see are 0 and those its
-    /// ramp does not see are pinned; returns the latter.
-    fn apply(&self, b: &mut [f64], lambda: f64, weights: Option<&[f64]>, z: &mut [f64]) -> Result<Vec<usize>> {
+    /// ramp (or box) does not see are pinned; returns the latter (the
+    /// mode, and whether its ramp is the blind one).
+    fn apply(&self, b: &mut [f64], lambda: f64, weights: Option<&[f64]>, z: &mut [f64]) -> Result<Vec<(usize, bool)>> {
         let (m, n, u) = (self.m, self.n, &self.basis.u);
         let mut t = try_filled(b.len(), 0.0)?;
         // In the frame of the bands: m rows (the dense axis) of n (the
@@ -184,7 +270,7 @@ impl OneAxis {
 
     /// Each mode's row of `c` (the dense axis's coefficients, rows along
     /// the banded axis) solved in place; returns the pinned modes.
-    fn solve_modes(&self, c: &mut [f64], lambda: f64, weights: Option<&[f64]>) -> Vec<usize> {
+    fn solve_modes(&self, c: &mut [f64], lambda: f64, weights: Option<&[f64]>) -> Vec<(usize, bool)> {
         let n = self.n;
         let measure = match weights {
             Some(w) => self.basis.measure(w),
@@ -192,7 +278,7 @@ impl OneAxis {
         };
         let every = weights.is_some();
         let a2 = self.a * self.a;
-        let pinned: Vec<Vec<usize>> = c
+        let pinned: Vec<Vec<(usize, bool)>> = c
             .par_chunks_mut(n * MODES_PER_TASK)
             .enumerate()
             .map(|(task, rows)| {
@@ -207,17 +293,28 @@ impl OneAxis {
                         continue;
                     }
                     let blind = !every && self.basis.ramp[k] <= NULL;
-                    let alpha = if !every && self.basis.boxed[k] <= NULL { 0.0 } else { self.basis.boxed[k] / a2 };
+                    let box_blind = !every && self.basis.boxed[k] <= NULL;
+                    let alpha = if box_blind { 0.0 } else { self.basis.boxed[k] / a2 };
                     let beta = if blind { 0.0 } else { self.basis.ramp[k] / a2 };
-                    if self.factor(&mut work, alpha, beta, gamma, blind) {
+                    // A mode one of whose responses is blind solves with
+                    // the other's null directions pinned (any solution of
+                    // a consistent system; they are projected out after).
+                    let pins: &[usize] = if blind {
+                        &self.ramp_nulls.pins
+                    } else if box_blind {
+                        &self.box_nulls.pins
+                    } else {
+                        &[]
+                    };
+                    if self.factor(&mut work, alpha, beta, gamma, pins) {
                         self.substitute(&work, row);
                     } else {
                         // Not expected: the factorisations were checked
                         // when the solver was made.
                         row.fill(0.0);
                     }
-                    if blind {
-                        pinned.push(k);
+                    if (blind || box_blind) && !pins.is_empty() {
+                        pinned.push((k, blind));
                     }
                 }
                 pinned
@@ -226,10 +323,31 @@ impl OneAxis {
         pinned.into_iter().flatten().collect()
     }
 
-    /// Factors K = αP + βQ + γI (plus the first texel pinned) into `work`,
-    /// its lower band's Cholesky factor L, row i holding columns
+    /// Factors K = αP + βQ + γI (plus the texels `pins` pinned) into
+    /// `work`, its lower band's Cholesky factor L, row i holding columns
     /// i − band … i; false where a pivot fails (K not definite).
-    fn factor(&self, work: &mut [f64], alpha: f64, beta: f64, gamma: f64, pin: bool) -> bool {
+    fn factor(&self, work: &mut [f64], alpha: f64, beta: f64, gamma: f64, pins: &[usize]) -> bool {
+        self.factor_with(work, alpha, beta, gamma, pins, false).is_some()
+    }
+
+    /// Factors αP + βQ as [`Self::factor`] does, pinning each texel whose
+    /// pivot fails; the texels pinned, or `None` past [`MAX_PINS`].
+    fn factor_pinning(&self, work: &mut [f64], alpha: f64, beta: f64) -> Option<Vec<usize>> {
+        self.factor_with(work, alpha, beta, 0.0, &[], true)
+    }
+
+    /// [`Self::factor`], and where `pin_failures`, a failing pivot pinned
+    /// (the diagonal's largest entry added) rather than a failure; the
+    /// texels so pinned.
+    fn factor_with(
+        &self,
+        work: &mut [f64],
+        alpha: f64,
+        beta: f64,
+        gamma: f64,
+        pins: &[usize],
+        pin_failures: bool,
+    ) -> Option<Vec<usize>> {
         let (n, b) = (self.n, self.band);
         let width = b + 1;
         for ((o, p), q) in work.iter_mut().zip(&self.p).zip(&self.q) {
@@ -238,12 +356,13 @@ impl OneAxis {
         for i in 0..n {
             work[i * width + b] += gamma;
         }
-        if pin {
+        let largest = self.pin_value(alpha, beta);
+        for &s in pins {
             // The pin: as large as the diagonal, so the factor stays as
-            // well conditioned as P is on the directions it sees.
-            let largest = (0..n).map(|i| work[i * width + b]).fold(0.0f64, f64::max);
-            work[b] += largest.max(f64::MIN_POSITIVE);
+            // well conditioned as K is on the directions it sees.
+            work[s * width + b] += largest;
         }
+        let mut pinned = Vec::new();
         for i in 0..n {
             let (before, rest) = work.split_at_mut(i * width);
             let row = &mut rest[..width];
@@ -257,13 +376,20 @@ impl OneAxis {
             }
             let diagonal = row[b];
             let s: f64 = row[lo + b - i..b].iter().map(|x| x * x).sum();
-            let pivot = diagonal - s;
-            if !(pivot > PIVOT * diagonal.abs() && pivot.is_finite()) {
-                return false;
+            let mut pivot = diagonal - s;
+            if !pivot.is_finite() {
+                return None;
+            }
+            if pivot <= PIVOT * diagonal.abs() {
+                if !pin_failures || pinned.len() >= MAX_PINS {
+                    return None;
+                }
+                pinned.push(i);
+                pivot += largest;
             }
             row[b] = pivot.sqrt();
         }
-        true
+        Some(pinned)
     }
 
     /// Solves L Lᵀ x = `rhs` in place, L the factor in `work`.
