@@ -82,23 +82,19 @@ pub(super) const NEWTON_STEPS: usize = 200;
 /// steps are measured against, and whether λ₀ is λ already (by the rule
 /// of [`settled`]: no step need be taken).
 ///
-/// Two lower bounds, the larger taken:
-///
-/// * the square grid's closed form with both a's replaced by
-///   m = min(a1, a2) (M minus that matrix is diag(a1 − m, a2 − m, 0) ⪰ 0,
-///   so its smallest eigenvalue is at most λ); close to λ only when the
-///   spacings are close (a geographic DEM at 45° has a2 = 2·a1);
-/// * one Newton step from above: the Rayleigh quotient r of the vertical
-///   fit's normal (−b1/a1, −b2/a2, 1), r = (c − b1²/a1 − b2²/a2) /
-///   (1 + (b1/a1)² + (b2/a2)²), is at least λ and, as the two fits'
-///   normals are close, within the square of their angle of it. Where
-///   r is at most the mean eigenvalue (a1 + a2 + c)/3, p is convex on
-///   (−∞, r] (p'' = 2(a1 + a2 + c) − 6λ), so where p(r) ≤ 0 and p'(r) < 0
-///   the tangent at r meets zero at or below λ, and its square of r's
-///   error away.
-///
-/// Newton's steps then rise from λ₀ to λ, one or two instead of four to
-/// six from the first bound alone.
+/// One Newton step from above: the Rayleigh quotient r of the vertical
+/// fit's normal (−b1/a1, −b2/a2, 1), r = (c − b1²/a1 − b2²/a2) /
+/// (1 + (b1/a1)² + (b2/a2)²), is at least λ and, as the two fits' normals
+/// are close, within the square of their angle of it. Where r is at most
+/// the mean eigenvalue (a1 + a2 + c)/3, p is convex on (−∞, r]
+/// (p'' = 2(a1 + a2 + c) − 6λ), so where p(r) ≤ 0 and p'(r) < 0 the
+/// tangent at r meets zero at or below λ, and its square of r's error
+/// away. Newton's steps then rise from there to λ, one or two. Elsewhere
+/// (rough patches, whose r is far above λ) they rise from 0, a lower
+/// bound of every positive semi-definite M's λ (the closed form of the
+/// square grid with both a's replaced by min(a1, a2), a closer bound, cost
+/// a square root and a division a patch, which a shaded geographic DEM
+/// felt: `perf`).
 #[inline(always)]
 pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
     eigen_start_on(Diagonal::new(a1, a2), b1, b2, c)
@@ -111,8 +107,7 @@ pub(super) fn eigen_start(a1: f64, a2: f64, b1: f64, b2: f64, c: f64) -> (f64, f
 pub(super) struct Diagonal {
     a1: f64,
     a2: f64,
-    /// min(a1, a2), a1 + a2 and 1 / (a1·a2).
-    m: f64,
+    /// a1 + a2 and 1 / (a1·a2).
     sum: f64,
     inv: f64,
 }
@@ -120,7 +115,7 @@ pub(super) struct Diagonal {
 impl Diagonal {
     #[inline(always)]
     pub(super) fn new(a1: f64, a2: f64) -> Diagonal {
-        Diagonal { a1, a2, m: a1.min(a2), sum: a1 + a2, inv: 1.0 / (a1 * a2) }
+        Diagonal { a1, a2, sum: a1 + a2, inv: 1.0 / (a1 * a2) }
     }
 }
 
@@ -128,11 +123,10 @@ impl Diagonal {
 // The conditions negated rather than flipped: a NaN takes the first bound.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-pub(super) fn eigen_start_on(Diagonal { a1, a2, m, sum, inv }: Diagonal, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
+pub(super) fn eigen_start_on(Diagonal { a1, a2, sum, inv }: Diagonal, b1: f64, b2: f64, c: f64) -> (f64, f64, bool) {
     let tilt2 = b1 * b1 + b2 * b2;
-    let d = 0.5 * (m - c);
-    let largest = 0.5 * (m + c) + (d * d + tilt2).sqrt();
-    let bound = ((m * c - tilt2) / largest).max(0.0);
+    // M is positive semi-definite: λ ≥ 0.
+    let bound = 0.0;
     // a1 + a2 + c, as it reads: (a1 + a2) + c.
     let trace = sum + c;
     let (g1, g2) = (b1 * a2 * inv, b2 * a1 * inv);
@@ -179,9 +173,40 @@ pub(super) fn newton_step([a1, a2, b1, b2, c]: [f64; 5], scale: f64, lambda: f64
     (if rises { next } else { lambda }, rises & !(step <= 1e-17 * scale) & !settled(scale, lambda, step, slope))
 }
 
-/// [`smallest_eigen`]'s eigenvector for its λ, without branches.
+/// [`smallest_eigen`]'s eigenvector for its λ, without branches: the
+/// first rows' cross product where λ is below half the smaller of a1 and
+/// a2 (`near_plane`: nearly every patch of a terrain), else the longest
+/// of three cross products (`any_plane`).
 #[inline(always)]
-pub(super) fn eigenvector([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3] {
+pub(super) fn eigenvector(matrix: [f64; 5], lambda: f64) -> [f64; 3] {
+    let near = near_plane(matrix, lambda);
+    let any = any_plane(matrix, lambda);
+    let take = is_near_plane(matrix, lambda);
+    [0, 1, 2].map(|i| select(take, near[i], any[i]))
+}
+
+/// Whether λ is below half the smaller of a1 and a2: then
+/// (a1 − λ)(a2 − λ) ≥ a1·a2 / 4, and the first two rows' cross product,
+/// (−b1(a2 − λ), −b2(a1 − λ), (a1 − λ)(a2 − λ)), has a z that is no
+/// rounding's, positive: it is the eigenvector, as accurate as λ (its
+/// components' relative errors are λ's error over a1 − λ and a2 − λ).
+#[inline(always)]
+pub(super) fn is_near_plane([a1, a2, ..]: [f64; 5], lambda: f64) -> bool {
+    lambda < 0.5 * a1.min(a2)
+}
+
+/// The first two rows' cross product ([`is_near_plane`]).
+#[inline(always)]
+pub(super) fn near_plane([a1, a2, b1, b2, _]: [f64; 5], lambda: f64) -> [f64; 3] {
+    let (p1, p2) = (a1 - lambda, a2 - lambda);
+    [-b1 * p2, -b2 * p1, p1 * p2]
+}
+
+/// The longest cross product of two rows of M − λI, turned to face up
+/// (for λ that meets a1 or a2: a patch whose flattest direction is
+/// horizontal).
+#[inline(always)]
+pub(super) fn any_plane([a1, a2, b1, b2, c]: [f64; 5], lambda: f64) -> [f64; 3] {
     let (p1, p2, p3) = (a1 - lambda, a2 - lambda, c - lambda);
     let candidates =
         [[-b1 * p2, -b2 * p1, p1 * p2], [-b1 * b2, b1 * b1 - p1 * p3, p1 * b2], [p2 * p3 - b2 * b2, b1 * b2, -p2 * b1]];
