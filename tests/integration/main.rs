@@ -19,6 +19,8 @@ mod corpus;
 mod tiling_support;
 
 // The library, in every build.
+mod blend;
+mod check;
 mod convert_api;
 mod exr_layouts;
 mod features;
