@@ -43,11 +43,11 @@ use crate::units::MapSpacing;
 use crate::{Borders, Options};
 
 pub(crate) use self::sink::chain_files;
+pub(crate) use self::sink::write_to;
 pub use self::sink::{Output, chain_stem, level_path, roughness_path};
-pub(crate) use self::sink::{write_normals, write_to};
 pub(crate) use self::source::decode_whole;
 pub use self::source::{Input, Source, read_all};
-pub(crate) use self::stage::{Depth, Texels};
+pub(crate) use self::stage::{Depth, Texels, write_normals};
 
 /// Which file an error concerns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

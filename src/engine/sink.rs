@@ -361,20 +361,3 @@ pub(crate) fn refuse_input(path: &Path, input: Option<&Path>) -> Result<()> {
     }
     Ok(())
 }
-
-/// Writes the normal map `texels` of `size` as `encoding` says into
-/// `output`: a file appears whole or not at all (its folder made if
-/// asked), a writer gets the whole encoded image.
-///
-/// Errors: those of encoding and writing.
-pub(crate) fn write_normals(
-    output: Output<'_>,
-    texels: &super::stage::Texels,
-    size: (usize, usize),
-    encoding: &Encoding,
-) -> Result<()> {
-    prepare(&output, None)?;
-    let mut files = FileSet::new(io::Replace::Always);
-    write_to(output, &mut files, |file| texels.encode(&[], size, encoding, io::encoding::TiffTags::default(), file))?;
-    files.commit()
-}

@@ -119,3 +119,22 @@ pub(crate) fn fitted<T: FromNormal + Default + Clone>(
     request.normals_into(heights, w, h, &mut texels)?;
     Ok(texels)
 }
+
+/// Writes the normal map `texels` of `size` as `encoding` says into
+/// `output`: a file appears whole or not at all (its folder made if
+/// asked), a writer gets the whole encoded image.
+///
+/// Errors: those of encoding and writing.
+pub(crate) fn write_normals(
+    output: super::sink::Output<'_>,
+    texels: &Texels,
+    size: (usize, usize),
+    encoding: &Encoding,
+) -> Result<()> {
+    super::sink::prepare(&output, None)?;
+    let mut files = io::FileSet::new(io::Replace::Always);
+    super::sink::write_to(output, &mut files, |file| {
+        texels.encode(&[], size, encoding, io::encoding::TiffTags::default(), file)
+    })?;
+    files.commit()
+}

@@ -70,6 +70,8 @@ mod cli_batch;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_batch_commands;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
+mod cli_blend_check;
+#[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_completions_man;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_height;
