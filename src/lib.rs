@@ -31,6 +31,11 @@
 //!   give them.
 //! * [`shade`]: normals lit by a directional light as a gray picture
 //!   ([`shade::shade`]), repeated 2×2 so seams show ([`shade::tile_2x2`]).
+//! * [`blend`]: a detail normal map onto a base (RNM, whiteout, UDN,
+//!   linear; [`blend::blend`], files by [`blend::BlendFiles`]).
+//! * [`check`]: a normal map's lengths, negative z, RG layout, convention
+//!   (guessed from its curl), banding and seams ([`check::check`]), and its
+//!   repair ([`check::write_fixed`]).
 //!
 //! Every fallible call returns the typed [`Error`].
 //!
@@ -195,7 +200,9 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod blend;
 pub mod borders;
+pub mod check;
 pub mod convert;
 pub mod engine;
 pub mod error;

@@ -23,6 +23,8 @@ use std::sync::Mutex;
 
 use std::path::{Path, PathBuf};
 
+use normalfit::blend::{BlendOptions, Method as BlendMethod};
+use normalfit::check::{CheckOptions, CheckReport, FixOptions, MapLayout, check_and_fix};
 use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
 use normalfit::fit::{Halo, HaloPlan, Window};
 use normalfit::height::file::HeightConversion;
@@ -46,7 +48,7 @@ use numpy::{
 };
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyInt, PyList, PyString, PyTuple};
+use pyo3::types::{PyDict, PyInt, PyList, PyString, PyTuple};
 use rayon::ThreadPool;
 
 /// The most threads `threads=` may ask for: far more than any machine's
@@ -1601,6 +1603,168 @@ fn height_file(
     Ok(HeightInfo::from_report(&summary.report, warnings, summary.png_range, summary.png_scale))
 }
 
+/// An array of normals of component type `T` as f64 normals n, read by the
+/// library's rule for their storage (integers: 2c − 1; floats: n).
+fn normals_f64<T: Element + Sample>(
+    array: &Bound<'_, PyUntypedArray>,
+    what: &str,
+    stored: Storage,
+) -> PyResult<(Vec<[f64; 3]>, usize, usize)> {
+    let shape = array.shape();
+    if shape.len() != 3 || shape[2] != 3 {
+        return Err(PyValueError::new_err(format!("{what} must have shape (rows, columns, 3), got {shape:?}")));
+    }
+    let (h, w) = (shape[0], shape[1]);
+    let source = array.cast::<PyArray3<T>>()?.try_readonly().map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let view = source.as_array();
+    let mut out = Vec::new();
+    out.try_reserve_exact(w * h).map_err(|_| PyMemoryError::new_err(format!("cannot copy {what}")))?;
+    for y in 0..h {
+        for x in 0..w {
+            out.push([0, 1, 2].map(|c| stored.normal(view[[y, x, c]])));
+        }
+    }
+    Ok((out, w, h))
+}
+
+/// A normal array as f64 normals, whatever its sample type.
+fn any_normals(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<[f64; 3]>, usize, usize)> {
+    let array = as_array(obj, what, &[3])?;
+    match sample_kind(array, what)? {
+        SampleKind::U8 => normals_f64::<u8>(array, what, Storage::Int { bits: 8 }),
+        SampleKind::U16 => normals_f64::<u16>(array, what, Storage::Int { bits: 16 }),
+        SampleKind::F32 => normals_f64::<f32>(array, what, Storage::Float32 { signed: true }),
+        SampleKind::F64 => normals_f64::<f64>(array, what, Storage::Float64 { signed: true }),
+    }
+}
+
+/// `blend` with every argument given (see `normalfit.blend`).
+#[pyfunction]
+#[pyo3(signature = (base, detail, method, strength, convention, detail_convention))]
+fn blend<'py>(
+    py: Python<'py>,
+    base: &Bound<'py, PyAny>,
+    detail: &Bound<'py, PyAny>,
+    method: &str,
+    strength: f64,
+    convention: &str,
+    detail_convention: Option<&str>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let c = parse_named::<ConventionChoice>(convention)?;
+    let dc = detail_convention.map(parse_named::<ConventionChoice>).transpose()?.unwrap_or(c);
+    let opts = BlendOptions::new()
+        .with_method(parse_named::<BlendMethod>(method)?)
+        .with_strength(strength)
+        .with_convention(c)
+        .with_detail_convention(dc);
+    opts.validate().map_err(to_py_err)?;
+    let (b, bw, bh) = any_normals(base, "base")?;
+    let (d, dw, dh) = any_normals(detail, "detail")?;
+    let (out, _) =
+        py.detach(|| normalfit::blend::blend::<f64, [f64; 3]>(&b, (bw, bh), &d, (dw, dh), &opts)).map_err(to_py_err)?;
+    Ok(PyArray1::from_vec(py, out.into_flattened()).reshape([bh, bw, 3])?.into_any())
+}
+
+/// `check_map` with every argument given (see `normalfit.check_map`): the
+/// report as the keys of `normalfit check --json`.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (path, convention, threshold, signed, fix, to, max_texels, layer))]
+fn check_map<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    convention: &str,
+    threshold: Option<f64>,
+    signed: bool,
+    fix: Option<PathBuf>,
+    to: Option<&str>,
+    max_texels: Option<&Bound<'_, PyAny>>,
+    layer: Option<String>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let read = read_options(max_texels, layer)?;
+    let mut tiling = TilingOptions::default();
+    if let Some(t) = threshold {
+        tiling = tiling.with_threshold(t);
+    }
+    tiling.validate().map_err(to_py_err)?;
+    let opts = CheckOptions::new()
+        .with_convention(parse_named::<ConventionChoice>(convention)?)
+        .with_tiling(tiling)
+        .with_signed(signed);
+    let to = to.map(parse_named::<Convention>).transpose()?;
+    if to.is_some() && fix.is_none() {
+        return Err(PyValueError::new_err("to= needs fix= (the file the repaired map is written to)"));
+    }
+    let fix_opts = FixOptions::new().with_to(to);
+    let report = py
+        .detach(|| {
+            let output = fix.as_deref().map(|p| (&fix_opts, normalfit::convert::Output::file(p)));
+            check_and_fix(normalfit::convert::Input::Path(&path), &read, &opts, output)
+        })
+        .map_err(|e| match (e.place, &fix) {
+            (Place::Output, Some(out)) => file_error(out, e.error, true),
+            _ => file_error(&path, e.error, false),
+        })?;
+    check_dict(py, &path, &report)
+}
+
+/// The report as a dict with the keys of `normalfit check --json`.
+fn check_dict<'py>(py: Python<'py>, path: &Path, r: &CheckReport) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let g = &r.guess;
+    d.set_item("path", path.display().to_string())?;
+    d.set_item("width", r.width)?;
+    d.set_item("height", r.height)?;
+    let storage = match r.sample {
+        normalfit::io::SampleType::Int { bits } | normalfit::io::SampleType::SignedInt { bits } => {
+            format!("{bits}-bit")
+        }
+        _ => "float".into(),
+    };
+    d.set_item("storage", storage)?;
+    d.set_item("layout", if r.layout == MapLayout::Rg { "rg" } else { "rgb" })?;
+    let length = PyDict::new(py);
+    length.set_item("tolerance", r.length_tolerance)?;
+    length.set_item("off", r.off_length)?;
+    length.set_item("share", r.share(r.off_length))?;
+    d.set_item("length", length)?;
+    let negative = PyDict::new(py);
+    negative.set_item("count", r.negative_z)?;
+    negative.set_item("share", r.share(r.negative_z))?;
+    d.set_item("negative_z", negative)?;
+    d.set_item("convention", g.convention.name())?;
+    d.set_item("confident", g.confident)?;
+    d.set_item("confidence", g.confidence)?;
+    let curl = PyDict::new(py);
+    curl.set_item("opengl", g.curl[0])?;
+    curl.set_item("directx", g.curl[1])?;
+    curl.set_item("scale", g.scale)?;
+    d.set_item("curl", curl)?;
+    match r.banding {
+        Some(b) => {
+            let banding = PyDict::new(py);
+            banding.set_item("score", b.score)?;
+            banding.set_item("windows", b.windows)?;
+            banding.set_item("banded", b.banded)?;
+            d.set_item("banding", banding)?;
+        }
+        None => d.set_item("banding", py.None())?,
+    }
+    let tiling = PyDict::new(py);
+    for (axis, a) in [("x", r.tiling.x), ("y", r.tiling.y)] {
+        let ad = PyDict::new(py);
+        ad.set_item("score", a.score)?;
+        ad.set_item("seamless", a.seamless)?;
+        tiling.set_item(axis, ad)?;
+    }
+    tiling.set_item("seamless", r.tiling.seamless())?;
+    d.set_item("tiling", tiling)?;
+    let findings: Vec<&str> = r.findings().iter().map(|f| f.name()).collect();
+    d.set_item("findings", findings)?;
+    d.set_item("clean", r.clean())?;
+    Ok(d)
+}
+
 /// The native half of the `normalfit` package.
 #[pymodule]
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -1618,6 +1782,8 @@ fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lit_view, m)?)?;
     m.add_function(wrap_pyfunction!(height, m)?)?;
     m.add_function(wrap_pyfunction!(height_file, m)?)?;
+    m.add_function(wrap_pyfunction!(blend, m)?)?;
+    m.add_function(wrap_pyfunction!(check_map, m)?)?;
     m.add_class::<HeightInfo>()?;
     m.add_class::<ConversionSummary>()?;
     m.add_class::<AxisReport>()?;

@@ -8,6 +8,7 @@ use std::sync::OnceLock;
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
+use normalfit::blend::{BlendOptions, Method};
 use normalfit::convert::{BorderChoices, Conversion};
 use normalfit::height::{ConventionChoice, HeightOptions, Model};
 use normalfit::io::{
@@ -56,6 +57,17 @@ pub enum Command {
     /// EXR of float heights (channel Y, mean 0, units of the gain) or, named
     /// .png, a 16-bit gray PNG normalised to [0, 1] whose range is printed.
     Height(HeightArgs),
+    /// Blend a detail normal map onto a base: rnm (Reoriented Normal
+    /// Mapping, the default), whiteout, udn or linear (docs/blend.md).
+    ///
+    /// A detail smaller than the base is tiled (its sides must divide the
+    /// base's). A detail of the other green convention than the base has its
+    /// green flipped; the result is in the base's convention.
+    Blend(BlendArgs),
+    /// Check normal maps: lengths, negative z, a two-channel (RG) layout,
+    /// the green convention (guessed from the map's curl), 8-bit banding and
+    /// seams (exit 0: all clean, 1: a finding, 2: an error).
+    Check(CheckArgs),
     /// Print a shell completion script to standard output.
     Completions(CompletionsArgs),
     /// Print the manual page (roff) to standard output, or write one page
@@ -430,6 +442,98 @@ pub struct HeightArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct BlendArgs {
+    /// The base normal map (`-` reads standard input).
+    #[arg(value_name = "BASE")]
+    pub base: PathBuf,
+
+    /// The detail normal map, as large as the base or tiled over it.
+    #[arg(value_name = "DETAIL")]
+    pub detail: PathBuf,
+
+    /// Output file (.png, .exr, .tif); `-` writes standard output (--format
+    /// says which, default the base's).
+    #[arg(short, long, value_name = "OUTPUT", required = true)]
+    pub output: PathBuf,
+
+    /// The formula.
+    #[arg(long, default_value_t = BlendOptions::default().method, value_parser = named::<Method>(Method::ALL))]
+    pub method: Method,
+
+    /// Factor on the detail's slopes (0 leaves the base).
+    #[arg(long, value_name = "F", default_value_t = BlendOptions::default().strength, value_parser = parse_finite)]
+    pub strength: f64,
+
+    /// The inputs' green convention: opengl, directx, or auto (each map's
+    /// guessed from its curl).
+    #[arg(long, default_value_t = ConventionChoice::Auto,
+          value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
+    pub convention: ConventionChoice,
+
+    /// The detail's convention, when it is not --convention's.
+    #[arg(long, value_name = "CONVENTION", value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
+    pub detail_convention: Option<ConventionChoice>,
+
+    /// Output bits: 8 or 16 (PNG, TIFF), 16 or 32 (EXR). Default: 16 when
+    /// the base has more than 8 bits, else 8; 32 for EXR.
+    #[arg(long, value_name = "BITS", value_parser = parse_bits)]
+    pub bits: Option<u8>,
+
+    /// Output format when the output's name does not say.
+    #[arg(long, value_parser = named::<OutputFormat>(OutputFormat::ALL))]
+    pub format: Option<OutputFormat>,
+
+    /// Float (EXR) inputs hold n in [−1, 1], not (n + 1)/2.
+    #[arg(long)]
+    pub signed: bool,
+
+    #[command(flatten)]
+    pub read: ReadArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// Normal maps to check (`-` reads standard input).
+    #[arg(required = true, value_name = "MAP", help = inputs_help("Normal maps to check"))]
+    pub inputs: Vec<PathBuf>,
+
+    /// One JSON object per map, one per line.
+    #[arg(long)]
+    pub json: bool,
+
+    /// Write each map repaired: renormalised, z rebuilt for two-channel
+    /// maps, green flipped with --to. A file, or a folder for many maps
+    /// (`<stem>_fixed.<ext>`).
+    #[arg(long, value_name = "OUT")]
+    pub fix: Option<PathBuf>,
+
+    /// With --fix: the convention to write (the map's own is stated with
+    /// --convention or guessed confidently).
+    #[arg(long, value_name = "CONVENTION", requires = "fix", value_parser = named::<Convention>(Convention::ALL))]
+    pub to: Option<Convention>,
+
+    /// The convention the maps should be in (a confident guess of the
+    /// other is a finding); auto expects none.
+    #[arg(long, default_value_t = ConventionChoice::Auto,
+          value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
+    pub convention: ConventionChoice,
+
+    /// Seam score above which an axis has a visible seam.
+    #[arg(long, value_name = "T", value_parser = parse_finite)]
+    pub threshold: Option<f64>,
+
+    /// Float (EXR) maps hold n in [−1, 1], not (n + 1)/2.
+    #[arg(long)]
+    pub signed: bool,
+
+    #[command(flatten)]
+    pub read: ReadArgs,
+
+    #[command(flatten)]
+    pub batch: BatchArgs,
+}
+
+#[derive(Args, Debug)]
 pub struct CompletionsArgs {
     /// The shell to complete for.
     #[arg(value_enum)]
@@ -733,6 +837,7 @@ macro_rules! named_value {
 }
 
 named_value!(
+    Method,
     MipChoice,
     TextureCompression,
     Fit,

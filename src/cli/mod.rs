@@ -3,6 +3,8 @@
 
 pub mod args;
 pub mod batch;
+pub mod blend;
+pub mod check;
 pub mod completions;
 pub mod convert;
 pub mod fitting;
@@ -23,7 +25,8 @@ use clap::Parser;
 use args::{Cli, Command};
 use report::Failure;
 
-/// Exit codes, as grep: 0 success, 1 a seam found (`tiling` only), 2 error.
+/// Exit codes, as grep: 0 success, 1 a seam found (`tiling`) or a finding
+/// (`check`), 2 error.
 pub mod exit {
     pub const OK: u8 = 0;
     pub const SEAM: u8 = 1;
@@ -51,6 +54,8 @@ pub fn main() -> ExitCode {
         Command::Tiling(args) => tiling::run(args),
         Command::Shade(args) => shade::run(args).map(all_written),
         Command::Height(args) => height::run(&args).map(all_written),
+        Command::Blend(args) => blend::run(&args).map(|()| exit::OK),
+        Command::Check(args) => check::run(&args),
         Command::Completions(args) => completions::run(&args).map(|()| exit::OK),
         Command::Man(args) => man::run(&args).map(|()| exit::OK),
     };

@@ -187,7 +187,7 @@ struct JsonLine<'a> {
 /// numbers with four decimals: the lines `--json` has always printed (a
 /// score's further digits are noise). serde_json writes infinities and NaN
 /// as null, which JSON has in their place.
-struct JsonStyle;
+pub(super) struct JsonStyle;
 
 impl serde_json::ser::Formatter for JsonStyle {
     fn begin_object_key<W: ?Sized + Write>(&mut self, writer: &mut W, first: bool) -> std::io::Result<()> {

@@ -47,13 +47,16 @@ pub(crate) use self::sink::write_to;
 pub use self::sink::{Output, chain_stem, level_path, roughness_path};
 pub(crate) use self::source::decode_whole;
 pub use self::source::{Input, Source, read_all};
+pub(crate) use self::stage::{Depth, Texels, write_normals};
 
 /// Which file an error concerns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum Place {
-    /// The height map read.
+    /// The height map read (for a blend, the base normal map).
     Input,
+    /// The detail normal map read (a blend).
+    Detail,
     /// The normal map written.
     Output,
     /// The residual map written.

@@ -8,6 +8,29 @@ use crate::io::encoding::{TiffDepth, TiffOptions, TiffTags};
 use crate::io::{self, Encoding, PngDepth, PngOptions};
 use crate::{FromNormal, Options, Samples};
 
+/// The texel type an encoding stores: 8- or 16-bit integers, or floats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Depth {
+    Eight,
+    Sixteen,
+    Float,
+}
+
+impl Depth {
+    /// The texel type of `encoding` (an image's; a GPU texture is written
+    /// from a mip chain).
+    pub(crate) fn of(encoding: &Encoding) -> Result<Depth> {
+        Ok(match encoding {
+            Encoding::Texture(_) => return Err(crate::io::write::not_a_chain()),
+            Encoding::Png(PngOptions { depth: PngDepth::Eight, .. })
+            | Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => Depth::Eight,
+            Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. })
+            | Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => Depth::Sixteen,
+            Encoding::Exr(_) | Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => Depth::Float,
+        })
+    }
+}
+
 /// A normal map fitted straight into the output's texel type.
 pub(crate) enum Texels {
     Eight(Vec<[u8; 3]>),
@@ -17,6 +40,12 @@ pub(crate) enum Texels {
 }
 
 impl Texels {
+    /// Texels made by `make` for the texel type of `encoding`: normals
+    /// computed elsewhere (a blend, a repaired map) straight into it.
+    pub(crate) fn of<R>(encoding: &Encoding, make: impl FnOnce(Depth) -> Result<(Texels, R)>) -> Result<(Texels, R)> {
+        make(Depth::of(encoding)?)
+    }
+
     /// Fits the normals for `encoding`; with `residual`, the fit's RMS
     /// distances too (in surface units).
     pub(crate) fn fit(
@@ -89,4 +118,23 @@ pub(crate) fn fitted<T: FromNormal + Default + Clone>(
     }
     request.normals_into(heights, w, h, &mut texels)?;
     Ok(texels)
+}
+
+/// Writes the normal map `texels` of `size` as `encoding` says into
+/// `output`: a file appears whole or not at all (its folder made if
+/// asked), a writer gets the whole encoded image.
+///
+/// Errors: those of encoding and writing.
+pub(crate) fn write_normals(
+    output: super::sink::Output<'_>,
+    texels: &Texels,
+    size: (usize, usize),
+    encoding: &Encoding,
+) -> Result<()> {
+    super::sink::prepare(&output, None)?;
+    let mut files = io::FileSet::new(io::Replace::Always);
+    super::sink::write_to(output, &mut files, |file| {
+        texels.encode(&[], size, encoding, io::encoding::TiffTags::default(), file)
+    })?;
+    files.commit()
 }

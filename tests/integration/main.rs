@@ -19,6 +19,8 @@ mod corpus;
 mod tiling_support;
 
 // The library, in every build.
+mod blend;
+mod check;
 mod convert_api;
 mod exr_layouts;
 mod features;
@@ -67,6 +69,8 @@ mod cli;
 mod cli_batch;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_batch_commands;
+#[cfg(all(feature = "cli", feature = "all-formats"))]
+mod cli_blend_check;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_completions_man;
 #[cfg(all(feature = "cli", feature = "all-formats"))]

@@ -28,6 +28,8 @@ __all__ = [
     "ConversionSummary",
     "HeightInfo",
     "TilingReport",
+    "blend",
+    "check_map",
     "check_tiling",
     "convert",
     "decode_normals",
@@ -458,3 +460,55 @@ def height_file(
         src, dst, patch, fit, border, convention, scale, relief, invert, model, signed, format,
         max_texels, layer,
     )
+
+
+def blend(
+    base: Any,
+    detail: Any,
+    *,
+    method: str = "rnm",
+    strength: float = 1.0,
+    convention: str = "auto",
+    detail_convention: str | None = None,
+) -> Any:
+    """Blends the normal map ``detail`` onto ``base`` (docs/blend.md).
+
+    Both are (rows, columns, 3) arrays of normals: float32 or float64
+    holding n itself (as ``normals`` returns them), or uint8 / uint16
+    holding (n + 1)/2 as stored. ``method``: ``"rnm"`` (Reoriented Normal
+    Mapping, Barré-Brisebois & Hill 2012), ``"whiteout"``, ``"udn"`` or
+    ``"linear"``. ``strength`` scales the detail's slopes (0 leaves the
+    base). A detail smaller than the base is tiled; its sides must divide
+    the base's. ``convention`` is both maps' green (``"opengl"``,
+    ``"directx"`` or ``"auto"``: each guessed from its curl),
+    ``detail_convention`` the detail's when it differs; a detail of the
+    other convention has its green flipped, and the result is in the
+    base's. Returns a float64 array of unit normals of the base's shape.
+    Raises ValueError for sizes that do not divide, a bad option or a NaN
+    normal, TypeError for arrays of another type."""
+    return _normalfit.blend(base, detail, method, float(strength), convention, detail_convention)
+
+
+def check_map(
+    path: str | os.PathLike[str],
+    *,
+    convention: str = "auto",
+    threshold: float | None = None,
+    signed: bool = False,
+    fix: str | os.PathLike[str] | None = None,
+    to: str | None = None,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> dict[str, Any]:
+    """Checks the normal map file at ``path`` as ``normalfit check`` does
+    (docs/check.md) and returns its report as a dict with the keys of
+    ``normalfit check --json``: ``length``, ``negative_z``, ``layout``,
+    ``convention`` (``"opengl"`` or ``"directx"``, guessed from the map's
+    curl) with ``confident`` and ``confidence``, ``banding``, ``tiling``,
+    ``findings`` (names) and ``clean``. ``convention`` states the one the
+    map should be in (a confident guess of the other is a finding).
+    ``fix`` writes the map repaired there (renormalised, z rebuilt for RG,
+    green flipped to ``to``). Raises OSError naming the file, ValueError
+    for a bad option or a convention that cannot be told when ``to`` asks
+    to flip it."""
+    return _normalfit.check_map(path, convention, threshold, signed, fix, to, max_texels, layer)

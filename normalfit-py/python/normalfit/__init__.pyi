@@ -14,6 +14,8 @@ __all__ = [
     "ConversionSummary",
     "HeightInfo",
     "TilingReport",
+    "blend",
+    "check_map",
     "check_tiling",
     "convert",
     "decode_normals",
@@ -239,3 +241,23 @@ def height_file(
     max_texels: int | None = None,
     layer: str | None = None,
 ) -> HeightInfo: ...
+def blend(
+    base: npt.NDArray[Any],
+    detail: npt.NDArray[Any],
+    *,
+    method: Literal["rnm", "reoriented", "whiteout", "udn", "linear"] = "rnm",
+    strength: float = 1.0,
+    convention: Literal["opengl", "gl", "directx", "dx", "auto"] = "auto",
+    detail_convention: Literal["opengl", "gl", "directx", "dx", "auto"] | None = None,
+) -> npt.NDArray[np.float64]: ...
+def check_map(
+    path: _Path,
+    *,
+    convention: Literal["opengl", "gl", "directx", "dx", "auto"] = "auto",
+    threshold: float | None = None,
+    signed: bool = False,
+    fix: _Path | None = None,
+    to: Literal["opengl", "gl", "directx", "dx"] | None = None,
+    max_texels: int | None = None,
+    layer: str | None = None,
+) -> dict[str, Any]: ...

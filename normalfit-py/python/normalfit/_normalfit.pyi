@@ -19,6 +19,8 @@ __all__ = [
     "lit_view",
     "height",
     "height_file",
+    "blend",
+    "check_map",
     "ConversionSummary",
     "HeightInfo",
     "AxisReport",
@@ -96,6 +98,19 @@ def convert(
     nodata: float | None,
     nodata_tag: bool,
 ) -> ConversionSummary: ...
+def blend(
+    base: Any, detail: Any, method: str, strength: float, convention: str, detail_convention: str | None
+) -> Any: ...
+def check_map(
+    path: str | os.PathLike[str],
+    convention: str,
+    threshold: float | None,
+    signed: bool,
+    fix: str | os.PathLike[str] | None,
+    to: str | None,
+    max_texels: int | None,
+    layer: str | None,
+) -> dict[str, Any]: ...
 def decode_normals(path: str | os.PathLike[str], signed: bool, max_texels: int | None, layer: str | None) -> Any: ...
 def lit_view(
     path: str | os.PathLike[str],
