@@ -10,6 +10,7 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from platform import machine as platform_machine
 from typing import Any
 
 import bpy
@@ -198,7 +199,10 @@ def unpack_wheel(wheel: Path, folder: Path) -> None:
     minor = sys.version_info[1]
     if not python.startswith("cp3") or int(python[3:] or 99) > minor:
         raise RuntimeError(f"{wheel.name}: built for {python}, and Blender's Python is 3.{minor}")
-    machine = {"amd64": "x86_64", "arm64": "aarch64"}.get(os_machine(), os_machine())
+    # Wheels name x86-64 and ARM64 machines either way (amd64, arm64 on
+    # Windows and macOS).
+    same = {"amd64": "x86_64", "arm64": "aarch64"}
+    machine = same.get(platform_machine().lower(), platform_machine().lower())
     if machine not in platform.replace("amd64", "x86_64").replace("arm64", "aarch64"):
         raise RuntimeError(f"{wheel.name}: built for {platform}, and this machine is {machine}")
     with zipfile.ZipFile(wheel) as z:
@@ -206,12 +210,6 @@ def unpack_wheel(wheel: Path, folder: Path) -> None:
         for top in tops:
             shutil.rmtree(folder / top, ignore_errors=True)
         z.extractall(folder)
-
-
-def os_machine() -> str:
-    import platform
-
-    return platform.machine().lower()
 
 
 class NormalfitPreferences(bpy.types.AddonPreferences):
