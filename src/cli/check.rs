@@ -37,13 +37,7 @@ pub fn run(args: &CheckArgs) -> Result<u8, Failure> {
     let destination = args.fix.as_deref().map(|p| Destination::for_batch(Some(p), batch.many())).transpose()?;
     let plan = Plan { opts, fix: FixOptions::new().with_to(args.to), destination, args, findings: AtomicUsize::new(0) };
     let errors = batch.run(|job, turn| plan.check_one(job, turn));
-    Ok(if errors > 0 {
-        exit::ERROR
-    } else if plan.findings.load(Ordering::Relaxed) > 0 {
-        exit::SEAM
-    } else {
-        exit::OK
-    })
+    Ok(exit::of_batch(errors, plan.findings.load(Ordering::Relaxed)))
 }
 
 struct Plan<'a> {

@@ -31,6 +31,18 @@ pub mod exit {
     pub const OK: u8 = 0;
     pub const SEAM: u8 = 1;
     pub const ERROR: u8 = 2;
+
+    /// A batch's code: 2 when any file failed, else 1 when any file had a
+    /// seam or a finding, else 0.
+    pub fn of_batch(errors: usize, findings: usize) -> u8 {
+        if errors > 0 {
+            ERROR
+        } else if findings > 0 {
+            SEAM
+        } else {
+            OK
+        }
+    }
 }
 
 /// Parses the arguments, runs the command, and maps the outcome to an exit code.

@@ -41,13 +41,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
         seams: AtomicUsize::new(0),
     };
     let errors = batch.run(|job, turn| plan.check_one(job, turn));
-    Ok(if errors > 0 {
-        exit::ERROR
-    } else if plan.seams.load(Ordering::Relaxed) > 0 {
-        exit::SEAM
-    } else {
-        exit::OK
-    })
+    Ok(exit::of_batch(errors, plan.seams.load(Ordering::Relaxed)))
 }
 
 /// What `tiling` does with every input, decided once from the arguments.

@@ -4,6 +4,7 @@
 pub mod cli;
 pub mod mips;
 pub mod reference;
+pub mod rng;
 // GeoTIFFs of every layout, made with the `tiff` crate's encoder.
 #[cfg(feature = "tiff")]
 pub mod geotiff;

@@ -7,25 +7,15 @@ use normalfit::Convention;
 use normalfit::blend::{BlendOptions, Method, blend, blend_normal, repeats};
 use normalfit::height::ConventionChoice;
 
-/// A small generator (xorshift64*), so the test needs no crate.
-struct Rng(u64);
+use crate::common::rng::Rng;
 
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// A random unit normal of the upper hemisphere with z ≥ 0.2.
-    fn normal(&mut self) -> [f64; 3] {
-        loop {
-            let v = [2.0 * self.next() - 1.0, 2.0 * self.next() - 1.0, self.next()];
-            let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            if l > 0.1 && v[2] / l >= 0.2 {
-                return v.map(|c| c / l);
-            }
+/// A random unit normal of the upper hemisphere with z ≥ 0.2.
+fn random_normal(rng: &mut Rng) -> [f64; 3] {
+    loop {
+        let v = [2.0 * rng.next() - 1.0, 2.0 * rng.next() - 1.0, rng.next()];
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if l > 0.1 && v[2] / l >= 0.2 {
+            return v.map(|c| c / l);
         }
     }
 }
@@ -66,8 +56,8 @@ fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
 fn blend_matches_the_formulas_on_random_unit_normals() {
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
     let (w, h) = (64, 48);
-    let base: Vec<[f64; 3]> = (0..w * h).map(|_| rng.normal()).collect();
-    let detail: Vec<[f64; 3]> = (0..w * h).map(|_| rng.normal()).collect();
+    let base: Vec<[f64; 3]> = (0..w * h).map(|_| random_normal(&mut rng)).collect();
+    let detail: Vec<[f64; 3]> = (0..w * h).map(|_| random_normal(&mut rng)).collect();
     for method in METHODS {
         let opts = BlendOptions::new().with_method(method).with_convention(ConventionChoice::OpenGl);
         let (out, report) = blend::<f64, [f64; 3]>(&base, (w, h), &detail, (w, h), &opts).unwrap();
@@ -84,7 +74,7 @@ fn blend_matches_the_formulas_on_random_unit_normals() {
 fn blend_strength_scales_the_detail_slopes() {
     let mut rng = Rng(7);
     for _ in 0..1000 {
-        let (b, d) = (rng.normal(), rng.normal());
+        let (b, d) = (random_normal(&mut rng), random_normal(&mut rng));
         let f = 3.0 * rng.next();
         let scaled = norm([f * d[0], f * d[1], d[2]]);
         for method in METHODS {
@@ -102,7 +92,7 @@ fn blend_a_flat_map_is_the_identity() {
     let mut rng = Rng(11);
     let flat = [0.0, 0.0, 1.0];
     for _ in 0..1000 {
-        let n = rng.normal();
+        let n = random_normal(&mut rng);
         // A flat detail gives the base back (linear halves its tilt).
         for method in [Method::Rnm, Method::Whiteout, Method::Udn] {
             assert!(close(blend_normal(n, flat, method, 1.0), n, 1e-12), "{method} flat detail");
@@ -139,8 +129,8 @@ fn blend_rnm_of_two_tilts_adds_their_angles() {
 fn blend_tiles_a_smaller_detail_and_refuses_sizes_that_do_not_divide() {
     let mut rng = Rng(5);
     let (bw, bh, dw, dh) = (12, 8, 4, 2);
-    let base: Vec<[f64; 3]> = (0..bw * bh).map(|_| rng.normal()).collect();
-    let detail: Vec<[f64; 3]> = (0..dw * dh).map(|_| rng.normal()).collect();
+    let base: Vec<[f64; 3]> = (0..bw * bh).map(|_| random_normal(&mut rng)).collect();
+    let detail: Vec<[f64; 3]> = (0..dw * dh).map(|_| random_normal(&mut rng)).collect();
     let opts = BlendOptions::new().with_convention(ConventionChoice::DirectX);
     let (out, report) = blend::<f64, [f64; 3]>(&base, (bw, bh), &detail, (dw, dh), &opts).unwrap();
     assert_eq!(report.repeats, (3, 4));
@@ -153,7 +143,7 @@ fn blend_tiles_a_smaller_detail_and_refuses_sizes_that_do_not_divide() {
     assert!(repeats((12, 8), (5, 2)).is_err());
     assert!(repeats((12, 8), (4, 3)).is_err());
     assert!(repeats((12, 8), (24, 8)).is_err());
-    let five: Vec<[f64; 3]> = (0..10).map(|_| rng.normal()).collect();
+    let five: Vec<[f64; 3]> = (0..10).map(|_| random_normal(&mut rng)).collect();
     let e = blend::<f64, [f64; 3]>(&base, (bw, bh), &five, (5, 2), &opts).unwrap_err();
     assert!(e.to_string().contains("must divide"), "{e}");
     // A bad strength is an option error.
@@ -216,8 +206,8 @@ fn blend_flips_a_detail_of_the_other_convention() {
 fn blend_into_encoded_texels_rounds_the_float_result() {
     let mut rng = Rng(3);
     let (w, h) = (16, 16);
-    let base: Vec<[f32; 3]> = (0..w * h).map(|_| rng.normal().map(|c| c as f32)).collect();
-    let detail: Vec<[f32; 3]> = (0..w * h).map(|_| rng.normal().map(|c| c as f32)).collect();
+    let base: Vec<[f32; 3]> = (0..w * h).map(|_| random_normal(&mut rng).map(|c| c as f32)).collect();
+    let detail: Vec<[f32; 3]> = (0..w * h).map(|_| random_normal(&mut rng).map(|c| c as f32)).collect();
     let opts = BlendOptions::new().with_method(Method::Whiteout).with_convention(ConventionChoice::OpenGl);
     let (f, _) = blend::<f32, [f64; 3]>(&base, (w, h), &detail, (w, h), &opts).unwrap();
     let (e8, _) = blend::<f32, [u8; 3]>(&base, (w, h), &detail, (w, h), &opts).unwrap();

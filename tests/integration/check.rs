@@ -12,19 +12,8 @@ use normalfit::height::ConventionChoice;
 use normalfit::io::{Encoding, ReadOptions, encode_normals, read_path};
 use normalfit::{Convention, Fit, FromNormal, Options, Strength, normal_map, normals};
 
+use crate::common::rng::Rng;
 use crate::common::shared_data::data_dir;
-
-/// A small generator (xorshift64*), so the test needs no crate.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 const W: usize = 128;
 const H: usize = 96;
