@@ -369,6 +369,18 @@ impl Opened {
                 (true, None, _) => {
                     Err(Error::InvalidOption("a roughness chain is made beside a mip chain: ask for mips".into()))
                 }
+                // In map units the alpha holds the heights as stored (a
+                // DEM's metres): integer samples would clamp them all to 1.
+                _ if c.map_units.is_some()
+                    && encoding.layout() == Layout::RgbHeight
+                    && !encoding.has_float_samples() =>
+                {
+                    Err(Error::Unsupported(format!(
+                        "an alpha of heights in map units holds the heights as stored (a DEM's metres), which integer \
+                         samples ({}) clamp to [0, 1]: write EXR or a float TIFF (--bits 32)",
+                        encoding.format()
+                    )))
+                }
                 _ => Ok(encoding),
             })
             .map_err(ConvertError::at(Place::Output))

@@ -460,6 +460,16 @@ impl Options {
         }
         if let Units::Map(spacing) = &self.units {
             spacing.validate(None)?;
+            // Relief scales the gain with the image's width in texels; in
+            // map units the gain is the vertical exaggeration, which the
+            // texel count must not change.
+            if let Strength::Relief(f) = self.strength {
+                return Err(Error::InvalidOption(format!(
+                    "relief {} (a gain per image width) has no meaning in map units, where the gain is the \
+                     vertical exaggeration: give -s (scale=), 1 for the terrain's own slopes",
+                    Number(f)
+                )));
+            }
         }
         Ok(())
     }

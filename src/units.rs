@@ -126,11 +126,7 @@ pub fn map_spacing(georef: Option<&Georef>, height: usize) -> Result<Spacing> {
     let georef = georef.ok_or_else(no_spacing)?;
     let affine = georef.affine().ok_or_else(no_spacing)?;
     if affine.b != 0.0 || affine.d != 0.0 {
-        return Err(unsupported(
-            "the raster is rotated or sheared (its transform has terms b or d): map units take rasters whose rows \
-             run along x; give the pixel size to fit it anyway"
-                .into(),
-        ));
+        return Err(unsupported(turned(&affine)));
     }
     // Metres per height unit: the spacing is given in the heights' unit.
     let vertical = match georef.vertical_unit {
@@ -170,6 +166,32 @@ pub fn map_spacing(georef: Option<&Georef>, height: usize) -> Result<Spacing> {
             other.name()
         ))),
     }
+}
+
+/// Why a raster whose transform has terms b or d is refused, naming how
+/// it is turned: the angle of its rows from the map's x axis, and for a
+/// sheared one the angle its rows and columns make. Map units take
+/// north-up rasters: the spacing and the sun's azimuth of a turned one
+/// would be in its own frame, not the map's.
+fn turned(affine: &crate::io::read::georef::Affine) -> String {
+    let (column, row) = ((affine.a, affine.d), (affine.b, affine.e));
+    // The row direction's angle from the map's x axis (a row runs along
+    // increasing columns), counter-clockwise as the map's axes turn.
+    let rotation = column.1.atan2(column.0).to_degrees();
+    let cos = (column.0 * row.0 + column.1 * row.1) / (column.0.hypot(column.1) * row.0.hypot(row.1));
+    let between = cos.clamp(-1.0, 1.0).acos().to_degrees();
+    let how = if (between - 90.0).abs() > 1e-6 {
+        format!("sheared (its rows and columns meet at {between:.3}°, not 90°)")
+    } else {
+        let sense = if rotation > 0.0 { "counter-clockwise" } else { "clockwise" };
+        format!("rotated {:.3}° {sense} from north-up", rotation.abs())
+    };
+    format!(
+        "the raster is {how}: its transform has b = {} and d = {} where a north-up raster has 0: map units take \
+         north-up rasters; warp it first (gdalwarp), or give the pixel size to fit it in its own frame",
+        crate::error::Number(affine.b),
+        crate::error::Number(affine.d)
+    )
 }
 
 /// A surface's slope and aspect at a texel, as GIS tools give them.

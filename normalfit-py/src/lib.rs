@@ -623,13 +623,20 @@ fn normals<'py>(
     }
     let opts = opts.with_nodata(nodata);
     let output = output_kind(py, dtype)?;
-    if nodata.is_some() && !matches!(output, OutputKind::F32) {
-        return Err(PyValueError::new_err(
-            "nodata needs dtype float32: a missing texel's normal is NaN, which integers cannot hold",
-        ));
-    }
+    check_nodata_output(nodata, output)?;
     let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)?, window: None };
     fit_call(heights, kind, output, &call)
+}
+
+/// Holes need float32 normals: a missing texel's normal is NaN, the NumPy
+/// convention for a missing value, which integer texels cannot hold.
+fn check_nodata_output(nodata: Option<f64>, output: OutputKind) -> PyResult<()> {
+    match (nodata, output) {
+        (Some(_), OutputKind::U8 | OutputKind::U16) => Err(PyValueError::new_err(
+            "nodata needs dtype float32: a missing texel's normal is NaN, which integers cannot hold",
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// [`fit_typed`] for the heights' sample type and the output's.
@@ -677,7 +684,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads))]
+#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata))]
 fn window_normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -694,11 +701,14 @@ fn window_normals<'py>(
     dtype: &Bound<'py, PyAny>,
     residual: bool,
     threads: Option<&Bound<'py, PyAny>>,
+    nodata: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let opts = opts.with_nodata(nodata);
     let output = output_kind(py, dtype)?;
+    check_nodata_output(nodata, output)?;
     let (left, right, top, bottom) = halo;
     let (held_h, held_w) = (heights.shape()[0], heights.shape()[1]);
     let size =
@@ -724,7 +734,7 @@ fn window_normals<'py>(
 /// beyond it (wrap: Dask's `periodic` boundary; clamp and mirror hold none).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads))]
+#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata))]
 fn window_plan(
     py: Python<'_>,
     image: (usize, usize),
@@ -738,11 +748,12 @@ fn window_plan(
     invert: bool,
     dtype: &Bound<'_, PyAny>,
     threads: Option<&Bound<'_, PyAny>>,
+    nodata: Option<f64>,
 ) -> PyResult<(usize, (bool, bool))> {
     normalfit::fit::checked_len(image.0, image.1).map_err(to_py_err)?;
     sample_kind_of(&PyArrayDescr::new(py, heights_dtype)?, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    output_kind(py, dtype)?;
+    check_nodata_output(nodata, output_kind(py, dtype)?)?;
     thread_count(threads)?;
     let borders = window_borders(borders).map_err(to_py_err)?;
     let plan = HaloPlan::new(&opts.with_borders(borders)).map_err(to_py_err)?;

@@ -117,6 +117,34 @@ def test_residual_is_a_pair_of_lazy_arrays(client: Any) -> None:
     assert np.array_equal(got_n, want_n) and np.array_equal(got_r, want_r)
 
 
+@pytest.mark.parametrize("border", ["wrap", "clamp", ("mirror", "wrap")])
+def test_holes_chunked_equal_the_whole_array(client: Any, border: Any) -> None:
+    """A nodata value and NaN, scattered and in a block across chunk
+    edges: each chunk's halo carries its neighbours' holes, so the lazy
+    normals and residual equal normalfit.normals(nodata=...) of the whole
+    array, bit for bit, NaN where missing; the fit on the valid points is
+    not the plain fit's near a hole (holes are not read as heights)."""
+    rng = np.random.default_rng(7)
+    whole = heights((23, 31), np.float64, seed=5)
+    whole[rng.random(whole.shape) < 0.08] = -9999.0
+    whole[9:14, 10:17] = -9999.0  # across the chunk edges at rows 10 and columns 12
+    whole[2, 3] = np.nan
+    for patch, chunks in ((3, (5, 6)), (5, (10, 12)), (7, ((1, 9, 13), (12, 19)))):
+        opts = dict(patch=patch, border=border, nodata=-9999.0, residual=True, fit="orthogonal")
+        n, r = nd.normals(da.from_array(whole, chunks=chunks), **opts)
+        got_n, got_r = dask.compute(n, r)
+        want_n, want_r = normalfit.normals(whole, **opts)
+        missing = np.isnan(want_n[..., 0])
+        assert missing[9:14, 10:17].all() and missing[2, 3] and 0 < missing.mean() < 0.9, (patch, chunks)
+        assert np.array_equal(got_n, want_n, equal_nan=True), (patch, chunks)
+        assert np.array_equal(got_r, want_r, equal_nan=True), (patch, chunks)
+        filled = np.where(np.isfinite(whole) & (whole != -9999.0), whole, 0.0)
+        plain = normalfit.normals(filled, patch=patch, border=border)
+        assert not np.allclose(plain[~missing], got_n[~missing]), "holes read as heights"
+    with pytest.raises(ValueError, match="nodata needs dtype float32"):
+        nd.normals(da.from_array(whole, chunks=(5, 6)), nodata=-9999.0, dtype=np.uint8)
+
+
 def test_a_patch_wider_than_the_image(client: Any) -> None:
     """N = 15 on a 6 x 5 image: indices keep mapping by the border's rule."""
     whole = heights((5, 6), np.float64)

@@ -189,7 +189,13 @@ impl Job<'_> {
                 }
                 alpha
             }
-            (layout, _) if layout.needs_heights() => heights.into_f32().map_err(&in_failure)?,
+            (layout, valid) if layout.needs_heights() => {
+                let mut alpha = heights.into_f32().map_err(&in_failure)?;
+                if let Some(valid) = valid {
+                    crate::pipeline::zero_missing(&mut alpha, valid);
+                }
+                alpha
+            }
             _ => Vec::new(),
         };
         if let Some(out) = &normals {

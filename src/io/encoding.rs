@@ -498,6 +498,18 @@ impl Encoding {
         }
     }
 
+    /// Whether the samples are floats, which hold any height as it is (an
+    /// alpha of heights in map units: a DEM's metres); integer samples
+    /// and GPU textures hold [0, 1].
+    #[must_use]
+    pub fn has_float_samples(&self) -> bool {
+        match self {
+            Encoding::Exr(_) => true,
+            Encoding::Tiff(o) => o.depth == TiffDepth::Float,
+            Encoding::Png(_) | Encoding::Texture(_) => false,
+        }
+    }
+
     /// The same encoding with other channels.
     #[must_use]
     pub fn with_layout(self, layout: Layout) -> Encoding {
@@ -611,7 +623,9 @@ pub enum Layout {
     Rgb,
     /// R, G, B and an alpha channel holding each texel's height, for
     /// parallax mapping: the height as the fit read it (SPEC §1 units, not
-    /// scaled by the gain), clamped to [0, 1] in a PNG, as it is in an EXR.
+    /// scaled by the gain; in map units, as stored: a DEM's metres, which
+    /// only float samples hold), clamped to [0, 1] in a PNG, as it is in
+    /// an EXR; 0 where the texel has no normal (a hole).
     RgbHeight,
     /// R, G, B and an opaque alpha (1), for pipelines that want four
     /// channels.

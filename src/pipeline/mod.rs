@@ -148,6 +148,15 @@ fn heights_of<H: RowValue>(rows: Range<usize>, row: &Rows<'_, H>, unit: f64, w: 
     Ok(heights)
 }
 
+/// An alpha of heights with holes: 0 at the texels without a normal (a
+/// hole's value, NaN or the nodata value, is no height), as the alpha of
+/// validity has there; `valid` empty (no holes) changes nothing.
+pub(crate) fn zero_missing(alpha: &mut [f32], valid: &[bool]) {
+    for (a, _) in alpha.iter_mut().zip(valid).filter(|&(_, &v)| !v) {
+        *a = 0.0;
+    }
+}
+
 /// A band of rows between stages: its first row and its values (heights,
 /// or what the encoder takes).
 type Band<T> = Result<(usize, Vec<T>)>;
@@ -453,7 +462,11 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
         let result = fitted.and_then(|()| {
             let extra = match needs_heights {
                 Extra::None => Vec::new(),
-                Extra::Heights => heights_of(rows.clone(), &row, unit, w)?,
+                Extra::Heights => {
+                    let mut heights = heights_of(rows.clone(), &row, unit, w)?;
+                    zero_missing(&mut heights, &valid);
+                    heights
+                }
                 Extra::Valid => {
                     let mut extra = crate::samples::try_vec(normals.len())?;
                     match valid.is_empty() {

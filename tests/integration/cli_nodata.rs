@@ -296,3 +296,72 @@ fn nodata_is_a_number_or_none() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("'nothing' is not a number (or nan, or none)"), "{}", stderr(&out));
 }
+
+/// An alpha of heights with holes: the height where the texel has a
+/// normal, 0 where it is missing (a hole's NaN or nodata value is no
+/// height), in EXR and TIFF floats, streamed (a TIFF's bands) and whole
+/// (a residual asks for the whole image). In map units the alpha holds
+/// the DEM's metres, so integer outputs are refused in one line; so is
+/// `--relief`, a gain per image width, which map units have no use for.
+#[test]
+fn an_alpha_of_heights_is_zero_at_holes_and_metres_need_floats() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (29usize, 19usize);
+    let nodata = -9999.0;
+    let (_, mut values) = dem_with_nodata(w, h, Kind::F32, nodata);
+    // An island: texel (20, 12) alone among holes, a height whose 3 × 3
+    // patch holds one valid point, so it has no normal.
+    for y in 11..14 {
+        for x in 19..22 {
+            values[y * w + x] = if (x, y) == (20, 12) { 345.0 } else { nodata };
+        }
+    }
+    let mut tags: Vec<GeoTag> =
+        geotiff::utm_tags().into_iter().filter(|t| !matches!(t, GeoTag::Ascii(42113, _))).collect();
+    tags.push(GeoTag::Ascii(42113, format!("{nodata}")));
+    let input = dir.path().join("dem.tif");
+    std::fs::write(&input, geotiff::write(w, h, &Layout::gray(Kind::F32), std::slice::from_ref(&values), &tags))
+        .unwrap();
+    let opts = Options::new()
+        .with_borders(Borders::both(Border::Clamp))
+        .with_units(normalfit::Units::Map(normalfit::Spacing::square(30.0)))
+        .with_nodata(Some(nodata));
+    let mut normals = vec![[0.0f32; 3]; w * h];
+    let mut valid = vec![false; w * h];
+    let missing = FitRequest::new(&opts).holes(&mut valid).normals_into(&values, w, h, &mut normals).unwrap();
+    let holes = values.iter().filter(|&&v| v == nodata).count();
+    assert!(missing > holes && holes > 0, "holes {holes}, missing {missing}: both kinds of missing texel");
+    let common = ["--units", "map", "--border", "clamp", "--alpha", "height"];
+    let residual = dir.path().join("r.exr");
+    let residual_args = ["--residual", s(&residual)];
+    for (name, extra) in [("s.exr", &[][..]), ("w.exr", &residual_args[..]), ("t.tif", &["--bits", "32"][..])] {
+        let output = dir.path().join(name);
+        let out = run(&[&["convert", s(&input), "-o", s(&output)][..], &common, extra].concat());
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        let raster = read_path(&output, &ReadOptions::default()).unwrap();
+        let alpha = raster.plane("A").unwrap().data.to_f32().unwrap();
+        for k in 0..w * h {
+            let want = if valid[k] { values[k] as f32 } else { 0.0 };
+            assert_eq!(alpha[k].to_bits(), want.to_bits(), "{name}: texel {k} (valid {})", valid[k]);
+        }
+    }
+    for (output, args) in [
+        ("n.png", &common[..]),
+        ("n16.tif", &common[..]),
+        ("relief.exr", &["--units", "map", "--relief", "0.5"][..]),
+        ("relief.png", &["--pixel-size", "30", "--relief", "0.5"][..]),
+    ] {
+        let output = dir.path().join(output);
+        let out = run(&[&["convert", s(&input), "-o", s(&output)][..], args].concat());
+        let message = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {message}");
+        assert_eq!(message.lines().count(), 1, "{message}");
+        // The alpha's refusal is the output's; the relief's, the fit's of the input.
+        let relief = args.contains(&"--relief");
+        let named = if relief { s(&input) } else { s(&output) };
+        assert!(message.starts_with(&format!("normalfit: {named}: ")), "{message}");
+        let why = if relief { "relief 0.5 (a gain per image width)" } else { "clamp to [0, 1]" };
+        assert!(message.contains(why), "{args:?}: {message}");
+        assert!(!output.exists(), "{args:?}: no output");
+    }
+}

@@ -365,12 +365,28 @@ fn the_spacing_of_a_georeference_and_its_errors() {
         g.transformation =
             Some([30.0, 5.0, 0.0, 500_000.0, 5.0, -30.0, 0.0, 4_500_000.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
     });
-    assert!(message(Some(&rotated)).contains("rotated or sheared"), "{}", message(Some(&rotated)));
+    // Columns (30, 5) and rows (5, −30): turned atan(5/30) = 9.462°, square.
+    assert!(
+        message(Some(&rotated)).contains("rotated 9.462° counter-clockwise from north-up"),
+        "{}",
+        message(Some(&rotated))
+    );
+    assert!(message(Some(&rotated)).contains("b = 5 and d = 5"), "{}", message(Some(&rotated)));
+    let sheared = with(utm([30.0, 30.0, 0.0]), &|g| {
+        g.transformation =
+            Some([30.0, 10.0, 0.0, 500_000.0, 0.0, -30.0, 0.0, 4_500_000.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    });
+    // Rows (10, −30) against columns (30, 0): they meet at 90° − atan(1/3).
+    assert!(
+        message(Some(&sheared)).contains("sheared (its rows and columns meet at 71.565°"),
+        "{}",
+        message(Some(&sheared))
+    );
     let geocentric = with(utm([30.0, 30.0, 0.0]), &|g| g.model = Some(ModelType::Geocentric));
     assert!(message(Some(&geocentric)).contains("model is geocentric"));
     let unknown_unit = with(utm([30.0, 30.0, 0.0]), &|g| g.linear_unit = Some(9999));
     assert!(message(Some(&unknown_unit)).contains("EPSG 9999"));
-    for m in [message(None), message(Some(&rotated)), message(Some(&unknown_unit))] {
+    for m in [message(None), message(Some(&rotated)), message(Some(&sheared)), message(Some(&unknown_unit))] {
         assert!(!m.contains('\n'), "{m}");
     }
 

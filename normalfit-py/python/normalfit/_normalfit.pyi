@@ -183,6 +183,7 @@ def window_normals(
     dtype: Any,
     residual: bool,
     threads: Any | None,
+    nodata: float | None,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],
@@ -196,6 +197,7 @@ def window_plan(
     invert: bool,
     dtype: Any,
     threads: Any | None,
+    nodata: float | None,
 ) -> tuple[int, tuple[bool, bool]]: ...
 def window_halo(
     image: tuple[int, int],

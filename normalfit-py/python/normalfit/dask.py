@@ -108,7 +108,7 @@ def _fit_block(
         result = _normalfit.window_normals(
             held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
             options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
-            options["dtype"], options["residual"], options["threads"],
+            options["dtype"], options["residual"], options["threads"], options["nodata"],
         )
     except Exception as e:
         raise _chunk_error(e, _describe(index, rows, cols)) from e
@@ -134,6 +134,7 @@ def normals(
     dtype: Any = np.float32,
     residual: bool = False,
     threads: int | None = 1,
+    nodata: float | None = None,
 ) -> Any:
     """The normal map of a 2-D Dask array of heights, lazily: a (rows,
     columns, 3) Dask array chunked like ``array`` (one chunk of 3 on the
@@ -156,6 +157,12 @@ def normals(
     residual: also return the fit's residual: the result is then
         (normals, residual), lazy arrays of one graph (compute them
         together, ``dask.compute(n, r)``, to run it once).
+    nodata: holes, as for normalfit.normals: texels of this value (and
+        NaN or infinite ones; ``float("nan")`` for NaN alone) are missing,
+        each patch is fitted to its valid points, and a missing texel's
+        normal (and residual) is NaN; needs dtype float32. The halo holds
+        the holes of the neighbouring chunks, so chunked equals whole, bit
+        for bit, holes included.
     threads: threads of the library's pool in each task. Default 1: Dask
         already runs one task per worker thread, so a worker uses the
         threads it was given and no more. None: every core (rayon's global
@@ -184,7 +191,7 @@ def normals(
     # wraps (x, y).
     r, (beyond_x, beyond_y) = _normalfit.window_plan(
         (w, h),
-        array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads
+        array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata
     )
     out_dtype = np.dtype(dtype)
     chunks = tuple(_merged(c, r) for c in array.chunks)
@@ -195,7 +202,7 @@ def normals(
     periodic = (beyond_y and depth[0] > 0, beyond_x and depth[1] > 0)
     options = dict(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
-        dtype=out_dtype, residual=residual, threads=threads,
+        dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)

@@ -24,6 +24,7 @@ def normals(
     dtype: Any = ...,
     residual: Literal[False] = False,
     threads: int | None = 1,
+    nodata: float | None = None,
 ) -> Any: ...
 @overload
 def normals(
@@ -39,6 +40,7 @@ def normals(
     dtype: Any = ...,
     residual: Literal[True],
     threads: int | None = 1,
+    nodata: float | None = None,
 ) -> tuple[Any, Any]: ...
 def check_tiling(
     array: Any, *, threshold: float = 1.5, kind: Literal["auto", "height"] = "auto"
