@@ -17,8 +17,8 @@
 //! by banded Cholesky in O(n r²) and solved in O(n r). A solve is then two
 //! dense products along the shorter axis, O(texels · m), and the banded
 //! systems, O(texels · r²): linear in the longer axis. The cost grows with
-//! N², so the path takes patches up to [`MAX_BAND`] (N = 63), and the
-//! shorter axis up to [`MAX_DENSE`] texels.
+//! N², so the path takes patches up to [`MAX_BAND`](super::cost::MAX_BAND) (N = 63), and the
+//! shorter axis up to [`MAX_DENSE`](super::dense::MAX_DENSE) texels.
 //!
 //! The modes of V that the ramp does not see (ρ_k at rounding level: the
 //! constant along the shorter axis) leave K_k = β_k P_l / A², blind to
@@ -41,13 +41,9 @@ use crate::options::Border;
 use crate::par::prelude::*;
 use crate::samples::try_filled;
 
-use super::dense::{Basis, DenseSolver, MAX_DENSE, NULL, multiply_left, project_out};
+use super::cost::applies;
+use super::dense::{Basis, DenseSolver, NULL, multiply_left, project_out};
 use super::patch::Patch;
-
-/// The widest band taken: P and Q of patches up to N = 63 (2r = 62). A
-/// solve's banded part costs some n r² a mode, 1 GFlop at 2048 × 256,
-/// N = 63; wider patches are refused (`memory.rs` says so up front).
-pub(super) const MAX_BAND: usize = 62;
 
 /// Modes solved per task (each task holds one factor, n (2r + 1) values).
 const MODES_PER_TASK: usize = 4;
@@ -103,8 +99,8 @@ pub(super) struct OneAxis {
 impl OneAxis {
     /// The solver of `patch`'s fit on an image of `h` rows, or `None`
     /// where the path does not apply: the shorter axis past
-    /// [`MAX_DENSE`], the longer one not clamped (or one texel), a band
-    /// wider than [`MAX_BAND`], or the longer axis's ramp or box blind to
+    /// [`MAX_DENSE`](super::dense::MAX_DENSE), the longer one not clamped (or one texel), a band
+    /// wider than [`MAX_BAND`](super::cost::MAX_BAND), or the longer axis's ramp or box blind to
     /// more than [`MAX_PINS`] directions, or a pin on one that is seen.
     pub(super) fn new(patch: &Patch, h: usize) -> Option<OneAxis> {
         let w = patch.w;
@@ -417,12 +413,6 @@ impl OneAxis {
             }
         }
     }
-}
-
-/// Whether the path takes a map whose shorter axis has `m` texels and
-/// whose longer one `n`, with `border`, for a patch of radius `r`.
-pub(super) fn applies(m: usize, n: usize, border: Border, r: usize) -> bool {
-    m <= MAX_DENSE && n >= 2 && border == Border::Clamp && (2 * r).min(n - 1) <= MAX_BAND
 }
 
 /// P = RᵀR and Q = BᵀB of a clamped line of `n` texels, patch radius `r`,

@@ -15,7 +15,7 @@
 //! [`ORTHOGONAL_SOLVES`] vertical solves.
 
 use crate::error::{Error, Result};
-use crate::options::Fit;
+use crate::options::{Border, Fit};
 
 use super::HeightOptions;
 use super::dense::MAX_DENSE;
@@ -41,6 +41,23 @@ const PRODUCT: f64 = 0.25;
 /// operator and its adjoint, the half-sample transform's solve; 1030 × 3
 /// at N = 63 spent its 2000 iterations in 2 s).
 const CG_TEXEL: f64 = 500.0;
+
+/// The widest band taken: P and Q of patches up to N = 63 (2r = 62). A
+/// solve's banded part costs some n r² a mode, 1 GFlop at 2048 × 256,
+/// N = 63; wider patches are refused (this estimate says so up front).
+pub(super) const MAX_BAND: usize = 62;
+
+/// Whether the path takes a map whose shorter axis has `m` texels and
+/// whose longer one `n`, with `border`, for a patch of radius `r`.
+pub(super) fn applies(m: usize, n: usize, border: Border, r: usize) -> bool {
+    m <= MAX_DENSE && n >= 2 && border == Border::Clamp && (2 * r).min(n - 1) <= MAX_BAND
+}
+
+/// The conjugate gradients' iterations at most, over every solve of one
+/// inverse (`iterative.rs`): each is a few passes over the texels whatever
+/// N, so the time is bounded by the texels; past it the heights are the
+/// closest found, unsettled.
+pub(super) const CG_ITERATIONS: usize = 2000;
 
 /// A way to solve clamp with N ≥ 5.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,7 +105,7 @@ pub(super) fn operations(path: Path, w: usize, h: usize, opts: &HeightOptions) -
         Path::OneAxis => {
             let (m, n) = (w.min(h), w.max(h));
             let long = if w < h { opts.fit.borders.y } else { opts.fit.borders.x };
-            if !super::banded::applies(m, n, long, r) {
+            if !applies(m, n, long, r) {
                 return None;
             }
             let band = (2 * r).min(n - 1) as f64;
@@ -99,7 +116,7 @@ pub(super) fn operations(path: Path, w: usize, h: usize, opts: &HeightOptions) -
             let solve = texels * (PRODUCT * 2.0 * m as f64 + 0.5 * band * band + 4.0 * band);
             Some(setup + solves * solve)
         }
-        Path::ConjugateGradients => Some(texels * super::iterative::CG_ITERATIONS as f64 * CG_TEXEL),
+        Path::ConjugateGradients => Some(texels * CG_ITERATIONS as f64 * CG_TEXEL),
     }
 }
 

@@ -15,6 +15,7 @@ use crate::par::prelude::*;
 use crate::samples::{try_filled, try_vec};
 
 use super::banded::Separable;
+use super::cost::CG_ITERATIONS;
 use super::gauss_newton::Vertical;
 use super::line::{Work, columns_in_place, rows};
 use super::patch::Patch;
@@ -543,12 +544,6 @@ fn dense_solve(
     drop((gx, gy));
     dense.solve(&mut b, lambda, null, (&wx, &wy), z)
 }
-
-/// The conjugate gradients' iterations at most, over every solve of one
-/// inverse: each is a few passes over the texels whatever N, so the time
-/// is bounded by the texels; past it the heights are the closest found,
-/// unsettled.
-pub(super) const CG_ITERATIONS: usize = 2000;
 
 /// ε of the conjugate gradients' preconditioner: the weight of the
 /// transform's null modes, which the exact operator sees where patches

@@ -186,7 +186,7 @@ fn one_axis_band(w: usize, h: usize, opts: &HeightOptions) -> Option<usize> {
     let (m, n) = (w.min(h), w.max(h));
     let border = if w < h { opts.fit.borders.y } else { opts.fit.borders.x };
     let r = opts.fit.patch / 2;
-    super::banded::applies(m, n, border, r).then(|| (2 * r).min(n - 1))
+    super::cost::applies(m, n, border, r).then(|| (2 * r).min(n - 1))
 }
 
 /// What the banded solves hold between solves: the shorter axis's basis
