@@ -2,9 +2,10 @@
 # `normalfit height`'s time and memory against the patch size N (issue 32,
 # point 4), as a user calls it: each normal map made by `normalfit convert`
 # with the options the row names, then `normalfit height` of it with the
-# same. Prints a Markdown table: wall time and peak RSS (GNU time), one run
+# same. Prints a Markdown table: user CPU time and peak RSS (GNU time), one run
 # each; given an older build, it runs that one too, on the same files in
-# the same run, and prints the ratio of the times.
+# the same run, and prints the ratio of the times. Times are user CPU
+# seconds (GNU time's %U: fair beside other work on a shared machine).
 #
 #   bench/height_n.sh                     # this build only
 #   bench/height_n.sh /tmp/nf-before      # and an older binary beside it
@@ -17,7 +18,7 @@
 # 1024², 2048 × 256 and 2048², N = 3, 5, 63, 255 and 1023, clamp with
 # both fits and wrap (orthogonal) for reference. The shapes sweep: 256²,
 # 1024², the strips 1030 × 3, 2 × 1100 and 3 × 20000, and 2048 × 256, at
-# N = 3, 63, 255 and 1023, every border with both fits; and a 3 × 20000
+# N = 3, 5, 63, 255 and 1023, every border with both fits; and a 3 × 20000
 # map made at N = 3 inverted with N = 63 (a map not made at the N given,
 # orthogonal). Needs a Rust toolchain
 # and GNU time (apt-get install -y time).
@@ -41,14 +42,16 @@ done
 # A flat map one texel wide: a binary PGM of zeros.
 { printf 'P5\n1 5000\n255\n'; head -c 5000 /dev/zero; } > "$work/flat1x5000.pgm"
 
-# "wall-seconds peak-MiB" of one run of "$@", or ">T -" past the timeout.
+# "user-seconds peak-MiB" of one run of "$@", or ">T -" past the timeout
+# (T in wall seconds), or "refused -" for the inverse's refusal by its
+# estimate of time (`src/height/cost.rs`).
 measure() {
-  if /usr/bin/time -f '%e %M' -o "$work/time.txt" timeout "$timeout" "$@" >/dev/null 2>"$work/stderr.txt"; then
+  if /usr/bin/time -f '%U %M' -o "$work/time.txt" timeout "$timeout" "$@" >/dev/null 2>"$work/stderr.txt"; then
     read -r t m < "$work/time.txt"
     echo "$t $((m / 1024))"
   elif grep -q 'Command exited with non-zero status 124' "$work/time.txt"; then
     echo ">$timeout -"
-  elif grep -q 'solved for maps with a side of at most' "$work/stderr.txt"; then
+  elif grep -q 'solved for maps with a side of at most\|operations, past the limit of' "$work/stderr.txt"; then
     echo "refused -"
   else
     echo "failed -"
@@ -57,10 +60,10 @@ measure() {
 }
 
 if [ -n "$before" ]; then
-  echo "| map | N | options | before | after | before / after | RSS before | RSS after |"
+  echo "| map | N | options | user before | user after | before / after | RSS before | RSS after |"
   echo "|---|---|---|---|---|---|---|---|"
 else
-  echo "| map | N | options | wall | peak RSS |"
+  echo "| map | N | options | user | peak RSS |"
   echo "|---|---|---|---|---|"
 fi
 # row MAP N OPTIONS…: convert, then height, with -s 8 -n N and the options.
@@ -81,7 +84,7 @@ print('' if '-' in a + b or 'f' in a + b else f'{(float(b.lstrip(\">\")) / max(f
 }
 if [ "$sweep" = shapes ]; then
   for map in h256.png h1024.png h1030x3.png h2x1100.png h3x20000.png h2048x256.png; do
-    for n in 3 63 255 1023; do
+    for n in 3 5 63 255 1023; do
       for border in wrap clamp mirror; do
         row "$map" "$n" --border "$border"
         row "$map" "$n" --border "$border" --fit vertical

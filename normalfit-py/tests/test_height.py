@@ -103,6 +103,17 @@ def test_bad_calls_raise() -> None:
     assert not flat.any() and info.range == (0.0, 0.0)
 
 
+def test_clamp_past_the_limit_of_time_raises_as_the_command_line_refuses() -> None:
+    """Clamp at N = 255 on a 4 × 2048 map: no path solves it within the
+    limit of time (a band of 254, conjugate gradients past it), so it
+    raises before any solve, naming the limit; mirror at the same N runs."""
+    n = normalfit.normals(periodic(4, 2048), patch=255, border="clamp")
+    with pytest.raises(ValueError, match="past the limit of 2.1e9"):
+        normalfit.height(n, patch=255, border="clamp")
+    back, _ = normalfit.height(n, patch=255, border="mirror")
+    assert np.isfinite(back).all()
+
+
 def test_heights_past_the_float_range_raise() -> None:
     """A gain so small that the heights leave f64's range raises, as the
     command line refuses: never infinite heights."""

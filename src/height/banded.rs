@@ -17,8 +17,8 @@
 //! by banded Cholesky in O(n r²) and solved in O(n r). A solve is then two
 //! dense products along the shorter axis, O(texels · m), and the banded
 //! systems, O(texels · r²): linear in the longer axis. The cost grows with
-//! N², so the path takes patches up to [`MAX_BAND`] (N = 63), and the
-//! shorter axis up to [`MAX_DENSE`] texels.
+//! N², so the path takes patches up to [`MAX_BAND`](super::cost::MAX_BAND) (N = 63), and the
+//! shorter axis up to [`MAX_DENSE`](super::dense::MAX_DENSE) texels.
 //!
 //! The modes of V that the ramp does not see (ρ_k at rounding level: the
 //! constant along the shorter axis) leave K_k = β_k P_l / A², blind to
@@ -41,14 +41,9 @@ use crate::options::Border;
 use crate::par::prelude::*;
 use crate::samples::try_filled;
 
-use super::dense::{Basis, DenseSolver, MAX_DENSE, NULL, multiply_left, project_out};
-use super::line::{Line, Scratch};
+use super::cost::applies;
+use super::dense::{Basis, DenseSolver, NULL, multiply_left, project_out};
 use super::patch::Patch;
-
-/// The widest band taken: P and Q of patches up to N = 63 (2r = 62). A
-/// solve's banded part costs some n r² a mode, 1 GFlop at 2048 × 256,
-/// N = 63; wider patches are refused (`memory.rs` says so up front).
-pub(super) const MAX_BAND: usize = 62;
 
 /// Modes solved per task (each task holds one factor, n (2r + 1) values).
 const MODES_PER_TASK: usize = 4;
@@ -57,12 +52,19 @@ const MODES_PER_TASK: usize = 4;
 const PIVOT: f64 = 1e-12;
 
 /// The most null directions pinned along the banded axis (the ramp's or
-/// the box's); more, and there is no banded solver.
-const MAX_PINS: usize = 8;
+/// the box's); more, and there is no banded solver. A clamped edge folds
+/// up to r texels' reads onto one, and the null directions grow with r:
+/// at N = 63 the ramp's P had 15 to 22 and the box's Q 20 to 30 (1030,
+/// 2048 and 20000 texels), against 1 at N = 5.
+pub(super) const MAX_PINS: usize = 64;
 
 /// How far c·x_s(t) may be from δ_st for the pinned texels' vectors x_s
-/// to be taken as null vectors (c the pin).
-const PIN_CHECK: f64 = 1e-6;
+/// to be taken as null vectors (c the pin). The rounding of a pinned
+/// solve grows with the rest's conditioning, as n²: the null directions
+/// at N = 63 came out within 1.5e-9 at 1030 texels, 3.5e-6 at 2048 and
+/// 1.2e-5 at 20000; a direction that is seen is off by its eigenvalue's
+/// share of the pin.
+const PIN_CHECK: f64 = 1e-4;
 
 /// The null directions of the banded axis's ramp or box: the texels
 /// pinned, and a null vector for each.
@@ -97,24 +99,24 @@ pub(super) struct OneAxis {
 impl OneAxis {
     /// The solver of `patch`'s fit on an image of `h` rows, or `None`
     /// where the path does not apply: the shorter axis past
-    /// [`MAX_DENSE`], the longer one not clamped (or one texel), a band
-    /// wider than [`MAX_BAND`], or the longer axis's ramp or box blind to
-    /// more than the constant.
+    /// [`MAX_DENSE`](super::dense::MAX_DENSE), the longer one not clamped (or one texel), a band
+    /// wider than [`MAX_BAND`](super::cost::MAX_BAND), or the longer axis's ramp or box blind to
+    /// more than [`MAX_PINS`] directions, or a pin on one that is seen.
     pub(super) fn new(patch: &Patch, h: usize) -> Option<OneAxis> {
         let w = patch.w;
         let transposed = w < h;
         let (m, n) = if transposed { (w, h) } else { (h, w) };
-        let (dense_line, dense_border, long_line, long_border) = if transposed {
-            (&patch.x, patch.borders.x, &patch.y, patch.borders.y)
+        let (dense_line, dense_border, long_border) = if transposed {
+            (&patch.x, patch.borders.x, patch.borders.y)
         } else {
-            (&patch.y, patch.borders.y, &patch.x, patch.borders.x)
+            (&patch.y, patch.borders.y, patch.borders.x)
         };
         let r = patch.patch / 2;
         if !applies(m, n, long_border, r) {
             return None;
         }
         let band = (2 * r).min(n - 1);
-        let (p, q) = normal_bands(long_line, n, r, band);
+        let (p, q) = normal_bands(n, r, band);
         let basis = Basis::new(dense_line, m, dense_border)?;
         let mut solver = OneAxis {
             m,
@@ -413,52 +415,23 @@ impl OneAxis {
     }
 }
 
-/// Refuses, before any solve, the exact inverse of a map that no exact
-/// solve here takes in time linear in its texels: clamp with N ≥ 5 (no
-/// transform) with both sides past [`MAX_DENSE`], where a dense basis
-/// would cost O(n³) and each solve O(texels · n), and conjugate
-/// gradients with the half-sample preconditioner took more than 1000
-/// iterations a solve (2048 × 256, N = 5: 151 s, unsettled at N = 63).
-/// A map without a slope never comes here: its heights are 0.
-///
-/// Errors: [`crate::Error::InvalidOption`] naming the limit and what to
-/// use instead.
-pub(super) fn check_shape(w: usize, h: usize, borders: crate::Borders, patch: usize) -> Result<()> {
-    use super::solve::Axis;
-    let r = patch / 2;
-    let transform = Axis::new(w, borders.x, r).is_some() && Axis::new(h, borders.y, r).is_some();
-    if transform || w.min(h) <= MAX_DENSE {
-        return Ok(());
-    }
-    Err(crate::Error::InvalidOption(format!(
-        "clamp borders with N ≥ 5 are solved for maps with a side of at most {MAX_DENSE} texels; \
-         this one is {w} × {h}: use --border mirror or wrap, or N = 3"
-    )))
-}
-
-/// Whether the path takes a map whose shorter axis has `m` texels and
-/// whose longer one `n`, with `border`, for a patch of radius `r`.
-pub(super) fn applies(m: usize, n: usize, border: Border, r: usize) -> bool {
-    m <= MAX_DENSE && n >= 2 && border == Border::Clamp && (2 * r).min(n - 1) <= MAX_BAND
-}
-
 /// P = RᵀR and Q = BᵀB of a clamped line of `n` texels, patch radius `r`,
-/// as lower bands of half-bandwidth `band`: R and B read from the line's
-/// own sums (`line.rs`) of each unit vector, which reach r texels at most.
-fn normal_bands(line: &Line, n: usize, r: usize, band: usize) -> (Vec<f64>, Vec<f64>) {
+/// as lower bands of half-bandwidth `band`. Row x of R and B from clamp's
+/// index map (`line.rs`'s ramp[x] = Σ k·e[x + k], box[x] = Σ e[x + k],
+/// e[t] = in[clamp(t)]), which reaches r texels at most: O(n r), where
+/// the line's response to each unit vector cost O(n) each, O(n²) in all
+/// (3.6 s of 3.7 at 3 × 20000, N = 5). Their values are small integers,
+/// exact either way.
+fn normal_bands(n: usize, r: usize, band: usize) -> (Vec<f64>, Vec<f64>) {
     let width = band + 1;
     let reach = 2 * r + 1;
     // Row x of R and B: columns x − r … x + r.
     let (mut rows_r, mut rows_b) = (vec![0.0; n * reach], vec![0.0; n * reach]);
-    let (mut unit, mut boxed, mut ramped) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let mut scratch = Scratch::default();
-    for j in 0..n {
-        unit[j] = 1.0;
-        line.apply(&unit, Some(&mut boxed), Some(&mut ramped), &mut scratch);
-        unit[j] = 0.0;
-        for x in j.saturating_sub(r)..(j + r + 1).min(n) {
-            rows_r[x * reach + j + r - x] = ramped[x];
-            rows_b[x * reach + j + r - x] = boxed[x];
+    for x in 0..n {
+        for k in -(r as isize)..=r as isize {
+            let j = Border::Clamp.map(x as isize + k, n);
+            rows_r[x * reach + j + r - x] += k as f64;
+            rows_b[x * reach + j + r - x] += 1.0;
         }
     }
     let gram = |rows: &[f64]| {
@@ -510,8 +483,26 @@ pub(super) enum Separable {
 impl Separable {
     /// The solver of `patch`'s fit on an image of `h` rows, or `None`
     /// where neither applies.
-    pub(super) fn new(patch: &Patch, h: usize) -> Option<Separable> {
-        DenseSolver::new(patch, h).map(Separable::Dense).or_else(|| OneAxis::new(patch, h).map(Separable::OneAxis))
+    /// The first path of [`super::cost::paths`] (those within the limit of
+    /// time) that can be made: `Some` solver, or `None` for conjugate
+    /// gradients.
+    ///
+    /// Errors: [`crate::Error::InvalidOption`], the limit's refusal, where
+    /// none can (the banded path's pins failing, say, with conjugate
+    /// gradients past the limit).
+    pub(super) fn within_limit(patch: &Patch, h: usize, opts: &super::HeightOptions) -> Result<Option<Separable>> {
+        use super::cost::Path;
+        for path in super::cost::paths(patch.w, h, opts) {
+            let made = match path {
+                Path::Dense => DenseSolver::new(patch, h).map(Separable::Dense),
+                Path::OneAxis => OneAxis::new(patch, h).map(Separable::OneAxis),
+                Path::ConjugateGradients => return Ok(None),
+            };
+            if made.is_some() {
+                return Ok(made);
+            }
+        }
+        Err(super::cost::refusal(patch.w, h, opts))
     }
 
     /// As [`DenseSolver::solve`]; `null` (the threshold of the modes left
@@ -543,6 +534,44 @@ impl Separable {
         match self {
             Separable::Dense(dense) => dense.inverse(b, lambda, epsilon, weights, out),
             Separable::OneAxis(one) => one.inverse(b, lambda, epsilon, weights, out),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::height::line::{Line, Scratch};
+
+    /// The bands of P = RᵀR and Q = BᵀB from clamp's index map are those
+    /// of R and B as the line applies them (each unit vector's response),
+    /// bit for bit, on lines shorter and longer than the patch.
+    #[test]
+    fn the_bands_are_the_lines_own_normal_matrices() {
+        for (n, r) in [(2, 1), (7, 2), (5, 7), (40, 3), (64, 31), (20, 31)] {
+            let line = Line::border(n, Border::Clamp, r);
+            let (mut rr, mut bb) = (vec![0.0; n * n], vec![0.0; n * n]);
+            let (mut unit, mut boxed, mut ramped) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            let mut scratch = Scratch::default();
+            for j in 0..n {
+                unit[j] = 1.0;
+                line.apply(&unit, Some(&mut boxed), Some(&mut ramped), &mut scratch);
+                unit[j] = 0.0;
+                for x in 0..n {
+                    rr[x * n + j] = ramped[x];
+                    bb[x * n + j] = boxed[x];
+                }
+            }
+            let band = (2 * r).min(n - 1);
+            let (p, q) = normal_bands(n, r, band);
+            for (m, got) in [(&rr, &p), (&bb, &q)] {
+                for i in 0..n {
+                    for j in i.saturating_sub(band)..=i {
+                        let want: f64 = (0..n).map(|x| m[x * n + i] * m[x * n + j]).sum();
+                        assert_eq!(got[i * (band + 1) + j + band - i], want, "n {n} r {r}: ({i}, {j})");
+                    }
+                }
+            }
         }
     }
 }

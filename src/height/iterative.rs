@@ -15,6 +15,7 @@ use crate::par::prelude::*;
 use crate::samples::{try_filled, try_vec};
 
 use super::banded::Separable;
+use super::cost::CG_ITERATIONS;
 use super::gauss_newton::Vertical;
 use super::line::{Work, columns_in_place, rows};
 use super::patch::Patch;
@@ -34,7 +35,9 @@ pub(crate) fn exact(
     z: &mut [f64],
 ) -> Result<(usize, bool, f64)> {
     let (borders, n) = (opts.fit.borders, opts.fit.patch);
-    super::banded::check_shape(w, h, borders, n)?;
+    // Refused before any work where no path solves it within the limit
+    // of time (`cost.rs`).
+    super::cost::check(w, h, opts)?;
     let solver = Solver::new(w, h, borders, n, Model::Exact);
     let patch = Patch::new(w, h, opts);
     // Clamp with N ≥ 5: conjugate gradients, preconditioned by (and, the
@@ -44,7 +47,7 @@ pub(crate) fn exact(
     let nearest = if solver.is_none() { Solver::nearest(w, h, borders, n, Model::Exact) } else { None };
     // The exact solve in dense bases where the axes are short enough, or
     // in one dense basis and banded solves (`banded.rs`).
-    let dense = if solver.is_none() { Separable::new(&patch, h) } else { None };
+    let dense = if solver.is_none() { Separable::within_limit(&patch, h, opts)? } else { None };
     // The dense solves' null threshold: the fixed point's own first, the
     // exact least squares once it has settled (see below).
     let mut null = if opts.fit.fit == Fit::Vertical { super::dense::NULL } else { super::dense::ORTHOGONAL_NULL };
@@ -541,12 +544,6 @@ fn dense_solve(
     drop((gx, gy));
     dense.solve(&mut b, lambda, null, (&wx, &wy), z)
 }
-
-/// The conjugate gradients' iterations at most, over every solve of one
-/// inverse: each is a few passes over the texels whatever N, so the time
-/// is bounded by the texels; past it the heights are the closest found,
-/// unsettled.
-const CG_ITERATIONS: usize = 2000;
 
 /// ε of the conjugate gradients' preconditioner: the weight of the
 /// transform's null modes, which the exact operator sees where patches

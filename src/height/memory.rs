@@ -186,14 +186,16 @@ fn one_axis_band(w: usize, h: usize, opts: &HeightOptions) -> Option<usize> {
     let (m, n) = (w.min(h), w.max(h));
     let border = if w < h { opts.fit.borders.y } else { opts.fit.borders.x };
     let r = opts.fit.patch / 2;
-    super::banded::applies(m, n, border, r).then(|| (2 * r).min(n - 1))
+    super::cost::applies(m, n, border, r).then(|| (2 * r).min(n - 1))
 }
 
 /// What the banded solves hold between solves: the shorter axis's basis
-/// (as [`dense_bases`] counts one) and the longer axis's P and Q bands.
+/// (as [`dense_bases`] counts one), the longer axis's P and Q bands, and
+/// their null vectors (up to [`super::banded::MAX_PINS`] each, n values).
 fn one_axis_held(w: usize, h: usize, band: usize) -> u64 {
     let (m, n) = (w.min(h) as u64, w.max(h) as u64);
-    F64 * (m * m + 5 * m) + 2 * F64 * n * (band as u64 + 1)
+    let nulls = 2 * super::banded::MAX_PINS as u64 * n;
+    F64 * (m * m + 5 * m) + 2 * F64 * n * (band as u64 + 1) + F64 * nulls
 }
 
 /// Making them: the shorter axis's basis (ten m × m matrices, as

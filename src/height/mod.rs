@@ -69,6 +69,7 @@
 //! (baked, scanned) or whose N is unknown.
 
 mod banded;
+mod cost;
 mod dense;
 mod gauss_newton;
 mod iterative;

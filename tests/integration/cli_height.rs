@@ -340,3 +340,21 @@ fn heights_past_the_floats_range_are_an_error_not_infinities() {
     assert!(line.contains("overflow") && line.contains("larger scale"), "{line}");
     assert_eq!(listing(dir.path()), ["back.png", "h.png", "n.png"]);
 }
+
+/// Clamp with a patch whose solve would grow with N² (2048 × 4 at
+/// N = 255: a band of 254 along the long axis, past the banded path's, and
+/// conjugate gradients past the limit of time) is refused before any
+/// solve: one line naming the estimate and the limit, exit 2, nothing
+/// written; mirror at the same N (a transform) runs.
+#[test]
+fn clamp_past_the_limit_of_time_is_one_line_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (hmap, nmap, out) = (dir.path().join("h.png"), dir.path().join("n.exr"), dir.path().join("back.exr"));
+    write_heights(&hmap, 2048, 4);
+    ok(&run(&["convert", s(&hmap), "-o", s(&nmap), "-n", "255", "--border", "clamp"]));
+    let line = error_line(&run(&["height", s(&nmap), "-o", s(&out), "-n", "255", "--border", "clamp"]));
+    assert!(line.contains("2048 × 4") && line.contains("past the limit of 2.1e9"), "{line}");
+    assert!(line.contains("--border mirror or wrap"), "{line}");
+    assert!(!out.exists(), "nothing written");
+    ok(&run(&["height", s(&nmap), "-o", s(&out), "-n", "255", "--border", "mirror"]));
+}
