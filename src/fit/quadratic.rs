@@ -421,10 +421,10 @@ fn band_curvature<H: Sample, A: Acc>(
         }
         let at = k * width..(k + 1) * width;
         A::moments(&padded, n, &mut h0[at.clone()], Some(&mut h1[at.clone()]), Some(&mut h2[at.clone()]));
-        if let Some(holes) = holes.as_mut() {
-            if any_hole {
-                A::moments(&hole_row, n, &mut holes[at], None, None);
-            }
+        if let Some(holes) = holes.as_mut()
+            && any_hole
+        {
+            A::moments(&hole_row, n, &mut holes[at], None, None);
         }
     }
     let cells = rows_out * width;
