@@ -638,7 +638,6 @@ fn normals<'py>(
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (heights, patch, border, scale, relief, invert, threads, units, pixel_size, nodata))]
 fn curvature<'py>(
-    py: Python<'py>,
     heights: &Bound<'py, PyAny>,
     patch: &Bound<'py, PyAny>,
     border: &Bound<'py, PyAny>,
