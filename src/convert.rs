@@ -60,6 +60,7 @@ use crate::io::{
     TextureCompression, TextureOptions,
 };
 pub use crate::mips::MipChoice;
+pub use crate::options::Product;
 use crate::units::MapSpacing;
 
 /// Every choice of a conversion. The defaults are the contract's: the
@@ -122,6 +123,13 @@ pub struct Conversion {
     /// them, and against [`Conversion::replace`], before the work starts.
     /// Default: none.
     pub inputs: Arc<Inputs>,
+    /// What is made: the normal map, or the curvature map
+    /// ([`crate::fit::curvature`], read whole). Default: normals.
+    pub product: Product,
+    /// The curvature that maps to white in an 8- or 16-bit curvature map
+    /// ([`crate::fit::quadratic::encode`]), in the fit's units. Default:
+    /// [`crate::fit::quadratic::DEFAULT_RANGE`].
+    pub curvature_range: f64,
 }
 
 impl Default for Conversion {
@@ -145,6 +153,8 @@ impl Default for Conversion {
             roughness: false,
             roughness_base: None,
             inputs: Arc::default(),
+            product: Product::Normals,
+            curvature_range: crate::fit::quadratic::DEFAULT_RANGE,
         }
     }
 }
@@ -266,6 +276,21 @@ impl Conversion {
         self
     }
 
+    /// Making this product (the normal map, or the curvature map).
+    #[must_use]
+    pub fn with_product(mut self, product: Product) -> Conversion {
+        self.product = product;
+        self
+    }
+
+    /// The curvature that maps to white in an 8- or 16-bit curvature map
+    /// (finite and positive: checked when the map is written).
+    #[must_use]
+    pub fn with_curvature_range(mut self, range: f64) -> Conversion {
+        self.curvature_range = range;
+        self
+    }
+
     /// Making the residual map too (read whole).
     #[must_use]
     pub fn with_residual(mut self, residual: bool) -> Conversion {
@@ -280,9 +305,9 @@ impl Conversion {
     /// ([`crate::io::read_path`], [`crate::io::decode`]).
     pub fn open(&self, input: Input<'_>) -> Result<Opened, ConvertError> {
         // A residual map is made from the whole image.
-        let source =
-            engine::Source::open(input, &self.read, self.channel.clone(), !self.residual && self.mips.is_none())
-                .map_err(ConvertError::at(Place::Input))?;
+        let may_stream = !self.residual && self.mips.is_none() && self.product == Product::Normals;
+        let source = engine::Source::open(input, &self.read, self.channel.clone(), may_stream)
+            .map_err(ConvertError::at(Place::Input))?;
         Ok(Opened { conversion: self.clone(), source })
     }
 
@@ -439,14 +464,23 @@ impl Opened {
             roughness_base: c.roughness_base.as_deref(),
             inputs: c.inputs.clone(),
         };
-        let stage = match (c.mips, encoding) {
-            (None, Encoding::Texture(_)) | (Some(_), _) => Stage::Mips(MipStage {
+        let stage = match (c.product, c.mips, encoding) {
+            (Product::Curvature, Some(_), _) => {
+                let problem = "a curvature map has no mip chain: leave out the mips";
+                return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
+            }
+            (Product::Curvature, None, _) => {
+                let range = crate::fit::quadratic::validate_range(c.curvature_range)
+                    .map_err(ConvertError::at(Place::Output))?;
+                Stage::Curvature { encoding: *encoding, range }
+            }
+            (_, None, Encoding::Texture(_)) | (_, Some(_), _) => Stage::Mips(MipStage {
                 choice: c.mips.unwrap_or_default(),
                 all: c.mips.is_some(),
                 encoding: *encoding,
                 roughness: c.roughness || c.roughness_base.is_some(),
             }),
-            (None, _) => Stage::Normals(*encoding),
+            (_, None, _) => Stage::Normals(*encoding),
         };
         let sink = Sink { main: normals, residual };
         engine::run(source, stage, sink, settings, observer).map(|(summary, _)| summary)

@@ -228,8 +228,8 @@ pub mod units;
 extern crate self as normalfit;
 
 pub use error::{Error, Result};
-pub use fit::{FitRequest, FromNormal, Heights, normals};
-pub use options::{Border, Borders, Convention, Fit, Options, Spacing, Strength, Units};
+pub use fit::{FitRequest, FromNormal, Heights, curvature, normals};
+pub use options::{Border, Borders, Convention, Fit, Options, Product, Spacing, Strength, Units};
 pub use samples::{Sample, Samples};
 
 /// The README's Rust code, compiled and run by `cargo test` as doc tests,

@@ -299,6 +299,21 @@ impl Spacing {
 /// The largest ratio of a texel's two spacings accepted.
 pub const MAX_SPACING_RATIO: f64 = 1e6;
 
+named_values!(Product, "product", { Normals => "normals", Curvature => "curvature" });
+
+/// What a conversion makes of the heights (`--product`, `product=`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Product {
+    /// The normal map of the plane fitted over each patch. The default.
+    #[default]
+    Normals,
+    /// The mean curvature of the quadratic fitted over each patch, convex
+    /// positive (docs/curvature.md, [`crate::fit::curvature`]): one
+    /// channel, float as it is, 8 or 16 bits mapped round mid-grey.
+    Curvature,
+}
+
 named_values!(UnitsName, "units", { Texels => "texels", Map => "map" });
 
 /// The names of [`Units`] as front ends spell them (`--units texels|map`):

@@ -639,6 +639,71 @@ fn check_nodata_output(nodata: Option<f64>, output: OutputKind) -> PyResult<()> 
     }
 }
 
+/// `curvature` with every argument given (see `normalfit.curvature`):
+/// the library's `normalfit::curvature`, float32 (rows, columns).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (heights, patch, border, scale, relief, invert, threads, units, pixel_size, nodata))]
+fn curvature<'py>(
+    heights: &Bound<'py, PyAny>,
+    patch: &Bound<'py, PyAny>,
+    border: &Bound<'py, PyAny>,
+    scale: Option<f64>,
+    relief: Option<f64>,
+    invert: bool,
+    threads: Option<&Bound<'py, PyAny>>,
+    units: &str,
+    pixel_size: Option<(f64, f64)>,
+    nodata: Option<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let heights = as_array(heights, "heights", &[2])?;
+    let kind = sample_kind(heights, "heights")?;
+    let (mut opts, borders) = fit_options(patch, "orthogonal", border, "opengl", scale, relief, invert)?;
+    if let Some(map) = map_units(units, pixel_size)? {
+        opts = opts.with_units(map.units(None, heights.shape()[0]).map_err(to_py_err)?);
+    }
+    let opts = opts.with_nodata(nodata);
+    let pool = pool(threads)?;
+    match kind {
+        SampleKind::U8 => curvature_typed::<u8>(heights, &opts, borders, pool),
+        SampleKind::U16 => curvature_typed::<u16>(heights, &opts, borders, pool),
+        SampleKind::F32 => curvature_typed::<f32>(heights, &opts, borders, pool),
+        SampleKind::F64 => curvature_typed::<f64>(heights, &opts, borders, pool),
+    }
+}
+
+/// [`curvature`] for the heights' sample type: read in place when the
+/// array is C-contiguous, `auto` borders settled by the tiling check.
+fn curvature_typed<'py, H: Stored>(
+    heights: &Bound<'py, PyUntypedArray>,
+    opts: &Options,
+    choices: BorderChoices,
+    pool: Option<Borrowed>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let py = heights.py();
+    let (h, w) = (heights.shape()[0], heights.shape()[1]);
+    let source = heights.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
+    let in_place = if heights.is_c_contiguous() { source.as_slice().ok() } else { None };
+    let view = source.as_array();
+    let pool = pool.as_ref().and_then(|b| b.pool.as_ref());
+    let values = py
+        .detach(|| -> Result<Vec<f32>, Error> {
+            let copy;
+            let heights: &[H] = match in_place {
+                Some(s) => s,
+                None => {
+                    copy = row_order(&view)?;
+                    &copy
+                }
+            };
+            let borders = choices.settle(heights, w, h)?;
+            let opts = opts.clone().with_borders(borders);
+            on_pool(pool, || normalfit::curvature(heights, w, h, &opts))
+        })
+        .map_err(to_py_err)?;
+    Ok(PyArray1::from_vec(py, values).reshape([h, w])?.into_any())
+}
+
 /// [`fit_typed`] for the heights' sample type and the output's.
 fn fit_call<'py>(
     heights: &Bound<'py, PyUntypedArray>,
@@ -1781,6 +1846,7 @@ fn check_dict<'py>(py: Python<'py>, path: &Path, r: &CheckReport) -> PyResult<Bo
 fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(normals, m)?)?;
     m.add_function(wrap_pyfunction!(mips, m)?)?;
+    m.add_function(wrap_pyfunction!(curvature, m)?)?;
     m.add_function(wrap_pyfunction!(_kept_pools, m)?)?;
     m.add_function(wrap_pyfunction!(window_normals, m)?)?;
     m.add_function(wrap_pyfunction!(window_plan, m)?)?;

@@ -4,12 +4,13 @@ add-on from its zip, enables it, and runs its operator.
     blender -b --factory-startup --python-use-system-env \\
         --python blender_driver.py -- ADDON.zip JOB.json
 
-JOB.json: {"source": image file, "options": the operator's keywords,
+JOB.json: {"source": image file, "operator": "normal_map" (the default)
+or "curvature", "options": the operator's keywords,
 "cli": the command line's float EXR of the same map (or null),
 "wire": whether to make an object with a material to wire into,
 "install": a wheel to install through the add-on's preferences (or null),
 "unpack" and "into": a wheel to unpack into a folder, without pip (or null),
-"out": an .npz to write}. The .npz holds `made` (the operator's image,
+"out": an .npz to write}. The .npz holds `made` (the operator's image, `heights_normal` or `heights_curvature`,
 float32 RGB, rows top to bottom), `cli` (the EXR as Blender reads it),
 `links` (the material's links, "from_node.socket>to_node.socket") and
 `error` (the operator's message when it refused). Exit 1 on anything
@@ -64,15 +65,17 @@ def main(addon_zip: str, job_path: str) -> None:
         material = bpy.data.materials.new("ground")
         material.use_nodes = True
         bpy.context.object.data.materials.append(material)
+    operator = job.get("operator", "normal_map")
+    made = "heights" + {"normal_map": "_normal", "curvature": "_curvature"}[operator]
     try:
-        bpy.ops.normalfit.normal_map(image=job.get("image", "heights"), **job["options"])
+        getattr(bpy.ops.normalfit, operator)(image=job.get("image", "heights"), **job["options"])
     except RuntimeError as e:
         # The operator's report: Blender raises it in background mode.
         result["error"] = np.array(str(e))
     else:
-        result["made"] = pixels_rgb(bpy.data.images["heights_normal"])
-        result["colorspace"] = np.array(bpy.data.images["heights_normal"].colorspace_settings.name)
-        result["is_float"] = np.array(bpy.data.images["heights_normal"].is_float)
+        result["made"] = pixels_rgb(bpy.data.images[made])
+        result["colorspace"] = np.array(bpy.data.images[made].colorspace_settings.name)
+        result["is_float"] = np.array(bpy.data.images[made].is_float)
     if job.get("cli"):
         result["cli"] = pixels_rgb(bpy.data.images.load(job["cli"], check_existing=False))
     if job.get("wire"):

@@ -81,3 +81,26 @@ def encode(n: np.ndarray, bits: int) -> np.ndarray:
     """SPEC section 3: round((2^bits - 1) (n + 1) / 2), ties to even."""
     top = 2**bits - 1
     return np.rint((n + 1.0) * (top / 2.0)).astype(np.uint8 if bits == 8 else np.uint16)
+
+
+def curvature(stored: np.ndarray, patch: int, scale: float, border: str) -> np.ndarray:
+    """The mean curvature, convex positive, of the least-squares quadratic
+    z = a u^2 + b uv + c v^2 + d u + e v + f over each texel's patch (texel
+    units, z = scale * heights_of(stored)): the 6 x 6 design matrix solved
+    by numpy's least squares, per texel."""
+    z = scale * heights_of(stored)
+    h, w = z.shape
+    r = patch // 2
+    j, i = np.mgrid[-r : r + 1, -r : r + 1]
+    u, v = i.ravel().astype(np.float64), j.ravel().astype(np.float64)
+    design = np.stack([u * u, u * v, v * v, u, v, np.ones_like(u)], axis=1)
+    pinv = np.linalg.pinv(design)
+    out = np.empty((h, w))
+    for y in range(h):
+        rows = border_map(border, y + j.ravel(), h)
+        for x in range(w):
+            cols = border_map(border, x + i.ravel(), w)
+            a, b, c, d, e, _ = pinv @ z[rows, cols]
+            g = 1.0 + d * d + e * e
+            out[y, x] = -((1 + e * e) * 2 * a - 2 * d * e * b + (1 + d * d) * 2 * c) / (2 * g**1.5)
+    return out

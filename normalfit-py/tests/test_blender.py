@@ -108,6 +108,38 @@ def test_the_operator_makes_the_clis_pixels(
     assert made[:, :, 0].std() > 0.01 and made[:, :, 1].std() > 0.01
 
 
+CURVATURE_CASES = [
+    ("rock.png", {"patch": 5, "scale": 4.0}, ["-n", "5", "-s", "4"]),
+    ("terrain.png", {"patch": 9, "scale": 8.0, "border": "clamp"}, ["-n", "9", "-s", "8", "--border", "clamp"]),
+]
+
+
+@pytest.mark.parametrize(("sample", "options", "cli_options"), CURVATURE_CASES, ids=[c[0] for c in CURVATURE_CASES])
+def test_the_curvature_operator_makes_the_clis_pixels(
+    sample: str,
+    options: dict[str, object],
+    cli_options: list[str],
+    addon_zip: Path,
+    package_only: Path,
+    cli: Path,
+    tmp_path: Path,
+) -> None:
+    source = ROOT / "samples" / sample
+    exr = tmp_path / "cli.exr"
+    run_cli(cli, "convert", source, "-o", exr, "--product", "curvature", "--quiet", *cli_options)
+    job = {"source": str(source), "operator": "curvature", "options": options, "cli": str(exr)}
+    got = run_blender(addon_zip, tmp_path, job, package_only)
+    made, want = got["made"], got["cli"]
+    assert str(got["colorspace"]) == "Non-Color" and bool(got["is_float"])
+    assert made.dtype == want.dtype == np.float32 and made.shape == want.shape == (512, 512, 3)
+    # One value a texel, in R, G and B alike; the CLI's EXR holds it in Y.
+    assert np.array_equal(made[:, :, 0], made[:, :, 1]) and np.array_equal(made[:, :, 0], made[:, :, 2])
+    differ = np.count_nonzero(made[:, :, 0].view(np.uint32) != want[:, :, 0].view(np.uint32))
+    assert differ == 0, f"{differ} of {512 * 512} texels differ from the CLI's EXR"
+    # Convex and concave texels both: the sample has relief.
+    assert (made[:, :, 0] > 0).any() and (made[:, :, 0] < 0).any()
+
+
 def test_the_operator_wires_the_map_into_the_material(addon_zip: Path, package_only: Path, tmp_path: Path) -> None:
     job = {"source": str(ROOT / "samples" / "rock.png"), "options": {"scale": 4.0, "wire": True}, "wire": True}
     got = run_blender(addon_zip, tmp_path, job, package_only)

@@ -20,7 +20,7 @@ use normalfit::normal_map::KindChoice;
 use normalfit::options::UnitsName;
 use normalfit::shade::{Light, LitOptions};
 use normalfit::tiling::TilingOptions;
-use normalfit::{Borders, Convention, Fit, Options};
+use normalfit::{Borders, Convention, Fit, Options, Product};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -161,6 +161,19 @@ pub struct ConvertArgs {
     #[arg(long, default_value_t = Conversion::default().compression,
           value_parser = named::<PngCompression>(PngCompression::NAMED))]
     pub compression: PngCompression,
+
+    /// What to make: normals, or curvature (the mean curvature of the
+    /// quadratic fitted over each patch, convex positive, in 1/texel or,
+    /// with --units map, 1/map unit: written as it is in EXR and float
+    /// TIFF, mapped to gray in 8- and 16-bit outputs, flat at mid-gray;
+    /// docs/curvature.md). Curvature reads the image whole.
+    #[arg(long, default_value_t = Product::default(), value_parser = named::<Product>(Product::ALL))]
+    pub product: Product,
+
+    /// The curvature that maps to white in an 8- or 16-bit curvature map
+    /// (minus it to black; beyond, clipped). Default: 0.1.
+    #[arg(long, value_name = "R", value_parser = parse_curvature_range)]
+    pub curvature_range: Option<f64>,
 
     #[command(flatten)]
     pub read: ReadArgs,
@@ -750,6 +763,12 @@ fn parse_patch(s: &str) -> Result<usize, String> {
     normalfit::options::parse_patch(s).map_err(|e| library_message(&e))
 }
 
+/// `--curvature-range R`, as the library checks it.
+fn parse_curvature_range(s: &str) -> Result<f64, String> {
+    let v = s.trim().parse::<f64>().map_err(|_| format!("expected a number, got '{s}'"))?;
+    normalfit::fit::quadratic::validate_range(v).map_err(|e| library_message(&e))
+}
+
 fn parse_suffix(s: &str) -> Result<String, String> {
     if s.contains(['/', '\\', '\0']) {
         return Err(format!("the suffix is part of a file name: no '/', '\\' or NUL, got '{s}'"));
@@ -837,6 +856,7 @@ macro_rules! named_value {
 }
 
 named_value!(
+    Product,
     Method,
     MipChoice,
     TextureCompression,

@@ -81,7 +81,11 @@ impl Plan {
             .with_mips(args.mips.mips)
             .with_compress(args.mips.compress)
             .with_roughness(args.mips.roughness, args.mips.roughness_base.clone())
-            .with_map_units(normalfit::units::MapSpacing::choose(args.units.units, args.units.pixel_size));
+            .with_map_units(normalfit::units::MapSpacing::choose(args.units.units, args.units.pixel_size))
+            .with_product(args.product);
+        if let Some(range) = args.curvature_range {
+            conversion = conversion.with_curvature_range(range);
+        }
         conversion.bits = args.bits;
         Ok(Plan { conversion, destination, residual, suffix: args.suffix.clone(), quiet: args.batch.quiet })
     }

@@ -47,7 +47,9 @@ impl Job<'_> {
         match self.stage {
             // GDAL's nodata: missing texels are grey 0, lit ones at least 1.
             Stage::Lit { tile, .. } => TiffTags { georef: if tile { None } else { self.georef }, nodata: Some(0.0) },
-            Stage::Normals(_) | Stage::Mips(_) => TiffTags { georef: self.georef, nodata: None },
+            Stage::Normals(_) | Stage::Mips(_) | Stage::Curvature { .. } => {
+                TiffTags { georef: self.georef, nodata: None }
+            }
         }
     }
 
@@ -159,6 +161,13 @@ impl Job<'_> {
         let (width, height) = (raster.width, raster.height);
         let (heights, fit) = self.heights_and_fit(raster)?;
         let in_failure = ConvertError::at(Place::Input);
+        if let Stage::Curvature { encoding, range } = self.stage {
+            if residual.is_some() {
+                let problem = "a residual map is made beside normals, not beside curvature";
+                return Err(ConvertError { place: Place::Residual, error: Error::InvalidOption(problem.into()) });
+            }
+            return self.curvature_whole(&heights, (width, height), &fit, (encoding, range), normals);
+        }
         if let Stage::Lit { lighting, tile, .. } = self.stage {
             return self.lit_whole(&heights, (width, height), &fit, (lighting, tile), normals);
         }
@@ -482,7 +491,7 @@ impl Job<'_> {
         let tags = self.tiff_tags();
         let lamp = match self.stage {
             Stage::Lit { lighting, .. } => Some(lighting.lamp(self.georef, fit.convention)),
-            Stage::Normals(_) | Stage::Mips(_) => None,
+            Stage::Normals(_) | Stage::Mips(_) | Stage::Curvature { .. } => None,
         };
         let result = match (lamp, out, self.encoding) {
             // The lit view streams into a file alone ([`Stage::streams_into`]).
@@ -561,16 +570,20 @@ impl Job<'_> {
     pub(super) fn run(&mut self, rows: Rows, sink: Sink<'_, '_>) -> Result<(), ConvertError> {
         let Sink { main, residual } = sink;
         let stored = self.settings.map_units.is_some();
-        // A mip chain needs the whole image: a file opened to stream is
-        // read whole.
+        // A mip chain and the curvature need the whole image: a file
+        // opened to stream is read whole.
         let rows = match rows {
-            Rows::Png(_, input) | Rows::Exr(_, input) if matches!(self.stage, Stage::Mips(_)) => Rows::Whole(Box::new(
-                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
-            )),
+            Rows::Png(_, input) | Rows::Exr(_, input)
+                if matches!(self.stage, Stage::Mips(_) | Stage::Curvature { .. }) =>
+            {
+                Rows::Whole(Box::new(
+                    io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
+                ))
+            }
             #[cfg(feature = "tiff")]
-            Rows::Tiff(_, input) if matches!(self.stage, Stage::Mips(_)) => Rows::Whole(Box::new(
-                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
-            )),
+            Rows::Tiff(_, input) if matches!(self.stage, Stage::Mips(_) | Stage::Curvature { .. }) => Rows::Whole(
+                Box::new(io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?),
+            ),
             rows => rows,
         };
         match (rows, main) {
@@ -640,6 +653,58 @@ impl Job<'_> {
         let (encoding, tags) = (self.encoding, self.tiff_tags());
         write_to(out, &mut files, |w| io::write::encode_gray_tagged(&greys, size, &encoding, tags, w))
             .map_err(ConvertError::at(Place::Output))?;
+        self.files = files;
+        Ok(())
+    }
+}
+
+impl Job<'_> {
+    /// The curvature of the whole image ([`crate::fit::curvature`]),
+    /// written as one channel: float as it is, 8 or 16 bits by
+    /// [`crate::fit::quadratic::encode`] with `range` white.
+    fn curvature_whole(
+        &mut self,
+        heights: &Samples,
+        (width, height): (usize, usize),
+        fit: &Options,
+        (encoding, range): (Encoding, f64),
+        out: Option<Output<'_>>,
+    ) -> Result<(), ConvertError> {
+        let in_failure = ConvertError::at(Place::Input);
+        let Some(out) = out else {
+            let problem = "nothing to write: no output given";
+            return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
+        };
+        let values = crate::fit::curvature_samples(heights, width, height, fit).map_err(&in_failure)?;
+        self.summary.missing = values.iter().filter(|v| v.is_nan()).count();
+        self.prepare(&out, Place::Output)?;
+        let mut files = std::mem::take(&mut self.files);
+        let tags = self.tiff_tags();
+        let code = |max: u32| values.iter().map(move |&k| crate::fit::quadratic::encode(k, range, max));
+        let on_out = ConvertError::at(Place::Output);
+        match encoding {
+            Encoding::Png(io::PngOptions { depth: io::PngDepth::Eight, .. })
+            | Encoding::Tiff(io::encoding::TiffOptions { depth: io::encoding::TiffDepth::Eight, .. }) => {
+                let codes: Vec<u8> = code(255).map(|c| c as u8).collect();
+                write_to(out, &mut files, |w| {
+                    io::write::encode_gray_tagged(&codes, (width, height), &encoding, tags, w)
+                })
+            }
+            Encoding::Png(_)
+            | Encoding::Tiff(io::encoding::TiffOptions { depth: io::encoding::TiffDepth::Sixteen, .. }) => {
+                let codes: Vec<u16> = code(65535).map(|c| c as u16).collect();
+                write_to(out, &mut files, |w| {
+                    io::write::encode_gray_tagged(&codes, (width, height), &encoding, tags, w)
+                })
+            }
+            Encoding::Exr(_) | Encoding::Tiff(_) => write_to(out, &mut files, |w| {
+                io::write::encode_gray_tagged(&values, (width, height), &encoding, tags, w)
+            }),
+            Encoding::Texture(_) => {
+                Err(Error::Unsupported("a curvature map is written as .png, .exr or .tif, not as a GPU texture".into()))
+            }
+        }
+        .map_err(on_out)?;
         self.files = files;
         Ok(())
     }

@@ -174,6 +174,15 @@ pub(crate) enum Stage {
     /// are holes), and its residual when a residual output is given (the
     /// whole image).
     Normals(Encoding),
+    /// The curvature map ([`crate::fit::curvature`]): one channel in this
+    /// encoding, float as it is, 8 or 16 bits mapped so that `range` is
+    /// white ([`crate::fit::quadratic::encode`]); from the whole image.
+    Curvature {
+        /// The output's format and depth (its layout not used).
+        encoding: Encoding,
+        /// The curvature that maps to white.
+        range: f64,
+    },
     /// The lit view, 8-bit grey (PNG, or TIFF with GDAL's nodata 0), lit
     /// as `lighting` says; tiled 2×2 from the whole image.
     Lit {
@@ -195,7 +204,7 @@ impl Stage {
     pub(crate) fn streams_into(&self, output: Option<&Output<'_>>) -> bool {
         match self {
             Stage::Normals(_) => true,
-            Stage::Mips(_) => false,
+            Stage::Mips(_) | Stage::Curvature { .. } => false,
             Stage::Lit { tile, .. } => {
                 let into_file = match output {
                     Some(Output::File { path, .. }) => {
@@ -327,6 +336,7 @@ impl Stage {
         match *self {
             Stage::Normals(encoding) => encoding,
             Stage::Mips(mips) => mips.encoding,
+            Stage::Curvature { encoding, .. } => encoding,
             Stage::Lit { tiff: true, .. } => io::encoding::TiffOptions::new(io::encoding::TiffDepth::Eight).into(),
             Stage::Lit { tiff: false, .. } => {
                 io::PngOptions::new(io::PngDepth::Eight).with_compression(io::PngCompression::Default).into()

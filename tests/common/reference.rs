@@ -345,3 +345,68 @@ fn solve3(mut m: [[f64; 4]; 3]) -> [f64; 3] {
     }
     [m[0][3] / m[0][0], m[1][3] / m[1][1], m[2][3] / m[2][2]]
 }
+
+/// The reference curvature of texel (x, y): the least-squares quadratic
+/// z = a·u² + b·uv + c·v² + d·u + e·v + f through the patch's points
+/// (u, v, z) = (sx·i, sy·j, S·h), its 6 × 6 normal equations (no moment
+/// assumed zero) solved by Gaussian elimination with partial pivoting, and
+/// the mean curvature of that surface at the texel, convex positive:
+/// −((1 + e²)·2a − 2·d·e·b + (1 + d²)·2c) / (2·(1 + d² + e²)^{3/2}).
+/// None where any texel of the patch is a hole (`valid[k]` false).
+pub fn curvature_at<H: Copy + Into<f64>>(
+    heights: &[H],
+    valid: Option<&[bool]>,
+    w: usize,
+    h: usize,
+    opts: &Options,
+    x: usize,
+    y: usize,
+) -> Option<f64> {
+    let n = opts.patch;
+    let pts = patch_points(heights, valid, w, h, opts, x, y);
+    if pts.len() < n * n {
+        return None;
+    }
+    let mut m = [[0.0f64; 7]; 6];
+    for p in &pts {
+        // The y axis's sign (σ) plays no part in the curvature: undo it.
+        let (u, v, z) = (p.place[0], p.place[1].abs() * (p.offset[1].signum() as f64), p.place[2]);
+        let row = [u * u, u * v, v * v, u, v, 1.0];
+        for a in 0..6 {
+            for b in 0..6 {
+                m[a][b] += row[a] * row[b];
+            }
+            m[a][6] += row[a] * z;
+        }
+    }
+    for col in 0..6 {
+        let piv = (col..6).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs())).unwrap();
+        m.swap(col, piv);
+        for row in 0..6 {
+            if row != col {
+                let f = m[row][col] / m[col][col];
+                for k in col..7 {
+                    m[row][k] -= f * m[col][k];
+                }
+            }
+        }
+    }
+    let c: Vec<f64> = (0..6).map(|k| m[k][6] / m[k][k]).collect();
+    let (a, b, cc, d, e) = (c[0], c[1], c[2], c[3], c[4]);
+    let g = 1.0 + d * d + e * e;
+    Some(-((1.0 + e * e) * 2.0 * a - 2.0 * d * e * b + (1.0 + d * d) * 2.0 * cc) / (2.0 * g * g.sqrt()))
+}
+
+/// [`curvature_at`] of every texel, row-major; NaN where it is None.
+pub fn curvature_map<H: Copy + Into<f64>>(
+    heights: &[H],
+    valid: Option<&[bool]>,
+    w: usize,
+    h: usize,
+    opts: &Options,
+) -> Vec<f64> {
+    (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| curvature_at(heights, valid, w, h, opts, x, y).unwrap_or(f64::NAN))
+        .collect()
+}

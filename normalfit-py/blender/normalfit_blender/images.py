@@ -89,6 +89,11 @@ def encoded(normals: np.ndarray) -> np.ndarray:
     return (normals + np.float32(1.0)) * np.float32(0.5)
 
 
+def gray(values: np.ndarray) -> np.ndarray:
+    """A (rows, columns) float32 plane as (rows, columns, 3), R = G = B."""
+    return np.repeat(values[:, :, np.newaxis], 3, axis=2).astype(np.float32, copy=False)
+
+
 def put_rgb(bpy_data: Any, name: str, rgb: np.ndarray) -> Any:
     """A float, non-colour Blender image `name` holding `rgb` ((rows,
     columns, 3) float32, rows top to bottom), alpha 1. An image of that

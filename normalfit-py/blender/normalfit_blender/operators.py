@@ -132,6 +132,45 @@ class NORMALFIT_OT_normal_map(bpy.types.Operator):
             self.report({"WARNING"}, "Blender's Normal Map node reads OpenGL normals: this DirectX map will look inverted")
 
 
+class NORMALFIT_OT_curvature(bpy.types.Operator):
+    """Make the curvature map of an image of heights: the mean curvature of normalfit's least-squares quadratic over each patch, convex positive"""
+
+    bl_idname = "normalfit.curvature"
+    bl_label = "Curvature from Height (normalfit)"
+    bl_options = {"REGISTER", "UNDO"}
+
+    image: bpy.props.StringProperty(name="Image", description="The height map (default: the image shown)")
+    patch: bpy.props.IntProperty(
+        name="Patch", description="The patch's side N (odd): larger is smoother", default=3, min=3, max=1023, step=2
+    )
+    scale: bpy.props.FloatProperty(
+        name="Scale", description="Texel widths the full height range spans", default=1.0, min=0.0, soft_max=64.0
+    )
+    border: bpy.props.EnumProperty(name="Border", items=BORDERS, default="wrap")
+    invert: bpy.props.BoolProperty(name="Invert", description="Dark is high", default=False)
+    channel: bpy.props.EnumProperty(name="Channel", items=CHANNELS, default="luma")
+
+    def execute(self, context: Any) -> set[str]:
+        try:
+            normalfit = package()
+            source = chosen_image(context, self.image)
+            heights = images.stored_heights(source, self.channel)
+            values = normalfit.curvature(
+                heights, patch=self.patch, scale=self.scale, border=self.border, invert=self.invert
+            )
+            # The curvature as it is (1 / texel width, convex positive) in
+            # R, G and B of a float, non-colour image.
+            made = images.put_rgb(bpy.data, f"{source.name}_curvature", images.gray(values))
+        except (ImportError, ValueError, TypeError, OSError, MemoryError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        space = getattr(context, "space_data", None)
+        if space is not None and space.type == "IMAGE_EDITOR":
+            space.image = made
+        self.report({"INFO"}, f"{made.name}: {made.size[0]}×{made.size[1]}, N = {self.patch}")
+        return {"FINISHED"}
+
+
 class NORMALFIT_OT_install_package(bpy.types.Operator):
     """Install the normalfit package (a wheel file) into Blender's own Python"""
 
@@ -230,9 +269,10 @@ class NormalfitPreferences(bpy.types.AddonPreferences):
 
 def image_menu(self: Any, context: Any) -> None:
     self.layout.operator(NORMALFIT_OT_normal_map.bl_idname)
+    self.layout.operator(NORMALFIT_OT_curvature.bl_idname)
 
 
-CLASSES = (NORMALFIT_OT_normal_map, NORMALFIT_OT_install_package, NormalfitPreferences)
+CLASSES = (NORMALFIT_OT_normal_map, NORMALFIT_OT_curvature, NORMALFIT_OT_install_package, NormalfitPreferences)
 
 
 def register() -> None:

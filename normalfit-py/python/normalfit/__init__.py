@@ -32,6 +32,7 @@ __all__ = [
     "check_map",
     "check_tiling",
     "convert",
+    "curvature",
     "decode_normals",
     "height",
     "height_file",
@@ -120,6 +121,45 @@ def normals(
     """
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
+        None if pixel_size is None else _pair(pixel_size), nodata,
+    )
+
+
+def curvature(
+    heights: Any,
+    *,
+    patch: int = 3,
+    border: str | tuple[str, str] = "wrap",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    threads: int | None = None,
+    units: str = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
+    nodata: float | None = None,
+) -> Any:
+    """The curvature map of a height map: ``normalfit convert --product
+    curvature`` as a float32 (rows, columns) array (docs/curvature.md).
+
+    Each texel's value is the mean curvature, at the texel, of the
+    least-squares quadratic z = a u^2 + b uv + c v^2 + d u + e v + f fitted
+    over its patch x patch neighbourhood: convex (a hill top, an edge)
+    positive, concave (a pit, a crease) negative, 0 on planes. In 1 / texel
+    width (heights as ``normals`` reads them: v / 255, v / 65535, floats as
+    they are, times the gain), or with units="map" / pixel_size in 1 / the
+    heights' unit (heights as stored).
+
+    patch, border, scale, relief, invert, threads, units, pixel_size: as
+    ``normals``. nodata: heights equal to it, and NaN or infinite ones, are
+    holes; a texel whose patch holds a hole is NaN. Default None: a NaN
+    height is an error.
+
+    Raises TypeError for heights that are not a 2-D array of uint8,
+    uint16, float32 or float64, ValueError for an option out of range or a
+    NaN height without nodata, MemoryError when the memory is not there.
+    """
+    return _normalfit.curvature(
+        heights, patch, border, scale, relief, invert, threads, units,
         None if pixel_size is None else _pair(pixel_size), nodata,
     )
 

@@ -18,6 +18,7 @@ __all__ = [
     "check_map",
     "check_tiling",
     "convert",
+    "curvature",
     "decode_normals",
     "height",
     "height_file",
@@ -77,6 +78,19 @@ def normals(
     pixel_size: float | tuple[float, float] | None = None,
     nodata: float | None = None,
 ) -> Any: ...
+def curvature(
+    heights: _Heights,
+    *,
+    patch: int = 3,
+    border: str | tuple[_BorderChoice, _BorderChoice] = "wrap",
+    scale: float | None = None,
+    relief: float | None = None,
+    invert: bool = False,
+    threads: int | None = None,
+    units: Literal["texels", "map"] = "texels",
+    pixel_size: float | tuple[float, float] | None = None,
+    nodata: float | None = None,
+) -> npt.NDArray[np.float32]: ...
 def mips(
     array: _Heights,
     *,

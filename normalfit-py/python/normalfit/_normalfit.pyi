@@ -8,6 +8,7 @@ from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionS
 __all__ = [
     "normals",
     "mips",
+    "curvature",
     "window_normals",
     "window_plan",
     "window_halo",
@@ -46,6 +47,18 @@ def normals(
     dtype: Any,
     residual: bool,
     out: Any | None,
+    threads: int | None,
+    units: str,
+    pixel_size: tuple[float, float] | None,
+    nodata: float | None,
+) -> Any: ...
+def curvature(
+    heights: Any,
+    patch: Any,
+    border: Any,
+    scale: float | None,
+    relief: float | None,
+    invert: bool,
     threads: int | None,
     units: str,
     pixel_size: tuple[float, float] | None,
