@@ -22,6 +22,7 @@ mod tiling_support;
 mod blend;
 mod check;
 mod convert_api;
+mod detail;
 mod exr_layouts;
 mod features;
 mod fit_reference;
@@ -73,6 +74,8 @@ mod cli_batch_commands;
 mod cli_blend_check;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_completions_man;
+#[cfg(all(feature = "cli", feature = "all-formats"))]
+mod cli_detail;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_height;
 #[cfg(all(feature = "cli", feature = "all-formats"))]

@@ -50,6 +50,7 @@ def normals(
     units: str,
     pixel_size: tuple[float, float] | None,
     nodata: float | None,
+    detail: Any | None = None,
 ) -> Any: ...
 def mips(
     array: Any,
@@ -97,6 +98,7 @@ def convert(
     decode: str | None,
     nodata: float | None,
     nodata_tag: bool,
+    detail: Any | None = None,
 ) -> ConversionSummary: ...
 def blend(
     base: Any, detail: Any, method: str, strength: float, convention: str, detail_convention: str | None
@@ -138,6 +140,7 @@ def lit_view(
     decode: str | None,
     nodata: float | None,
     nodata_tag: bool,
+    detail: Any | None = None,
 ) -> Any: ...
 def height(
     normals: Any,
@@ -183,6 +186,7 @@ def window_normals(
     dtype: Any,
     residual: bool,
     threads: Any | None,
+    detail: Any | None = None,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],
@@ -196,6 +200,7 @@ def window_plan(
     invert: bool,
     dtype: Any,
     threads: Any | None,
+    detail: Any | None = None,
 ) -> tuple[int, tuple[bool, bool]]: ...
 def window_halo(
     image: tuple[int, int],
@@ -203,6 +208,7 @@ def window_halo(
     size: tuple[int, int],
     patch: Any,
     border: Any,
+    detail: Any | None = None,
 ) -> tuple[int, int, int, int]: ...
 def border_names(border: Any) -> tuple[str, str]: ...
 @final
