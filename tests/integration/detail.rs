@@ -89,10 +89,11 @@ fn integer_heights_and_map_units_combine_the_same_way() {
     let heights: Vec<u16> = field(w, h, 3).iter().map(|&v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16).collect();
     let as_f32: Vec<f32> = heights.iter().map(|&v| v as f32).collect();
     let scales = [(3, 1.0), (7, 0.5)];
-    // Map units take the stored values as heights, texels 2 × 3 apart.
+    // Map units take the stored values as heights, texels 2 × 3 apart (in
+    // units of 10⁴: slopes under 1, so that no scale's plane is vertical).
     let opts = Options::new()
         .with_borders(Borders { x: Border::Mirror, y: Border::Clamp })
-        .with_units(Units::Map(Spacing::Uniform { x: 2000.0, y: 3000.0 }));
+        .with_units(Units::Map(Spacing::Uniform { x: 20000.0, y: 30000.0 }));
     let want = combined(&as_f32, (w, h), &opts, &scales);
     let mut got = vec![[0.0f64; 3]; w * h];
     FitRequest::new(&opts.clone().with_detail(Some(detail(&scales)))).normals_into(&heights, w, h, &mut got).unwrap();
