@@ -72,6 +72,7 @@ use crate::options::Options;
 use crate::samples::Sample;
 
 mod band;
+mod detail;
 mod eigen;
 mod emit;
 mod masked;

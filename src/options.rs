@@ -5,6 +5,9 @@ use std::sync::Arc;
 
 use crate::error::{Error, Number};
 
+mod detail;
+pub use detail::{Detail, MAX_SCALES, MAX_WEIGHT};
+
 /// Which plane the fit finds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -363,6 +366,10 @@ pub struct Options {
     /// non-finite texels. Default: `None`, the contract's rule (SPEC §1):
     /// a NaN or infinite height is an error, and no value is special.
     pub nodata: Option<f64>,
+    /// Several patch sizes at once, in place of `patch` (which is then left
+    /// at its default: [`Options::validate`] refuses both): the normal of
+    /// the weighted sum of their slopes (docs/detail.md). Default: `None`.
+    pub detail: Option<Detail>,
 }
 
 impl Default for Options {
@@ -391,6 +398,7 @@ impl Options {
             invert: false,
             units: Units::Texels,
             nodata: None,
+            detail: None,
         }
     }
 
@@ -445,6 +453,21 @@ impl Options {
         self
     }
 
+    /// Sets detail at several scales (see [`Options::detail`]), in place
+    /// of `patch`, which must then be left at its default.
+    #[must_use]
+    pub fn with_detail(mut self, detail: Option<Detail>) -> Self {
+        self.detail = detail;
+        self
+    }
+
+    /// The largest patch the fit reads: N, or with [`Options::detail`] its
+    /// largest size. A window's or a band's halo is half of it.
+    #[must_use]
+    pub fn largest_patch(&self) -> usize {
+        self.detail.as_ref().map_or(self.patch, Detail::largest_patch)
+    }
+
     /// The gain S for an image `width` texels wide, sign included.
     #[must_use]
     pub fn scale_for_width(&self, width: usize) -> f64 {
@@ -485,6 +508,12 @@ impl Options {
                     Number(f)
                 )));
             }
+        }
+        if self.detail.is_some() && self.patch != Options::DEFAULT_PATCH {
+            return Err(Error::InvalidOption(format!(
+                "give a patch size ({}) or detail at several scales, not both",
+                self.patch
+            )));
         }
         Ok(())
     }

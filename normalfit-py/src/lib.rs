@@ -40,7 +40,7 @@ use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, TilingOptions};
 use normalfit::units::MapSpacing;
-use normalfit::{Border, Convention, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
+use normalfit::{Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
 use numpy::ndarray::ArrayView2;
 use numpy::{
     Element, PyArray1, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
@@ -144,6 +144,26 @@ fn fit_options(
         .with_invert(invert);
     opts.validate().map_err(to_py_err)?;
     Ok((opts, borders))
+}
+
+/// `opts` with `detail=` (a sequence of `(N, weight)` pairs, or None),
+/// which the library checks with the rest of the options.
+fn with_detail(opts: Options, detail: Option<&Bound<'_, PyAny>>) -> PyResult<Options> {
+    let Some(detail) = detail.filter(|d| !d.is_none()) else { return Ok(opts) };
+    let pairs =
+        || PyTypeError::new_err(format!("detail must be a sequence of (N, weight) pairs, got {}", shown(detail)));
+    let mut scales = Vec::new();
+    for item in detail.try_iter().map_err(|_| pairs())? {
+        let (n, weight): (Bound<'_, PyAny>, f64) = item?.extract().map_err(|_| pairs())?;
+        let n = whole(&n, "detail patch size")?;
+        let n = usize::try_from(n).map_err(|_| {
+            PyValueError::new_err(format!("invalid option: detail patch size must be odd and at least 3, got {n}"))
+        })?;
+        scales.push((n, weight));
+    }
+    let opts = opts.with_detail(Some(Detail::new(scales).map_err(to_py_err)?));
+    opts.validate().map_err(to_py_err)?;
+    Ok(opts)
 }
 
 /// The rayon pools of `threads=`, kept by size: starting threads costs
@@ -594,7 +614,7 @@ fn mips<'py>(
 /// `normals` with every argument given (see `normalfit.normals`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata))]
+#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata, detail=None))]
 fn normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -612,10 +632,12 @@ fn normals<'py>(
     units: &str,
     pixel_size: Option<(f64, f64)>,
     nodata: Option<f64>,
+    detail: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
-    let (mut opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let mut opts = with_detail(opts, detail)?;
     // An array has no georeferencing: map units need the pixel size (the
     // library says so when it is missing).
     if let Some(map) = map_units(units, pixel_size)? {
@@ -749,7 +771,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata))]
+#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None))]
 fn window_normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -767,10 +789,12 @@ fn window_normals<'py>(
     residual: bool,
     threads: Option<&Bound<'py, PyAny>>,
     nodata: Option<f64>,
+    detail: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let opts = with_detail(opts, detail)?;
     let opts = opts.with_nodata(nodata);
     let output = output_kind(py, dtype)?;
     check_nodata_output(nodata, output)?;
@@ -799,7 +823,7 @@ fn window_normals<'py>(
 /// beyond it (wrap: Dask's `periodic` boundary; clamp and mirror hold none).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata))]
+#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata=None, detail=None))]
 fn window_plan(
     py: Python<'_>,
     image: (usize, usize),
@@ -814,10 +838,12 @@ fn window_plan(
     dtype: &Bound<'_, PyAny>,
     threads: Option<&Bound<'_, PyAny>>,
     nodata: Option<f64>,
+    detail: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<(usize, (bool, bool))> {
     normalfit::fit::checked_len(image.0, image.1).map_err(to_py_err)?;
     sample_kind_of(&PyArrayDescr::new(py, heights_dtype)?, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let opts = with_detail(opts, detail)?;
     check_nodata_output(nodata, output_kind(py, dtype)?)?;
     thread_count(threads)?;
     let borders = window_borders(borders).map_err(to_py_err)?;
@@ -831,12 +857,14 @@ fn window_plan(
 /// modes (`fit::HaloPlan::halo`): what `normalfit.dask` holds around each
 /// chunk.
 #[pyfunction]
+#[pyo3(signature = (image, origin, size, patch, border, detail=None))]
 fn window_halo(
     image: (usize, usize),
     origin: (usize, usize),
     size: (usize, usize),
     patch: &Bound<'_, PyAny>,
     border: &Bound<'_, PyAny>,
+    detail: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<(usize, usize, usize, usize)> {
     let patch = whole(patch, "patch")?;
     let Ok(patch) = usize::try_from(patch) else {
@@ -845,7 +873,7 @@ fn window_halo(
         )));
     };
     let borders = window_borders(parse_borders(border)?).map_err(to_py_err)?;
-    let opts = Options::new().with_patch(patch).with_borders(borders);
+    let opts = with_detail(Options::new().with_patch(patch).with_borders(borders), detail)?;
     let Halo { left, right, top, bottom } = HaloPlan::new(&opts).map_err(to_py_err)?.halo(image, origin, size);
     Ok((left, right, top, bottom))
 }
@@ -1332,7 +1360,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -1362,9 +1390,10 @@ fn convert(
     decode: Option<&str>,
     nodata: Option<f64>,
     nodata_tag: bool,
+    detail: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let opts = opts.with_nodata(nodata);
+    let opts = with_detail(opts, detail)?.with_nodata(nodata);
     let map_units = map_units(units, pixel_size)?;
     let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode, nodata_tag)?;
     let format = format.map(parse_named::<OutputFormat>).transpose()?;
@@ -1419,7 +1448,7 @@ fn decode_normals<'py>(
 /// `lit_view` with every argument given (see `normalfit.lit_view`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag))]
+#[pyo3(signature = (path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None))]
 fn lit_view<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -1447,9 +1476,11 @@ fn lit_view<'py>(
     decode: Option<&str>,
     nodata: Option<f64>,
     nodata_tag: bool,
+    detail: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let light = light.map(|(azimuth, elevation)| Light::new(azimuth, elevation)).transpose().map_err(to_py_err)?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
+    let opts = with_detail(opts, detail)?;
     let lit = LitOptions::new()
         .with_fit(opts.with_nodata(nodata))
         .with_borders(borders)

@@ -85,6 +85,12 @@ pub struct FitArgs {
     #[arg(short = 'n', long, value_name = "N", default_value_t = Options::DEFAULT_PATCH, value_parser = parse_patch)]
     pub patch: usize,
 
+    /// Detail at several scales, in place of -n: patch sizes and weights
+    /// `N:W,N:W,…` (e.g. 3:1,9:0.5,33:0.25); the normal of the weighted sum
+    /// of the scales' slopes (docs/detail.md). Costs a fit per scale.
+    #[arg(long, value_name = "N:W,…", value_parser = parse_detail, conflicts_with = "patch")]
+    pub detail: Option<normalfit::Detail>,
+
     /// Height gain S: the [0, 1] height range spans S texel widths.
     #[arg(short, long, value_name = "S", default_value_t = Options::DEFAULT_SCALE, value_parser = parse_finite,
           conflicts_with = "relief")]
@@ -767,6 +773,11 @@ fn parse_patch(s: &str) -> Result<usize, String> {
 fn parse_curvature_range(s: &str) -> Result<f64, String> {
     let v = s.trim().parse::<f64>().map_err(|_| format!("expected a number, got '{s}'"))?;
     normalfit::fit::quadratic::validate_range(v).map_err(|e| library_message(&e))
+}
+
+/// `--detail N:W,…`, as the library parses and checks it.
+fn parse_detail(s: &str) -> Result<normalfit::Detail, String> {
+    s.parse().map_err(|e| library_message(&e))
 }
 
 fn parse_suffix(s: &str) -> Result<String, String> {

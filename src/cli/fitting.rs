@@ -13,6 +13,7 @@ use super::report::{self, Failure};
 pub fn options(args: &FitArgs) -> Result<Options, Failure> {
     let fit = Options::new()
         .with_patch(args.patch)
+        .with_detail(args.detail.clone())
         .with_fit(args.fit)
         .with_convention(args.convention)
         .with_strength(strength(args.scale, args.relief))

@@ -412,7 +412,7 @@ impl Job<'_> {
         let conversion = self.settings;
         let (read, channel) = (&conversion.read, || conversion.channel.clone());
         let in_failure = ConvertError::at(Place::Input);
-        let (width, height, r) = (rows.width(), rows.height(), conversion.fit.patch / 2);
+        let (width, height, r) = (rows.width(), rows.height(), conversion.fit.largest_patch() / 2);
         // Map units' spacing first: a file without one is refused before
         // any pass over it and before the output is looked at, as a whole
         // image is.

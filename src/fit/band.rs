@@ -157,7 +157,7 @@ impl BandFit {
         let rows = self.band_rows.max(self.plan.r).min(self.height);
         let masked = masked || self.plan.nodata.is_some();
         let holes = if masked { (rows + 2 * self.plan.r + rows * self.plan.width) as u64 } else { 0 };
-        self.plan.work_bytes(unit, (self.plan.width, rows), masked, false).saturating_add(holes)
+        super::detail::work_bytes(&self.plan, unit, (self.plan.width, rows), masked, false).saturating_add(holes)
     }
 
     /// Whether the fit has holes ([`Options::nodata`] is set): then
@@ -217,7 +217,7 @@ impl BandFit {
         let unit = self.unit.unwrap_or(H::UNIT);
         if !masked {
             let source = |v: isize| RowRef { values: row(self.plan.borders.y.map(v, h)), x0: 0, holes: false };
-            self.plan.fit_rows(&source, unit, (rows.start, 0..w), out, None, None);
+            super::detail::fit_rows(&self.plan, &source, unit, (rows.start, 0..w), out, None, None);
             return Ok(0);
         }
         let first = rows.start as isize - self.plan.r as isize;
@@ -231,7 +231,7 @@ impl BandFit {
             Some(valid) => valid,
             None => &mut own[..],
         };
-        self.plan.fit_rows(&source, unit, (rows.start, 0..w), out, None, Some((&mut *valid, nodata)));
+        super::detail::fit_rows(&self.plan, &source, unit, (rows.start, 0..w), out, None, Some((&mut *valid, nodata)));
         let missing = valid.iter().filter(|&&v| !v).count();
         self.missing.fetch_add(missing, std::sync::atomic::Ordering::Relaxed);
         Ok(missing)

@@ -69,6 +69,7 @@ pub(super) enum Kernel {
 }
 
 /// Everything about a conversion that is the same for every tile.
+#[derive(Clone)]
 pub(super) struct Plan {
     pub(super) width: usize,
     pub(super) n: usize,
@@ -93,19 +94,25 @@ pub(super) struct Plan {
     pub(super) nodata: Option<f64>,
     /// The normal written at a missing texel ([`FitRequest::missing`]).
     pub(super) missing: [f64; 3],
+    /// Detail at several scales ([`Options::detail`]): the sizes and
+    /// weights whose slopes are summed, N the largest; empty for one patch
+    /// size. Callers fit through `super::detail`, which runs each size's
+    /// plan when it is set ([`Self::fit_rows`] fits one size).
+    pub(super) detail: Vec<(usize, f64)>,
 }
 
 impl Plan {
     pub(super) fn new(width: usize, height: usize, opts: &Options) -> Result<Plan> {
         opts.validate()?;
         checked_len(width, height)?;
-        let n = opts.patch;
-        let r = n / 2;
-        let tile = (8 * n).max(64);
-        // Rows of a block: at least a tile, more for a narrow image, fewer
-        // (down to one) for a very wide one (see the module docs).
-        let block_rows = tile.max(MIN_BLOCK_TEXELS.div_ceil(width)).min((MAX_BLOCK_TEXELS / width).max(1));
-        let rf = r as f64;
+        // One scale of weight 1 is its size's own fit, bit for bit.
+        let (n, detail) = match &opts.detail {
+            None => (opts.patch, Vec::new()),
+            Some(d) => match d.as_single() {
+                Some(n) => (n, Vec::new()),
+                None => (d.largest_patch(), d.scales().to_vec()),
+            },
+        };
         let spacing = match &opts.units {
             Units::Texels => None,
             Units::Map(spacing) => {
@@ -113,22 +120,37 @@ impl Plan {
                 Some(spacing.clone())
             }
         };
-        Ok(Plan {
+        let plan = Plan {
             width,
-            n,
-            r,
+            n: 0,
+            r: 0,
             scale: opts.scale_for_width(width),
             sigma: opts.convention.sigma(),
             fit: opts.fit,
-            a: n as f64 * rf * (rf + 1.0) * (2.0 * rf + 1.0) / 3.0,
+            a: 0.0,
             borders: opts.borders,
             height,
-            block_rows,
+            block_rows: 0,
             moments: false,
             spacing,
             nodata: opts.nodata,
             missing: [0.0, 0.0, 1.0],
-        })
+            detail: Vec::new(),
+        };
+        Ok(Plan { detail, ..plan.with_patch(n) })
+    }
+
+    /// The same plan for patch size `n` (odd, ≥ 3), of that one size.
+    pub(super) fn with_patch(&self, n: usize) -> Plan {
+        let r = n / 2;
+        let tile = (8 * n).max(64);
+        // Rows of a block: at least a tile, more for a narrow image, fewer
+        // (down to one) for a very wide one (see the module docs).
+        let width = self.width;
+        let block_rows = tile.max(MIN_BLOCK_TEXELS.div_ceil(width)).min((MAX_BLOCK_TEXELS / width).max(1));
+        let rf = r as f64;
+        let a = n as f64 * rf * (rf + 1.0) * (2.0 * rf + 1.0) / 3.0;
+        Plan { n, r, a, block_rows, detail: Vec::new(), ..self.clone() }
     }
 
     /// Fits the output rows from `y0`, columns `cols`, into `out` (rows of

@@ -1,6 +1,6 @@
 //! One fit request: the fit's one way in for heights held in memory.
 
-use super::{FromNormal, Plan, RowRef, Window, checked_len, row_has_hole};
+use super::{FromNormal, Plan, RowRef, Window, checked_len, detail, row_has_hole};
 use crate::error::{Error, Result};
 use crate::options::{Borders, Options};
 use crate::samples::{Sample, Samples, first_non_finite, try_filled, try_vec, with_slice};
@@ -210,6 +210,9 @@ impl<'a> FitRequest<'a> {
             plan.borders = borders;
         }
         plan.missing = missing;
+        if !plan.detail.is_empty() && residual.is_some() {
+            return Err(Error::InvalidOption(DETAIL_RESIDUAL.into()));
+        }
         // The image columns and rows the heights hold, and the texels out.
         let (held_x, held_y, (ox, oy), (ow, oh)) = match &window {
             None => (0..width as isize, 0..height as isize, (0, 0), (width, height)),
@@ -240,7 +243,7 @@ impl<'a> FitRequest<'a> {
             return Err(Error::NonFiniteHeight { x, y });
         }
         // The memory rule, before the fit allocates: its sums grow with N.
-        let work = plan.work_bytes(H::UNIT, (ow, oh), masked, residual.is_some());
+        let work = detail::work_bytes(&plan, H::UNIT, (ow, oh), masked, residual.is_some());
         let own_valid = if masked && valid.is_none() { out_len as u64 } else { 0 };
         let hole_rows = if masked { height as u64 } else { 0 };
         crate::memory::check_memory("fitting the normals", work + own_valid + hole_rows)?;
@@ -261,7 +264,7 @@ impl<'a> FitRequest<'a> {
         };
         let cols = ox..ox + ow;
         if !masked {
-            plan.fit_rows(&rows, H::UNIT, (oy, cols), out, residual, None);
+            detail::fit_rows(&plan, &rows, H::UNIT, (oy, cols), out, residual, None);
             return Ok(0);
         }
         let mut own = if valid.is_none() { try_filled(out_len, false)? } else { Vec::new() };
@@ -269,10 +272,14 @@ impl<'a> FitRequest<'a> {
             Some(valid) => valid,
             None => &mut own[..],
         };
-        plan.fit_rows(&rows, H::UNIT, (oy, cols), out, residual, Some((&mut *valid, nodata)));
+        detail::fit_rows(&plan, &rows, H::UNIT, (oy, cols), out, residual, Some((&mut *valid, nodata)));
         Ok(valid.iter().filter(|&&v| !v).count())
     }
 }
+
+/// Why a residual is refused with detail at several scales.
+pub(crate) const DETAIL_RESIDUAL: &str =
+    "detail at several scales has no residual (a residual is one patch size's): ask for it with one patch size";
 
 /// The bytes a fit of a whole `width` × `height` image, of samples whose
 /// height is value × `unit` ([`Sample::UNIT`]), allocates beyond its
@@ -291,7 +298,7 @@ pub(crate) fn work_bytes(
     let plan = Plan::new(width, height, opts)?;
     let holes = holes || plan.nodata.is_some();
     let hole_rows = if holes { height as u64 } else { 0 };
-    Ok(plan.work_bytes(unit, (width, height), holes, residual).saturating_add(hole_rows))
+    Ok(detail::work_bytes(&plan, unit, (width, height), holes, residual).saturating_add(hole_rows))
 }
 
 mod sealed {

@@ -160,7 +160,7 @@ impl HaloPlan {
     /// Errors: [`Error::InvalidOption`] for invalid options.
     pub fn new(opts: &Options) -> Result<HaloPlan> {
         opts.validate()?;
-        Ok(HaloPlan { radius: opts.patch / 2, borders: opts.borders })
+        Ok(HaloPlan { radius: opts.largest_patch() / 2, borders: opts.borders })
     }
 
     /// The same plan with these borders instead of the options' (as

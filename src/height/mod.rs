@@ -242,6 +242,10 @@ impl HeightOptions {
     /// Errors: [`Error::InvalidOption`] naming the field.
     pub fn validate(&self) -> Result<()> {
         self.fit.validate()?;
+        if self.fit.detail.is_some() {
+            let problem = "the height inverse undoes one patch size's fit: detail at several scales has none";
+            return Err(Error::InvalidOption(problem.into()));
+        }
         let gain = match self.fit.strength {
             Strength::Scale(s) | Strength::Relief(s) => s,
         };

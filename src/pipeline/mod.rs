@@ -126,7 +126,7 @@ impl Extra {
 /// `tail` if it is what a conversion with `opts` of a `w` × `h` image
 /// needs: the last N/2 rows when it wraps in y (where it is required).
 fn checked_tail<'a>(tail: Option<&'a [f64]>, w: usize, h: usize, opts: &Options) -> Result<Option<&'a [f64]>> {
-    let expected = (opts.patch / 2).min(h) * w;
+    let expected = (opts.largest_patch() / 2).min(h) * w;
     match tail {
         Some(t) if t.len() == expected => Ok(Some(t)),
         Some(t) => Err(Error::BufferSize { expected, actual: t.len() }),

@@ -23,6 +23,7 @@ mod blend;
 mod check;
 mod convert_api;
 mod curvature;
+mod detail;
 mod exr_layouts;
 mod features;
 mod fit_reference;
@@ -76,6 +77,7 @@ mod cli_blend_check;
 mod cli_completions_man;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_curvature;
+mod cli_detail;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_height;
 #[cfg(all(feature = "cli", feature = "all-formats"))]

@@ -15,6 +15,7 @@ True
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -59,6 +60,7 @@ def normals(
     units: str = "texels",
     pixel_size: float | tuple[float, float] | None = None,
     nodata: float | None = None,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> Any:
     """The normal map of a height map.
 
@@ -73,6 +75,10 @@ def normals(
     names, defaults and values:
 
     patch: N, the side of the N x N patch fitted around each texel (odd, >= 3).
+    detail: several scales in place of patch, a sequence of (N, weight)
+        pairs, e.g. [(3, 1.0), (9, 0.5), (33, 0.25)]: the normal of the
+        weighted sum of the scales' slopes (docs/detail.md; the command
+        line's --detail). patch is then left at 3. No residual.
     fit: "orthogonal" (perpendicular distances) or "vertical".
     border: "wrap", "clamp", "mirror" or "auto" (wrap where the heights
         tile, mirror where not: the library's tiling check, reading the
@@ -121,7 +127,7 @@ def normals(
     """
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
-        None if pixel_size is None else _pair(pixel_size), nodata,
+        None if pixel_size is None else _pair(pixel_size), nodata, detail,
     )
 
 
@@ -287,6 +293,7 @@ def convert(
     decode: str | None = None,
     nodata: float | None = None,
     nodata_tag: bool = True,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -295,7 +302,7 @@ def convert(
     not the height); the output appears whole or not at all, and never
     replaces the input. The GIL is released while it works.
 
-    The fit options are normals()'s. channel: luma, r, g, b, a or an
+    The fit options are normals()'s (detail too). channel: luma, r, g, b, a or an
     OpenEXR channel's name; bits: 8 or 16 (PNG), 16 or 32 (EXR), 8, 16 or
     32 (TIFF), default by the input; format: "png", "exr" or "tiff" when
     dst's extension (.png, .exr, .tif) does not say (a TIFF from a GeoTIFF
@@ -332,6 +339,7 @@ def convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
         compression, alpha, channels, residual, max_texels, layer, units,
         None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata, nodata_tag,
+        detail,
     )
 
 
@@ -385,6 +393,7 @@ def lit_view(
     decode: str | None = None,
     nodata: float | None = None,
     nodata_tag: bool = True,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> Any:
     """``normalfit shade``: a normal map file, or a height map file through
     the fit (normals()'s options), lit by a directional light.
@@ -400,8 +409,9 @@ def lit_view(
         shade``. tile: repeat 2 x 2 so wrap seams show. kind: "auto",
         "height" or "normal". signed: a float normal map holds n itself.
         units, pixel_size, band, size, byte_order, decode, nodata,
-        nodata_tag: as convert()'s (a height map fitted in map units,
-        terrain files, holes: grey 0 where a texel is missing).
+        nodata_tag, detail: as convert()'s (a height map fitted in map
+        units, terrain files, holes: grey 0 where a texel is missing,
+        several scales).
 
     Returns the gray picture as a (rows, columns) uint8 array (twice each
     side when tiled), the pixels ``normalfit shade`` writes.
@@ -414,7 +424,7 @@ def lit_view(
     return _normalfit.lit_view(
         path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
         max_texels, layer, units, None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode,
-        nodata, nodata_tag,
+        nodata, nodata_tag, detail,
     )
 
 

@@ -1,6 +1,7 @@
 """Type stubs of normalfit (the functions are in __init__.py, the classes native)."""
 
 import os
+from collections.abc import Sequence
 from typing import Any, Literal, final
 
 import numpy as np
@@ -77,6 +78,7 @@ def normals(
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | None = None,
     nodata: float | None = None,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> Any: ...
 def curvature(
     heights: _Heights,
@@ -167,6 +169,7 @@ def convert(
     decode: Literal["terrain-rgb", "mapbox", "terrarium"] | None = None,
     nodata: float | None = None,
     nodata_tag: bool = True,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None
@@ -198,6 +201,7 @@ def lit_view(
     decode: Literal["terrain-rgb", "mapbox", "terrarium"] | None = None,
     nodata: float | None = None,
     nodata_tag: bool = True,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> npt.NDArray[np.uint8]: ...
 @final
 class HeightInfo:

@@ -51,6 +51,7 @@ def normals(
     units: str,
     pixel_size: tuple[float, float] | None,
     nodata: float | None,
+    detail: Any | None = None,
 ) -> Any: ...
 def curvature(
     heights: Any,
@@ -110,6 +111,7 @@ def convert(
     decode: str | None,
     nodata: float | None,
     nodata_tag: bool,
+    detail: Any | None = None,
 ) -> ConversionSummary: ...
 def blend(
     base: Any, detail: Any, method: str, strength: float, convention: str, detail_convention: str | None
@@ -151,6 +153,7 @@ def lit_view(
     decode: str | None,
     nodata: float | None,
     nodata_tag: bool,
+    detail: Any | None = None,
 ) -> Any: ...
 def height(
     normals: Any,
@@ -196,7 +199,8 @@ def window_normals(
     dtype: Any,
     residual: bool,
     threads: Any | None,
-    nodata: float | None,
+    nodata: float | None = None,
+    detail: Any | None = None,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],
@@ -210,7 +214,8 @@ def window_plan(
     invert: bool,
     dtype: Any,
     threads: Any | None,
-    nodata: float | None,
+    nodata: float | None = None,
+    detail: Any | None = None,
 ) -> tuple[int, tuple[bool, bool]]: ...
 def window_halo(
     image: tuple[int, int],
@@ -218,6 +223,7 @@ def window_halo(
     size: tuple[int, int],
     patch: Any,
     border: Any,
+    detail: Any | None = None,
 ) -> tuple[int, int, int, int]: ...
 def border_names(border: Any) -> tuple[str, str]: ...
 @final

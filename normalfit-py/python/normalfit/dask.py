@@ -28,6 +28,7 @@ import shutil
 import time
 import uuid
 from pathlib import Path
+from collections.abc import Sequence
 from typing import Any
 
 import dask
@@ -100,7 +101,7 @@ def _fit_block(
     try:
         size = (cols[1] - cols[0], rows[1] - rows[0])
         (left, right, top, bottom) = _normalfit.window_halo(
-            image, (cols[0], rows[0]), size, options["patch"], options["border"]
+            image, (cols[0], rows[0]), size, options["patch"], options["border"], options["detail"]
         )
         expected = (rows[1] - rows[0] + top + bottom, cols[1] - cols[0] + left + right)
         if held.shape != expected:
@@ -108,7 +109,7 @@ def _fit_block(
         result = _normalfit.window_normals(
             held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
             options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
-            options["dtype"], options["residual"], options["threads"], options["nodata"],
+            options["dtype"], options["residual"], options["threads"], options["nodata"], options["detail"],
         )
     except Exception as e:
         raise _chunk_error(e, _describe(index, rows, cols)) from e
@@ -135,6 +136,7 @@ def normals(
     residual: bool = False,
     threads: int | None = 1,
     nodata: float | None = None,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> Any:
     """The normal map of a 2-D Dask array of heights, lazily: a (rows,
     columns, 3) Dask array chunked like ``array`` (one chunk of 3 on the
@@ -143,8 +145,8 @@ def normals(
 
     array: a 2-D dask.array (or anything ``dask.array.asarray`` takes) of
         uint8, uint16, float32 or float64, in normalfit.normals's units.
-    patch, fit, convention, scale, relief, invert, dtype: as for
-        normalfit.normals (dtype float32 unit vectors, or uint8 / uint16
+    patch, fit, convention, scale, relief, invert, dtype, detail: as for
+        normalfit.normals (with detail, the halo is the largest size's) (dtype float32 unit vectors, or uint8 / uint16
         encoded RGB).
     border: "wrap", "clamp" or "mirror", for both axes or as an (x, y)
         pair (or "x,y"). Wrap becomes Dask's ``periodic`` boundary; clamp
@@ -191,7 +193,7 @@ def normals(
     # wraps (x, y).
     r, (beyond_x, beyond_y) = _normalfit.window_plan(
         (w, h),
-        array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata
+        array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata, detail
     )
     out_dtype = np.dtype(dtype)
     chunks = tuple(_merged(c, r) for c in array.chunks)
@@ -202,7 +204,7 @@ def normals(
     periodic = (beyond_y and depth[0] > 0, beyond_x and depth[1] > 0)
     options = dict(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
-        dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
+        dtype=out_dtype, residual=residual, threads=threads, nodata, detail=nodata,
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)

@@ -1,6 +1,7 @@
 """Type stubs of normalfit.dask (the functions are in dask.py)."""
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal, overload
 
@@ -25,6 +26,7 @@ def normals(
     residual: Literal[False] = False,
     threads: int | None = 1,
     nodata: float | None = None,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> Any: ...
 @overload
 def normals(
@@ -41,6 +43,7 @@ def normals(
     residual: Literal[True],
     threads: int | None = 1,
     nodata: float | None = None,
+    detail: Sequence[tuple[int, float]] | None = None,
 ) -> tuple[Any, Any]: ...
 def check_tiling(
     array: Any, *, threshold: float = 1.5, kind: Literal["auto", "height"] = "auto"
