@@ -77,6 +77,7 @@ mod cli_blend_check;
 mod cli_completions_man;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_curvature;
+#[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_detail;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod cli_height;
