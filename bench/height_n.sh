@@ -51,7 +51,7 @@ measure() {
     echo "$t $((m / 1024))"
   elif grep -q 'Command exited with non-zero status 124' "$work/time.txt"; then
     echo ">$timeout -"
-  elif grep -q 'solved for maps with a side of at most\|operations, past the limit of' "$work/stderr.txt"; then
+  elif grep -q 'solved for maps with a side of at most\|operations, past the limit of\|operations, past their limit of' "$work/stderr.txt"; then
     echo "refused -"
   else
     echo "failed -"

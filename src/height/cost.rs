@@ -29,6 +29,13 @@ pub(super) const PER_TEXEL: f64 = 4000.0;
 /// Operations any map may take, however few its texels (about 1.5 s).
 pub(super) const FLOOR: f64 = 2_147_483_648.0;
 
+/// Operations the solves (not the bases, made once) of any map may take,
+/// however few its texels (about 0.4 s): [`FLOOR`] is for a small map's
+/// one-off bases, and a strip's orthogonal fit, a dozen banded solves of
+/// 2000 operations a texel at N = 63, must not spend it (3 × 20000 took
+/// over 20 s within it).
+pub(super) const SOLVE_FLOOR: f64 = 536_870_912.0;
+
 /// The vertical solves the orthogonal fit is counted as: its fixed point
 /// takes a few, Gauss–Newton's steps some more (256², clamp, N = 63: six
 /// times the vertical fit's time).
@@ -83,9 +90,20 @@ pub(super) fn has_transform(w: usize, h: usize, opts: &HeightOptions) -> bool {
     Axis::new(w, b.x, r).is_some() && Axis::new(h, b.y, r).is_some()
 }
 
-/// The estimated operations of `path` on a `w` × `h` map with `opts`;
-/// `None` where the path does not take the shape.
-pub(super) fn operations(path: Path, w: usize, h: usize, opts: &HeightOptions) -> Option<f64> {
+/// Whether `path` takes the shape within the limit: all its operations
+/// within [`limit`], its solves within [`PER_TEXEL`] a texel (at least
+/// [`SOLVE_FLOOR`]).
+fn within_limit(path: Path, w: usize, h: usize, opts: &HeightOptions) -> bool {
+    let texels = w as f64 * h as f64;
+    costs(path, w, h, opts).is_some_and(|(setup, solves)| {
+        setup + solves <= limit(texels) && solves <= (PER_TEXEL * texels).max(SOLVE_FLOOR)
+    })
+}
+
+/// The estimated operations of `path` on a `w` × `h` map with `opts`, in
+/// two: the bases made once, and the solves; `None` where the path does
+/// not take the shape.
+fn costs(path: Path, w: usize, h: usize, opts: &HeightOptions) -> Option<(f64, f64)> {
     let texels = w as f64 * h as f64;
     let solves = if opts.fit.fit == Fit::Orthogonal { ORTHOGONAL_SOLVES } else { 1.0 };
     // An axis's dense basis: Householder's form and the QL method, some
@@ -100,7 +118,7 @@ pub(super) fn operations(path: Path, w: usize, h: usize, opts: &HeightOptions) -
             // A square map with one border makes one basis for both axes.
             let same = w == h && opts.fit.borders.x == opts.fit.borders.y;
             let setup = basis(w) + if same { 0.0 } else { basis(h) };
-            Some(setup + solves * PRODUCT * 2.0 * texels * (w + h) as f64)
+            Some((setup, solves * PRODUCT * 2.0 * texels * (w + h) as f64))
         }
         Path::OneAxis => {
             let (m, n) = (w.min(h), w.max(h));
@@ -114,9 +132,9 @@ pub(super) fn operations(path: Path, w: usize, h: usize, opts: &HeightOptions) -
             // Cholesky factor (band²/2 a texel) and its substitutions.
             let setup = basis(m) + 2.0 * n as f64 * band * band;
             let solve = texels * (PRODUCT * 2.0 * m as f64 + 0.5 * band * band + 4.0 * band);
-            Some(setup + solves * solve)
+            Some((setup, solves * solve))
         }
-        Path::ConjugateGradients => Some(texels * CG_ITERATIONS as f64 * CG_TEXEL),
+        Path::ConjugateGradients => Some((0.0, texels * CG_ITERATIONS as f64 * CG_TEXEL)),
     }
 }
 
@@ -124,10 +142,9 @@ pub(super) fn operations(path: Path, w: usize, h: usize, opts: &HeightOptions) -
 /// tried: dense bases, then the banded solves (a basis, or the pins, can
 /// fail to be made), then conjugate gradients.
 pub(super) fn paths(w: usize, h: usize, opts: &HeightOptions) -> Vec<Path> {
-    let cap = limit(w as f64 * h as f64);
     [Path::Dense, Path::OneAxis, Path::ConjugateGradients]
         .into_iter()
-        .filter(|&p| operations(p, w, h, opts).is_some_and(|ops| ops <= cap))
+        .filter(|&p| within_limit(p, w, h, opts))
         .collect()
 }
 
@@ -148,18 +165,30 @@ pub(super) fn check(w: usize, h: usize, opts: &HeightOptions) -> Result<()> {
 /// estimate against the limit, and what runs instead.
 pub(super) fn refusal(w: usize, h: usize, opts: &HeightOptions) -> Error {
     let texels = w as f64 * h as f64;
-    let cheapest = [Path::Dense, Path::OneAxis, Path::ConjugateGradients]
+    let (setup, solves) = [Path::Dense, Path::OneAxis, Path::ConjugateGradients]
         .into_iter()
-        .filter_map(|p| operations(p, w, h, opts))
-        .fold(f64::INFINITY, f64::min);
+        .filter_map(|p| costs(p, w, h, opts))
+        .fold((f64::INFINITY, 0.0), |best, c| if c.0 + c.1 < best.0 + best.1 { c } else { best });
     let vertical = HeightOptions { fit: opts.fit.clone().with_fit(Fit::Vertical), ..opts.clone() };
     let also =
         if opts.fit.fit == Fit::Orthogonal && !paths(w, h, &vertical).is_empty() { ", --fit vertical" } else { "" };
+    // Within the limit in all, the solves are what passes theirs.
+    let cost = if setup + solves <= limit(texels) {
+        format!(
+            "solves of some {solves:.1e} operations, past their limit of {:.1e} ({PER_TEXEL} a texel, at least \
+             {SOLVE_FLOOR:.1e})",
+            (PER_TEXEL * texels).max(SOLVE_FLOOR)
+        )
+    } else {
+        format!(
+            "some {:.1e} operations, past the limit of {:.1e} ({PER_TEXEL} a texel, at least {FLOOR:.1e})",
+            setup + solves,
+            limit(texels)
+        )
+    };
     Error::InvalidOption(format!(
-        "clamp borders with N = {} on {w} × {h} texels take some {cheapest:.1e} operations, past the limit of \
-         {:.1e} ({PER_TEXEL} a texel, at least {FLOOR:.1e}): use --border mirror or wrap{also}, or N = 3",
+        "clamp borders with N = {} on {w} × {h} texels take {cost}: use --border mirror or wrap{also}, or N = 3",
         opts.fit.patch,
-        limit(texels),
     ))
 }
 
@@ -204,6 +233,16 @@ mod tests {
         let message = check(2048, 256, &clamp(63, Orthogonal)).unwrap_err().to_string();
         assert!(message.contains("2048 × 256") && message.contains("past the limit of 2.1e9"), "{message}");
         assert!(message.contains("--fit vertical") && !message.contains('\n'), "{message}");
+        // A strip's orthogonal fit at N = 63: within the floor in all
+        // (1.7e9), but a dozen banded solves past what its texels may
+        // spend on solves; its vertical fit, one solve, runs.
+        for (w, h) in [(3, 20000), (20000, 3)] {
+            let message = check(w, h, &clamp(63, Orthogonal)).unwrap_err().to_string();
+            assert!(message.contains("--fit vertical"), "{message}");
+            assert_eq!(first(w, h, 63, Vertical), Some(Path::OneAxis));
+        }
+        assert_eq!(first(1030, 3, 63, Orthogonal), Some(Path::OneAxis));
+        assert_eq!(first(2, 1100, 63, Orthogonal), Some(Path::OneAxis));
         for (w, h) in [(2048, 256), (3, 20000), (1030, 3)] {
             let message = check(w, h, &clamp(255, Vertical)).unwrap_err().to_string();
             assert!(message.contains("N = 255") && !message.contains("--fit vertical"), "{message}");
