@@ -204,7 +204,8 @@ def normals(
     periodic = (beyond_y and depth[0] > 0, beyond_x and depth[1] > 0)
     options = dict(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
-        dtype=out_dtype, residual=residual, threads=threads, nodata, detail=nodata,
+        dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
+        detail=None if detail is None else list(detail),
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)
