@@ -338,12 +338,21 @@ fn band_rows(n: usize) -> usize {
 /// ```
 ///
 /// Errors: [`Error::InvalidOption`] for options [`Options::validate`]
-/// refuses and empty images; [`Error::BufferSize`] when `heights` is not
+/// refuses, detail at several scales ([`Options::detail`]) and empty images; [`Error::BufferSize`] when `heights` is not
 /// `width × height`; [`Error::NonFiniteHeight`] for a NaN or infinite
 /// height without a nodata value; [`Error::Unsupported`] for a spacing a
 /// row; the memory rule's error.
 pub fn curvature<H: Sample>(heights: &[H], width: usize, height: usize, opts: &Options) -> Result<Vec<f32>> {
     opts.validate()?;
+    // One quadratic a patch: several sizes (`--detail`) mix the normals'
+    // slopes, which a curvature map has none of.
+    if opts.detail.is_some() {
+        return Err(Error::InvalidOption(
+            "a curvature map fits one quadratic over one patch size: give -n (patch=), not detail at several \
+             scales, which mixes the normals' slopes"
+                .into(),
+        ));
+    }
     let len = checked_len(width, height)?;
     if heights.len() != len {
         return Err(Error::BufferSize { expected: len, actual: heights.len() });
