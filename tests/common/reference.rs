@@ -285,7 +285,7 @@ fn least_squares_plane(pts: &[[f64; 3]]) -> [f64; 3] {
             m[a][3] += row[a] * p[2];
         }
     }
-    solve3(m)
+    solve(m)
 }
 
 /// Eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix, by
@@ -329,21 +329,23 @@ fn smallest_eigenvector(mut m: [[f64; 3]; 3]) -> [f64; 3] {
     [v[0][k], v[1][k], v[2][k]]
 }
 
-/// Solves a 3×3 system given as an augmented matrix, with partial pivoting.
-fn solve3(mut m: [[f64; 4]; 3]) -> [f64; 3] {
-    for col in 0..3 {
-        let piv = (col..3).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs())).unwrap();
+/// Solves an N × N system given as an augmented matrix (N rows of
+/// `M` = N + 1 values), by Gaussian elimination with partial pivoting.
+fn solve<const N: usize, const M: usize>(mut m: [[f64; M]; N]) -> [f64; N] {
+    assert_eq!(M, N + 1, "an augmented matrix");
+    for col in 0..N {
+        let piv = (col..N).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs())).unwrap();
         m.swap(col, piv);
-        for row in 0..3 {
+        for row in 0..N {
             if row != col {
                 let f = m[row][col] / m[col][col];
-                for k in col..4 {
+                for k in col..M {
                     m[row][k] -= f * m[col][k];
                 }
             }
         }
     }
-    [m[0][3] / m[0][0], m[1][3] / m[1][1], m[2][3] / m[2][2]]
+    std::array::from_fn(|k| m[k][N] / m[k][k])
 }
 
 /// The reference curvature of texel (x, y): the least-squares quadratic
@@ -379,20 +381,7 @@ pub fn curvature_at<H: Copy + Into<f64>>(
             m[a][6] += row[a] * z;
         }
     }
-    for col in 0..6 {
-        let piv = (col..6).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs())).unwrap();
-        m.swap(col, piv);
-        for row in 0..6 {
-            if row != col {
-                let f = m[row][col] / m[col][col];
-                for k in col..7 {
-                    m[row][k] -= f * m[col][k];
-                }
-            }
-        }
-    }
-    let c: Vec<f64> = (0..6).map(|k| m[k][6] / m[k][k]).collect();
-    let (a, b, cc, d, e) = (c[0], c[1], c[2], c[3], c[4]);
+    let [a, b, cc, d, e, _] = solve(m);
     let g = 1.0 + d * d + e * e;
     Some(-((1.0 + e * e) * 2.0 * a - 2.0 * d * e * b + (1.0 + d * d) * 2.0 * cc) / (2.0 * g * g.sqrt()))
 }
