@@ -299,6 +299,18 @@ fn row_order<H: Copy>(view: &ArrayView2<'_, H>) -> Result<Vec<H>, Error> {
     Ok(v)
 }
 
+/// The heights row after row: the array's own memory where it already
+/// is (`in_place`), else a copy.
+fn in_row_order<'a, H: Copy>(
+    in_place: Option<&'a [H]>,
+    view: &ArrayView2<'_, H>,
+) -> Result<std::borrow::Cow<'a, [H]>, Error> {
+    match in_place {
+        Some(s) => Ok(std::borrow::Cow::Borrowed(s)),
+        None => row_order(view).map(std::borrow::Cow::Owned),
+    }
+}
+
 /// A `numpy.empty` array: numpy raises `MemoryError` or `ValueError` for a
 /// size it cannot make, where a direct allocation would abort.
 fn empty<'py>(py: Python<'py>, shape: &[usize], dt: Bound<'py, PyArrayDescr>) -> PyResult<Bound<'py, PyAny>> {
@@ -379,14 +391,8 @@ where
     let (choices, pool, window) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()), call.window);
     let opts = call.opts;
     py.detach(|| -> Result<(), Error> {
-        let copy;
-        let heights: &[H] = match in_place {
-            Some(s) => s,
-            None => {
-                copy = row_order(&view)?;
-                &copy
-            }
-        };
+        let heights = in_row_order(in_place, &view)?;
+        let heights: &[H] = &heights;
         // A window's borders are fixed modes; the whole image's `auto` is
         // settled by the library's tiling check, as a conversion does.
         let borders = match window {
@@ -710,14 +716,8 @@ fn curvature_typed<'py, H: Stored>(
     let pool = pool.as_ref().and_then(|b| b.pool.as_ref());
     let values = py
         .detach(|| -> Result<Vec<f32>, Error> {
-            let copy;
-            let heights: &[H] = match in_place {
-                Some(s) => s,
-                None => {
-                    copy = row_order(&view)?;
-                    &copy
-                }
-            };
+            let heights = in_row_order(in_place, &view)?;
+            let heights: &[H] = &heights;
             let borders = choices.settle(heights, w, h)?;
             let opts = opts.clone().with_borders(borders);
             on_pool(pool, || normalfit::curvature(heights, w, h, &opts))
