@@ -51,6 +51,22 @@ pub enum TextureFormat {
 }
 
 impl TextureFormat {
+    /// The format as messages and docs name it: BC5, RGBA8, R16F…
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            TextureFormat::Bc4 => "BC4",
+            TextureFormat::Bc5 => "BC5",
+            TextureFormat::Bc7 => "BC7",
+            TextureFormat::Rgba8 => "RGBA8",
+            TextureFormat::Rg8 => "RG8",
+            TextureFormat::R8 => "R8",
+            TextureFormat::Rgba16f => "RGBA16F",
+            TextureFormat::Rg16f => "RG16F",
+            TextureFormat::R16f => "R16F",
+        }
+    }
+
     /// Direct3D's `DXGI_FORMAT` (a DDS file's DX10 header).
     #[must_use]
     pub fn dxgi_format(self) -> u32 {

@@ -528,7 +528,7 @@ fn encode_normals(level: &MipLevel<[f32; 3]>, alpha: Option<&[f32]>, format: Tex
             b[..2].copy_from_slice(&half(n[0]));
             b[2..].copy_from_slice(&half(n[1]));
         }),
-        other => Err(Error::InvalidOption(format!("normals cannot be stored as {other:?}"))),
+        other => Err(Error::InvalidOption(format!("normals cannot be stored as {}", other.name()))),
     }
 }
 
@@ -543,7 +543,7 @@ fn encode_values(level: &MipLevel<f32>, format: TextureFormat) -> Result<Vec<u8>
         }),
         TextureFormat::R8 => encode_texels(texels, 1, |v, b| b[0] = (v.clamp(0.0, 1.0) * 255.0).round() as u8),
         TextureFormat::R16f => encode_texels(texels, 2, |v, b| b.copy_from_slice(&half(v))),
-        other => Err(Error::InvalidOption(format!("one channel cannot be stored as {other:?}"))),
+        other => Err(Error::InvalidOption(format!("one channel cannot be stored as {}", other.name()))),
     }
 }
 
