@@ -70,12 +70,11 @@ def chosen_image(context: Any, name: str) -> Any:
     raise ValueError("no image: name one (image=...), or show one in the Image Editor or an active Image Texture node")
 
 
-class NORMALFIT_OT_normal_map(bpy.types.Operator):
-    """Make the normal map of an image of heights by normalfit's least-squares plane fits"""
-
-    bl_idname = "normalfit.normal_map"
-    bl_label = "Normal Map from Height (normalfit)"
-    bl_options = {"REGISTER", "UNDO"}
+class HeightMapOperator:
+    """What the operators that read an image of heights share: the image,
+    the options of the fit they all take, and showing the image they make.
+    A mix-in, as Blender's API documents them: its property annotations
+    are registered on each operator class that inherits them."""
 
     image: bpy.props.StringProperty(name="Image", description="The height map (default: the image shown)")
     patch: bpy.props.IntProperty(
@@ -84,11 +83,35 @@ class NORMALFIT_OT_normal_map(bpy.types.Operator):
     scale: bpy.props.FloatProperty(
         name="Scale", description="Texel widths the full height range spans", default=1.0, min=0.0, soft_max=64.0
     )
-    fit: bpy.props.EnumProperty(name="Fit", items=FITS, default="orthogonal")
     border: bpy.props.EnumProperty(name="Border", items=BORDERS, default="wrap")
-    convention: bpy.props.EnumProperty(name="Convention", items=CONVENTIONS, default="opengl")
     invert: bpy.props.BoolProperty(name="Invert", description="Dark is high", default=False)
     channel: bpy.props.EnumProperty(name="Channel", items=CHANNELS, default="luma")
+
+    def heights(self, context: Any) -> tuple[Any, Any, Any]:
+        """The package, the source image and its heights."""
+        normalfit = package()
+        source = chosen_image(context, self.image)
+        return normalfit, source, images.stored_heights(source, self.channel)
+
+    def show(self, context: Any, made: Any) -> set[str]:
+        """Shows `made` in the Image Editor the operator ran from, and says
+        what was made."""
+        space = getattr(context, "space_data", None)
+        if space is not None and space.type == "IMAGE_EDITOR":
+            space.image = made
+        self.report({"INFO"}, f"{made.name}: {made.size[0]}×{made.size[1]}, N = {self.patch}")
+        return {"FINISHED"}
+
+
+class NORMALFIT_OT_normal_map(HeightMapOperator, bpy.types.Operator):
+    """Make the normal map of an image of heights by normalfit's least-squares plane fits"""
+
+    bl_idname = "normalfit.normal_map"
+    bl_label = "Normal Map from Height (normalfit)"
+    bl_options = {"REGISTER", "UNDO"}
+
+    fit: bpy.props.EnumProperty(name="Fit", items=FITS, default="orthogonal")
+    convention: bpy.props.EnumProperty(name="Convention", items=CONVENTIONS, default="opengl")
     wire: bpy.props.BoolProperty(
         name="Wire into Material",
         description="Connect the map to the active object's material through a Normal Map node",
@@ -97,9 +120,7 @@ class NORMALFIT_OT_normal_map(bpy.types.Operator):
 
     def execute(self, context: Any) -> set[str]:
         try:
-            normalfit = package()
-            source = chosen_image(context, self.image)
-            heights = images.stored_heights(source, self.channel)
+            normalfit, source, heights = self.heights(context)
             normals = normalfit.normals(
                 heights,
                 patch=self.patch,
@@ -116,11 +137,7 @@ class NORMALFIT_OT_normal_map(bpy.types.Operator):
         except (ImportError, ValueError, TypeError, OSError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        space = getattr(context, "space_data", None)
-        if space is not None and space.type == "IMAGE_EDITOR":
-            space.image = made
-        self.report({"INFO"}, f"{made.name}: {made.size[0]}×{made.size[1]}, N = {self.patch}")
-        return {"FINISHED"}
+        return self.show(context, made)
 
     def wire_into_material(self, context: Any, made: Any) -> None:
         target = getattr(context, "object", None)
@@ -132,29 +149,16 @@ class NORMALFIT_OT_normal_map(bpy.types.Operator):
             self.report({"WARNING"}, "Blender's Normal Map node reads OpenGL normals: this DirectX map will look inverted")
 
 
-class NORMALFIT_OT_curvature(bpy.types.Operator):
+class NORMALFIT_OT_curvature(HeightMapOperator, bpy.types.Operator):
     """Make the curvature map of an image of heights: the mean curvature of normalfit's least-squares quadratic over each patch, convex positive"""
 
     bl_idname = "normalfit.curvature"
     bl_label = "Curvature from Height (normalfit)"
     bl_options = {"REGISTER", "UNDO"}
 
-    image: bpy.props.StringProperty(name="Image", description="The height map (default: the image shown)")
-    patch: bpy.props.IntProperty(
-        name="Patch", description="The patch's side N (odd): larger is smoother", default=3, min=3, max=1023, step=2
-    )
-    scale: bpy.props.FloatProperty(
-        name="Scale", description="Texel widths the full height range spans", default=1.0, min=0.0, soft_max=64.0
-    )
-    border: bpy.props.EnumProperty(name="Border", items=BORDERS, default="wrap")
-    invert: bpy.props.BoolProperty(name="Invert", description="Dark is high", default=False)
-    channel: bpy.props.EnumProperty(name="Channel", items=CHANNELS, default="luma")
-
     def execute(self, context: Any) -> set[str]:
         try:
-            normalfit = package()
-            source = chosen_image(context, self.image)
-            heights = images.stored_heights(source, self.channel)
+            normalfit, source, heights = self.heights(context)
             values = normalfit.curvature(
                 heights, patch=self.patch, scale=self.scale, border=self.border, invert=self.invert
             )
@@ -164,11 +168,7 @@ class NORMALFIT_OT_curvature(bpy.types.Operator):
         except (ImportError, ValueError, TypeError, OSError, MemoryError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        space = getattr(context, "space_data", None)
-        if space is not None and space.type == "IMAGE_EDITOR":
-            space.image = made
-        self.report({"INFO"}, f"{made.name}: {made.size[0]}×{made.size[1]}, N = {self.patch}")
-        return {"FINISHED"}
+        return self.show(context, made)
 
 
 class NORMALFIT_OT_install_package(bpy.types.Operator):
