@@ -124,7 +124,8 @@ pub struct Conversion {
     /// Default: none.
     pub inputs: Arc<Inputs>,
     /// What is made: the normal map, or the curvature map
-    /// ([`crate::fit::curvature`], read whole). Default: normals.
+    /// ([`crate::fit::curvature`]: streamed into an EXR file, else read
+    /// whole). Default: normals.
     pub product: Product,
     /// The curvature that maps to white in an 8- or 16-bit curvature map
     /// ([`crate::fit::quadratic::encode`]), in the fit's units. Default:
@@ -304,8 +305,9 @@ impl Conversion {
     /// Errors (all [`Place::Input`]): those of reading and decoding
     /// ([`crate::io::read_path`], [`crate::io::decode`]).
     pub fn open(&self, input: Input<'_>) -> Result<Opened, ConvertError> {
-        // A residual map is made from the whole image.
-        let may_stream = !self.residual && self.mips.is_none() && self.product == Product::Normals;
+        // A residual map is made from the whole image (the engine reads
+        // whole what else its stage needs whole).
+        let may_stream = !self.residual && self.mips.is_none();
         let source = engine::Source::open(input, &self.read, self.channel.clone(), may_stream)
             .map_err(ConvertError::at(Place::Input))?;
         Ok(Opened { conversion: self.clone(), source })

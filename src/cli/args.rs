@@ -172,7 +172,8 @@ pub struct ConvertArgs {
     /// quadratic fitted over each patch, convex positive, in 1/texel or,
     /// with --units map, 1/map unit: written as it is in EXR and float
     /// TIFF, mapped to gray in 8- and 16-bit outputs, flat at mid-gray;
-    /// docs/curvature.md). Curvature reads the image whole.
+    /// docs/curvature.md). Curvature streams into EXR and PNG files; into
+    /// TIFF or a pipe it reads the image whole.
     #[arg(long, default_value_t = Product::default(), value_parser = named::<Product>(Product::ALL))]
     pub product: Product,
 

@@ -493,6 +493,10 @@ impl Job<'_> {
             Stage::Lit { lighting, .. } => Some(lighting.lamp(self.georef, fit.convention)),
             Stage::Normals(_) | Stage::Mips(_) | Stage::Curvature { .. } => None,
         };
+        let (curvature, range) = match self.stage {
+            Stage::Curvature { range, .. } => (true, range),
+            _ => (false, 0.0),
+        };
         let result = match (lamp, out, self.encoding) {
             // The lit view streams into a file alone ([`Stage::streams_into`]).
             (Some(lamp), Output::File { path, .. }, Encoding::Png(_)) => files.write(path, |file| {
@@ -505,6 +509,20 @@ impl Job<'_> {
                 Ok(())
             }),
             (Some(_), _, _) => Err(Error::InvalidOption("a lit view streams into a file only: read it whole".into())),
+            // The curvature streams into an EXR or PNG file alone ([`Stage::streams_into`]).
+            (None, Output::File { path, .. }, Encoding::Exr(options)) if curvature => files.write(path, |file| {
+                missing =
+                    pipeline::curvature_exr(rows, tail, &fit, options.depth, visit, file).inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            (None, Output::File { path, .. }, Encoding::Png(o)) if curvature => files.write(path, |file| {
+                missing = pipeline::curvature_png_seekable(rows, &fit, (o.depth, o.compression), range, visit, file)
+                    .inspect_err(&mut on_input)?;
+                Ok(())
+            }),
+            (None, _, _) if curvature => {
+                Err(Error::InvalidOption("a curvature map streams into an EXR or PNG file only: read it whole".into()))
+            }
             (None, Output::File { path, .. }, Encoding::Exr(options)) => files.write(path, |file| {
                 missing = pipeline::convert_exr_counting(rows, tail, &fit, options, visit, file)
                     .inspect_err(&mut on_input)?;
@@ -570,20 +588,21 @@ impl Job<'_> {
     pub(super) fn run(&mut self, rows: Rows, sink: Sink<'_, '_>) -> Result<(), ConvertError> {
         let Sink { main, residual } = sink;
         let stored = self.settings.map_units.is_some();
-        // A mip chain and the curvature need the whole image: a file
-        // opened to stream is read whole.
+        // A mip chain needs the whole image, and so does the curvature
+        // but into an EXR file: a file opened to stream is read whole.
+        let whole = match self.stage {
+            Stage::Mips(_) => true,
+            Stage::Curvature { .. } => !self.stage.streams_into(main.as_ref()),
+            Stage::Normals(_) | Stage::Lit { .. } => false,
+        };
         let rows = match rows {
-            Rows::Png(_, input) | Rows::Exr(_, input)
-                if matches!(self.stage, Stage::Mips(_) | Stage::Curvature { .. }) =>
-            {
-                Rows::Whole(Box::new(
-                    io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
-                ))
-            }
+            Rows::Png(_, input) | Rows::Exr(_, input) if whole => Rows::Whole(Box::new(
+                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
+            )),
             #[cfg(feature = "tiff")]
-            Rows::Tiff(_, input) if matches!(self.stage, Stage::Mips(_) | Stage::Curvature { .. }) => Rows::Whole(
-                Box::new(io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?),
-            ),
+            Rows::Tiff(_, input) if whole => Rows::Whole(Box::new(
+                io::read_path(&input, self.settings.read).map_err(ConvertError::at(Place::Input))?,
+            )),
             rows => rows,
         };
         match (rows, main) {

@@ -176,7 +176,8 @@ pub(crate) enum Stage {
     Normals(Encoding),
     /// The curvature map ([`crate::fit::curvature`]): one channel in this
     /// encoding, float as it is, 8 or 16 bits mapped so that `range` is
-    /// white ([`crate::fit::quadratic::encode`]); from the whole image.
+    /// white ([`crate::fit::quadratic::encode`]); streamed band by band
+    /// into an EXR or PNG file, else from the whole image.
     Curvature {
         /// The output's format and depth (its layout not used).
         encoding: Encoding,
@@ -200,20 +201,19 @@ impl Stage {
     /// (`None`: no file, the pixels kept): the lit view only whole when
     /// tiled, and streamed only into a file (its PNG takes its top rows
     /// last, in room kept after the header), not a device, FIFO or socket
-    /// named as one (`-o /dev/null`), which is written as a writer.
+    /// named as one (`-o /dev/null`), which is written as a writer; the
+    /// curvature streamed into an EXR or PNG file alone (EXR's offsets and
+    /// PNG's top rows are written last).
     pub(crate) fn streams_into(&self, output: Option<&Output<'_>>) -> bool {
+        let into_file = match output {
+            Some(Output::File { path, .. }) => !matches!(io::output_target(path), Ok(io::OutputTarget::Stream(_))),
+            _ => false,
+        };
         match self {
             Stage::Normals(_) => true,
-            Stage::Mips(_) | Stage::Curvature { .. } => false,
-            Stage::Lit { tile, .. } => {
-                let into_file = match output {
-                    Some(Output::File { path, .. }) => {
-                        !matches!(io::output_target(path), Ok(io::OutputTarget::Stream(_)))
-                    }
-                    _ => false,
-                };
-                !tile && into_file
-            }
+            Stage::Mips(_) => false,
+            Stage::Curvature { encoding, .. } => into_file && matches!(encoding, Encoding::Exr(_) | Encoding::Png(_)),
+            Stage::Lit { tile, .. } => !tile && into_file,
         }
     }
 }

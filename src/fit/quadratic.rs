@@ -21,15 +21,31 @@
 //!   where a run starts (a band's first row) changes nothing; the
 //!   numerators of a and c are formed in i128 and rounded once. Cost
 //!   independent of N.
-//! * floats: each patch's sums made outright, in a fixed order (the row
-//!   filters, then the column filters), so the bits do not depend on bands
-//!   or threads; the cost grows with N (linearly: the filters are
-//!   separable), not with N².
+//! * floats: a running sum would carry the rounding of wherever it
+//!   started, so the windows are summed over blocks of N aligned on the
+//!   image (van Herk / Gil–Werman, as the plane fit's, [`crate::fit`]):
+//!   window x = kN + t (x the image's column, or row down the columns)
+//!   is the suffix of block k from its value t plus the prefix of block
+//!   k + 1 up to its value t − 1, each summed in a fixed order, about one
+//!   step a texel and order whatever N. The moments of both parts are
+//!   taken about their common boundary (offsets q − N in −N..N, small)
+//!   and moved to the window's centre, d = t − r − 1 from it:
+//!   Σ(k − d)·h = Σk·h − d·Σh, Σ(k − d)²·h = Σk²·h − 2d·Σk·h + d²·Σh.
+//!   Every sum a window takes lies inside its own N values, so a band
+//!   starting on any row, and any thread count, gives the same bits.
+//!   Cancellation: the shift subtracts terms at most (2N)² times the
+//!   heights' size, so its error is a few ulps of N²·|h|, the same order
+//!   as the error the a and c numerators (N·Σi²h − T₂·Σh, which remove the
+//!   mean height) already carry in f64; the heights are not centred. The
+//!   tests hold it to the reference at N = 63 on heights 1000 + a relief
+//!   of 0.1 (tests/integration/curvature.rs).
 //!
 //! A texel whose patch holds a hole ([`Options::nodata`]) gets NaN: the
 //! quadratic of a partial patch is ill-conditioned near its edge, and a
 //! curvature map is used as a mask, where a gap is safer than a guess.
 //! Geographic spacing (one per row) is refused.
+
+use std::ops::Range;
 
 use crate::error::{Error, Result};
 use crate::options::{Options, Spacing, Units};
@@ -48,10 +64,12 @@ struct Scales {
     dy: f64,
 }
 
-fn scales<H: Sample>(opts: &Options, width: usize) -> Result<Scales> {
+/// The scales of a fit of heights whose value 1 is `unit` (a sample
+/// type's [`Sample::UNIT`], or a streamed source's).
+fn scales(opts: &Options, width: usize, unit: f64) -> Result<Scales> {
     let s = opts.scale_for_width(width);
     match &opts.units {
-        Units::Texels => Ok(Scales { gain: s * H::UNIT, dx: 1.0, dy: 1.0 }),
+        Units::Texels => Ok(Scales { gain: s * unit, dx: 1.0, dy: 1.0 }),
         Units::Map(spacing @ Spacing::Uniform { x, y }) => {
             spacing.validate(None)?;
             Ok(Scales { gain: s, dx: *x, dy: *y })
@@ -65,7 +83,7 @@ fn scales<H: Sample>(opts: &Options, width: usize) -> Result<Scales> {
 }
 
 /// The accumulator of the sums: i64 for stored integers (exact running
-/// sums), f64 for floats (each patch summed outright).
+/// sums), f64 for floats (sums over blocks aligned on the image).
 trait Acc: Copy + Send + Sync + Default + 'static {
     /// The row or column moments Σ 1·p, Σ k·p, Σ k²·p of every window of
     /// N = 2r + 1 values of `p` (padded: window x covers p[x..x + N],
@@ -73,7 +91,9 @@ trait Acc: Copy + Send + Sync + Default + 'static {
     fn moments(p: &[Self], n: usize, m0: &mut [Self], m1: Option<&mut [Self]>, m2: Option<&mut [Self]>);
     /// The moments of one column, `rows` giving the padded rows' values
     /// (row k of the band at `rows[k][x]`), for every column at once.
-    fn column_moments(rows: &[&[Self]], n: usize, out: &mut [&mut [Self]], orders: &[usize]);
+    /// `first` is the image's row of the first output (the padded rows'
+    /// first is its top row, `first` − r); `orders` are 0, 1, … in turn.
+    fn column_moments(rows: &[&[Self]], n: usize, first: usize, out: &mut [&mut [Self]], orders: &[usize]);
     fn from_sample<H: Sample>(h: H) -> Self;
     fn zero() -> Self {
         Self::default()
@@ -127,7 +147,7 @@ impl Acc for i64 {
         }
     }
 
-    fn column_moments(rows: &[&[i64]], n: usize, out: &mut [&mut [i64]], orders: &[usize]) {
+    fn column_moments(rows: &[&[i64]], n: usize, _first: usize, out: &mut [&mut [i64]], orders: &[usize]) {
         // Running sums down the columns, every column at once (loops over
         // the row that vectorise): the same updates as `moments`.
         // Only the orders asked for (and those below, which the updates
@@ -216,61 +236,89 @@ impl Acc for i64 {
 
 impl Acc for f64 {
     fn moments(p: &[f64], n: usize, m0: &mut [f64], mut m1: Option<&mut [f64]>, mut m2: Option<&mut [f64]>) {
-        let r = n / 2;
-        for x in 0..m0.len() {
-            let window = &p[x..x + n];
-            // Offsets paired ±k around the centre, nearest first.
-            let mut s0 = window[r];
-            let (mut s1, mut s2) = (0.0, 0.0);
-            for k in 1..=r {
-                let (lo, hi) = (window[r - k], window[r + k]);
-                let kf = k as f64;
-                s0 += lo + hi;
-                s1 += kf * (hi - lo);
-                s2 += kf * kf * (hi + lo);
+        // Blocks of N windows aligned on window 0 (the image's column 0,
+        // whatever the band): window x = kN + t sums the block's values
+        // q = t..N (a suffix) and the next block's q = N..N + t (a prefix),
+        // q counted from p[kN], each in a fixed order; moments about q = N,
+        // then moved to the window's centre q = t + r (module docs).
+        let (w, r) = (m0.len(), n / 2);
+        let mut suffix = vec![[0.0f64; 3]; n];
+        for start in (0..w).step_by(n) {
+            let z = &p[start..];
+            let end = (w - start).min(n);
+            let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
+            for q in (0..n).rev() {
+                let (v, k) = (z[q], q as f64 - n as f64);
+                a0 += v;
+                a1 += k * v;
+                a2 += k * k * v;
+                suffix[q] = [a0, a1, a2];
             }
-            m0[x] = s0;
-            if let Some(m1) = m1.as_deref_mut() {
-                m1[x] = s1;
-            }
-            if let Some(m2) = m2.as_deref_mut() {
-                m2[x] = s2;
+            let (mut b0, mut b1, mut b2) = (0.0, 0.0, 0.0);
+            for (t, &[a0, a1, a2]) in suffix[..end].iter().enumerate() {
+                if t > 0 {
+                    let (v, k) = (z[n + t - 1], (t - 1) as f64);
+                    b0 += v;
+                    b1 += k * v;
+                    b2 += k * k * v;
+                }
+                let (s0, s1, s2) = (a0 + b0, a1 + b1, a2 + b2);
+                let d = t as f64 - r as f64 - 1.0;
+                let x = start + t;
+                m0[x] = s0;
+                if let Some(m1) = m1.as_deref_mut() {
+                    m1[x] = s1 - d * s0;
+                }
+                if let Some(m2) = m2.as_deref_mut() {
+                    m2[x] = s2 - 2.0 * d * s1 + d * d * s0;
+                }
             }
         }
     }
 
-    fn column_moments(rows: &[&[f64]], n: usize, out: &mut [&mut [f64]], orders: &[usize]) {
-        let r = n / 2;
-        let w = rows[0].len();
-        let top = orders.iter().copied().max().unwrap_or(0);
+    fn column_moments(rows: &[&[f64]], n: usize, first: usize, out: &mut [&mut [f64]], orders: &[usize]) {
+        // As `moments`, down the columns, every column at once (loops over
+        // a row that vectorise), the blocks aligned on the image's row 0:
+        // output y is the image's row first + y. The suffixes are written
+        // into `out` first, then the prefixes added and the sums moved to
+        // the window's centre. Every sum a window reads lies in its own
+        // rows, so a band starting anywhere gives the same bits.
+        debug_assert!(orders.iter().enumerate().all(|(k, &o)| k == o), "orders 0, 1, … in turn");
+        let (r, w) = (n / 2, rows[0].len());
+        let top = orders.len() - 1;
         let outputs = rows.len() + 1 - n;
-        let (mut s0, mut s1, mut s2) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-        for y in 0..outputs {
-            let window = &rows[y..y + n];
-            s0.copy_from_slice(window[r]);
-            s1.fill(0.0);
-            s2.fill(0.0);
-            for k in 1..=r {
-                let (lo, hi) = (window[r - k], window[r + k]);
-                let kf = k as f64;
-                for x in 0..w {
-                    s0[x] += lo[x] + hi[x];
-                }
-                if top >= 1 {
-                    for x in 0..w {
-                        s1[x] += kf * (hi[x] - lo[x]);
-                    }
-                }
-                if top >= 2 {
-                    for x in 0..w {
-                        s2[x] += kf * kf * (hi[x] + lo[x]);
+        let mut acc = vec![vec![0.0f64; w]; top + 1];
+        let mut pre = vec![vec![0.0f64; w]; top + 1];
+        let mut y = 0;
+        while y < outputs {
+            let t0 = (first + y) % n;
+            // The block's value q (q ≥ t0, all a window reads) is rows[y + q − t0].
+            let row = |q: usize| rows[y + q - t0];
+            let end = n.min(t0 + outputs - y);
+            acc.iter_mut().for_each(|a| a.fill(0.0));
+            for q in (t0..n).rev() {
+                let (v, k) = (row(q), q as f64 - n as f64);
+                add_weighted(&mut acc, v, k);
+                if q < end {
+                    let at = (y + q - t0) * w..(y + q - t0 + 1) * w;
+                    for (o, a) in out.iter_mut().zip(&acc) {
+                        o[at.clone()].copy_from_slice(a);
                     }
                 }
             }
-            for (o, &order) in out.iter_mut().zip(orders) {
-                let s = [&s0, &s1, &s2][order];
-                o[y * w..(y + 1) * w].copy_from_slice(s);
+            pre.iter_mut().for_each(|p| p.fill(0.0));
+            for q in n..n + t0 {
+                add_weighted(&mut pre, row(q), (q - n) as f64);
             }
+            for t in t0..end {
+                if t > t0 {
+                    add_weighted(&mut pre, row(n + t - 1), (t - 1) as f64);
+                }
+                let d = t as f64 - r as f64 - 1.0;
+                let at = (y + t - t0) * w..(y + t - t0 + 1) * w;
+                shift_to_centre(out, &pre, at, d);
+            }
+            y += end - t0;
         }
     }
 
@@ -296,6 +344,64 @@ impl Acc for f64 {
     }
 }
 
+/// Adds the row `v` to the moments of orders 0, 1, … (as many as `acc`
+/// holds) at offset `k`.
+fn add_weighted(acc: &mut [Vec<f64>], v: &[f64], k: f64) {
+    let w = v.len();
+    match acc {
+        [a0] => a0[..w].iter_mut().zip(v).for_each(|(a, &v)| *a += v),
+        [a0, a1] => {
+            let (a0, a1) = (&mut a0[..w], &mut a1[..w]);
+            for x in 0..w {
+                a0[x] += v[x];
+                a1[x] += k * v[x];
+            }
+        }
+        [a0, a1, a2, ..] => {
+            let (a0, a1, a2) = (&mut a0[..w], &mut a1[..w], &mut a2[..w]);
+            let kk = k * k;
+            for x in 0..w {
+                a0[x] += v[x];
+                a1[x] += k * v[x];
+                a2[x] += kk * v[x];
+            }
+        }
+        [] => {}
+    }
+}
+
+/// `out`'s suffix sums (rows `at`) plus the prefix sums `pre`, moved from
+/// the block's boundary to the window's centre, `d` rows from it:
+/// Σ(k − d)·v = Σk·v − d·Σv, Σ(k − d)²·v = Σk²·v − 2d·Σk·v + d²·Σv.
+fn shift_to_centre(out: &mut [&mut [f64]], pre: &[Vec<f64>], at: std::ops::Range<usize>, d: f64) {
+    let w = at.len();
+    match (out, pre) {
+        ([o0], [p0]) => o0[at].iter_mut().zip(&p0[..w]).for_each(|(o, &p)| *o += p),
+        ([o0, o1], [p0, p1]) => {
+            let (o0, o1, p0, p1) = (&mut o0[at.clone()], &mut o1[at], &p0[..w], &p1[..w]);
+            for x in 0..w {
+                let s0 = o0[x] + p0[x];
+                let s1 = o1[x] + p1[x];
+                o0[x] = s0;
+                o1[x] = s1 - d * s0;
+            }
+        }
+        ([o0, o1, o2], [p0, p1, p2]) => {
+            let (o0, o1, o2) = (&mut o0[at.clone()], &mut o1[at.clone()], &mut o2[at]);
+            let (p0, p1, p2) = (&p0[..w], &p1[..w], &p2[..w]);
+            for x in 0..w {
+                let s0 = o0[x] + p0[x];
+                let s1 = o1[x] + p1[x];
+                let s2 = o2[x] + p2[x];
+                o0[x] = s0;
+                o1[x] = s1 - d * s0;
+                o2[x] = s2 - 2.0 * d * s1 + d * d * s0;
+            }
+        }
+        _ => unreachable!("one plane of sums an order, orders 0 to 2"),
+    }
+}
+
 /// The mean curvature, convex positive, of the surface whose quadratic
 /// has these coefficients (offsets' units) at its centre, in the units
 /// `scales` give: with p = z_u, q = z_v, r = z_uu, s = z_uv, t = z_vv,
@@ -317,13 +423,38 @@ fn band_rows(n: usize) -> usize {
     (2 * n).max(64)
 }
 
+/// Refuses what no curvature map is made of: invalid options, detail at
+/// several scales, a spacing a row; gives the scales.
+fn checked_scales(opts: &Options, width: usize, unit: f64) -> Result<Scales> {
+    opts.validate()?;
+    // One quadratic a patch: several sizes (`--detail`) mix the normals'
+    // slopes, which a curvature map has none of.
+    if opts.detail.is_some() {
+        return Err(Error::InvalidOption(
+            "a curvature map fits one quadratic over one patch size: give -n (patch=), not detail at several \
+             scales, which mixes the normals' slopes"
+                .into(),
+        ));
+    }
+    scales(opts, width, unit)
+}
+
+/// The bytes a run of bands of `band` output rows holds on every thread:
+/// three planes of row sums, six of patch sums and one of hole counts (a
+/// hole plane of the row sums besides), 8 bytes a value, over the band's
+/// rows and halo.
+fn per_band_bytes(n: usize, width: usize, band: usize) -> u64 {
+    ((band + n) as u64) * (width as u64 + n as u64) * 8 * 11
+}
+
 /// The curvature of every texel (see the module docs), row-major, as f32,
 /// convex positive; NaN where the patch holds a hole. In texel units
 /// (1 / texel width; the heights z = S·h of the contract) or map units
 /// (1 / the spacing's unit; z = S · the stored value), as `opts.units`
 /// says. [`Options::fit`] plays no part: the quadratic is the least
 /// squares of height. Rows are computed in parallel on rayon's current
-/// pool; the bits do not depend on it.
+/// pool; the bits do not depend on it, nor on how the rows are cut into
+/// bands ([`CurvatureBands`] gives the same bits band by band).
 ///
 /// ```
 /// use normalfit::{Border, Borders, Options};
@@ -343,21 +474,11 @@ fn band_rows(n: usize) -> usize {
 /// height without a nodata value; [`Error::Unsupported`] for a spacing a
 /// row; the memory rule's error.
 pub fn curvature<H: Sample>(heights: &[H], width: usize, height: usize, opts: &Options) -> Result<Vec<f32>> {
-    opts.validate()?;
-    // One quadratic a patch: several sizes (`--detail`) mix the normals'
-    // slopes, which a curvature map has none of.
-    if opts.detail.is_some() {
-        return Err(Error::InvalidOption(
-            "a curvature map fits one quadratic over one patch size: give -n (patch=), not detail at several \
-             scales, which mixes the normals' slopes"
-                .into(),
-        ));
-    }
+    let scales = checked_scales(opts, width, H::UNIT)?;
     let len = checked_len(width, height)?;
     if heights.len() != len {
         return Err(Error::BufferSize { expected: len, actual: heights.len() });
     }
-    let scales = scales::<H>(opts, width)?;
     if opts.nodata.is_none()
         && let Some((x, y)) = first_non_finite(heights, width)
     {
@@ -365,21 +486,12 @@ pub fn curvature<H: Sample>(heights: &[H], width: usize, height: usize, opts: &O
     }
     let n = opts.patch;
     let band = band_rows(n).min(height);
-    // Per thread: a band's three row planes and six column planes (and a
-    // hole plane of each), 8 bytes a value; the output, 4 a texel.
-    let per_band = ((band + n) as u64) * (width as u64 + n as u64) * 8 * 11;
+    // Per thread: a band's sums; the output, 4 bytes a texel.
     let threads = crate::par::current_num_threads() as u64;
-    crate::memory::check_memory("fitting the curvature", 4 * len as u64 + per_band * threads)?;
+    crate::memory::check_memory("fitting the curvature", 4 * len as u64 + per_band_bytes(n, width, band) * threads)?;
     let mut out = try_filled(len, 0.0f32)?;
-    let integer = H::UNIT != 1.0;
-    out.par_chunks_mut(band * width).enumerate().try_for_each(|(k, rows)| -> Result<()> {
-        let y0 = k * band;
-        if integer {
-            band_curvature::<H, i64>(heights, (width, height), opts, scales, y0, rows)
-        } else {
-            band_curvature::<H, f64>(heights, (width, height), opts, scales, y0, rows)
-        }
-    })?;
+    let row = |y: usize| &heights[y * width..(y + 1) * width];
+    fit_rows(&row, (width, height), opts, scales, H::UNIT != 1.0, 0, &mut out);
     Ok(out)
 }
 
@@ -390,20 +502,214 @@ pub fn curvature_samples(heights: &Samples, width: usize, height: usize, opts: &
     with_slice!(heights, h => curvature(h, width, height, opts))
 }
 
+/// The output rows from `y0`, as many as `out` holds, in parallel bands
+/// of [`band_rows`]; `row(y)` gives source row y. Stored integers
+/// (`integer`) take the exact running sums, floats the blocked ones.
+fn fit_rows<'a, H: Sample>(
+    row: &(dyn Fn(usize) -> &'a [H] + Sync),
+    size: (usize, usize),
+    opts: &Options,
+    scales: Scales,
+    integer: bool,
+    y0: usize,
+    out: &mut [f32],
+) {
+    let width = size.0;
+    let band = band_rows(opts.patch);
+    out.par_chunks_mut(band * width).enumerate().for_each(|(k, rows)| {
+        let y = y0 + k * band;
+        if integer {
+            band_curvature::<H, i64>(row, size, opts, scales, y, rows);
+        } else {
+            band_curvature::<H, f64>(row, size, opts, scales, y, rows);
+        }
+    });
+}
+
+/// The curvature of an image whose rows arrive in bands, top to bottom,
+/// for callers that stream rows from a decoder to an encoder without
+/// holding the image (as [`BandFit`](super::BandFit) does for normals):
+/// memory grows with the width and N, not with the height.
+///
+/// The output rows are cut into [`bands`](Self::bands): first the top r =
+/// N / 2 rows, the only ones whose patches reach above row 0 (so with a
+/// wrap in y only they need the image's last rows), then bands of
+/// [`band_rows`](Self::band_rows). A band of rows y0 … y1 − 1 reads the
+/// source rows y0 − r … y1 − 1 + r through the y border. The values are
+/// those of [`curvature`] for the whole image, bit for bit: integers' sums
+/// are exact wherever they start, floats' are summed over blocks aligned
+/// on the image.
+///
+/// ```
+/// use normalfit::fit::quadratic::CurvatureBands;
+/// use normalfit::{curvature, Options};
+///
+/// let (w, h) = (40, 300);
+/// let heights: Vec<f32> = (0..w * h).map(|k| ((k % w) as f32 * 0.3).sin() + (k / w) as f32 * 0.01).collect();
+/// let opts = Options::new().with_patch(5);
+/// let fit = CurvatureBands::new(w, h, &opts)?;
+/// let mut streamed = Vec::new();
+/// for rows in fit.bands() {
+///     let mut band = vec![0.0f32; rows.len() * w];
+///     fit.fit_band(rows, &|y| &heights[y * w..][..w], &mut band)?;
+///     streamed.extend(band);
+/// }
+/// let whole = curvature(&heights, w, h, &opts)?;
+/// assert!(streamed.iter().zip(&whole).all(|(a, b)| a.to_bits() == b.to_bits()));
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+pub struct CurvatureBands {
+    opts: Options,
+    width: usize,
+    height: usize,
+    band_rows: usize,
+    /// The height of a row value of 1, when not the sample type's own.
+    unit: Option<f64>,
+    /// Holes (NaN) in the bands fitted so far.
+    missing: std::sync::atomic::AtomicUsize,
+}
+
+impl CurvatureBands {
+    /// Plans the curvature of a `width` × `height` image.
+    ///
+    /// Errors: as [`curvature`] for the options; [`Error::InvalidOption`]
+    /// for a zero size.
+    pub fn new(width: usize, height: usize, opts: &Options) -> Result<CurvatureBands> {
+        checked_scales(opts, width, 1.0)?;
+        checked_len(width, height)?;
+        // A band of rows for every thread, each fitted as the whole image's.
+        let threads = crate::par::current_num_threads().max(1);
+        let band_rows = band_rows(opts.patch) * threads;
+        Ok(CurvatureBands { opts: opts.clone(), width, height, band_rows, unit: None, missing: 0.into() })
+    }
+
+    /// The same curvature of rows whose values are heights in units of
+    /// `unit` (a height is value × `unit`): for a decoder that gives
+    /// 16-bit samples as `f64` values, 1 / 65535; those then take the
+    /// integers' exact sums, as the samples in their own type do. Without
+    /// it, the sample type's [`Sample::UNIT`].
+    #[must_use]
+    pub fn with_unit(mut self, unit: f64) -> CurvatureBands {
+        self.unit = Some(unit);
+        self
+    }
+
+    /// Columns.
+    #[must_use]
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Rows.
+    #[must_use]
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Rows per band after the top band.
+    #[must_use]
+    pub fn band_rows(&self) -> usize {
+        self.band_rows
+    }
+
+    /// The patch radius r = N / 2, the rows of the top band (fewer in an
+    /// image of fewer rows).
+    #[must_use]
+    pub fn radius(&self) -> usize {
+        self.opts.patch / 2
+    }
+
+    /// Whether the curvature has holes ([`Options::nodata`] is set).
+    #[must_use]
+    pub fn has_nodata(&self) -> bool {
+        self.opts.nodata.is_some()
+    }
+
+    /// The holes (NaN) of every band fitted so far.
+    #[must_use]
+    pub fn missing(&self) -> usize {
+        self.missing.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// The bands of output rows, in order: the top r rows, then bands of
+    /// [`band_rows`](Self::band_rows).
+    pub fn bands(&self) -> impl Iterator<Item = Range<usize>> + use<> {
+        let (h, b) = (self.height, self.band_rows);
+        let top = self.radius().min(h);
+        std::iter::once(0..top).chain((top..h).step_by(b).map(move |y0| y0..(y0 + b).min(h))).filter(|r| !r.is_empty())
+    }
+
+    /// The bytes fitting one band allocates on every thread beyond the
+    /// caller's buffers.
+    pub(crate) fn work_bytes(&self) -> u64 {
+        let threads = crate::par::current_num_threads() as u64;
+        let band = band_rows(self.opts.patch).min(self.height);
+        per_band_bytes(self.opts.patch, self.width, band).saturating_mul(threads)
+    }
+
+    /// Fits the band `rows` (one of [`bands`](Self::bands)) into `out`,
+    /// which holds its texels: the curvature, NaN where the patch holds a
+    /// hole. `row(y)` gives source row y (`width` heights) for every y the
+    /// band reads. Rows run in parallel on rayon's current pool. Returns
+    /// the band's holes.
+    ///
+    /// Errors: [`Error::BufferSize`] for a range that is not a band or a
+    /// wrong `out` length, [`Error::NonFiniteHeight`] if a row read holds NaN
+    /// or ±inf without a nodata value.
+    pub fn fit_band<'a, H: Sample>(
+        &self,
+        rows: Range<usize>,
+        row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        out: &mut [f32],
+    ) -> Result<usize> {
+        let (w, h, r) = (self.width, self.height, self.radius());
+        let top = r.min(h);
+        let is_band = if rows.start < top {
+            rows == (0..top)
+        } else {
+            (rows.start - top).is_multiple_of(self.band_rows)
+                && rows.start < h
+                && rows.end == (rows.start + self.band_rows).min(h)
+        };
+        if !is_band || out.len() != rows.len() * w {
+            return Err(Error::BufferSize { expected: rows.len() * w, actual: out.len() });
+        }
+        for p in rows.start..rows.end + 2 * r {
+            let y = self.opts.borders.y.map(p as isize - r as isize, h);
+            let values = row(y);
+            if values.len() != w {
+                return Err(Error::BufferSize { expected: w, actual: values.len() });
+            }
+            if self.opts.nodata.is_none()
+                && let Some((x, _)) = first_non_finite(values, w)
+            {
+                return Err(Error::NonFiniteHeight { x, y });
+            }
+        }
+        let unit = self.unit.unwrap_or(H::UNIT);
+        let scales = scales(&self.opts, w, unit)?;
+        fit_rows(row, (w, h), &self.opts, scales, unit != 1.0, rows.start, out);
+        let missing = if self.has_nodata() { out.iter().filter(|v| v.is_nan()).count() } else { 0 };
+        self.missing.fetch_add(missing, std::sync::atomic::Ordering::Relaxed);
+        Ok(missing)
+    }
+}
+
 /// A plane's rows.
 fn rows_of<A>(plane: &[A], width: usize) -> Vec<&[A]> {
     plane.chunks_exact(width).collect()
 }
 
-/// The output rows from `y0` (as many as `out` holds).
-fn band_curvature<H: Sample, A: Acc>(
-    heights: &[H],
+/// The output rows from `y0` (as many as `out` holds); `row(y)` gives
+/// source row y.
+fn band_curvature<'a, H: Sample, A: Acc>(
+    row: &(dyn Fn(usize) -> &'a [H] + Sync),
     (width, height): (usize, usize),
     opts: &Options,
     scales: Scales,
     y0: usize,
     out: &mut [f32],
-) -> Result<()> {
+) {
     let n = opts.patch;
     let r = n / 2;
     let rows_out = out.len() / width;
@@ -419,7 +725,7 @@ fn band_curvature<H: Sample, A: Acc>(
     let mut hole_row = vec![A::zero(); padded_w];
     for k in 0..src_rows {
         let y = opts.borders.y.map((y0 + k) as isize - r as isize, height);
-        let row = &heights[y * width..(y + 1) * width];
+        let row = row(y);
         let mut any_hole = false;
         for (p, (&c, hole)) in padded.iter_mut().zip(columns.iter().zip(hole_row.iter_mut())) {
             let v = row[c];
@@ -440,13 +746,13 @@ fn band_curvature<H: Sample, A: Acc>(
     let mut planes: Vec<Vec<A>> = (0..6).map(|_| vec![A::zero(); cells]).collect();
     {
         let [m00, m01, m02, m10, m11, m20] = planes.as_mut_slice() else { unreachable!() };
-        A::column_moments(&rows_of(&h0, width), n, &mut [&mut m00[..], &mut m01[..], &mut m02[..]], &[0, 1, 2]);
-        A::column_moments(&rows_of(&h1, width), n, &mut [&mut m10[..], &mut m11[..]], &[0, 1]);
-        A::column_moments(&rows_of(&h2, width), n, &mut [&mut m20[..]], &[0]);
+        A::column_moments(&rows_of(&h0, width), n, y0, &mut [&mut m00[..], &mut m01[..], &mut m02[..]], &[0, 1, 2]);
+        A::column_moments(&rows_of(&h1, width), n, y0, &mut [&mut m10[..], &mut m11[..]], &[0, 1]);
+        A::column_moments(&rows_of(&h2, width), n, y0, &mut [&mut m20[..]], &[0]);
     }
     let hole_counts = holes.map(|holes| {
         let mut counts = vec![A::zero(); cells];
-        A::column_moments(&rows_of(&holes, width), n, &mut [&mut counts[..]], &[0]);
+        A::column_moments(&rows_of(&holes, width), n, y0, &mut [&mut counts[..]], &[0]);
         counts
     });
     let [m00, m01, m02, m10, m11, m20] = planes.as_slice() else { unreachable!() };
@@ -459,7 +765,6 @@ fn band_curvature<H: Sample, A: Acc>(
             mean_curvature(coefficients, scales) as f32
         };
     }
-    Ok(())
 }
 
 /// The curvature that maps to white ([`encode`]) unless a caller says:

@@ -7,7 +7,8 @@ use std::ops::Range;
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::Result;
 use crate::fit::BandFit;
-use crate::io::encoding::{ExrOptions, Layout};
+use crate::fit::quadratic::CurvatureBands;
+use crate::io::encoding::{ExrDepth, ExrOptions, Layout};
 use crate::io::exr::write::{ExrBlocks, IndexedChunk, write_exr_blocks};
 use crate::io::texels::{Container, lay_out};
 use crate::options::Options;
@@ -72,6 +73,35 @@ pub(crate) fn convert_exr_counting<W: Write + Seek>(
         };
         let consume = |_: usize, chunks: Vec<Result<Vec<IndexedChunk>>>| chunks.into_iter().try_for_each(|c| write(c?));
         run(rows, &fit, tail, (false, Extra::of(layout)), visit, Stages { prepare, consume })?;
+        blocks.finish()
+    })?;
+    Ok(fit.missing())
+}
+
+/// The curvature of the rows of `rows` ([`CurvatureBands`]) as a
+/// one-channel OpenEXR (`Y`, ZIP in blocks of 16 rows) written to `out`
+/// band by band: the file the whole image's curvature makes
+/// (`io::write::encode_gray_tagged`). `tail` as for [`convert_exr`].
+/// Returns the count of holes.
+///
+/// Errors: as [`convert_exr`], and those of [`CurvatureBands::new`].
+pub(crate) fn curvature_exr<W: Write + Seek>(
+    rows: impl RowSource,
+    tail: Option<&[f64]>,
+    opts: &Options,
+    depth: ExrDepth,
+    visit: impl FnMut(&[f32]) + Send,
+    out: W,
+) -> Result<usize> {
+    let (w, h) = (rows.width(), rows.height());
+    let fit = CurvatureBands::new(w, h, opts)?.with_unit(rows.unit());
+    let tail = checked_tail(tail, w, h, opts)?;
+    let mut blocks = ExrBlocks::new(w, h, depth, &["Y"])?;
+    let (header, spares) = (blocks.header(), blocks.spares());
+    write_exr_blocks(out, &header, &spares, |write| {
+        let prepare = |_: Range<usize>, values: &mut [f32], _: Vec<f32>| vec![blocks.push(values)];
+        let consume = |_: usize, chunks: Vec<Result<Vec<IndexedChunk>>>| chunks.into_iter().try_for_each(|c| write(c?));
+        run(rows, &fit, tail, (false, Extra::None), visit, Stages { prepare, consume })?;
         blocks.finish()
     })?;
     Ok(fit.missing())

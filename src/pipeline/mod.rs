@@ -42,12 +42,12 @@ use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 
 pub use self::exr::convert_exr;
-pub(crate) use self::exr::convert_exr_counting;
+pub(crate) use self::exr::{convert_exr_counting, curvature_exr};
 #[cfg(feature = "tiff")]
 pub(crate) use self::geotiff::{convert_tiff_counting, shade_tiff};
-pub(crate) use self::png::shade_png_seekable;
 pub use self::png::{convert_png, convert_png_seekable};
 pub(crate) use self::png::{convert_png_counting, convert_png_seekable_counting};
+pub(crate) use self::png::{curvature_png_seekable, shade_png_seekable};
 // The rows it reads are io's, by format.
 pub use crate::io::encoding::{ExrOptions, PngDepth, PngOptions};
 pub use crate::io::rows::RowSource;
@@ -57,6 +57,7 @@ pub use crate::io::tiff::rows::TiffRows;
 pub use crate::io::{ExrRows, PngRows};
 
 use crate::error::{Error, Result};
+use crate::fit::quadratic::CurvatureBands;
 use crate::fit::{BandFit, FromNormal};
 use crate::options::{Border, Options};
 use crate::samples::Sample;
@@ -157,6 +158,110 @@ pub(crate) fn zero_missing(alpha: &mut [f32], valid: &[bool]) {
     }
 }
 
+/// What the fit stage makes of each band's rows: the normals
+/// ([`BandFit`], texels `T`) or the curvature ([`CurvatureBands`], f32).
+/// Either cuts the image into the same bands, the top N/2 rows first.
+trait BandStage<T>: Sync {
+    fn width(&self) -> usize;
+    fn height(&self) -> usize;
+    fn radius(&self) -> usize;
+    fn band_rows(&self) -> usize;
+    fn has_nodata(&self) -> bool;
+    /// The texels without a value in the bands fitted so far.
+    fn missing(&self) -> usize;
+    /// The bands of output rows, in order.
+    fn band_list(&self) -> Vec<Range<usize>>;
+    /// The bytes fitting a band allocates, for rows of `H`.
+    fn work_bytes<H: Sample>(&self) -> u64;
+    /// Fits the band `rows` into `out`; with holes, `valid` (as long)
+    /// says which texels have a value.
+    fn fit_into<'a, H: Sample>(
+        &self,
+        rows: Range<usize>,
+        row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        out: &mut [T],
+        valid: &mut [bool],
+    ) -> Result<()>;
+}
+
+impl<T: FromNormal> BandStage<T> for BandFit {
+    fn width(&self) -> usize {
+        BandFit::width(self)
+    }
+    fn height(&self) -> usize {
+        BandFit::height(self)
+    }
+    fn radius(&self) -> usize {
+        BandFit::radius(self)
+    }
+    fn band_rows(&self) -> usize {
+        BandFit::band_rows(self)
+    }
+    fn has_nodata(&self) -> bool {
+        BandFit::has_nodata(self)
+    }
+    fn missing(&self) -> usize {
+        BandFit::missing(self)
+    }
+    fn band_list(&self) -> Vec<Range<usize>> {
+        self.bands().collect()
+    }
+    fn work_bytes<H: Sample>(&self) -> u64 {
+        BandFit::work_bytes::<H>(self, false)
+    }
+    fn fit_into<'a, H: Sample>(
+        &self,
+        rows: Range<usize>,
+        row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        out: &mut [T],
+        valid: &mut [bool],
+    ) -> Result<()> {
+        match BandFit::has_nodata(self) {
+            true => self.fit_band_masked(rows, row, out, valid).map(|_| ()),
+            false => self.fit_band(rows, row, out),
+        }
+    }
+}
+
+impl BandStage<f32> for CurvatureBands {
+    fn width(&self) -> usize {
+        CurvatureBands::width(self)
+    }
+    fn height(&self) -> usize {
+        CurvatureBands::height(self)
+    }
+    fn radius(&self) -> usize {
+        CurvatureBands::radius(self)
+    }
+    fn band_rows(&self) -> usize {
+        CurvatureBands::band_rows(self)
+    }
+    fn has_nodata(&self) -> bool {
+        CurvatureBands::has_nodata(self)
+    }
+    fn missing(&self) -> usize {
+        CurvatureBands::missing(self)
+    }
+    fn band_list(&self) -> Vec<Range<usize>> {
+        self.bands().collect()
+    }
+    fn work_bytes<H: Sample>(&self) -> u64 {
+        CurvatureBands::work_bytes(self)
+    }
+    fn fit_into<'a, H: Sample>(
+        &self,
+        rows: Range<usize>,
+        row: &(dyn Fn(usize) -> &'a [H] + Sync),
+        out: &mut [f32],
+        valid: &mut [bool],
+    ) -> Result<()> {
+        self.fit_band(rows, row, out)?;
+        // A hole's curvature is NaN.
+        valid.iter_mut().zip(out.iter()).for_each(|(v, k)| *v = !k.is_nan());
+        Ok(())
+    }
+}
+
 /// A band of rows between stages: its first row and its values (heights,
 /// or what the encoder takes).
 type Band<T> = Result<(usize, Vec<T>)>;
@@ -181,9 +286,9 @@ struct Stages<Prepare, Consume> {
 /// `deferred` the top band last (when the image's last rows are in).
 /// `visit` sees every decoded row, in order, as heights. With
 /// `needs_heights`, `prepare` gets each band's heights too.
-fn run<S, T, B, Prepare, Consume>(
+fn run<S, T, B, F, Prepare, Consume>(
     rows: S,
-    fit: &BandFit,
+    fit: &F,
     tail: Option<&[f64]>,
     (deferred, needs_heights): (bool, Extra),
     visit: impl FnMut(&[f32]) + Send,
@@ -191,23 +296,24 @@ fn run<S, T, B, Prepare, Consume>(
 ) -> Result<()>
 where
     S: RowSource,
-    T: FromNormal + Default,
+    T: Default + Clone + Send,
     B: Send,
+    F: BandStage<T>,
     Prepare: FnMut(Range<usize>, &mut [T], Vec<f32>) -> Vec<B> + Send,
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     // Rows in f32 where that is exact: half the memory and bandwidth.
     if rows.exact_in_f32() {
-        run_as::<f32, _, _, _, _, _>(rows, fit, tail, (deferred, needs_heights), visit, stages)
+        run_as::<f32, _, _, _, _, _, _>(rows, fit, tail, (deferred, needs_heights), visit, stages)
     } else {
-        run_as::<f64, _, _, _, _, _>(rows, fit, tail, (deferred, needs_heights), visit, stages)
+        run_as::<f64, _, _, _, _, _, _>(rows, fit, tail, (deferred, needs_heights), visit, stages)
     }
 }
 
 /// [`run`], the rows held as `H`.
-fn run_as<H, S, T, B, Prepare, Consume>(
+fn run_as<H, S, T, B, F, Prepare, Consume>(
     mut rows: S,
-    fit: &BandFit,
+    fit: &F,
     tail: Option<&[f64]>,
     (deferred, needs_heights): (bool, Extra),
     mut visit: impl FnMut(&[f32]) + Send,
@@ -216,13 +322,14 @@ fn run_as<H, S, T, B, Prepare, Consume>(
 where
     H: RowValue,
     S: RowSource,
-    T: FromNormal + Default,
+    T: Default + Clone + Send,
     B: Send,
+    F: BandStage<T>,
     Prepare: FnMut(Range<usize>, &mut [T], Vec<f32>) -> Vec<B> + Send,
     Consume: FnMut(usize, Vec<B>) -> Result<()>,
 {
     let Stages { prepare, mut consume } = stages;
-    check_stream_memory::<H, T>(fit, tail.map_or(0, <[f64]>::len))?;
+    check_stream_memory::<H, T, F>(fit, tail.map_or(0, <[f64]>::len))?;
     let tail: Option<Vec<H>> = tail.map(|t| t.iter().map(|&v| H::from_f64(v)).collect());
     let tail = tail.as_deref();
     // Two bands in flight between stages keep every stage busy without
@@ -275,7 +382,7 @@ fn lit_greys(lamp: crate::light::Lamp, normals: &[[f32; 3]], valid: &[f32], grey
 /// tail, a row of heights for `visit`, and the fit's own work on a band
 /// ([`BandFit::work_bytes`]: its sums, which grow with N, on every thread;
 /// with holes, the band's validity).
-fn check_stream_memory<H: Sample, T>(fit: &BandFit, tail_len: usize) -> Result<()> {
+fn check_stream_memory<H: Sample, T, F: BandStage<T>>(fit: &F, tail_len: usize) -> Result<()> {
     let (w, h, r, band) = (fit.width() as u64, fit.height() as u64, fit.radius() as u64, fit.band_rows() as u64);
     // No more rows than the image has.
     let height_rows = (6 * band).min(h);
@@ -288,7 +395,7 @@ fn check_stream_memory<H: Sample, T>(fit: &BandFit, tail_len: usize) -> Result<(
         + output_rows * w * output_bytes
         + 4 * w;
     // Two threads of its own beside the pool's: decoding and fitting.
-    crate::memory::check_work("converting by rows", bytes.saturating_add(fit.work_bytes::<H>(false)), 2)
+    crate::memory::check_work("converting by rows", bytes.saturating_add(fit.work_bytes::<H>()), 2)
 }
 
 /// Decodes bands of `band` rows and sends them on; stops at the first
@@ -358,8 +465,8 @@ fn first_bad_texel<H: RowValue>(rx: Receiver<Band<H>>, w: usize, known: (usize, 
 }
 
 /// What the fit stage works with besides its channels.
-struct Fitting<'a, H> {
-    fit: &'a BandFit,
+struct Fitting<'a, H, F> {
+    fit: &'a F,
     /// The height of a row value of 1.
     unit: f64,
     /// The image's last N/2 rows, for a wrap in y fitted in order.
@@ -372,8 +479,8 @@ struct Fitting<'a, H> {
 
 /// Fits each band once the rows it reads are in, prepares it for the
 /// encoder and sends it on.
-fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
-    &Fitting { fit, unit, tail, deferred, needs_heights }: &Fitting<'_, H>,
+fn fit_stage<H: RowValue, T: Default + Clone + Send, B, F: BandStage<T>>(
+    &Fitting { fit, unit, tail, deferred, needs_heights }: &Fitting<'_, H, F>,
     mut prepare: impl FnMut(Range<usize>, &mut [T], Vec<f32>) -> Vec<B>,
     rx: Receiver<Band<H>>,
     tx: &SyncSender<Band<B>>,
@@ -401,7 +508,7 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
     let mut normals: Vec<T> = Vec::new();
     let mut valid: Vec<bool> = Vec::new();
     let mut incoming = rx.into_iter();
-    let mut bands: Vec<_> = fit.bands().collect();
+    let mut bands = fit.band_list();
     if deferred {
         bands.rotate_left(1);
     }
@@ -453,12 +560,10 @@ fn fit_stage<H: RowValue, T: FromNormal + Default, B>(
             let _ = tx.send(Err(e));
             return;
         }
-        let fitted = if fit.has_nodata() {
-            fit.fit_band_masked(rows.clone(), &row, &mut normals, &mut valid).map(|_| ())
-        } else {
+        if !fit.has_nodata() {
             valid.clear();
-            fit.fit_band(rows.clone(), &row, &mut normals)
-        };
+        }
+        let fitted = fit.fit_into(rows.clone(), &row, &mut normals, &mut valid);
         let result = fitted.and_then(|()| {
             let extra = match needs_heights {
                 Extra::None => Vec::new(),

@@ -21,8 +21,9 @@ use std::borrow::Cow;
 use std::io::{Read, Seek, Write};
 use std::ops::Range;
 
-use super::{Extra, RowSource, Stages, checked_tail, run};
+use super::{BandStage, Extra, RowSource, Stages, checked_tail, run};
 use crate::error::{Error, Result};
+use crate::fit::quadratic::CurvatureBands;
 use crate::fit::{BandFit, FromNormal};
 use crate::io::encoding::{Layout, PngCompression, PngDepth, PngOptions};
 use crate::io::png::deflate::{Checksum, FINAL_BLOCK, Piece, Pieces, ZLIB_HEADER, stored_len};
@@ -139,6 +140,56 @@ pub(crate) fn shade_png_seekable<W: Write + Seek>(
     Ok(missing)
 }
 
+/// The curvature of the rows of `rows` ([`CurvatureBands`]) as an 8- or
+/// 16-bit gray PNG of the artist's codes
+/// ([`encode`](crate::fit::quadratic::encode), `range` white), written to
+/// `out` in one pass, the top rows last as [`convert_png_seekable`]
+/// writes them. Returns the count of holes (mid-grey).
+pub(crate) fn curvature_png_seekable<W: Write + Seek>(
+    rows: impl RowSource,
+    opts: &Options,
+    (depth, compression): (PngDepth, PngCompression),
+    range: f64,
+    visit: impl FnMut(&[f32]) + Send,
+    out: &mut W,
+) -> Result<usize> {
+    let start = out.stream_position()?;
+    let texels = CurvatureTexels { range, sixteen: depth == PngDepth::Sixteen };
+    let (first_idat, missing) = convert_as(rows, None, opts, visit, out, (compression, true), texels)?;
+    write_first_idat(out, start, &first_idat)?;
+    Ok(missing)
+}
+
+/// Curvatures as the artist's gray codes, 8 or 16 bits.
+struct CurvatureTexels {
+    range: f64,
+    sixteen: bool,
+}
+
+impl PngTexels for CurvatureTexels {
+    type Normal = f32;
+    type Fit = CurvatureBands;
+    fn fit(&self, (w, h): (usize, usize), opts: &Options, unit: f64) -> Result<CurvatureBands> {
+        Ok(CurvatureBands::new(w, h, opts)?.with_unit(unit))
+    }
+    fn bits(&self) -> u8 {
+        if self.sixteen { 16 } else { 8 }
+    }
+    fn samples(&self) -> usize {
+        1
+    }
+    fn needs_heights(&self) -> Extra {
+        Extra::None
+    }
+    fn raw<'a>(&self, values: &'a mut [f32], _: &[f32]) -> Cow<'a, [u8]> {
+        use crate::fit::quadratic::encode;
+        Cow::Owned(match self.sixteen {
+            true => values.iter().flat_map(|&k| (encode(k, self.range, 65535) as u16).to_be_bytes()).collect(),
+            false => values.iter().map(|&k| encode(k, self.range, 255) as u8).collect(),
+        })
+    }
+}
+
 /// Normals lit by a lamp: one gray byte a texel.
 struct LitTexels {
     lamp: crate::light::Lamp,
@@ -148,6 +199,10 @@ struct LitTexels {
 
 impl PngTexels for LitTexels {
     type Normal = [f32; 3];
+    type Fit = BandFit;
+    fn fit(&self, (w, h): (usize, usize), opts: &Options, unit: f64) -> Result<BandFit> {
+        Ok(BandFit::new(w, h, opts)?.with_unit(unit))
+    }
     fn bits(&self) -> u8 {
         8
     }
@@ -168,7 +223,11 @@ impl PngTexels for LitTexels {
 /// (`Normal`, one per texel) turned into the bytes a PNG row stores.
 pub(super) trait PngTexels: Send {
     /// The fit's texel type.
-    type Normal: FromNormal + Default + Send;
+    type Normal: Default + Clone + Send;
+    /// The fit that makes them.
+    type Fit: BandStage<Self::Normal>;
+    /// The fit of a `w` × `h` image whose row value 1 is `unit`.
+    fn fit(&self, size: (usize, usize), opts: &Options, unit: f64) -> Result<Self::Fit>;
     /// Bits per sample, and samples per texel (the PNG's colour type).
     fn bits(&self) -> u8;
     fn samples(&self) -> usize;
@@ -190,6 +249,10 @@ where
     [S; 3]: FromNormal + Default,
 {
     type Normal = [S; 3];
+    type Fit = BandFit;
+    fn fit(&self, (w, h): (usize, usize), opts: &Options, unit: f64) -> Result<BandFit> {
+        Ok(BandFit::new(w, h, opts)?.with_unit(unit))
+    }
     fn bits(&self) -> u8 {
         S::BITS
     }
@@ -241,8 +304,7 @@ pub(super) fn convert_as<P: PngTexels, R: RowSource, W: Write + ?Sized>(
     texels: P,
 ) -> Result<(Vec<u8>, usize)> {
     let (w, h) = (rows.width(), rows.height());
-    let unit = rows.unit();
-    let fit = BandFit::new(w, h, opts)?.with_unit(unit);
+    let fit = texels.fit((w, h), opts, rows.unit())?;
     let (bits, samples) = (texels.bits(), texels.samples());
     let texel_bytes = samples * usize::from(bits / 8);
     let stride = texel_bytes * w;

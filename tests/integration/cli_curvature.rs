@@ -108,3 +108,87 @@ fn refusals_are_one_line_and_exit_2() {
         assert!(!out_path.exists(), "{extra:?}: no output");
     }
 }
+
+/// Writes a one-channel (`Y`) float EXR.
+fn float_exr(path: &Path, w: usize, h: usize, values: &[f32]) {
+    use exr::prelude::{
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, WritableImage,
+    };
+    let channels = AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new("Y", FlatSamples::F32(values.to_vec()))]));
+    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
+    Image::from_layer(layer).write().to_file(path).unwrap();
+}
+
+#[test]
+fn streamed_into_exr_equals_the_whole_image_for_every_border_pair() {
+    use normalfit::Product;
+    use normalfit::convert::{BorderChoice, BorderChoices, Conversion};
+    let dir = tempfile::tempdir().unwrap();
+    // Taller than a band (64 rows a thread at N = 5), so the output comes
+    // in several bands, and a wrap reads the last rows first.
+    let (w, h) = (23usize, 300usize);
+    let stored = relief(w, h);
+    let floats: Vec<f32> = stored.iter().map(|&v| f32::from(v) / 65535.0 * 3.0 + 7.0).collect();
+    let mut holed = floats.clone();
+    holed[150 * w + 4] = -1.0;
+    let png = dir.path().join("h.png");
+    gray16_png(&png, w as u32, h as u32, &stored);
+    let exr_in = dir.path().join("h.exr");
+    float_exr(&exr_in, w, h, &floats);
+    let holed_in = dir.path().join("holed.exr");
+    float_exr(&holed_in, w, h, &holed);
+    let borders = [Border::Wrap, Border::Clamp, Border::Mirror];
+    for bx in borders {
+        for by in borders {
+            let opts = Options::new().with_patch(5).with_strength(Strength::Scale(2.0));
+            let fixed = Borders { x: bx, y: by };
+            let conversion = |nodata: Option<f64>| {
+                Conversion::new()
+                    .with_fit(opts.clone().with_nodata(nodata))
+                    .with_borders(BorderChoices { x: BorderChoice::Fixed(bx), y: BorderChoice::Fixed(by) })
+                    .with_product(Product::Curvature)
+            };
+            let library = opts.clone().with_borders(fixed);
+            for (input, want, nodata, what) in [
+                (&png, curvature(&stored, w, h, &library).unwrap(), None, "16-bit PNG"),
+                (&exr_in, curvature(&floats, w, h, &library).unwrap(), None, "float EXR"),
+                (
+                    &holed_in,
+                    curvature(&holed, w, h, &library.clone().with_nodata(Some(-1.0))).unwrap(),
+                    Some(-1.0),
+                    "holes",
+                ),
+            ] {
+                let out = dir.path().join("k.exr");
+                let summary = conversion(nodata).convert_file(input, &out).unwrap();
+                assert!(summary.streamed, "{what} {bx},{by}: streamed");
+                assert_eq!(summary.missing, want.iter().filter(|v| v.is_nan()).count(), "{what}");
+                // The samples as stored: holes are NaN, which heights refuse.
+                let raster = read_path(&out, &ReadOptions::default()).unwrap();
+                let normalfit::Samples::F32(got) = &raster.planes[0].data else { panic!("{what}: float samples") };
+                let differ = got.iter().zip(&want).position(|(a, b)| a.to_bits() != b.to_bits());
+                assert_eq!(differ, None, "{what} borders {bx},{by}: streamed differs from the library");
+                // The artist's 8- and 16-bit codes, streamed into PNG (the
+                // top rows written last).
+                for (bits, max) in [(8u8, 255u32), (16, 65535)] {
+                    let out = dir.path().join("k.png");
+                    let summary = conversion(nodata)
+                        .with_bits(bits)
+                        .with_curvature_range(0.02)
+                        .convert_file(input, &out)
+                        .unwrap();
+                    assert!(summary.streamed, "{what} {bits}-bit {bx},{by}: streamed");
+                    let codes: Vec<u32> =
+                        read_values(&out).iter().map(|&v| (f64::from(v) * f64::from(max)).round() as u32).collect();
+                    let wanted: Vec<u32> = want.iter().map(|&k| encode(k, 0.02, max)).collect();
+                    let differ = codes.iter().zip(&wanted).position(|(a, b)| a != b);
+                    assert_eq!(differ, None, "{what} {bits}-bit borders {bx},{by}");
+                    assert!(
+                        wanted.iter().any(|&c| c > max / 2 + 2) && wanted.iter().any(|&c| c < max / 2 - 2),
+                        "{what}: codes both ways"
+                    );
+                }
+            }
+        }
+    }
+}
