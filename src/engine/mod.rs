@@ -183,6 +183,15 @@ pub(crate) enum Stage {
         /// The curvature that maps to white.
         range: f64,
     },
+    /// A slope or an aspect map ([`crate::units::Measure`]): one float32
+    /// channel in this encoding (a TIFF with gdaldem's nodata, −9999, or
+    /// an EXR); streamed into a TIFF file, else from the whole image.
+    Terrain {
+        /// What each texel holds.
+        measure: crate::units::Measure,
+        /// The output's format (float32: checked by the entry point).
+        encoding: Encoding,
+    },
     /// The lit view, 8-bit grey (PNG, or TIFF with GDAL's nodata 0), lit
     /// as `lighting` says; tiled 2×2 from the whole image.
     Lit {
@@ -205,6 +214,13 @@ impl Stage {
         match self {
             Stage::Normals(_) => true,
             Stage::Mips(_) | Stage::Curvature { .. } => false,
+            // The TIFF writer's rows go into a file, which it seeks back
+            // into; an EXR or a stream is written from the whole image.
+            Stage::Terrain { encoding, .. } => {
+                matches!(encoding, Encoding::Tiff(_))
+                    && matches!(output, Some(Output::File { path, .. })
+                        if !matches!(io::output_target(path), Ok(io::OutputTarget::Stream(_))))
+            }
             Stage::Lit { tile, .. } => {
                 let into_file = match output {
                     Some(Output::File { path, .. }) => {
@@ -337,6 +353,7 @@ impl Stage {
             Stage::Normals(encoding) => encoding,
             Stage::Mips(mips) => mips.encoding,
             Stage::Curvature { encoding, .. } => encoding,
+            Stage::Terrain { encoding, .. } => encoding,
             Stage::Lit { tiff: true, .. } => io::encoding::TiffOptions::new(io::encoding::TiffDepth::Eight).into(),
             Stage::Lit { tiff: false, .. } => {
                 io::PngOptions::new(io::PngDepth::Eight).with_compression(io::PngCompression::Default).into()
