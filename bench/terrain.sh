@@ -2,7 +2,11 @@
 # Times normalfit on float32 GeoTIFF DEMs against GDAL's DEM tools, in one
 # run: normals (`convert`, to PNG, EXR and GeoTIFF) against `gdaldem
 # slope`, and the lit view (`shade`, gdaldem's sun, to PNG and GeoTIFF)
-# against `gdaldem hillshade`, which write uncompressed GeoTIFF. Three
+# against `gdaldem hillshade`, which write uncompressed GeoTIFF; then like
+# with like: `convert --product slope|aspect|hillshade` against `gdaldem
+# slope|aspect|hillshade`, the same products in the same files (float32
+# GeoTIFF with nodata −9999; the hillshade 8-bit with nodata 0), with the
+# user CPU time beside the wall time. Three
 # DEMs of the same heights: projected in strips of one row (as
 # gdal_translate writes), projected in 256² tiles (-co TILED=YES), and
 # geographic (EPSG:4326, about 10 m texels at 45° N). Each is converted
@@ -49,23 +53,25 @@ geo=$work/dem${size}_4326.tif
 [ -f "$geo" ] || gdal_translate -q -a_srs EPSG:4326 \
   -a_ullr 10 45.2 "$(python3 -c "print(10 + $size / 9000)")" "$(python3 -c "print(45.2 - $size / 9000)")" "$dem" "$geo"
 
-# best wall time (s) and highest peak RSS (MiB) of 5 runs of "$@": a run
+# best wall time (s), highest peak RSS (MiB) and least user CPU time (s)
+# of 5 runs of "$@": a run
 # takes about 0.1 s, and one in three may lose 10 to 20 ms to the machine.
 # The wall time is bash's clock around the run, to the millisecond
 # (/usr/bin/time's is to 10 ms, a tenth of a run); the peak RSS is
 # /usr/bin/time's.
 measure() {
-  local best=999999 peak=0 t m start end
+  local best=999999 peak=0 user=999999 t m u start end
   for _ in 1 2 3 4 5; do
-    rm -f "$work"/n.* "$work"/lit.* "$work"/slope.tif "$work"/hillshade.tif
+    rm -f "$work"/n.* "$work"/lit.* "$work"/p.* "$work"/slope.tif "$work"/aspect.tif "$work"/hillshade.tif
     start=$EPOCHREALTIME
-    /usr/bin/time -f '%M' -o "$work/time.txt" "$@" >/dev/null 2>"$work/stderr.txt" || { cat "$work/stderr.txt" >&2; exit 1; }
+    /usr/bin/time -f '%M %U' -o "$work/time.txt" "$@" >/dev/null 2>"$work/stderr.txt" || { cat "$work/stderr.txt" >&2; exit 1; }
     end=$EPOCHREALTIME
-    read -r m < "$work/time.txt"
+    read -r m u < "$work/time.txt"
     best=$(python3 -c "print(f'{min($best, $end - $start):.3f}')")
+    user=$(python3 -c "print(f'{min($user, $u):.2f}')")
     peak=$(( m > peak ? m : peak ))
   done
-  echo "$best $((peak / 1024))"
+  echo "$best $((peak / 1024)) $user"
 }
 
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
@@ -74,16 +80,24 @@ echo "| ${size}² float32 GeoTIFF, 10 m texels | wall (best of 5) | peak RSS | o
 echo "|---|---|---|---|---|---|---|---|"
 row() {
   local label=$1 gdal_label=$2 gdal_cmd=$3; shift 3
-  read -r t m < <(measure "$@")
+  read -r t m _ < <(measure "$@")
   # The output's size, from the argument after -o.
   local out="" prev="" arg
   for arg in "$@"; do [ "$prev" = "-o" ] && out=$arg; prev=$arg; done
   local mb
   mb=$(python3 -c "print(f'{$(stat -c %s "$out") / 1e6:.1f} MB')")
   # shellcheck disable=SC2086
-  read -r tg mg < <(measure $gdal_cmd)
+  read -r tg mg _ < <(measure $gdal_cmd)
   ratio=$(python3 -c "print(f'{$tg / $t:.2f}×')")
   echo "| $label | $t s | $m MiB | $mb | $gdal_label | $tg s | $mg MiB | $ratio |"
+}
+# A row of the like-with-like table: the same product from both tools.
+product_row() {
+  local label=$1 gdal_cmd=$2; shift 2
+  read -r t m u < <(measure "$@")
+  # shellcheck disable=SC2086
+  read -r tg mg ug < <(measure $gdal_cmd)
+  echo "| $label | $t s | $u s | $m MiB | $tg s | $ug s | $mg MiB | $(python3 -c "print(f'{$tg / $t:.2f}×')") |"
 }
 slope="gdaldem slope -q $dem $work/slope.tif"
 hillshade="gdaldem hillshade -q $dem $work/hillshade.tif"
@@ -133,6 +147,27 @@ row "EPSG:4326: convert --units map --border clamp → float GeoTIFF" "slope -s 
   "$bin" convert "$geo" -o "$work/n.tif" --units map --border clamp --bits 32
 row "EPSG:4326: shade --units map --border clamp → PNG" "hillshade -s 111120" "$hillshade_g" \
   "$bin" shade "$geo" -o "$work/lit.png" --units map --border clamp
+echo
+echo "| ${size}² float32 GeoTIFF, like with like | wall (best of 5) | user CPU | peak RSS | gdaldem wall | gdaldem user CPU | gdaldem RSS | speed-up (wall) |"
+echo "|---|---|---|---|---|---|---|---|"
+# gdaldem's N = 3 gradient is a plane's: --fit vertical is its fit.
+fit=(--units map --border clamp --fit vertical)
+product_row "slope (degrees) → float32 GeoTIFF" "gdaldem slope -q $dem $work/slope.tif" \
+  "$bin" convert "$dem" -o "$work/p.tif" --product slope "${fit[@]}"
+product_row "slope, orthogonal fit (the default)" "gdaldem slope -q $dem $work/slope.tif" \
+  "$bin" convert "$dem" -o "$work/p.tif" --product slope --units map --border clamp
+product_row "slope (percent)" "gdaldem slope -q -p $dem $work/slope.tif" \
+  "$bin" convert "$dem" -o "$work/p.tif" --product slope --slope-units percent "${fit[@]}"
+product_row "aspect → float32 GeoTIFF" "gdaldem aspect -q $dem $work/aspect.tif" \
+  "$bin" convert "$dem" -o "$work/p.tif" --product aspect "${fit[@]}"
+product_row "hillshade (315°, 45°) → 8-bit GeoTIFF" "gdaldem hillshade -q $dem $work/hillshade.tif" \
+  "$bin" convert "$dem" -o "$work/p.tif" --product hillshade "${fit[@]}"
+product_row "EPSG:4326: slope (metres per row; gdaldem -s 111120)" "gdaldem slope -q -s 111120 $geo $work/slope.tif" \
+  "$bin" convert "$geo" -o "$work/p.tif" --product slope "${fit[@]}"
+product_row "EPSG:4326: aspect" "gdaldem aspect -q $geo $work/aspect.tif" \
+  "$bin" convert "$geo" -o "$work/p.tif" --product aspect "${fit[@]}"
+product_row "EPSG:4326: hillshade" "gdaldem hillshade -q -s 111120 $geo $work/hillshade.tif" \
+  "$bin" convert "$geo" -o "$work/p.tif" --product hillshade "${fit[@]}"
 echo
 # normalfit syncs every output to disk before putting it in place (an
 # output appears whole or not at all, after a crash too); gdaldem does

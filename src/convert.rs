@@ -59,9 +59,10 @@ use crate::io::{
     Channel, Encoding, InputFormat, Inputs, Layout, OutputFormat, PngCompression, ReadOptions, Replace, SampleType,
     TextureCompression, TextureOptions,
 };
+pub use crate::light::Sun;
 pub use crate::mips::MipChoice;
-pub use crate::options::Product;
-use crate::units::MapSpacing;
+pub use crate::options::{Product, SlopeUnits};
+use crate::units::{MapSpacing, Measure};
 
 /// Every choice of a conversion. The defaults are the contract's: the
 /// fit's defaults (3×3, wrap borders, OpenGL, scale 1), the output format
@@ -131,6 +132,14 @@ pub struct Conversion {
     /// ([`crate::fit::quadratic::encode`]), in the fit's units. Default:
     /// [`crate::fit::quadratic::DEFAULT_RANGE`].
     pub curvature_range: f64,
+    /// A slope map's units ([`Product::Slope`]). Default: degrees.
+    pub slope_units: SlopeUnits,
+    /// An aspect map's value for a flat texel ([`Product::Aspect`]): 0,
+    /// else [`crate::units::NODATA`] as gdaldem writes. Default: off.
+    pub zero_for_flat: bool,
+    /// The sun of a hillshade ([`Product::Hillshade`]). Default: gdaldem's,
+    /// from 315° at 45°.
+    pub sun: Sun,
 }
 
 impl Default for Conversion {
@@ -156,6 +165,9 @@ impl Default for Conversion {
             inputs: Arc::default(),
             product: Product::Normals,
             curvature_range: crate::fit::quadratic::DEFAULT_RANGE,
+            slope_units: SlopeUnits::default(),
+            zero_for_flat: false,
+            sun: Sun::default(),
         }
     }
 }
@@ -292,6 +304,28 @@ impl Conversion {
         self
     }
 
+    /// A slope map in these units.
+    #[must_use]
+    pub fn with_slope_units(mut self, units: SlopeUnits) -> Conversion {
+        self.slope_units = units;
+        self
+    }
+
+    /// An aspect map with 0 (`true`) or [`crate::units::NODATA`] where the
+    /// surface is flat.
+    #[must_use]
+    pub fn with_zero_for_flat(mut self, zero: bool) -> Conversion {
+        self.zero_for_flat = zero;
+        self
+    }
+
+    /// A hillshade under this sun.
+    #[must_use]
+    pub fn with_sun(mut self, sun: Sun) -> Conversion {
+        self.sun = sun;
+        self
+    }
+
     /// Making the residual map too (read whole).
     #[must_use]
     pub fn with_residual(mut self, residual: bool) -> Conversion {
@@ -383,14 +417,15 @@ impl Opened {
     pub fn encoding(&self, path: Option<&Path>) -> Result<Encoding, ConvertError> {
         let (c, sample) = (&self.conversion, self.sample());
         OutputFormat::choose(path, c.format, (self.input_format(), sample))
-            .and_then(|format| match (format.container(), c.compress) {
+            .and_then(|format| product_bits(c, format).map(|bits| (format, bits)))
+            .and_then(|(format, bits)| match (format.container(), c.compress) {
                 (Some(container), compress) => {
                     TextureOptions::choose(container, compress, c.bits, c.signed, c.layout).map(Encoding::Texture)
                 }
                 (None, Some(compress)) => Err(Error::InvalidOption(format!(
                     "compression {compress} is for GPU textures: name the output .dds or .ktx2"
                 ))),
-                (None, None) => Encoding::choose(format, c.bits, c.signed, c.layout, c.compression, sample),
+                (None, None) => Encoding::choose(format, bits, c.signed, c.layout, c.compression, sample),
             })
             .and_then(|encoding| match (c.roughness || c.roughness_base.is_some(), c.mips, encoding) {
                 (true, None, _) => {
@@ -466,7 +501,47 @@ impl Opened {
             roughness_base: c.roughness_base.as_deref(),
             inputs: c.inputs.clone(),
         };
+        let product = c.product;
+        if c.residual && matches!(product, Product::Slope | Product::Aspect | Product::Hillshade) {
+            let problem = format!("a residual map is made beside normals, not beside a {product} map");
+            return Err(ConvertError { place: Place::Residual, error: Error::InvalidOption(problem) });
+        }
         let stage = match (c.product, c.mips, encoding) {
+            (Product::Slope | Product::Aspect | Product::Hillshade, Some(_), _) => {
+                let problem = format!("a {product} map has no mip chain: leave out the mips");
+                return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem) });
+            }
+            (Product::Slope | Product::Aspect, None, encoding) => {
+                let measure = match product {
+                    Product::Slope => Measure::Slope(c.slope_units),
+                    _ => Measure::Aspect { zero_for_flat: c.zero_for_flat },
+                };
+                let float32 = match encoding {
+                    Encoding::Exr(o) => o.depth == crate::io::ExrDepth::Float,
+                    Encoding::Tiff(o) => o.depth == crate::io::encoding::TiffDepth::Float,
+                    Encoding::Png(_) | Encoding::Texture(_) => false,
+                };
+                if !float32 {
+                    let problem = format!("a {product} map is float32: write .tif or .exr with 32 bits");
+                    return Err(ConvertError { place: Place::Output, error: Error::Unsupported(problem) });
+                }
+                Stage::Terrain { measure, encoding: *encoding }
+            }
+            (Product::Hillshade, None, encoding) => {
+                let tiff = match encoding {
+                    Encoding::Tiff(o) if o.depth == crate::io::encoding::TiffDepth::Eight => true,
+                    Encoding::Png(o) if o.depth == crate::io::PngDepth::Eight => false,
+                    _ => {
+                        let problem = "a hillshade is 8-bit grey, as gdaldem writes it: write .tif or .png with 8 bits";
+                        return Err(ConvertError { place: Place::Output, error: Error::Unsupported(problem.into()) });
+                    }
+                };
+                let lighting = crate::light::Lighting {
+                    light: crate::light::Light::default(),
+                    sun: crate::light::SunChoice::Always(c.sun),
+                };
+                Stage::Lit { lighting, tile: false, tiff }
+            }
             (Product::Curvature, Some(_), _) => {
                 let problem = "a curvature map has no mip chain: leave out the mips";
                 return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
@@ -487,4 +562,31 @@ impl Opened {
         let sink = Sink { main: normals, residual };
         engine::run(source, stage, sink, settings, observer).map(|(summary, _)| summary)
     }
+}
+
+/// The bits a sample of `format` has for the conversion's product: the
+/// caller's, else a slope's or an aspect's float32 and a hillshade's 8.
+///
+/// Errors ([`Error::Unsupported`]): a product's format that cannot hold
+/// it (a slope in PNG, a hillshade in EXR), or channels other than one
+/// asked of it.
+fn product_bits(c: &Conversion, format: OutputFormat) -> Result<Option<u8>, Error> {
+    let product = c.product;
+    let (formats, bits) = match product {
+        Product::Slope | Product::Aspect => ([OutputFormat::Tiff, OutputFormat::Exr], 32),
+        Product::Hillshade => ([OutputFormat::Tiff, OutputFormat::Png], 8),
+        _ => return Ok(c.bits),
+    };
+    if !formats.contains(&format) {
+        return Err(Error::Unsupported(format!(
+            "a {product} map is written as .{} or .{}, not .{}",
+            formats[0].extension(),
+            formats[1].extension(),
+            format.extension()
+        )));
+    }
+    if c.layout != Layout::Rgb {
+        return Err(Error::InvalidOption(format!("a {product} map has one channel: leave out --alpha and --channels")));
+    }
+    Ok(Some(c.bits.unwrap_or(bits)))
 }

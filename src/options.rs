@@ -302,7 +302,13 @@ impl Spacing {
 /// The largest ratio of a texel's two spacings accepted.
 pub const MAX_SPACING_RATIO: f64 = 1e6;
 
-named_values!(Product, "product", { Normals => "normals", Curvature => "curvature" });
+named_values!(Product, "product", {
+    Normals => "normals",
+    Curvature => "curvature",
+    Slope => "slope",
+    Aspect => "aspect",
+    Hillshade => "hillshade",
+});
 
 /// What a conversion makes of the heights (`--product`, `product=`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -315,6 +321,42 @@ pub enum Product {
     /// positive (docs/curvature.md, [`crate::fit::curvature`]): one
     /// channel, float as it is, 8 or 16 bits mapped round mid-grey.
     Curvature,
+    /// The slope of the plane fitted over each patch, in degrees or
+    /// percent ([`SlopeUnits`]), as `gdaldem slope` (docs/products.md):
+    /// one float channel.
+    Slope,
+    /// The compass direction the plane faces, degrees clockwise from north,
+    /// as `gdaldem aspect` (docs/products.md): one float channel.
+    Aspect,
+    /// The plane lit by the GIS sun, 8-bit grey 1 to 255 with 0 for
+    /// nodata, as `gdaldem hillshade` (docs/products.md).
+    Hillshade,
+}
+
+impl Product {
+    /// How the product marks a missing texel (a hole, or a patch without a
+    /// plane), as a summary names it.
+    #[must_use]
+    pub fn missing_mark(self) -> &'static str {
+        match self {
+            Product::Normals => "alpha 0",
+            Product::Curvature => "NaN",
+            Product::Slope | Product::Aspect => "-9999",
+            Product::Hillshade => "grey 0",
+        }
+    }
+}
+
+named_values!(SlopeUnits, "slope units", { Degrees => "degrees", Percent => "percent" });
+
+/// How a slope is given (`--slope-units`, `slope_units=`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SlopeUnits {
+    /// The angle from the horizontal, 0 to 90. The default, as gdaldem's.
+    #[default]
+    Degrees,
+    /// Rise over run times 100, as `gdaldem slope -p`.
+    Percent,
 }
 
 named_values!(UnitsName, "units", { Texels => "texels", Map => "map" });

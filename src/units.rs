@@ -238,3 +238,68 @@ pub fn slope_aspect(n: [f64; 3], convention: Convention) -> SlopeAspect {
     });
     SlopeAspect { slope, aspect }
 }
+
+/// gdaldem's nodata value of a slope or an aspect map (its `-9999`): the
+/// value of a hole, and an aspect's where the surface is flat.
+pub const NODATA: f32 = -9999.0;
+
+/// What a slope or an aspect map holds at each texel: a number of the
+/// plane fitted over its patch (docs/products.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Measure {
+    /// The slope ([`SlopeAspect::slope`]), in degrees, or in percent (100 ·
+    /// rise over run, `gdaldem slope -p`).
+    Slope(crate::options::SlopeUnits),
+    /// The aspect ([`SlopeAspect::aspect`]), degrees clockwise from north
+    /// in [0, 360); where the plane is flat, [`NODATA`] as gdaldem writes,
+    /// or 0 with `zero_for_flat` (`gdaldem aspect -zero_for_flat`).
+    Aspect {
+        /// A flat texel's aspect is 0, not [`NODATA`].
+        zero_for_flat: bool,
+    },
+}
+
+impl Measure {
+    /// The measure of unit normal `n` of a fit in `convention` (see
+    /// [`slope_aspect`]), as the map stores it. A normal need not be unit
+    /// length: both numbers are ratios of its components.
+    ///
+    /// ```
+    /// use normalfit::{Convention, SlopeUnits};
+    /// use normalfit::units::{Measure, NODATA};
+    /// // Rising 1 in 2 to the north: it faces south, 26.565° or 50 %.
+    /// let n = [0.0, -1.0, 2.0];
+    /// let (gl, degrees) = (Convention::OpenGl, Measure::Slope(SlopeUnits::Degrees));
+    /// assert!((degrees.of(n, gl) - 26.565051).abs() < 1e-5);
+    /// assert_eq!(Measure::Slope(SlopeUnits::Percent).of(n, gl), 50.0);
+    /// assert_eq!(Measure::Aspect { zero_for_flat: false }.of(n, gl), 180.0);
+    /// assert_eq!(Measure::Aspect { zero_for_flat: false }.of([0.0, 0.0, 1.0], gl), NODATA);
+    /// assert_eq!(Measure::Aspect { zero_for_flat: true }.of([0.0, 0.0, 1.0], gl), 0.0);
+    /// ```
+    #[must_use]
+    pub fn of(self, n: [f64; 3], convention: Convention) -> f32 {
+        use crate::options::SlopeUnits;
+        match self {
+            Measure::Slope(SlopeUnits::Degrees) => slope_aspect(n, convention).slope as f32,
+            // tan of the slope, without the round trip through the angle.
+            Measure::Slope(SlopeUnits::Percent) => (100.0 * n[0].hypot(n[1]) / n[2]) as f32,
+            Measure::Aspect { zero_for_flat } => match slope_aspect(n, convention).aspect {
+                None if zero_for_flat => 0.0,
+                None => NODATA,
+                // An angle just below 360 can round to it: gdaldem makes
+                // that 0 too, so that the range is [0, 360).
+                Some(a) => Some(a as f32).filter(|&a| a < 360.0).unwrap_or(0.0),
+            },
+        }
+    }
+
+    /// The measures of `normals` into `out`, in parallel (the callers
+    /// write [`NODATA`] at the holes, which they know).
+    pub(crate) fn fill(self, normals: &[[f64; 3]], convention: Convention, out: &mut [f32]) {
+        use crate::par::prelude::*;
+        out.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(o, n)| {
+            o.iter_mut().zip(n).for_each(|(o, &n)| *o = self.of(n, convention));
+        });
+    }
+}

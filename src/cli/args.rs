@@ -20,7 +20,7 @@ use normalfit::normal_map::KindChoice;
 use normalfit::options::UnitsName;
 use normalfit::shade::{Light, LitOptions};
 use normalfit::tiling::TilingOptions;
-use normalfit::{Borders, Convention, Fit, Options, Product};
+use normalfit::{Borders, Convention, Fit, Options, Product, SlopeUnits};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -173,7 +173,10 @@ pub struct ConvertArgs {
     /// with --units map, 1/map unit: written as it is in EXR and float
     /// TIFF, mapped to gray in 8- and 16-bit outputs, flat at mid-gray;
     /// docs/curvature.md). Curvature streams into EXR and PNG files; into
-    /// TIFF or a pipe it reads the image whole.
+    /// TIFF or a pipe it reads the image whole. slope, aspect (float32 TIFF
+    /// or EXR, nodata −9999) and hillshade (8-bit TIFF or PNG, 1 to 255,
+    /// nodata 0) as gdaldem makes them, from the plane fitted over each
+    /// patch (docs/products.md).
     #[arg(long, default_value_t = Product::default(), value_parser = named::<Product>(Product::ALL))]
     pub product: Product,
 
@@ -197,6 +200,9 @@ pub struct ConvertArgs {
     pub terrain: TerrainArgs,
 
     #[command(flatten)]
+    pub products: ProductArgs,
+
+    #[command(flatten)]
     pub holes: HolesArgs,
 
     #[command(flatten)]
@@ -214,6 +220,34 @@ pub struct ConvertArgs {
 
     #[command(flatten)]
     pub fit: FitArgs,
+}
+
+/// Slope, aspect and hillshade maps (`--product`, docs/products.md).
+#[derive(Args, Debug)]
+#[command(next_help_heading = "Slope, aspect, hillshade")]
+pub struct ProductArgs {
+    /// A slope map's units: degrees (0 to 90), or percent (100 · rise over
+    /// run, as `gdaldem slope -p`).
+    #[arg(long, default_value_t = Conversion::default().slope_units,
+          value_parser = named::<SlopeUnits>(SlopeUnits::ALL))]
+    pub slope_units: SlopeUnits,
+
+    /// An aspect map's flat texels are 0, not −9999 (gdaldem's
+    /// `-zero_for_flat`).
+    #[arg(long)]
+    pub zero_for_flat: bool,
+
+    /// A hillshade's sun: its azimuth in degrees clockwise from north, as
+    /// `gdaldem hillshade -az`. The vertical exaggeration (gdaldem's -z)
+    /// is the gain, -s.
+    #[arg(long, value_name = "DEGREES", allow_hyphen_values = true,
+          default_value_t = Conversion::default().sun.azimuth_deg)]
+    pub azimuth: f64,
+
+    /// A hillshade's sun: its altitude in degrees above the horizon, as
+    /// `gdaldem hillshade -alt`.
+    #[arg(long, value_name = "DEGREES", default_value_t = Conversion::default().sun.altitude_deg)]
+    pub altitude: f64,
 }
 
 /// Mip chains and GPU textures (docs/mips.md).
@@ -869,6 +903,7 @@ macro_rules! named_value {
 
 named_value!(
     Product,
+    SlopeUnits,
     Method,
     MipChoice,
     TextureCompression,

@@ -82,7 +82,13 @@ impl Plan {
             .with_compress(args.mips.compress)
             .with_roughness(args.mips.roughness, args.mips.roughness_base.clone())
             .with_map_units(normalfit::units::MapSpacing::choose(args.units.units, args.units.pixel_size))
-            .with_product(args.product);
+            .with_product(args.product)
+            .with_slope_units(args.products.slope_units)
+            .with_zero_for_flat(args.products.zero_for_flat)
+            .with_sun(
+                normalfit::convert::Sun::new(args.products.azimuth, args.products.altitude)
+                    .map_err(|e| Failure::usage(library_message(&e)))?,
+            );
         if let Some(range) = args.curvature_range {
             conversion = conversion.with_curvature_range(range);
         }
@@ -131,7 +137,7 @@ impl Plan {
                         summary.missing,
                         summary.width * summary.height,
                         Some(nodata),
-                        "alpha",
+                        self.conversion.product.missing_mark(),
                     );
                 }
                 Ok(Outcome::Done)

@@ -29,11 +29,11 @@ pub fn strength(scale: f64, relief: Option<f64>) -> Strength {
 }
 
 /// Prints the count of missing texels of an input with holes: the
-/// summary of its conversion (`what`: where the map marks them).
+/// summary of its conversion (`what`: how the map marks them).
 pub fn report_missing(input: &Input, missing: usize, texels: usize, nodata: Option<f64>, what: &str) {
     let nodata = nodata.map(|v| format!(" (nodata {})", normalfit::error::Number(v))).unwrap_or_default();
     report::print_line(&format!(
-        "normalfit: {}: {missing} of {texels} texels missing{nodata}: {what} 0",
+        "normalfit: {}: {missing} of {texels} texels missing{nodata}: {what}",
         input.name().display()
     ));
 }

@@ -86,7 +86,7 @@ impl Plan {
             if done.missing > 0 || self.lit.fit.nodata.is_some() {
                 let scale = if self.lit.tile { 4 } else { 1 };
                 let texels = done.width * done.height / scale;
-                fitting::report_missing(input, done.missing, texels, self.lit.fit.nodata, "grey");
+                fitting::report_missing(input, done.missing, texels, self.lit.fit.nodata, "grey 0");
             }
         }
         Ok(Outcome::Done)

@@ -50,6 +50,8 @@ impl Job<'_> {
             Stage::Normals(_) | Stage::Mips(_) | Stage::Curvature { .. } => {
                 TiffTags { georef: self.georef, nodata: None }
             }
+            // gdaldem's: holes, and a flat texel's aspect.
+            Stage::Terrain { .. } => TiffTags { georef: self.georef, nodata: Some(crate::units::NODATA.into()) },
         }
     }
 
@@ -167,6 +169,13 @@ impl Job<'_> {
                 return Err(ConvertError { place: Place::Residual, error: Error::InvalidOption(problem.into()) });
             }
             return self.curvature_whole(&heights, (width, height), &fit, (encoding, range), normals);
+        }
+        if let Stage::Terrain { measure, encoding } = self.stage {
+            if residual.is_some() {
+                let problem = "a residual map is made beside normals, not beside a slope or an aspect map";
+                return Err(ConvertError { place: Place::Residual, error: Error::InvalidOption(problem.into()) });
+            }
+            return self.terrain_whole(&heights, (width, height), &fit, (measure, encoding), normals);
         }
         if let Stage::Lit { lighting, tile, .. } = self.stage {
             return self.lit_whole(&heights, (width, height), &fit, (lighting, tile), normals);
@@ -491,13 +500,30 @@ impl Job<'_> {
         let tags = self.tiff_tags();
         let lamp = match self.stage {
             Stage::Lit { lighting, .. } => Some(lighting.lamp(self.georef, fit.convention)),
-            Stage::Normals(_) | Stage::Mips(_) | Stage::Curvature { .. } => None,
+            Stage::Normals(_) | Stage::Mips(_) | Stage::Curvature { .. } | Stage::Terrain { .. } => None,
+        };
+        let measure = match self.stage {
+            Stage::Terrain { measure, .. } => Some(measure),
+            _ => None,
         };
         let (curvature, range) = match self.stage {
             Stage::Curvature { range, .. } => (true, range),
             _ => (false, 0.0),
         };
         let result = match (lamp, out, self.encoding) {
+            // A slope or an aspect map streams into a TIFF file alone
+            // ([`Stage::streams_into`]); `run` reads the others whole.
+            #[cfg(feature = "tiff")]
+            (None, Output::File { path, .. }, Encoding::Tiff(_)) if measure.is_some() => files.write(path, |file| {
+                if let Some(measure) = measure {
+                    missing = pipeline::measure_tiff(rows, tail, &fit, measure, tags, visit, file)
+                        .inspect_err(&mut on_input)?;
+                }
+                Ok(())
+            }),
+            (None, _, _) if measure.is_some() => Err(Error::InvalidOption(
+                "a slope or an aspect map streams into a TIFF file only: read it whole".into(),
+            )),
             // The lit view streams into a file alone ([`Stage::streams_into`]).
             (Some(lamp), Output::File { path, .. }, Encoding::Png(_)) => files.write(path, |file| {
                 missing = pipeline::shade_png_seekable(rows, &fit, lamp, visit, file).inspect_err(&mut on_input)?;
@@ -588,12 +614,17 @@ impl Job<'_> {
     pub(super) fn run(&mut self, rows: Rows, sink: Sink<'_, '_>) -> Result<(), ConvertError> {
         let Sink { main, residual } = sink;
         let stored = self.settings.map_units.is_some();
-        // A mip chain needs the whole image, and so does the curvature
-        // but into an EXR file: a file opened to stream is read whole.
+        // A mip chain needs the whole image; the curvature, a slope or
+        // aspect map and a lit view need it where they cannot stream into
+        // their output (a TIFF or a stream for the curvature, an EXR or a
+        // stream for a slope, a tiled view): a file opened to stream is
+        // then read whole.
         let whole = match self.stage {
             Stage::Mips(_) => true,
-            Stage::Curvature { .. } => !self.stage.streams_into(main.as_ref()),
-            Stage::Normals(_) | Stage::Lit { .. } => false,
+            Stage::Normals(_) => false,
+            Stage::Curvature { .. } | Stage::Terrain { .. } | Stage::Lit { .. } => {
+                !self.stage.streams_into(main.as_ref())
+            }
         };
         let rows = match rows {
             Rows::Png(_, input) | Rows::Exr(_, input) if whole => Rows::Whole(Box::new(
@@ -724,6 +755,55 @@ impl Job<'_> {
             }
         }
         .map_err(on_out)?;
+        self.files = files;
+        Ok(())
+    }
+}
+
+impl Job<'_> {
+    /// A slope or an aspect map of the whole image: its normals fitted in
+    /// `f64` ([`crate::units::Measure::fill`]), [`crate::units::NODATA`]
+    /// at the holes, written as one float channel.
+    fn terrain_whole(
+        &mut self,
+        heights: &Samples,
+        (width, height): (usize, usize),
+        fit: &Options,
+        (measure, encoding): (crate::units::Measure, Encoding),
+        out: Option<Output<'_>>,
+    ) -> Result<(), ConvertError> {
+        let in_failure = ConvertError::at(Place::Input);
+        let Some(out) = out else {
+            let problem = "nothing to write: no output given";
+            return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
+        };
+        // The normals (24 bytes a texel), the validity (1), the values (4);
+        // and the fit's own work, which grows with N.
+        let texels = (width as u64).saturating_mul(height as u64);
+        let holes = fit.nodata.is_some();
+        let work = crate::fit::work_bytes(fit, (width, height), heights.unit(), holes, false).map_err(&in_failure)?;
+        io::check_memory("measuring the slopes", texels.saturating_mul(29).saturating_add(work))
+            .map_err(&in_failure)?;
+        let mut valid = match fit.nodata {
+            Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
+            None => None,
+        };
+        let normals: Vec<[f64; 3]> =
+            fitted(heights, width, height, fit, None, valid.as_deref_mut()).map_err(&in_failure)?;
+        let mut values = zeroed::<f32>(normals.len()).map_err(&in_failure)?;
+        measure.fill(&normals, fit.convention, &mut values);
+        drop(normals);
+        if let Some(valid) = &valid {
+            for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| !**valid) {
+                *v = crate::units::NODATA;
+                self.summary.missing += 1;
+            }
+        }
+        self.prepare(&out, Place::Output)?;
+        let mut files = std::mem::take(&mut self.files);
+        let tags = self.tiff_tags();
+        write_to(out, &mut files, |w| io::write::encode_gray_tagged(&values, (width, height), &encoding, tags, w))
+            .map_err(ConvertError::at(Place::Output))?;
         self.files = files;
         Ok(())
     }

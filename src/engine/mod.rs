@@ -184,6 +184,15 @@ pub(crate) enum Stage {
         /// The curvature that maps to white.
         range: f64,
     },
+    /// A slope or an aspect map ([`crate::units::Measure`]): one float32
+    /// channel in this encoding (a TIFF with gdaldem's nodata, −9999, or
+    /// an EXR); streamed into a TIFF file, else from the whole image.
+    Terrain {
+        /// What each texel holds.
+        measure: crate::units::Measure,
+        /// The output's format (float32: checked by the entry point).
+        encoding: Encoding,
+    },
     /// The lit view, 8-bit grey (PNG, or TIFF with GDAL's nodata 0), lit
     /// as `lighting` says; tiled 2×2 from the whole image.
     Lit {
@@ -203,7 +212,8 @@ impl Stage {
     /// last, in room kept after the header), not a device, FIFO or socket
     /// named as one (`-o /dev/null`), which is written as a writer; the
     /// curvature streamed into an EXR or PNG file alone (EXR's offsets and
-    /// PNG's top rows are written last).
+    /// PNG's top rows are written last), a slope or aspect map into a TIFF
+    /// file alone.
     pub(crate) fn streams_into(&self, output: Option<&Output<'_>>) -> bool {
         let into_file = match output {
             Some(Output::File { path, .. }) => !matches!(io::output_target(path), Ok(io::OutputTarget::Stream(_))),
@@ -213,6 +223,9 @@ impl Stage {
             Stage::Normals(_) => true,
             Stage::Mips(_) => false,
             Stage::Curvature { encoding, .. } => into_file && matches!(encoding, Encoding::Exr(_) | Encoding::Png(_)),
+            // The TIFF writer's rows go into a file, which it seeks back
+            // into; an EXR or a stream is written from the whole image.
+            Stage::Terrain { encoding, .. } => into_file && matches!(encoding, Encoding::Tiff(_)),
             Stage::Lit { tile, .. } => !tile && into_file,
         }
     }
@@ -337,6 +350,7 @@ impl Stage {
             Stage::Normals(encoding) => encoding,
             Stage::Mips(mips) => mips.encoding,
             Stage::Curvature { encoding, .. } => encoding,
+            Stage::Terrain { encoding, .. } => encoding,
             Stage::Lit { tiff: true, .. } => io::encoding::TiffOptions::new(io::encoding::TiffDepth::Eight).into(),
             Stage::Lit { tiff: false, .. } => {
                 io::PngOptions::new(io::PngDepth::Eight).with_compression(io::PngCompression::Default).into()

@@ -80,6 +80,36 @@ pub(crate) fn shade_tiff<W: Write + Seek>(
     stream_tiff(rows, tail, opts, (1, extra), tags, greys, visit, out)
 }
 
+/// A height map's slope or aspect ([`crate::units::Measure`]), a float
+/// TIFF of one sample with `tags` (the nodata value among them), written as
+/// it is fitted: the values the whole image gives
+/// ([`crate::units::Measure::fill`] of its normals, fitted in `f64`).
+/// `tail` (the image's last rows) is needed for a wrap in y. Returns the
+/// count of missing texels.
+///
+/// Errors: as [`convert_tiff_counting`].
+pub(crate) fn measure_tiff<W: Write + Seek>(
+    rows: impl RowSource,
+    tail: Option<&[f64]>,
+    opts: &Options,
+    measure: crate::units::Measure,
+    tags: TiffTags<'_>,
+    visit: impl FnMut(&[f32]) + Send,
+    out: W,
+) -> Result<usize> {
+    let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
+    let convention = opts.convention;
+    let values = move |normals: &mut [[f64; 3]], valid: &[f32], values: &mut Vec<f32>| {
+        values.resize(normals.len(), 0.0);
+        measure.fill(normals, convention, values);
+        // `valid` is one a texel with holes, else empty.
+        for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| **valid == 0.0) {
+            *v = crate::units::NODATA;
+        }
+    };
+    stream_tiff(rows, tail, opts, (1, extra), tags, values, visit, out)
+}
+
 /// Fits `rows` band by band into a TIFF of `channels` samples `S` a
 /// texel, with `tags`: `samples` turns a band's texels `T` (and what
 /// `extra` asks for beside them) into its samples, appended to a buffer

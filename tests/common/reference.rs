@@ -399,3 +399,22 @@ pub fn curvature_map<H: Copy + Into<f64>>(
         .map(|(x, y)| curvature_at(heights, valid, w, h, opts, x, y).unwrap_or(f64::NAN))
         .collect()
 }
+
+/// The slope (degrees) and the aspect (degrees clockwise from north, None
+/// where the plane is flat) of a plane with unit normal `n` in OpenGL's
+/// frame (+x east, +y north), by gdaldem's formulas (GDAL's
+/// `gdaldem_lib.cpp`, written out again from the gradient): dx = dz/dx
+/// eastwards = −nx/nz, dy = dz/dy southwards (down the rows) = ny/nz,
+/// slope = atan √(dx² + dy²), aspect = 90° − atan2(dy, −dx) (450° − it
+/// above 90°).
+pub fn slope_aspect_gdal(n: [f64; 3]) -> (f64, Option<f64>) {
+    let (dx, dy) = (-n[0] / n[2], n[1] / n[2]);
+    let slope = (dx * dx + dy * dy).sqrt().atan().to_degrees();
+    let aspect = if dx == 0.0 && dy == 0.0 {
+        None
+    } else {
+        let a = dy.atan2(-dx).to_degrees();
+        Some(if a > 90.0 { 450.0 - a } else { 90.0 - a })
+    };
+    (slope, aspect)
+}

@@ -101,6 +101,8 @@ mod hostile;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod memory_limit;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
+mod products;
+#[cfg(all(feature = "cli", feature = "all-formats"))]
 mod samples;
 #[cfg(all(feature = "cli", feature = "all-formats"))]
 mod shade_map_units;
