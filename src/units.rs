@@ -168,6 +168,112 @@ pub fn map_spacing(georef: Option<&Georef>, height: usize) -> Result<Spacing> {
     }
 }
 
+/// What the coordinates of a raster known by its transform alone measure
+/// (an xarray DataArray's, whose CRS rioxarray holds): the GeoKeys a
+/// GeoTIFF would carry, given by a caller that is not reading a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Crs {
+    /// No coordinate system: the step is taken as it is, in the heights'
+    /// unit (a GeoTIFF with a pixel scale and no GeoKeys).
+    Unknown,
+    /// Projected coordinates in this EPSG linear unit (9001 metre, 9002
+    /// foot, 9003 US survey foot, 9036 kilometre).
+    Projected {
+        /// The EPSG code of the unit.
+        unit: u16,
+    },
+    /// Longitude and latitude in this EPSG angular unit (9102 or 9122
+    /// degree, 9101 radian, …).
+    Geographic {
+        /// The EPSG code of the unit.
+        unit: u16,
+    },
+}
+
+/// The texel spacing of a raster of `height` rows whose GDAL geotransform
+/// is `transform` (x of the first texel's corner, x per column, x per
+/// row, y of that corner, y per column, y per row: rioxarray's and
+/// rasterio's transform in GDAL's order) in `crs`, in metres: the rule of
+/// [`map_spacing`] on a GeoTIFF with that transform and those GeoKeys
+/// (PixelIsArea), so an array's spacing is the command line's on the same
+/// file, bit for bit (a geographic raster's one per row).
+///
+/// Errors: those of [`MapSpacing::units`] from a file: a rotated or
+/// sheared transform (naming its angle), an unknown unit, a spacing that
+/// is not finite and positive ([`Error::Unsupported`]).
+pub fn geotransform_spacing(transform: [f64; 6], crs: Crs, height: usize) -> Result<Spacing> {
+    let [c, a, b, f, d, e] = transform;
+    let mut georef = Georef {
+        transformation: Some([a, b, 0.0, c, d, e, 0.0, f, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]),
+        raster_type: Some(crate::io::read::georef::RasterType::PixelIsArea),
+        ..Georef::default()
+    };
+    match crs {
+        Crs::Unknown => {}
+        Crs::Projected { unit } => {
+            georef.model = Some(ModelType::Projected);
+            georef.linear_unit = Some(unit);
+        }
+        Crs::Geographic { unit } => {
+            georef.model = Some(ModelType::Geographic);
+            georef.angular_unit = Some(unit);
+        }
+    }
+    match MapSpacing::FromFile.units(Some(&georef), height)? {
+        Units::Map(spacing) => Ok(spacing),
+        Units::Texels => Err(Error::Unsupported("map units gave no spacing".into())),
+    }
+}
+
+/// The GDAL geotransform (see [`geotransform_spacing`]) of a north-up
+/// raster whose texel centres are at `x` (one per column) and `y` (one
+/// per row), as an xarray DataArray's coordinates hold them: each axis's
+/// step is its mean, (last − first) / (n − 1), and every step between
+/// neighbours must be within 1e-6 of it relative (plus the rounding of
+/// f64 coordinates of that size): a grid whose texels are not equally
+/// spaced has no one spacing to fit with.
+///
+/// Errors ([`Error::InvalidOption`], one line): an axis of fewer than 2
+/// coordinates, a coordinate that is not finite, a step of 0, or steps
+/// that differ (naming the first that does).
+pub fn centres_geotransform(x: &[f64], y: &[f64]) -> Result<[f64; 6]> {
+    let step = |name: &str, c: &[f64]| -> Result<f64> {
+        let bad = |why: String| Error::InvalidOption(format!("the {name} coordinates {why}"));
+        let (Some(&first), Some(&last)) = (c.first(), c.last()) else {
+            return Err(bad("are empty: the spacing needs 2 of them".into()));
+        };
+        if c.len() < 2 {
+            return Err(bad("are one: the spacing needs 2 of them (give the pixel size)".into()));
+        }
+        if let Some(i) = c.iter().position(|v| !v.is_finite()) {
+            return Err(bad(format!("hold {} at index {i}", crate::error::Number(c[i]))));
+        }
+        let mean = (last - first) / (c.len() - 1) as f64;
+        if mean == 0.0 || !mean.is_finite() {
+            return Err(bad("do not advance: their step is 0".into()));
+        }
+        // f64 coordinates of this size hold their step to about an ulp of
+        // the largest; beyond that, and beyond 1e-6 of the step, the grid
+        // is not regular.
+        let largest = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let tolerance = 1e-6 * mean.abs() + 8.0 * f64::EPSILON * largest;
+        if let Some(i) = c.windows(2).position(|w| ((w[1] - w[0]) - mean).abs() > tolerance) {
+            return Err(bad(format!(
+                "are not equally spaced: from index {i} to {} the step is {}, the mean step is {}; a fit needs \
+                 one spacing (resample the grid, or give the pixel size)",
+                i + 1,
+                crate::error::Number(c[i + 1] - c[i]),
+                crate::error::Number(mean)
+            )));
+        }
+        Ok(mean)
+    };
+    let (sx, sy) = (step("x", x)?, step("y", y)?);
+    // The first texel's corner: half a step before its centre.
+    Ok([x[0] - sx / 2.0, sx, 0.0, y[0] - sy / 2.0, 0.0, sy])
+}
+
 /// Why a raster whose transform has terms b or d is refused, naming how
 /// it is turned: the angle of its rows from the map's x axis, and for a
 /// sheared one the angle its rows and columns make. Map units take

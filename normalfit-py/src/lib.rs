@@ -39,8 +39,10 @@ use normalfit::normal_map::{self, Storage};
 use normalfit::options::UnitsName;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, TilingOptions};
-use normalfit::units::MapSpacing;
-use normalfit::{Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Strength};
+use normalfit::units::{Crs, MapSpacing};
+use normalfit::{
+    Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Spacing, Strength, Units,
+};
 use numpy::ndarray::ArrayView2;
 use numpy::{
     Element, PyArray1, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
@@ -142,7 +144,6 @@ fn fit_options(
         .with_convention(parse_named::<Convention>(convention)?)
         .with_strength(strength)
         .with_invert(invert);
-    opts.validate().map_err(to_py_err)?;
     Ok((opts, borders))
 }
 
@@ -162,7 +163,6 @@ fn with_detail(opts: Options, detail: Option<&Bound<'_, PyAny>>) -> PyResult<Opt
         scales.push((n, weight));
     }
     let opts = opts.with_detail(Some(Detail::new(scales).map_err(to_py_err)?));
-    opts.validate().map_err(to_py_err)?;
     Ok(opts)
 }
 
@@ -636,7 +636,7 @@ fn normals<'py>(
     out: Option<&Bound<'py, PyAny>>,
     threads: Option<&Bound<'py, PyAny>>,
     units: &str,
-    pixel_size: Option<(f64, f64)>,
+    pixel_size: Option<&Bound<'py, PyAny>>,
     nodata: Option<f64>,
     detail: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
@@ -644,10 +644,8 @@ fn normals<'py>(
     let kind = sample_kind(heights, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let mut opts = with_detail(opts, detail)?;
-    // An array has no georeferencing: map units need the pixel size (the
-    // library says so when it is missing).
-    if let Some(map) = map_units(units, pixel_size)? {
-        opts = opts.with_units(map.units(None, heights.shape()[0]).map_err(to_py_err)?);
+    if let Some(units) = array_units(units, pixel_size, heights.shape()[0])? {
+        opts = opts.with_units(units);
     }
     let opts = opts.with_nodata(nodata);
     let output = output_kind(py, dtype)?;
@@ -681,14 +679,14 @@ fn curvature<'py>(
     invert: bool,
     threads: Option<&Bound<'py, PyAny>>,
     units: &str,
-    pixel_size: Option<(f64, f64)>,
+    pixel_size: Option<&Bound<'py, PyAny>>,
     nodata: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
     let (mut opts, borders) = fit_options(patch, "orthogonal", border, "opengl", scale, relief, invert)?;
-    if let Some(map) = map_units(units, pixel_size)? {
-        opts = opts.with_units(map.units(None, heights.shape()[0]).map_err(to_py_err)?);
+    if let Some(units) = array_units(units, pixel_size, heights.shape()[0])? {
+        opts = opts.with_units(units);
     }
     let opts = opts.with_nodata(nodata);
     let pool = pool(threads)?;
@@ -771,7 +769,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None))]
+#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None, units="texels", pixel_size=None))]
 fn window_normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -790,11 +788,17 @@ fn window_normals<'py>(
     threads: Option<&Bound<'py, PyAny>>,
     nodata: Option<f64>,
     detail: Option<&Bound<'py, PyAny>>,
+    units: &str,
+    pixel_size: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let opts = with_detail(opts, detail)?;
+    let mut opts = with_detail(opts, detail)?;
+    // The whole image's spacing: a window's rows take their image row's.
+    if let Some(units) = array_units(units, pixel_size, image.1)? {
+        opts = opts.with_units(units);
+    }
     let opts = opts.with_nodata(nodata);
     let output = output_kind(py, dtype)?;
     check_nodata_output(nodata, output)?;
@@ -823,7 +827,7 @@ fn window_normals<'py>(
 /// beyond it (wrap: Dask's `periodic` boundary; clamp and mirror hold none).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata=None, detail=None))]
+#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata=None, detail=None, units="texels", pixel_size=None))]
 fn window_plan(
     py: Python<'_>,
     image: (usize, usize),
@@ -839,11 +843,16 @@ fn window_plan(
     threads: Option<&Bound<'_, PyAny>>,
     nodata: Option<f64>,
     detail: Option<&Bound<'_, PyAny>>,
+    units: &str,
+    pixel_size: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<(usize, (bool, bool))> {
     normalfit::fit::checked_len(image.0, image.1).map_err(to_py_err)?;
     sample_kind_of(&PyArrayDescr::new(py, heights_dtype)?, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let opts = with_detail(opts, detail)?;
+    let mut opts = with_detail(opts, detail)?;
+    if let Some(units) = array_units(units, pixel_size, image.1)? {
+        opts = opts.with_units(units);
+    }
     check_nodata_output(nodata, output_kind(py, dtype)?)?;
     thread_count(threads)?;
     let borders = window_borders(borders).map_err(to_py_err)?;
@@ -1182,7 +1191,6 @@ impl PyHeightSeams {
 /// are.
 fn tiling_options(threshold: f64, kind: &str) -> PyResult<TilingOptions> {
     let opts = TilingOptions::new().with_threshold(threshold).with_kind(parse_named(kind)?);
-    opts.validate().map_err(to_py_err)?;
     Ok(opts)
 }
 
@@ -1255,6 +1263,99 @@ fn read_options(max_texels: Option<&Bound<'_, PyAny>>, layer: Option<String>) ->
 /// library's rule (`--units`, `--pixel-size`).
 fn map_units(units: &str, pixel_size: Option<(f64, f64)>) -> PyResult<Option<MapSpacing>> {
     Ok(MapSpacing::choose(parse_named::<UnitsName>(units)?, pixel_size.map(|(x, y)| [x, y])))
+}
+
+/// `pixel_size=` of an array's fit: an (x, y) pair, or one (x, y) per
+/// image row as a (rows, 2) float64 array (a geographic raster's metres,
+/// as `geotransform_spacing` gives them).
+enum PixelSize {
+    Pair(f64, f64),
+    Rows(Vec<[f64; 2]>),
+}
+
+fn pixel_size_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<PixelSize>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    if let Ok((x, y)) = obj.extract::<(f64, f64)>() {
+        return Ok(Some(PixelSize::Pair(x, y)));
+    }
+    if let Ok(rows) = obj.cast::<PyArray2<f64>>()
+        && rows.shape()[1] == 2
+    {
+        let rows = rows.try_readonly().map_err(borrow_error)?;
+        let rows = rows.as_array().rows().into_iter().map(|r| [r[0], r[1]]).collect();
+        return Ok(Some(PixelSize::Rows(rows)));
+    }
+    Err(PyTypeError::new_err(format!(
+        "pixel_size must be (x, y) or a (rows, 2) float64 array of one (x, y) per row, got {}",
+        shown(obj)
+    )))
+}
+
+/// The units of an array's fit of `height` rows: `map_units`'s, or map
+/// units with one spacing per row, checked by the library
+/// (`Spacing::validate`: one per row, finite, positive).
+fn array_units(units: &str, pixel_size: Option<&Bound<'_, PyAny>>, height: usize) -> PyResult<Option<Units>> {
+    match pixel_size_arg(pixel_size)? {
+        Some(PixelSize::Rows(rows)) => {
+            let spacing = Spacing::Rows(rows.into());
+            spacing.validate(Some(height)).map_err(to_py_err)?;
+            Ok(Some(Units::Map(spacing)))
+        }
+        pair => {
+            let pair = match pair {
+                Some(PixelSize::Pair(x, y)) => Some((x, y)),
+                _ => None,
+            };
+            // An array has no georeferencing: map units need the pixel
+            // size (the library says so when it is missing).
+            map_units(units, pair)?.map(|map| map.units(None, height).map_err(to_py_err)).transpose()
+        }
+    }
+}
+
+/// The spacing of a raster known by its GDAL geotransform (`transform`),
+/// its coordinate system (`crs`: "projected" or "geographic" with the
+/// EPSG code of its `unit`, or None) and its `height` in rows: the
+/// library's `units::geotransform_spacing` (what `normalfit.xarray` fits a
+/// DataArray with). An (x, y) pair, or for a geographic raster a
+/// (height, 2) float64 array, one (x, y) per row, in metres.
+#[pyfunction]
+fn geotransform_spacing<'py>(
+    py: Python<'py>,
+    transform: [f64; 6],
+    crs: Option<&str>,
+    unit: Option<u16>,
+    height: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let unit_of = |what: &str| {
+        unit.ok_or_else(|| PyValueError::new_err(format!("a {what} coordinate system needs the EPSG code of its unit")))
+    };
+    let crs = match crs {
+        None => Crs::Unknown,
+        Some("projected") => Crs::Projected { unit: unit_of("projected")? },
+        Some("geographic") => Crs::Geographic { unit: unit_of("geographic")? },
+        Some(other) => {
+            return Err(PyValueError::new_err(format!("crs must be projected, geographic or None, got {other:?}")));
+        }
+    };
+    let spacing = py.detach(|| normalfit::units::geotransform_spacing(transform, crs, height)).map_err(to_py_err)?;
+    match spacing {
+        Spacing::Uniform { x, y } => Ok(PyTuple::new(py, [x, y])?.into_any()),
+        rows => {
+            let flat: Vec<f64> = (0..height).flat_map(|r| rows.at(r)).collect();
+            Ok(PyArray1::from_vec(py, flat).reshape([height, 2])?.into_any())
+        }
+    }
+}
+
+/// The GDAL geotransform of a north-up raster whose texel centres are at
+/// `x` (columns) and `y` (rows): the library's
+/// `units::centres_geotransform` (regular steps, else a ValueError).
+#[pyfunction]
+fn centres_geotransform(x: Vec<f64>, y: Vec<f64>) -> PyResult<[f64; 6]> {
+    normalfit::units::centres_geotransform(&x, &y).map_err(to_py_err)
 }
 
 /// How terrain files are read, the CLI's `--band`, `--size`,
@@ -1577,7 +1678,6 @@ fn height<'py>(
         SampleKind::F64 => Storage::Float64 { signed: true },
     };
     let opts = opts.with_step(step.unwrap_or(stored.step()));
-    opts.validate().map_err(to_py_err)?;
     let pool = pool(threads)?;
     let (values, w, h, report) = match kind {
         SampleKind::U8 => height_typed::<u8>(normals, &opts, stored, pool),
@@ -1606,7 +1706,6 @@ fn height_options(
     let opts = HeightOptions::from_fit(&opts.with_borders(borders))
         .with_convention(parse_named::<ConventionChoice>(convention)?)
         .with_model(parse_named::<Model>(model)?);
-    opts.validate().map_err(to_py_err)?;
     Ok(opts)
 }
 
@@ -1764,7 +1863,6 @@ fn blend<'py>(
         .with_strength(strength)
         .with_convention(c)
         .with_detail_convention(dc);
-    opts.validate().map_err(to_py_err)?;
     let (b, bw, bh) = any_normals(base, "base")?;
     let (d, dw, dh) = any_normals(detail, "detail")?;
     let (out, _) =
@@ -1883,6 +1981,8 @@ fn _normalfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(window_plan, m)?)?;
     m.add_function(wrap_pyfunction!(window_halo, m)?)?;
     m.add_function(wrap_pyfunction!(border_names, m)?)?;
+    m.add_function(wrap_pyfunction!(geotransform_spacing, m)?)?;
+    m.add_function(wrap_pyfunction!(centres_geotransform, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling, m)?)?;
     m.add_function(wrap_pyfunction!(check_tiling_file, m)?)?;
     m.add_function(wrap_pyfunction!(convert, m)?)?;

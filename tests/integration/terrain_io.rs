@@ -245,6 +245,55 @@ fn geographic_spacing_is_converted_at_each_rows_latitude() {
     }
 }
 
+/// A raster known by its GDAL geotransform and CRS (an xarray
+/// DataArray's) gets the spacing the same raster's GeoTIFF gets, bit for
+/// bit: projected and geographic (one per row); rotated and irregular
+/// grids are refused in one line naming why.
+#[test]
+fn a_geotransform_gives_the_files_spacing() {
+    use normalfit::Spacing;
+    use normalfit::units::{Crs, centres_geotransform, geotransform_spacing, map_spacing};
+    let (w, h) = (4, 3);
+    let layout = geotiff::Layout::gray(Kind::F32);
+    let values = geotiff::band_values(&layout, w, h);
+    let arc = 1.0 / 3600.0;
+    let read = |scale: [f64; 2], origin: [f64; 2], keys: Vec<u16>| {
+        let tags = vec![
+            GeoTag::Doubles(33550, vec![scale[0], scale[1], 0.0]),
+            GeoTag::Doubles(33922, vec![0.0, 0.0, 0.0, origin[0], origin[1], 0.0]),
+            GeoTag::Shorts(34735, keys),
+        ];
+        let raster = decode(&geotiff::write(w, h, &layout, &values, &tags), &ReadOptions::default()).unwrap();
+        map_spacing(raster.georef.as_ref(), h).unwrap()
+    };
+    let geographic = read([arc, arc], [10.0, 46.0], vec![1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326]);
+    let given = geotransform_spacing([10.0, arc, 0.0, 46.0, 0.0, -arc], Crs::Geographic { unit: 9122 }, h).unwrap();
+    assert!(matches!(given, Spacing::Rows(_)));
+    for row in 0..h {
+        assert_eq!(given.at(row).map(f64::to_bits), geographic.at(row).map(f64::to_bits), "row {row}");
+    }
+    // Feet: 30 ft columns, 36 ft rows, in metres.
+    let feet = read([30.0, 36.0], [5e5, 5e6], vec![1, 1, 0, 2, 1024, 0, 1, 1, 3076, 0, 1, 9002]);
+    let given = geotransform_spacing([5e5, 30.0, 0.0, 5e6, 0.0, -36.0], Crs::Projected { unit: 9002 }, h).unwrap();
+    assert_eq!(given, feet);
+    assert_eq!(given, Spacing::Uniform { x: 30.0 * 0.3048, y: 36.0 * 0.3048 });
+    let unknown = geotransform_spacing([0.0, 2.0, 0.0, 0.0, 0.0, -3.0], Crs::Unknown, h).unwrap();
+    assert_eq!(unknown, Spacing::Uniform { x: 2.0, y: 3.0 });
+    // 30° counter-clockwise: x per column cos 30°, y per column sin 30°.
+    let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    let rotated = [0.0, 30.0 * c, 30.0 * s, 0.0, 30.0 * s, -30.0 * c];
+    let e = geotransform_spacing(rotated, Crs::Projected { unit: 9001 }, h).unwrap_err().to_string();
+    assert!(e.contains("rotated 30.000° counter-clockwise from north-up") && !e.contains('\n'), "{e}");
+    let e = geotransform_spacing([0.0, 1.0, 0.0, 0.0, 0.0, -1.0], Crs::Projected { unit: 9093 }, h).unwrap_err();
+    assert!(e.to_string().contains("EPSG 9093"), "{e}");
+    // Texel centres: the corner half a step before the first.
+    assert_eq!(centres_geotransform(&[11.0, 13.0, 15.0], &[9.0, 6.0]).unwrap(), [10.0, 2.0, 0.0, 10.5, 0.0, -3.0]);
+    let e = centres_geotransform(&[0.0, 1.0, 2.5], &[0.0, 1.0]).unwrap_err().to_string();
+    assert!(e.contains("the x coordinates are not equally spaced: from index 0 to 1 the step is 1"), "{e}");
+    let e = centres_geotransform(&[0.0, 1.0], &[4.0]).unwrap_err().to_string();
+    assert!(e.contains("the y coordinates are one"), "{e}");
+}
+
 #[test]
 fn bad_geo_tags_are_one_line_errors() {
     let (w, h) = (2, 2);

@@ -106,8 +106,10 @@ def normals(
         georeferencing: map units need pixel_size.
     pixel_size: map units with this spacing, x (square) or (x, y): x
         column to column, y row to row, in the heights' unit (the command
-        line's --pixel-size; implies units="map"). The residual is then in
-        the heights' unit.
+        line's --pixel-size; implies units="map"); or a (rows, 2) array of
+        one (x, y) per row, a geographic raster's metres at each row's
+        latitude (what normalfit.xarray.spacing gives). The residual is
+        then in the heights' unit.
     nodata: holes (docs/terrain.md, "Holes"): heights equal to it (as
         stored: an integer array's own values), and NaN or infinite ones,
         are missing; each patch is fitted to its valid points. A missing
@@ -127,7 +129,7 @@ def normals(
     """
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
-        None if pixel_size is None else _pair(pixel_size), nodata, detail,
+        _pixel_size(pixel_size), nodata, detail,
     )
 
 
@@ -166,7 +168,7 @@ def curvature(
     """
     return _normalfit.curvature(
         heights, patch, border, scale, relief, invert, threads, units,
-        None if pixel_size is None else _pair(pixel_size), nodata,
+        _pixel_size(pixel_size), nodata,
     )
 
 
@@ -341,6 +343,16 @@ def convert(
         None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata, nodata_tag,
         detail,
     )
+
+
+def _pixel_size(size: Any) -> Any:
+    """An array's pixel size as the library takes it: None, an (x, y)
+    pair, or one (x, y) per row as a C-contiguous (rows, 2) float64 array."""
+    if size is None:
+        return None
+    if isinstance(size, np.ndarray) and size.ndim == 2:
+        return np.ascontiguousarray(size, dtype=np.float64)
+    return _pair(size)
 
 
 def _pair(size: float | tuple[float, float]) -> tuple[float, float]:

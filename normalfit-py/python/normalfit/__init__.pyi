@@ -76,7 +76,7 @@ def normals(
     out: npt.NDArray[Any] | None = None,
     threads: int | None = None,
     units: Literal["texels", "map"] = "texels",
-    pixel_size: float | tuple[float, float] | None = None,
+    pixel_size: float | tuple[float, float] | npt.NDArray[Any] | None = None,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
 ) -> Any: ...
@@ -90,7 +90,7 @@ def curvature(
     invert: bool = False,
     threads: int | None = None,
     units: Literal["texels", "map"] = "texels",
-    pixel_size: float | tuple[float, float] | None = None,
+    pixel_size: float | tuple[float, float] | npt.NDArray[Any] | None = None,
     nodata: float | None = None,
 ) -> npt.NDArray[np.float32]: ...
 def mips(

@@ -1,6 +1,7 @@
 """The native module: every argument positional (normalfit's functions name them)."""
 
 import os
+from collections.abc import Sequence
 from typing import Any, final
 
 from normalfit import AxisReport as AxisReport, ConversionSummary as ConversionSummary, HeightInfo as HeightInfo, TilingReport as TilingReport
@@ -13,6 +14,8 @@ __all__ = [
     "window_plan",
     "window_halo",
     "border_names",
+    "geotransform_spacing",
+    "centres_geotransform",
     "check_tiling",
     "check_tiling_file",
     "convert",
@@ -49,7 +52,7 @@ def normals(
     out: Any | None,
     threads: int | None,
     units: str,
-    pixel_size: tuple[float, float] | None,
+    pixel_size: Any | None,
     nodata: float | None,
     detail: Any | None = None,
 ) -> Any: ...
@@ -62,7 +65,7 @@ def curvature(
     invert: bool,
     threads: int | None,
     units: str,
-    pixel_size: tuple[float, float] | None,
+    pixel_size: Any | None,
     nodata: float | None,
 ) -> Any: ...
 def mips(
@@ -201,6 +204,8 @@ def window_normals(
     threads: Any | None,
     nodata: float | None = None,
     detail: Any | None = None,
+    units: str = "texels",
+    pixel_size: Any | None = None,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],
@@ -216,6 +221,8 @@ def window_plan(
     threads: Any | None,
     nodata: float | None = None,
     detail: Any | None = None,
+    units: str = "texels",
+    pixel_size: Any | None = None,
 ) -> tuple[int, tuple[bool, bool]]: ...
 def window_halo(
     image: tuple[int, int],
@@ -226,6 +233,8 @@ def window_halo(
     detail: Any | None = None,
 ) -> tuple[int, int, int, int]: ...
 def border_names(border: Any) -> tuple[str, str]: ...
+def geotransform_spacing(transform: Any, crs: str | None, unit: int | None, height: int) -> Any: ...
+def centres_geotransform(x: Sequence[float], y: Sequence[float]) -> list[float]: ...
 @final
 class _HeightSeams:
     def __new__(cls, width: int, height: int, refuse_non_finite: bool = False) -> _HeightSeams: ...

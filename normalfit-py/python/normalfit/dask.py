@@ -35,7 +35,7 @@ import dask
 import dask.array as da
 import numpy as np
 
-from . import _normalfit
+from . import _normalfit, _pixel_size
 from ._normalfit import TilingReport
 
 __all__ = ["check_tiling", "normals", "read_zarr", "to_zarr"]
@@ -110,6 +110,7 @@ def _fit_block(
             held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
             options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
             options["dtype"], options["residual"], options["threads"], options["nodata"], options["detail"],
+            options["units"], options["pixel_size"],
         )
     except Exception as e:
         raise _chunk_error(e, _describe(index, rows, cols)) from e
@@ -137,6 +138,8 @@ def normals(
     threads: int | None = 1,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    units: str = "texels",
+    pixel_size: Any = None,
 ) -> Any:
     """The normal map of a 2-D Dask array of heights, lazily: a (rows,
     columns, 3) Dask array chunked like ``array`` (one chunk of 3 on the
@@ -165,6 +168,10 @@ def normals(
         normal (and residual) is NaN; needs dtype float32. The halo holds
         the holes of the neighbouring chunks, so chunked equals whole, bit
         for bit, holes included.
+    units, pixel_size: map units, as for normalfit.normals: the whole
+        array's spacing, an (x, y) pair or one (x, y) per row (a (rows, 2)
+        array); each chunk's rows take their own rows' spacing, so chunked
+        equals whole here too.
     threads: threads of the library's pool in each task. Default 1: Dask
         already runs one task per worker thread, so a worker uses the
         threads it was given and no more. None: every core (rayon's global
@@ -191,9 +198,11 @@ def normals(
     # array's dtype, the output dtype, and border auto's refusal; and the
     # halo it plans: r texels, beyond the image's edges along an axis that
     # wraps (x, y).
+    pixel_size = _pixel_size(pixel_size)
     r, (beyond_x, beyond_y) = _normalfit.window_plan(
         (w, h),
-        array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata, detail
+        array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata, detail,
+        units, pixel_size,
     )
     out_dtype = np.dtype(dtype)
     chunks = tuple(_merged(c, r) for c in array.chunks)
@@ -205,7 +214,7 @@ def normals(
     options = dict(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
         dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
-        detail=None if detail is None else list(detail),
+        detail=None if detail is None else list(detail), units=units, pixel_size=pixel_size,
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)

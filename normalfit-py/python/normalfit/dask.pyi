@@ -27,6 +27,8 @@ def normals(
     threads: int | None = 1,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    units: Literal["texels", "map"] = "texels",
+    pixel_size: float | tuple[float, float] | Any | None = None,
 ) -> Any: ...
 @overload
 def normals(
@@ -44,6 +46,8 @@ def normals(
     threads: int | None = 1,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    units: Literal["texels", "map"] = "texels",
+    pixel_size: float | tuple[float, float] | Any | None = None,
 ) -> tuple[Any, Any]: ...
 def check_tiling(
     array: Any, *, threshold: float = 1.5, kind: Literal["auto", "height"] = "auto"

@@ -1,0 +1,201 @@
+"""normalfit.xarray: GeoTIFFs written by gdal_translate, opened by
+rioxarray, fitted here and written back by rioxarray, against the command
+line on the same files; Dask-backed against NumPy-backed, bit for bit."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+xr = pytest.importorskip("xarray", reason="xarray is not installed (pip install './normalfit-py[xarray]')")
+rioxarray = pytest.importorskip("rioxarray", reason="rioxarray is not installed (pip install './normalfit-py[xarray]')")
+dask_array = pytest.importorskip("dask.array", reason="dask is not installed (pip install './normalfit-py[dask]')")
+
+import normalfit  # noqa: E402
+import normalfit.xarray as nx  # noqa: E402
+
+from conftest import run_cli  # noqa: E402
+
+# 24 rows of 20 columns: a hill and a ridge, float32 metres near 400 m.
+ROWS, COLS = 24, 20
+NODATA = -9999.0
+
+
+def dem() -> np.ndarray:
+    y, x = np.mgrid[0:ROWS, 0:COLS].astype(np.float64)
+    z = 400 + 30 * np.exp(-((x - 7) ** 2 + (y - 9) ** 2) / 40) + 0.8 * x + 0.3 * y * y / 8 + 5 * np.sin(x * y / 17)
+    return z.astype(np.float32)
+
+
+def gdal(tool: str) -> str:
+    path = shutil.which(tool)
+    if path is None:
+        pytest.skip(f"{tool} is not installed (GDAL's command-line tools, gdal-bin)")
+    return path
+
+
+def write_tif(tmp_path: Path, name: str, srs: str, ullr: tuple[float, float, float, float], holes: bool = False) -> Path:
+    """A float32 GeoTIFF written by gdal_translate from an ASCII grid of
+    dem() (each value printed with 9 digits: float32 exactly)."""
+    z = dem()
+    if holes:
+        z[3:6, 4] = NODATA
+        z[15, 11:14] = NODATA
+    asc = tmp_path / f"{name}.asc"
+    lines = [f"ncols {COLS}", f"nrows {ROWS}", "xllcorner 0", "yllcorner 0", "cellsize 1"]
+    if holes:
+        lines.append(f"NODATA_value {NODATA}")
+    lines += [" ".join(f"{v:.9g}" for v in row) for row in z.astype(np.float64)]
+    asc.write_text("\n".join(lines) + "\n")
+    tif = tmp_path / f"{name}.tif"
+    subprocess.run(
+        [gdal("gdal_translate"), "-q", "-of", "GTiff", "-ot", "Float32", "-a_srs", srs, "-a_ullr", *map(str, ullr),
+         str(asc), str(tif)],
+        check=True,
+    )
+    return tif
+
+
+def projected(tmp_path: Path, holes: bool = False) -> Path:
+    # UTM 33N, 30 m columns and 36 m rows.
+    return write_tif(tmp_path, "utm", "EPSG:32633", (500000, 5000000, 500000 + 30 * COLS, 5000000 - 36 * ROWS), holes)
+
+
+def geographic(tmp_path: Path) -> Path:
+    # WGS84 degrees, 1/1024° a texel, rows at 46° N.
+    step = 1 / 1024
+    return write_tif(tmp_path, "wgs84", "EPSG:4326", (10.0, 46.0, 10.0 + step * COLS, 46.0 - step * ROWS))
+
+
+def opened(tif: Path, **kwargs: object) -> xr.DataArray:
+    return rioxarray.open_rasterio(tif, **kwargs).squeeze("band", drop=True)
+
+
+def cli_normals(cli: Path, tif: Path, tmp_path: Path) -> np.ndarray:
+    """``normalfit convert --units map`` of the file, written as a float
+    TIFF of the normals themselves (--signed), as (3, rows, columns)."""
+    out = tmp_path / f"{tif.stem}_cli.tif"
+    run_cli(cli, "convert", tif, "-o", out, "--units", "map", "--border", "clamp", "--format", "tiff", "--bits", "32",
+            "--signed")
+    written = rioxarray.open_rasterio(out).values
+    assert written.dtype == np.float32 and written.shape[1:] == (ROWS, COLS) and written.shape[0] in (3, 4)
+    return written
+
+
+def info(path: Path) -> dict[str, object]:
+    return json.loads(subprocess.run([gdal("gdalinfo"), "-json", str(path)], check=True, capture_output=True,
+                                     text=True).stdout)
+
+
+@pytest.mark.parametrize("kind", ["projected", "geographic"])
+def test_a_geotiff_round_trip_keeps_its_grid_and_equals_the_cli(cli: Path, tmp_path: Path, kind: str) -> None:
+    tif = projected(tmp_path) if kind == "projected" else geographic(tmp_path)
+    da = opened(tif)
+    n = nx.normals(da, border="clamp")
+    assert n.dims == ("band", "y", "x") and list(n.band.values) == ["x", "y", "z"]
+    assert n.attrs["units"] == "1" and n.dtype == np.float32
+    assert n.rio.crs == da.rio.crs
+    np.testing.assert_array_equal(n.x.values, da.x.values)
+    np.testing.assert_array_equal(n.y.values, da.y.values)
+    # The command line's normals on the same file, bit for bit.
+    expected = cli_normals(cli, tif, tmp_path)
+    assert np.array_equal(n.values, expected)
+    # Written by rioxarray, read by GDAL: the same CRS and transform.
+    out = tmp_path / "normals.tif"
+    n.rio.to_raster(out)
+    (src, dst) = (info(tif), info(out))
+    assert dst["geoTransform"] == src["geoTransform"]
+    assert dst["coordinateSystem"] == src["coordinateSystem"]
+    assert [b["type"] for b in dst["bands"]] == ["Float32"] * 3
+
+
+def test_the_spacing_is_the_librarys_metres(tmp_path: Path) -> None:
+    assert nx.spacing(opened(projected(tmp_path))) == (30.0, 36.0)
+    rows = nx.spacing(opened(geographic(tmp_path)))
+    assert rows.shape == (ROWS, 2)
+    # Degrees east shrink northwards; at 46° N about 77.5 km and 111.1 km
+    # a degree (1/1024 of it a texel).
+    assert (np.diff(rows[:, 0]) > 0).all()
+    assert abs(rows[0, 0] * 1024 - 77_470) < 200 and abs(rows[0, 1] * 1024 - 111_150) < 100
+
+
+@pytest.mark.parametrize("kind", ["projected", "geographic"])
+def test_dask_backed_equals_numpy_backed_bit_for_bit(tmp_path: Path, kind: str) -> None:
+    tif = projected(tmp_path) if kind == "projected" else geographic(tmp_path)
+    whole = nx.normals(opened(tif), border=("clamp", "mirror"), patch=5)
+    chunked = nx.normals(opened(tif, chunks={"y": 7, "x": 6}), border=("clamp", "mirror"), patch=5)
+    assert isinstance(chunked.data, dask_array.Array)
+    assert chunked.data.chunks == ((3,), (7, 7, 7, 3), (6, 6, 6, 2))
+    computed = chunked.compute()
+    assert np.array_equal(computed.values, whole.values)
+    assert computed.rio.crs == whole.rio.crs and computed.attrs.keys() == whole.attrs.keys()
+
+
+def test_holes_are_nan_as_the_cli_makes_them(cli: Path, tmp_path: Path) -> None:
+    tif = projected(tmp_path, holes=True)
+    da = opened(tif)
+    assert da.rio.nodata == NODATA
+    n = nx.normals(da, border="clamp")
+    missing = np.isnan(n.values).all(axis=0)
+    assert missing[3:6, 4].all() and missing[15, 11:14].all()
+    assert np.isfinite(n.values[:, ~missing]).all()
+    # The command line's TIFF has an alpha band, 0 where a texel is
+    # missing (its normal there is flat): the same texels, the same bits
+    # elsewhere.
+    written = cli_normals(cli, tif, tmp_path)
+    assert written.shape[0] == 4 and np.array_equal(written[3] == 0, missing)
+    assert np.array_equal(n.values[:, ~missing], written[:3, ~missing])
+    # Masked on reading (the holes already NaN): the same normals.
+    assert np.array_equal(nx.normals(opened(tif, masked=True), border="clamp").values, n.values, equal_nan=True)
+    chunked = nx.normals(opened(tif, chunks={"y": 5, "x": 7}), border="clamp").compute()
+    assert np.array_equal(chunked.values, n.values, equal_nan=True)
+
+
+def test_coordinates_without_a_transform_give_the_spacing() -> None:
+    z = dem().astype(np.float64)
+    da = xr.DataArray(z, dims=("y", "x"), coords={"y": 100.0 - 2.5 * np.arange(ROWS), "x": 10.0 + 4 * np.arange(COLS)},
+                      attrs={"units": "m"})
+    n = da.normalfit.normals(patch=5, border="mirror")
+    assert np.array_equal(n.values, np.moveaxis(normalfit.normals(z, patch=5, border="mirror", pixel_size=(4, 2.5)),
+                                                -1, 0))
+    n, r = nx.normals(da, residual=True)
+    assert r.dims == ("y", "x") and r.attrs["units"] == "m"
+
+
+def test_irregular_coordinates_are_refused() -> None:
+    x = 10.0 + 4 * np.arange(COLS)
+    x[7:] += 0.5
+    da = xr.DataArray(dem(), dims=("y", "x"), coords={"y": np.arange(ROWS) * 2.0, "x": x})
+    with pytest.raises(ValueError, match=r"x coordinates are not equally spaced: from index 0 to 1 the step is 4, "):
+        nx.normals(da)
+
+
+def test_a_rotated_transform_is_refused() -> None:
+    from affine import Affine
+
+    da = xr.DataArray(dem(), dims=("y", "x"))
+    da = da.rio.write_crs("EPSG:32633").rio.write_transform(Affine.rotation(30) * Affine.scale(30, -30))
+    with pytest.raises(ValueError, match=r"rotated 30\.000° counter-clockwise from north-up"):
+        nx.normals(da)
+
+
+def test_curvature_in_metres(tmp_path: Path) -> None:
+    da = opened(projected(tmp_path))
+    c = nx.curvature(da, border="clamp")
+    assert c.dims == ("y", "x") and c.attrs["units"] == "1/m" and c.rio.crs == da.rio.crs
+    assert np.array_equal(c.values, normalfit.curvature(da.values, border="clamp", pixel_size=(30, 36)))
+
+
+def test_bad_arrays_are_refused_in_one_line(tmp_path: Path) -> None:
+    da = opened(projected(tmp_path))
+    with pytest.raises(TypeError, match=r"2-D DataArray of heights is needed"):
+        nx.normals(rioxarray.open_rasterio(projected(tmp_path)).expand_dims("t"))
+    with pytest.raises(ValueError, match=r"dims must be rows then columns"):
+        nx.normals(da.transpose("x", "y"))
+    with pytest.raises(TypeError, match=r"NumPy-backed"):
+        nx.curvature(da.chunk({"y": 8}))
