@@ -144,6 +144,7 @@ fn fit_options(
         .with_convention(parse_named::<Convention>(convention)?)
         .with_strength(strength)
         .with_invert(invert);
+    opts.validate().map_err(to_py_err)?;
     Ok((opts, borders))
 }
 
@@ -163,6 +164,7 @@ fn with_detail(opts: Options, detail: Option<&Bound<'_, PyAny>>) -> PyResult<Opt
         scales.push((n, weight));
     }
     let opts = opts.with_detail(Some(Detail::new(scales).map_err(to_py_err)?));
+    opts.validate().map_err(to_py_err)?;
     Ok(opts)
 }
 
@@ -1191,6 +1193,7 @@ impl PyHeightSeams {
 /// are.
 fn tiling_options(threshold: f64, kind: &str) -> PyResult<TilingOptions> {
     let opts = TilingOptions::new().with_threshold(threshold).with_kind(parse_named(kind)?);
+    opts.validate().map_err(to_py_err)?;
     Ok(opts)
 }
 
@@ -1678,6 +1681,7 @@ fn height<'py>(
         SampleKind::F64 => Storage::Float64 { signed: true },
     };
     let opts = opts.with_step(step.unwrap_or(stored.step()));
+    opts.validate().map_err(to_py_err)?;
     let pool = pool(threads)?;
     let (values, w, h, report) = match kind {
         SampleKind::U8 => height_typed::<u8>(normals, &opts, stored, pool),
@@ -1706,6 +1710,7 @@ fn height_options(
     let opts = HeightOptions::from_fit(&opts.with_borders(borders))
         .with_convention(parse_named::<ConventionChoice>(convention)?)
         .with_model(parse_named::<Model>(model)?);
+    opts.validate().map_err(to_py_err)?;
     Ok(opts)
 }
 
@@ -1863,6 +1868,7 @@ fn blend<'py>(
         .with_strength(strength)
         .with_convention(c)
         .with_detail_convention(dc);
+    opts.validate().map_err(to_py_err)?;
     let (b, bw, bh) = any_normals(base, "base")?;
     let (d, dw, dh) = any_normals(detail, "detail")?;
     let (out, _) =
