@@ -171,7 +171,11 @@ fn real_height_maps_come_back_through_the_fit() {
     let mut missed = Vec::new();
     for (name, height_path, _) in sets() {
         let (w, h, original) = height_map(&height_path);
-        for (n, fit) in [(3, Fit::Vertical), (3, Fit::Orthogonal), (5, Fit::Vertical), (5, Fit::Orthogonal)] {
+        // The orthogonal fit at N = 5 on the 1024² sets is left out: its
+        // Gauss–Newton solves (up to 154 on the bricks) took over a minute
+        // of CI for a case the 256² set holds too, at 77–143 solves.
+        let cases = [(3, Fit::Vertical), (3, Fit::Orthogonal), (5, Fit::Vertical), (5, Fit::Orthogonal)];
+        for (n, fit) in cases.into_iter().filter(|&(n, fit)| n == 3 || fit == Fit::Vertical || w * h <= 256 * 256) {
             for border in [Border::Wrap, Border::Mirror] {
                 let opts = Options::new()
                     .with_patch(n)
