@@ -41,7 +41,8 @@ use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, TilingOptions};
 use normalfit::units::{Crs, MapSpacing};
 use normalfit::{
-    Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Spacing, Strength, Units, Weights,
+    Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Spacing, Strength, Units,
+    Weights,
 };
 use numpy::ndarray::ArrayView2;
 use numpy::{

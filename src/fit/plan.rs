@@ -367,7 +367,8 @@ impl Plan {
             valid.iter_mut().for_each(|row| row.fill(true));
             return None;
         }
-        let weighted = (self.weights != Weights::Uniform).then(|| super::weighted::WeightedMask::new(self, cols.clone()));
+        let weighted =
+            (self.weights != Weights::Uniform).then(|| super::weighted::WeightedMask::new(self, cols.clone()));
         Some(StripHoles { mask: MaskSums::new(cols), patches: MaskedRow::default(), valid, nodata, weighted })
     }
 

@@ -281,8 +281,7 @@ impl<'a> FitRequest<'a> {
 }
 
 /// Why a residual is refused with weights.
-pub(crate) const WEIGHTED_RESIDUAL: &str =
-    "a residual is the unweighted fit's RMS distance: with binomial weights it is not defined yet (use uniform weights)";
+pub(crate) const WEIGHTED_RESIDUAL: &str = "a residual is the unweighted fit's RMS distance: with binomial weights it is not defined yet (use uniform weights)";
 
 /// Why a residual is refused with detail at several scales.
 pub(crate) const DETAIL_RESIDUAL: &str =

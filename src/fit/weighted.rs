@@ -39,11 +39,11 @@
 
 use std::ops::Range;
 
+use super::FromNormal;
 use super::emit::EmitScratch;
 use super::masked::valid_row;
 use super::plan::{Plan, Strip};
 use super::sums::{RowCache, RowRef, RowSums, SourceRows, WindowSums};
-use super::FromNormal;
 use crate::samples::Sample;
 
 impl Plan {
