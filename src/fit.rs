@@ -81,6 +81,7 @@ pub mod quadratic;
 mod request;
 mod sums;
 mod unequal;
+mod weighted;
 mod window;
 pub use band::BandFit;
 use emit::store_normals;

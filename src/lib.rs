@@ -229,7 +229,9 @@ extern crate self as normalfit;
 
 pub use error::{Error, Result};
 pub use fit::{FitRequest, FromNormal, Heights, curvature, normals};
-pub use options::{Border, Borders, Convention, Detail, Fit, Options, Product, SlopeUnits, Spacing, Strength, Units};
+pub use options::{
+    Border, Borders, Convention, Detail, Fit, Options, Product, SlopeUnits, Spacing, Strength, Units, Weights,
+};
 pub use samples::{Sample, Samples};
 
 /// The README's Rust code, compiled and run by `cargo test` as doc tests,

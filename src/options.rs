@@ -163,6 +163,46 @@ pub(crate) use named_values;
 named_values!(Fit, "fit", { Orthogonal => "orthogonal", Vertical => "vertical" });
 named_values!(Border, "border mode", { Wrap => "wrap", Clamp => "clamp", Mirror => "mirror" });
 named_values!(Convention, "convention", { OpenGl => "opengl" | "gl", DirectX => "directx" | "dx" });
+named_values!(Weights, "weights", { Uniform => "uniform", Binomial => "binomial" });
+
+/// How the fit weighs a patch's points (`--weights`, `weights=`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Weights {
+    /// Every point alike: the contract's fit. The default.
+    #[default]
+    Uniform,
+    /// Point (i, j) weighs w(i)·w(j), w the row of Pascal's triangle for N
+    /// (1 2 1 at N = 3, 1 4 6 4 1 at N = 5), normalised to sum 1: at
+    /// N = 3 the vertical fit is Horn's gradient, gdaldem's (docs/spec.md
+    /// §2, "Weights").
+    Binomial,
+}
+
+impl Weights {
+    /// The weights w(k), k = 0 … n − 1, of one axis of an n-point patch,
+    /// summing to 1: all 1/n, or C(n − 1, k) / 2^(n − 1), each formed in
+    /// f64 by the recurrence of Pascal's triangle halved at every step,
+    /// so that nothing overflows up to N = [`MAX_PATCH`] (C(1022, 511) is
+    /// about 10^306; its share of 2^1022 is about 0.025).
+    #[must_use]
+    pub fn axis(self, n: usize) -> Vec<f64> {
+        match self {
+            Weights::Uniform => vec![1.0 / n as f64; n],
+            Weights::Binomial => {
+                let mut w = vec![0.0; n.max(1)];
+                w[0] = 1.0;
+                for row in 1..n {
+                    for k in (1..=row).rev() {
+                        w[k] = 0.5 * (w[k] + w[k - 1]);
+                    }
+                    w[0] *= 0.5;
+                }
+                w
+            }
+        }
+    }
+}
 
 /// "a, b or c".
 pub(crate) fn one_of(names: &[&str]) -> String {
@@ -412,6 +452,9 @@ pub struct Options {
     /// at its default: [`Options::validate`] refuses both): the normal of
     /// the weighted sum of their slopes (docs/detail.md). Default: `None`.
     pub detail: Option<Detail>,
+    /// How the fit weighs the patch's points. Default:
+    /// [`Weights::Uniform`], the contract's.
+    pub weights: Weights,
 }
 
 impl Default for Options {
@@ -441,6 +484,7 @@ impl Options {
             units: Units::Texels,
             nodata: None,
             detail: None,
+            weights: Weights::Uniform,
         }
     }
 
@@ -503,6 +547,13 @@ impl Options {
         self
     }
 
+    /// Sets how the fit weighs the patch's points (see [`Weights`]).
+    #[must_use]
+    pub fn with_weights(mut self, weights: Weights) -> Self {
+        self.weights = weights;
+        self
+    }
+
     /// The largest patch the fit reads: N, or with [`Options::detail`] its
     /// largest size. A window's or a band's halo is half of it.
     #[must_use]
@@ -555,6 +606,13 @@ impl Options {
             return Err(Error::InvalidOption(format!(
                 "give a patch size ({}) or detail at several scales, not both",
                 self.patch
+            )));
+        }
+        if self.weights != Weights::Uniform && self.detail.is_some() {
+            return Err(Error::InvalidOption(format!(
+                "{} weights fit one patch size: give -n (patch=), not detail at several scales (a weighted \
+                 sum of several sizes' slopes is not defined yet)",
+                self.weights
             )));
         }
         Ok(())
@@ -683,6 +741,30 @@ mod tests {
         for s in ["", "3.0", "-3", " 3", "three", "99999999999999999999999"] {
             assert_eq!(refused(s), format!("invalid option: patch size must be a whole number, got '{s}'"));
         }
+    }
+
+    /// Pascal's rows, exactly (the halvings are exact in binary), summing
+    /// to 1 and symmetric up to the largest patch, with nothing overflowed.
+    #[test]
+    fn binomial_weights_are_pascals_rows() {
+        assert_eq!(Weights::Binomial.axis(3), [0.25, 0.5, 0.25]);
+        assert_eq!(Weights::Binomial.axis(5), [1.0, 4.0, 6.0, 4.0, 1.0].map(|c| c / 16.0));
+        let choose = |n: u64, k: u64| (0..k).fold(1u128, |c, i| c * u128::from(n - i) / u128::from(i + 1));
+        let w = Weights::Binomial.axis(33);
+        for (k, &wk) in w.iter().enumerate() {
+            assert_eq!(wk, choose(32, k as u64) as f64 / 2f64.powi(32), "k {k}");
+        }
+        for n in [3, 9, 255, MAX_PATCH] {
+            let w = Weights::Binomial.axis(n);
+            assert!(w.iter().all(|x| x.is_finite() && *x >= 0.0), "N {n}");
+            assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12, "N {n}");
+            assert!(w.iter().zip(w.iter().rev()).all(|(a, b)| a == b), "N {n}");
+        }
+        assert_eq!(Weights::Uniform.axis(4), [0.25; 4]);
+        assert_eq!("Binomial".parse::<Weights>().unwrap(), Weights::Binomial);
+        assert_eq!(Options::new().weights, Weights::Uniform, "the contract's fit stays the default");
+        let both = Options::new().with_weights(Weights::Binomial).with_detail(Some("3,9".parse().unwrap()));
+        assert!(both.validate().unwrap_err().to_string().contains("binomial weights fit one patch size"));
     }
 
     #[test]

@@ -42,6 +42,7 @@ use normalfit::tiling::{self, TilingOptions};
 use normalfit::units::{Crs, MapSpacing};
 use normalfit::{
     Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Spacing, Strength, Units,
+    Weights,
 };
 use numpy::ndarray::ArrayView2;
 use numpy::{
@@ -146,6 +147,14 @@ fn fit_options(
         .with_invert(invert);
     opts.validate().map_err(to_py_err)?;
     Ok((opts, borders))
+}
+
+/// `opts` with `weights=` (`"uniform"` or `"binomial"`), which the library
+/// parses and checks with the rest of the options.
+fn with_weights(opts: Options, weights: &str) -> PyResult<Options> {
+    let opts = opts.with_weights(parse_named::<Weights>(weights)?);
+    opts.validate().map_err(to_py_err)?;
+    Ok(opts)
 }
 
 /// `opts` with `detail=` (a sequence of `(N, weight)` pairs, or None),
@@ -622,7 +631,7 @@ fn mips<'py>(
 /// `normals` with every argument given (see `normalfit.normals`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata, detail=None))]
+#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata, detail=None, weights="uniform"))]
 fn normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -641,11 +650,12 @@ fn normals<'py>(
     pixel_size: Option<&Bound<'py, PyAny>>,
     nodata: Option<f64>,
     detail: Option<&Bound<'py, PyAny>>,
+    weights: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let mut opts = with_detail(opts, detail)?;
+    let mut opts = with_weights(with_detail(opts, detail)?, weights)?;
     if let Some(units) = array_units(units, pixel_size, heights.shape()[0])? {
         opts = opts.with_units(units);
     }
@@ -771,7 +781,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None, units="texels", pixel_size=None))]
+#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None, units="texels", pixel_size=None, weights="uniform"))]
 fn window_normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -792,11 +802,12 @@ fn window_normals<'py>(
     detail: Option<&Bound<'py, PyAny>>,
     units: &str,
     pixel_size: Option<&Bound<'py, PyAny>>,
+    weights: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let mut opts = with_detail(opts, detail)?;
+    let mut opts = with_weights(with_detail(opts, detail)?, weights)?;
     // The whole image's spacing: a window's rows take their image row's.
     if let Some(units) = array_units(units, pixel_size, image.1)? {
         opts = opts.with_units(units);
@@ -829,7 +840,7 @@ fn window_normals<'py>(
 /// beyond it (wrap: Dask's `periodic` boundary; clamp and mirror hold none).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata=None, detail=None, units="texels", pixel_size=None))]
+#[pyo3(signature = (image, heights_dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata=None, detail=None, units="texels", pixel_size=None, weights="uniform"))]
 fn window_plan(
     py: Python<'_>,
     image: (usize, usize),
@@ -847,11 +858,12 @@ fn window_plan(
     detail: Option<&Bound<'_, PyAny>>,
     units: &str,
     pixel_size: Option<&Bound<'_, PyAny>>,
+    weights: &str,
 ) -> PyResult<(usize, (bool, bool))> {
     normalfit::fit::checked_len(image.0, image.1).map_err(to_py_err)?;
     sample_kind_of(&PyArrayDescr::new(py, heights_dtype)?, "heights")?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let mut opts = with_detail(opts, detail)?;
+    let mut opts = with_weights(with_detail(opts, detail)?, weights)?;
     if let Some(units) = array_units(units, pixel_size, image.1)? {
         opts = opts.with_units(units);
     }
@@ -1464,7 +1476,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None, weights="uniform"))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -1495,9 +1507,10 @@ fn convert(
     nodata: Option<f64>,
     nodata_tag: bool,
     detail: Option<&Bound<'_, PyAny>>,
+    weights: &str,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
-    let opts = with_detail(opts, detail)?.with_nodata(nodata);
+    let opts = with_weights(with_detail(opts, detail)?, weights)?.with_nodata(nodata);
     let map_units = map_units(units, pixel_size)?;
     let read = terrain_read(read_options(max_texels, layer)?, band, size, byte_order, decode, nodata_tag)?;
     let format = format.map(parse_named::<OutputFormat>).transpose()?;
@@ -1552,7 +1565,7 @@ fn decode_normals<'py>(
 /// `lit_view` with every argument given (see `normalfit.lit_view`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None))]
+#[pyo3(signature = (path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None, weights="uniform"))]
 fn lit_view<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -1581,10 +1594,12 @@ fn lit_view<'py>(
     nodata: Option<f64>,
     nodata_tag: bool,
     detail: Option<&Bound<'py, PyAny>>,
+    weights: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let light = light.map(|(azimuth, elevation)| Light::new(azimuth, elevation)).transpose().map_err(to_py_err)?;
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let opts = with_detail(opts, detail)?;
+    let opts = with_weights(opts, weights)?;
     let lit = LitOptions::new()
         .with_fit(opts.with_nodata(nodata))
         .with_borders(borders)

@@ -7,6 +7,8 @@ library but the contract.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 BORDERS = ("wrap", "clamp", "mirror")
@@ -44,8 +46,11 @@ def normals(
     border: tuple[str, str] = ("wrap", "wrap"),
     convention: str = "opengl",
     scale: float = 1.0,
+    weights: str = "uniform",
 ) -> np.ndarray:
-    """(H, W, 3) unit normals in f64, by the contract's closed forms."""
+    """(H, W, 3) unit normals in f64, by the contract's closed forms; with
+    weights="binomial" every sum weighted by w(i) w(j), w(k) = C(N - 1, k)
+    / 2^(N - 1) (SPEC section 2, "Weights")."""
     z = scale * heights_of(stored)
     rows, cols = z.shape
     r = patch // 2
@@ -57,11 +62,18 @@ def normals(
     sigma = -1.0 if convention == "opengl" else 1.0
     i = offsets[None, None, None, :].astype(np.float64)
     j = offsets[None, None, :, None].astype(np.float64)
-    count = patch * patch
-    a = patch * float((offsets**2).sum())
-    cx = (i * p).sum(axis=(2, 3))
-    cy = (sigma * j * p).sum(axis=(2, 3))
-    czz = (p * p).sum(axis=(2, 3)) - p.sum(axis=(2, 3)) ** 2 / count
+    if weights == "binomial":
+        axis = np.array([math.comb(patch - 1, k) / 2.0 ** (patch - 1) for k in range(patch)])
+    elif weights == "uniform":
+        axis = np.ones(patch)
+    else:
+        raise ValueError(weights)
+    w = axis[None, None, :, None] * axis[None, None, None, :]
+    count = float(w.sum())
+    a = float((w * i * i).sum())
+    cx = (w * i * p).sum(axis=(2, 3))
+    cy = (w * sigma * j * p).sum(axis=(2, 3))
+    czz = (w * p * p).sum(axis=(2, 3)) - (w * p).sum(axis=(2, 3)) ** 2 / count
     if fit == "vertical":
         nz = np.full_like(cx, a)
     else:

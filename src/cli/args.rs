@@ -20,7 +20,7 @@ use normalfit::normal_map::KindChoice;
 use normalfit::options::UnitsName;
 use normalfit::shade::{Light, LitOptions};
 use normalfit::tiling::TilingOptions;
-use normalfit::{Borders, Convention, Fit, Options, Product, SlopeUnits};
+use normalfit::{Borders, Convention, Fit, Options, Product, SlopeUnits, Weights};
 
 /// Tangent-space normal maps from height maps, by least-squares plane fits;
 /// and whether a texture tiles seamlessly.
@@ -109,6 +109,12 @@ pub struct FitArgs {
     /// vertical ones.
     #[arg(long, default_value_t = Options::default().fit, value_parser = named::<Fit>(Fit::ALL))]
     pub fit: Fit,
+
+    /// How the fit weighs the patch's points: uniform (every point alike),
+    /// or binomial (Pascal's row for N, 1 2 1 at N = 3: Horn's gradient,
+    /// gdaldem's, with --fit vertical).
+    #[arg(long, default_value_t = Options::default().weights, value_parser = named::<Weights>(Weights::ALL))]
+    pub weights: Weights,
 
     /// Border mode, one for both axes or `X,Y`: wrap (tiles), clamp, mirror,
     /// or auto (wrap where the image tiles, mirror where it does not).
@@ -908,6 +914,7 @@ named_value!(
     MipChoice,
     TextureCompression,
     Fit,
+    Weights,
     UnitsName,
     Convention,
     OutputFormat,

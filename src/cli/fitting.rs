@@ -15,6 +15,7 @@ pub fn options(args: &FitArgs) -> Result<Options, Failure> {
         .with_patch(args.patch)
         .with_detail(args.detail.clone())
         .with_fit(args.fit)
+        .with_weights(args.weights)
         .with_convention(args.convention)
         .with_strength(strength(args.scale, args.relief))
         .with_invert(args.invert);

@@ -105,24 +105,7 @@ impl MaskSums {
     /// The valid mask of one source row over the strip's columns and r on
     /// either side (through the x border), into `self.valid`.
     fn valid_row<H: Sample>(&mut self, plan: &Plan, src: RowRef<'_, H>, nodata: f64) {
-        let r = plan.r as isize;
-        let (lo, hi) = (self.cols.start as isize - r, self.cols.end as isize + r);
-        let held = src.x0..src.x0 + src.values.len() as isize;
-        self.valid.clear();
-        if !src.holes {
-            self.valid.resize((hi - lo) as usize, 1);
-            return;
-        }
-        if lo >= held.start && hi <= held.end {
-            // Away from the borders: the row's own values.
-            let values = &src.values[(lo - src.x0) as usize..(hi - src.x0) as usize];
-            self.valid.extend(values.iter().map(|&h| u8::from(!is_hole(h.to_f64(), nodata))));
-            return;
-        }
-        self.valid.extend((lo..hi).map(|u| {
-            let at = if held.contains(&u) { u } else { plan.borders.x.map(u, plan.width) as isize };
-            u8::from(!is_hole(src.values[(at - src.x0) as usize].to_f64(), nodata))
-        }));
+        valid_row(plan, self.cols.clone(), src, nodata, &mut self.valid);
     }
 
     /// Σm, Σi·m, Σi²·m over each column's window of one source row, by
@@ -201,6 +184,35 @@ impl MaskSums {
     }
 }
 
+/// The valid mask (1 valid, 0 a hole) of one source row over the columns
+/// `cols` and r on either side (through the x border), into `valid`.
+pub(super) fn valid_row<H: Sample>(
+    plan: &Plan,
+    cols: Range<usize>,
+    src: RowRef<'_, H>,
+    nodata: f64,
+    valid: &mut Vec<u8>,
+) {
+    let r = plan.r as isize;
+    let (lo, hi) = (cols.start as isize - r, cols.end as isize + r);
+    let held = src.x0..src.x0 + src.values.len() as isize;
+    valid.clear();
+    if !src.holes {
+        valid.resize((hi - lo) as usize, 1);
+        return;
+    }
+    if lo >= held.start && hi <= held.end {
+        // Away from the borders: the row's own values.
+        let values = &src.values[(lo - src.x0) as usize..(hi - src.x0) as usize];
+        valid.extend(values.iter().map(|&h| u8::from(!is_hole(h.to_f64(), nodata))));
+        return;
+    }
+    valid.extend((lo..hi).map(|u| {
+        let at = if held.contains(&u) { u } else { plan.borders.x.map(u, plan.width) as isize };
+        u8::from(!is_hole(src.values[(at - src.x0) as usize].to_f64(), nodata))
+    }));
+}
+
 /// Slides the valid points' moments down one row: the row sums `l` of
 /// the leaving row (offset −r) go, `e` of the entering one (offset r + 1
 /// before the slide) come, and every row's offset j drops by one. The
@@ -249,6 +261,10 @@ pub(super) struct Moments {
     pub geometry: [i64; 5],
     /// Σz, Σiz, Σjz (j down), Σz², over the valid points.
     pub z: [f64; 4],
+    /// With weights: Σw, Σwi, Σwj, Σwi², Σwj², Σwij over the valid points
+    /// (the z sums then weighted too). `c` and `geometry` still decide
+    /// whether the points determine a plane.
+    pub weighted: Option<[f64; 6]>,
 }
 
 /// The patches of one row that hold a hole, as planes (one value per
@@ -332,12 +348,23 @@ impl MaskedRow {
         let k = self.len;
         self.len += 1;
         self.column[k] = column;
-        self.count[k] = c as f64;
-        self.c_cii[k] = c_cii as f64;
-        self.c_cjj[k] = c_cjj as f64;
-        self.c_cij[k] = c_cij as f64;
-        self.si[k] = si as f64;
-        self.sj[k] = sj as f64;
+        if let Some([c, si, sj, sii, sjj, sij]) = m.weighted {
+            // The weighted moments, centred as the counts are: W·Cii =
+            // W·Σwi² − (Σwi)², and the z moments below as W·Σwiz − Σwi·Σwz.
+            self.count[k] = c;
+            self.c_cii[k] = c * sii - si * si;
+            self.c_cjj[k] = c * sjj - sj * sj;
+            self.c_cij[k] = c * sij - si * sj;
+            self.si[k] = si;
+            self.sj[k] = sj;
+        } else {
+            self.count[k] = c as f64;
+            self.c_cii[k] = c_cii as f64;
+            self.c_cjj[k] = c_cjj as f64;
+            self.c_cij[k] = c_cij as f64;
+            self.si[k] = si as f64;
+            self.sj[k] = sj as f64;
+        }
         [self.z0[k], self.zi[k], self.zj[k], self.zz[k]] = m.z;
     }
 
@@ -789,7 +816,7 @@ mod tests {
 
     /// The moments of a point list.
     fn moments(points: &[(i64, i64, f64)]) -> Moments {
-        let mut m = Moments { c: 0, geometry: [0; 5], z: [0.0; 4] };
+        let mut m = Moments { c: 0, geometry: [0; 5], z: [0.0; 4], weighted: None };
         for &(i, j, z) in points {
             m.c += 1;
             m.geometry[0] += i;

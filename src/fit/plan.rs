@@ -7,7 +7,7 @@ use std::ops::Range;
 use crate::par::prelude::*;
 
 use crate::error::Result;
-use crate::options::{Borders, Fit, Options, Spacing, Units};
+use crate::options::{Borders, Fit, Options, Spacing, Units, Weights};
 use crate::samples::Sample;
 
 use super::emit::{EmitScratch, normal_from_sums, squared_distance_sum, store_normals};
@@ -41,6 +41,10 @@ pub(super) struct StripHoles<'t> {
     pub(super) patches: MaskedRow,
     pub(super) valid: Vec<&'t mut [bool]>,
     pub(super) nodata: f64,
+    /// With weights: the valid points' weighted moments (the integer
+    /// `mask` still decides which patches hold a hole and which determine
+    /// a plane: the weights are all positive, so they change neither).
+    pub(super) weighted: Option<super::weighted::WeightedMask>,
 }
 
 /// One parallel task of the fit: a strip of a tile, its rows from `y0`,
@@ -66,6 +70,9 @@ pub(super) enum Kernel {
     /// Suffixes and prefixes of blocks aligned on the image (floats):
     /// 2N rows' sums and N window sums.
     Blocked,
+    /// Weighted sums, each patch's outright (any sample type, with
+    /// [`Weights::Binomial`]): N rows' sums (`super::weighted`).
+    Weighted,
 }
 
 /// Everything about a conversion that is the same for every tile.
@@ -79,8 +86,16 @@ pub(super) struct Plan {
     pub(super) scale: f64,
     pub(super) sigma: f64,
     pub(super) fit: Fit,
-    /// A = Σ i² over the patch.
+    /// A = Σ i² over the patch (with weights, Σ w(i)·w(j)·i²).
     pub(super) a: f64,
+    /// The patch's total weight: N² unweighted, 1 with weights (theirs
+    /// sum to 1). Czz = Σz² − (Σz)²/`count`.
+    pub(super) count: f64,
+    /// [`Options::weights`].
+    pub(super) weights: Weights,
+    /// With weights, one axis's: w(k), w(k)·u and w(k)·u² at u = k − r
+    /// (empty unweighted).
+    pub(super) axis: [Vec<f64>; 3],
     pub(super) borders: Borders,
     pub(super) height: usize,
     pub(super) block_rows: usize,
@@ -128,6 +143,9 @@ impl Plan {
             sigma: opts.convention.sigma(),
             fit: opts.fit,
             a: 0.0,
+            count: 0.0,
+            weights: opts.weights,
+            axis: Default::default(),
             borders: opts.borders,
             height,
             block_rows: 0,
@@ -149,8 +167,17 @@ impl Plan {
         let width = self.width;
         let block_rows = tile.max(MIN_BLOCK_TEXELS.div_ceil(width)).min((MAX_BLOCK_TEXELS / width).max(1));
         let rf = r as f64;
+        if self.weights != Weights::Uniform {
+            // Σ w(i)·w(j)·i² = Σ w(i)·i², the w(j) summing to 1.
+            let w = self.weights.axis(n);
+            let wu: Vec<f64> = w.iter().enumerate().map(|(k, w)| w * (k as f64 - rf)).collect();
+            let wuu: Vec<f64> = wu.iter().enumerate().map(|(k, wu)| wu * (k as f64 - rf)).collect();
+            let a = wuu.iter().sum();
+            return Plan { n, r, a, count: 1.0, axis: [w, wu, wuu], block_rows, detail: Vec::new(), ..self.clone() };
+        }
         let a = n as f64 * rf * (rf + 1.0) * (2.0 * rf + 1.0) / 3.0;
-        Plan { n, r, a, block_rows, detail: Vec::new(), ..self.clone() }
+        let count = (n * n) as f64;
+        Plan { n, r, a, count, axis: Default::default(), block_rows, detail: Vec::new(), ..self.clone() }
     }
 
     /// Fits the output rows from `y0`, columns `cols`, into `out` (rows of
@@ -242,6 +269,7 @@ impl Plan {
         // samples forms the same gain, and so the same bits.
         let gain = self.scale * unit;
         tasks.into_par_iter().for_each(|task| match (kernel, self.n) {
+            (Kernel::Weighted, _) => self.fit_strip_weighted(rows, gain, task),
             (Kernel::Sliding, _) => self.fit_strip_sliding(rows, gain, task),
             (Kernel::Direct, 3) => self.fit_strip_direct::<H, T, 3>(rows, gain, task),
             (Kernel::Direct, 5) => self.fit_strip_direct::<H, T, 5>(rows, gain, task),
@@ -255,7 +283,9 @@ impl Plan {
     /// 1: 1/255, 1/65535) by running sums, unless map units take the
     /// values as given; floats outright for N ≤ 7, else by blocks.
     pub(super) fn kernel(&self, unit: f64) -> Kernel {
-        if self.spacing.is_none() && unit != 1.0 {
+        if self.weights != Weights::Uniform {
+            Kernel::Weighted
+        } else if self.spacing.is_none() && unit != 1.0 {
             Kernel::Sliding
         } else if self.n <= 7 {
             Kernel::Direct
@@ -308,6 +338,9 @@ impl Plan {
             // of 24 bytes each); N suffixes of window sums, a prefix, the
             // sums and a zero.
             Kernel::Blocked => 2 * n * row(48 * n) + (n + 3) * window,
+            // N rows' sums and their squares; with holes, N rows' weighted
+            // mask sums (three planes) and the six moments' planes.
+            Kernel::Weighted => n * row(8 * padded) + window + if holes { 24 * (n + 2) * w + padded } else { 0 },
         };
         // The normals' three planes; in map units, the unequal spacing's
         // matrices and Newton planes (about 160 bytes a column).
@@ -334,7 +367,9 @@ impl Plan {
             valid.iter_mut().for_each(|row| row.fill(true));
             return None;
         }
-        Some(StripHoles { mask: MaskSums::new(cols), patches: MaskedRow::default(), valid, nodata })
+        let weighted =
+            (self.weights != Weights::Uniform).then(|| super::weighted::WeightedMask::new(self, cols.clone()));
+        Some(StripHoles { mask: MaskSums::new(cols), patches: MaskedRow::default(), valid, nodata, weighted })
     }
 
     /// Makes the valid points' sums those of output row `y`, and marks in
@@ -347,6 +382,9 @@ impl Plan {
         v: &mut WindowSums,
     ) {
         holes.mask.advance(self, rows, y as isize, holes.nodata);
+        if let Some(weighted) = holes.weighted.as_mut() {
+            weighted.advance(self, rows, y as isize, holes.nodata);
+        }
         let n2 = (self.n * self.n) as i64;
         v.with_hole.clear();
         v.with_hole.extend(holes.mask.c.iter().map(|&c| c != n2));
@@ -365,7 +403,7 @@ impl Plan {
         out: &mut [T],
         residual: Option<&mut [f32]>,
     ) {
-        let StripHoles { mask, patches, valid, .. } = holes;
+        let StripHoles { mask, patches, valid, weighted, .. } = holes;
         let valid = &mut valid[k];
         valid.fill(true);
         let n2 = (self.n * self.n) as i64;
@@ -380,6 +418,7 @@ impl Plan {
                 c: mask.c[x],
                 geometry: [mask.si[x], mask.sj[x], mask.sii[x], mask.sjj[x], mask.sij[x]],
                 z: [g * v.s0[x], g * v.si[x], g * v.sj[x], g * g * v.szz[x]],
+                weighted: weighted.as_ref().map(|m| m.at(x)),
             };
             patches.push(x, mask.centre[x], &moments);
         }
@@ -397,6 +436,11 @@ impl Plan {
     /// starting a strip's sums (N steps a row) costs at most an eighth of
     /// the strip's work.
     pub(super) fn strip_cols(&self) -> usize {
+        // The weighted sums have no start-up cost to spread: a strip of
+        // ~512 columns keeps their N rows small at any N.
+        if self.weights != Weights::Uniform {
+            return STRIP_COLS;
+        }
         STRIP_COLS.max(8 * self.n)
     }
 
@@ -799,7 +843,7 @@ impl Plan {
     ) {
         let normal = &mut scratch.normal;
         if self.moments {
-            let n2 = (self.n * self.n) as f64;
+            let n2 = self.count;
             let czz_gain = gain * gain / n2;
             let w = out.len();
             let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
@@ -852,7 +896,7 @@ impl Plan {
 
     #[inline(always)]
     pub(super) fn emit_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3]) {
-        let n2 = (self.n * self.n) as f64;
+        let n2 = self.count;
         let czz_gain = gain * gain / n2;
         let (gx, gy) = (gain, self.sigma * gain);
         let [nx, ny, nz] = normal;
@@ -923,7 +967,7 @@ impl Plan {
         sx: f64,
         out: &mut [f32],
     ) {
-        let n2 = (self.n * self.n) as f64;
+        let n2 = self.count;
         let (inv_n2, czz_gain) = (1.0 / n2, gain * gain / n2);
         let w = out.len();
         let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);

@@ -436,6 +436,13 @@ fn checked_scales(opts: &Options, width: usize, unit: f64) -> Result<Scales> {
                 .into(),
         ));
     }
+    if opts.weights != crate::options::Weights::Uniform {
+        return Err(Error::InvalidOption(format!(
+            "a curvature map fits an unweighted quadratic: {} weights are defined for the plane fit (normals, \
+             slope, aspect, hillshade) only",
+            opts.weights
+        )));
+    }
     scales(opts, width, unit)
 }
 

@@ -213,6 +213,9 @@ impl<'a> FitRequest<'a> {
         if !plan.detail.is_empty() && residual.is_some() {
             return Err(Error::InvalidOption(DETAIL_RESIDUAL.into()));
         }
+        if plan.weights != crate::options::Weights::Uniform && residual.is_some() {
+            return Err(Error::InvalidOption(WEIGHTED_RESIDUAL.into()));
+        }
         // The image columns and rows the heights hold, and the texels out.
         let (held_x, held_y, (ox, oy), (ow, oh)) = match &window {
             None => (0..width as isize, 0..height as isize, (0, 0), (width, height)),
@@ -276,6 +279,9 @@ impl<'a> FitRequest<'a> {
         Ok(valid.iter().filter(|&&v| !v).count())
     }
 }
+
+/// Why a residual is refused with weights.
+pub(crate) const WEIGHTED_RESIDUAL: &str = "a residual is the unweighted fit's RMS distance: with binomial weights it is not defined yet (use uniform weights)";
 
 /// Why a residual is refused with detail at several scales.
 pub(crate) const DETAIL_RESIDUAL: &str =

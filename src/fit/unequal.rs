@@ -135,7 +135,7 @@ struct Sums<'a> {
 impl<'a> Sums<'a> {
     #[inline(always)]
     fn of(plan: &Plan, v: &'a WindowSums, row: RowSpacing, w: usize) -> Sums<'a> {
-        let n2 = (plan.n * plan.n) as f64;
+        let n2 = plan.count;
         Sums {
             s0: &v.s0[..w],
             si: &v.si[..w],
@@ -206,7 +206,7 @@ impl pulp::WithSimd for Residuals<'_> {
         let Residuals { fit, plan, v, row, sx, out } = self;
         let w = out.len();
         fit.smallest_eigenvalues(plan, v, row, w);
-        let inv_n2 = 1.0 / (plan.n * plan.n) as f64;
+        let inv_n2 = 1.0 / plan.count;
         let (czz, flat, lambda) = (&fit.czz[..w], &fit.flat[..w], &fit.lambda[..w]);
         for x in 0..w {
             let sum = select(flat[x], czz[x], lambda[x].max(0.0));

@@ -246,6 +246,12 @@ impl HeightOptions {
             let problem = "the height inverse undoes one patch size's fit: detail at several scales has none";
             return Err(Error::InvalidOption(problem.into()));
         }
+        if self.fit.weights != crate::options::Weights::Uniform {
+            return Err(Error::InvalidOption(format!(
+                "the height inverse undoes the unweighted fit: {} weights are not defined for it yet",
+                self.fit.weights
+            )));
+        }
         let gain = match self.fit.strength {
             Strength::Scale(s) | Strength::Relief(s) => s,
         };

@@ -11,12 +11,14 @@
 //! (x, y) with a per-row spacing. Holes (docs/terrain.md "Holes"): the
 //! caller says which texels are heights; a hole is left out of every patch,
 //! and a texel is missing when it is a hole or its valid points are fewer
-//! than 3 or on one line.
+//! than 3 or on one line. Weights (SPEC §2 "Weights"): each point weighs
+//! w(i)·w(j), and every sum above (the centroid, the covariance, the
+//! normal equations, the residual) is the weighted one.
 #![allow(dead_code)]
 // Matrix code reads best with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
-use normalfit::{Border, Convention, Fit, Options, Spacing, Strength, Units};
+use normalfit::{Border, Convention, Fit, Options, Spacing, Strength, Units, Weights};
 
 /// The index rule of SPEC.md section 2, written out case by case.
 pub fn source_index(k: i64, n: i64, mode: Border) -> i64 {
@@ -73,6 +75,24 @@ pub fn spacing(opts: &Options, y: usize) -> (f64, f64) {
 struct Point {
     offset: [i64; 2],
     place: [f64; 3],
+    /// The point's weight in the fit: 1, or w(i)·w(j) ([`axis_weight`]).
+    weight: f64,
+}
+
+/// The weight of offset k ∈ [−r, r] along one axis of an N-point patch:
+/// 1 for uniform weights; for binomial ones C(N − 1, k + r) / 2^(N − 1)
+/// (Pascal's row, SPEC §2 "Weights"), the binomial coefficient as the
+/// product of its factors, not the library's recurrence.
+pub fn axis_weight(weights: Weights, n: i64, k: i64) -> f64 {
+    match weights {
+        Weights::Uniform => 1.0,
+        Weights::Binomial => {
+            let (m, c) = (n - 1, k + n / 2);
+            let choose = (1..=c).fold(1.0f64, |acc, i| acc * (m - c + i) as f64 / i as f64);
+            choose / 2f64.powi(m as i32)
+        }
+        other => panic!("the reference knows no weights {other:?}"),
+    }
 }
 
 /// The points of texel (x, y)'s N×N patch, each looked up through the
@@ -105,7 +125,8 @@ fn patch_points<H: Copy + Into<f64>>(
                 continue;
             }
             let place = [sx * i as f64, sigma * sy * j as f64, s * heights[k].into()];
-            pts.push(Point { offset: [i, j], place });
+            let weight = axis_weight(opts.weights, n, i) * axis_weight(opts.weights, n, j);
+            pts.push(Point { offset: [i, j], place, weight });
         }
     }
     pts
@@ -163,29 +184,31 @@ pub fn fit_at<H: Copy + Into<f64>>(
         return None;
     }
     let places: Vec<[f64; 3]> = pts.iter().map(|p| p.place).collect();
-    let count = places.len() as f64;
-    let mean = centroid(&places);
+    let weights: Vec<f64> = pts.iter().map(|p| p.weight).collect();
+    let count: f64 = weights.iter().sum();
+    let mean = centroid(&places, &weights);
 
     // The contract's "no tilt" rule, in x spacings.
     let (sx, _) = spacing(opts, y);
     let in_x: Vec<[f64; 3]> = pts.iter().map(|p| [p.offset[0] as f64, p.offset[1] as f64, p.place[2] / sx]).collect();
-    let m = covariance(&in_x);
+    let m = covariance(&in_x, &weights);
     let (tilt, spread) = (m[0][2].powi(2) + m[1][2].powi(2), m[0][0].max(m[1][1]) + m[2][2]);
     let flat = tilt <= 1e-20 * spread * spread;
 
     let (normal, squared): ([f64; 3], f64) = if flat {
-        ([0.0, 0.0, 1.0], places.iter().map(|p| (p[2] - mean[2]).powi(2)).sum())
+        ([0.0, 0.0, 1.0], places.iter().zip(&weights).map(|(p, w)| w * (p[2] - mean[2]).powi(2)).sum())
     } else {
         match opts.fit {
             Fit::Orthogonal => {
-                let n = orient(unit(smallest_eigenvector(covariance(&places))));
+                let n = orient(unit(smallest_eigenvector(covariance(&places, &weights))));
                 let distance = |p: &[f64; 3]| (0..3).map(|k| n[k] * (p[k] - mean[k])).sum::<f64>();
-                (n, places.iter().map(|p| distance(p).powi(2)).sum())
+                (n, places.iter().zip(&weights).map(|(p, w)| w * distance(p).powi(2)).sum())
             }
             Fit::Vertical => {
-                let c = least_squares_plane(&places);
+                let c = least_squares_plane(&places, &weights);
                 let n = unit([-c[1], -c[2], 1.0]);
-                (n, places.iter().map(|p| (p[2] - (c[0] + c[1] * p[0] + c[2] * p[1])).powi(2)).sum())
+                let off = |p: &[f64; 3]| p[2] - (c[0] + c[1] * p[0] + c[2] * p[1]);
+                (n, places.iter().zip(&weights).map(|(p, w)| w * off(p).powi(2)).sum())
             }
             other => panic!("the reference knows no fit {other:?}"),
         }
@@ -252,20 +275,20 @@ fn orient(n: [f64; 3]) -> [f64; 3] {
     if flip { n.map(|c| -c) } else { n }
 }
 
-/// The mean of the points, coordinate by coordinate.
-fn centroid(pts: &[[f64; 3]]) -> [f64; 3] {
-    let count = pts.len() as f64;
-    std::array::from_fn(|k| pts.iter().map(|p| p[k]).sum::<f64>() / count)
+/// The weighted mean of the points, coordinate by coordinate.
+fn centroid(pts: &[[f64; 3]], weights: &[f64]) -> [f64; 3] {
+    let total: f64 = weights.iter().sum();
+    std::array::from_fn(|k| pts.iter().zip(weights).map(|(p, w)| w * p[k]).sum::<f64>() / total)
 }
 
-/// Σ (p − p̄)(p − p̄)ᵀ over the points: the 3×3 scatter matrix.
-fn covariance(pts: &[[f64; 3]]) -> [[f64; 3]; 3] {
-    let mean = centroid(pts);
+/// Σ w·(p − p̄)(p − p̄)ᵀ over the points: the 3×3 weighted scatter matrix.
+fn covariance(pts: &[[f64; 3]], weights: &[f64]) -> [[f64; 3]; 3] {
+    let mean = centroid(pts, weights);
     let mut cov = [[0.0f64; 3]; 3];
-    for p in pts {
+    for (p, w) in pts.iter().zip(weights) {
         for a in 0..3 {
             for b in 0..3 {
-                cov[a][b] += (p[a] - mean[a]) * (p[b] - mean[b]);
+                cov[a][b] += w * (p[a] - mean[a]) * (p[b] - mean[b]);
             }
         }
     }
@@ -273,16 +296,17 @@ fn covariance(pts: &[[f64; 3]]) -> [[f64; 3]; 3] {
 }
 
 /// (c0, c1, c2) of the plane z = c0 + c1 u + c2 v closest to the points in
-/// z, by least squares: the normal equations, solved by elimination.
-fn least_squares_plane(pts: &[[f64; 3]]) -> [f64; 3] {
+/// z, by weighted least squares: the normal equations Σ w·rowᵀrow · c =
+/// Σ w·row·z, solved by elimination.
+fn least_squares_plane(pts: &[[f64; 3]], weights: &[f64]) -> [f64; 3] {
     let mut m = [[0.0f64; 4]; 3];
-    for p in pts {
+    for (p, w) in pts.iter().zip(weights) {
         let row = [1.0, p[0], p[1]];
         for a in 0..3 {
             for b in 0..3 {
-                m[a][b] += row[a] * row[b];
+                m[a][b] += w * row[a] * row[b];
             }
-            m[a][3] += row[a] * p[2];
+            m[a][3] += w * row[a] * p[2];
         }
     }
     solve(m)

@@ -39,6 +39,7 @@ mod stream;
 mod stream_exr;
 mod terrain_units;
 mod tiling;
+mod weights;
 mod window;
 
 // Readers of the formats other than PNG and OpenEXR: GeoTIFFs made with

@@ -61,6 +61,7 @@ def normals(
     pixel_size: float | tuple[float, float] | None = None,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: str = "uniform",
 ) -> Any:
     """The normal map of a height map.
 
@@ -80,6 +81,10 @@ def normals(
         weighted sum of the scales' slopes (docs/detail.md; the command
         line's --detail). patch is then left at 3. No residual.
     fit: "orthogonal" (perpendicular distances) or "vertical".
+    weights: "uniform" (every point of the patch alike, the default) or
+        "binomial" (point (i, j) weighs w(i) w(j), w Pascal's row for N:
+        1 2 1 at N = 3, Horn's gradient as gdaldem's with fit="vertical";
+        the command line's --weights). No residual, no detail with binomial.
     border: "wrap", "clamp", "mirror" or "auto" (wrap where the heights
         tile, mirror where not: the library's tiling check, reading the
         heights in place) for both axes, or one per axis as an (x, y) pair or
@@ -129,7 +134,7 @@ def normals(
     """
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
-        _pixel_size(pixel_size), nodata, detail,
+        _pixel_size(pixel_size), nodata, detail, weights,
     )
 
 
@@ -296,6 +301,7 @@ def convert(
     nodata: float | None = None,
     nodata_tag: bool = True,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: str = "uniform",
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -341,7 +347,7 @@ def convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
         compression, alpha, channels, residual, max_texels, layer, units,
         None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata, nodata_tag,
-        detail,
+        detail, weights,
     )
 
 
@@ -406,6 +412,7 @@ def lit_view(
     nodata: float | None = None,
     nodata_tag: bool = True,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: str = "uniform",
 ) -> Any:
     """``normalfit shade``: a normal map file, or a height map file through
     the fit (normals()'s options), lit by a directional light.
@@ -436,7 +443,7 @@ def lit_view(
     return _normalfit.lit_view(
         path, light, azimuth, altitude, tile, kind, channel, signed, patch, fit, border, convention, scale, relief, invert,
         max_texels, layer, units, None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode,
-        nodata, nodata_tag, detail,
+        nodata, nodata_tag, detail, weights,
     )
 
 

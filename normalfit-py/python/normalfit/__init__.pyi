@@ -79,6 +79,7 @@ def normals(
     pixel_size: float | tuple[float, float] | npt.NDArray[Any] | None = None,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: Literal["uniform", "binomial"] = "uniform",
 ) -> Any: ...
 def curvature(
     heights: _Heights,
@@ -170,6 +171,7 @@ def convert(
     nodata: float | None = None,
     nodata_tag: bool = True,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: Literal["uniform", "binomial"] = "uniform",
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None
@@ -202,6 +204,7 @@ def lit_view(
     nodata: float | None = None,
     nodata_tag: bool = True,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: Literal["uniform", "binomial"] = "uniform",
 ) -> npt.NDArray[np.uint8]: ...
 @final
 class HeightInfo:

@@ -55,6 +55,7 @@ def normals(
     pixel_size: Any | None,
     nodata: float | None,
     detail: Any | None = None,
+    weights: str = "uniform",
 ) -> Any: ...
 def curvature(
     heights: Any,
@@ -115,6 +116,7 @@ def convert(
     nodata: float | None,
     nodata_tag: bool,
     detail: Any | None = None,
+    weights: str = "uniform",
 ) -> ConversionSummary: ...
 def blend(
     base: Any, detail: Any, method: str, strength: float, convention: str, detail_convention: str | None
@@ -157,6 +159,7 @@ def lit_view(
     nodata: float | None,
     nodata_tag: bool,
     detail: Any | None = None,
+    weights: str = "uniform",
 ) -> Any: ...
 def height(
     normals: Any,
@@ -206,6 +209,7 @@ def window_normals(
     detail: Any | None = None,
     units: str = "texels",
     pixel_size: Any | None = None,
+    weights: str = "uniform",
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],
@@ -223,6 +227,7 @@ def window_plan(
     detail: Any | None = None,
     units: str = "texels",
     pixel_size: Any | None = None,
+    weights: str = "uniform",
 ) -> tuple[int, tuple[bool, bool]]: ...
 def window_halo(
     image: tuple[int, int],

@@ -110,7 +110,7 @@ def _fit_block(
             held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
             options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
             options["dtype"], options["residual"], options["threads"], options["nodata"], options["detail"],
-            options["units"], options["pixel_size"],
+            options["units"], options["pixel_size"], options["weights"],
         )
     except Exception as e:
         raise _chunk_error(e, _describe(index, rows, cols)) from e
@@ -140,6 +140,7 @@ def normals(
     detail: Sequence[tuple[int, float]] | None = None,
     units: str = "texels",
     pixel_size: Any = None,
+    weights: str = "uniform",
 ) -> Any:
     """The normal map of a 2-D Dask array of heights, lazily: a (rows,
     columns, 3) Dask array chunked like ``array`` (one chunk of 3 on the
@@ -148,7 +149,7 @@ def normals(
 
     array: a 2-D dask.array (or anything ``dask.array.asarray`` takes) of
         uint8, uint16, float32 or float64, in normalfit.normals's units.
-    patch, fit, convention, scale, relief, invert, dtype, detail: as for
+    patch, fit, convention, scale, relief, invert, dtype, detail, weights: as for
         normalfit.normals (with detail, the halo is the largest size's) (dtype float32 unit vectors, or uint8 / uint16
         encoded RGB).
     border: "wrap", "clamp" or "mirror", for both axes or as an (x, y)
@@ -202,7 +203,7 @@ def normals(
     r, (beyond_x, beyond_y) = _normalfit.window_plan(
         (w, h),
         array.dtype, patch, fit, border, convention, scale, relief, invert, dtype, threads, nodata, detail,
-        units, pixel_size,
+        units, pixel_size, weights,
     )
     out_dtype = np.dtype(dtype)
     chunks = tuple(_merged(c, r) for c in array.chunks)
@@ -214,7 +215,7 @@ def normals(
     options = dict(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
         dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
-        detail=None if detail is None else list(detail), units=units, pixel_size=pixel_size,
+        detail=None if detail is None else list(detail), units=units, pixel_size=pixel_size, weights=weights,
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)

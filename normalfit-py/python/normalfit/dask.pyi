@@ -27,6 +27,7 @@ def normals(
     threads: int | None = 1,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: Literal["uniform", "binomial"] = "uniform",
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | Any | None = None,
 ) -> Any: ...
@@ -46,6 +47,7 @@ def normals(
     threads: int | None = 1,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: Literal["uniform", "binomial"] = "uniform",
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | Any | None = None,
 ) -> tuple[Any, Any]: ...

@@ -231,6 +231,7 @@ def normals(
     pixel_size: Any = None,
     nodata: Any = "auto",
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: str = "uniform",
 ) -> Any:
     """The normals of a 2-D DataArray of heights, as a DataArray (band: 3,
     y, x) on its grid: band "x" east, "y" north (OpenGL's convention;
@@ -265,6 +266,7 @@ def normals(
     options: dict[str, Any] = dict(
         patch=patch, fit=fit, border=border, convention=convention, scale=scale, relief=relief, invert=invert,
         dtype=dtype, residual=residual, units=units, pixel_size=pixel_size, nodata=holes, detail=detail,
+        weights=weights,
     )
     if _is_dask(da.data):
         from . import dask as ndask

@@ -28,6 +28,7 @@ def normals(
     pixel_size: Any = None,
     nodata: float | Literal["auto"] | None = "auto",
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: Literal["uniform", "binomial"] = "uniform",
 ) -> xr.DataArray: ...
 @overload
 def normals(
@@ -47,6 +48,7 @@ def normals(
     pixel_size: Any = None,
     nodata: float | Literal["auto"] | None = "auto",
     detail: Sequence[tuple[int, float]] | None = None,
+    weights: Literal["uniform", "binomial"] = "uniform",
 ) -> tuple[xr.DataArray, xr.DataArray]: ...
 def curvature(
     da: xr.DataArray,
