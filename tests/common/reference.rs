@@ -441,7 +441,7 @@ pub fn seam_scores(heights: &[f64], w: usize, h: usize, hole: impl Fn(f64) -> bo
     let total: f64 = x[0].0.iter().chain(&y[0].0).sum();
     let count: f64 = x[0].2.iter().chain(&y[0].2).sum();
     let mean = if count > 0.0 { total / count } else { 0.0 };
-    let score = |levels: &[(Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>)], line: usize| {
+    let score = |levels: &[LevelSums], line: usize| {
         let eps = 1e-3 * mean * line as f64 + 1e-30;
         let mut best = 0.0f64;
         for (l, (v, c, nv, nc)) in levels.iter().enumerate() {
