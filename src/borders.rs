@@ -84,13 +84,28 @@ impl BorderChoices {
     /// Errors: those of [`HeightSeams`] (the memory for the check, heights
     /// that are not `width` × `height`).
     pub fn settle<H: crate::Sample>(&self, heights: &[H], width: usize, height: usize) -> Result<Borders> {
+        self.settle_with_holes(heights, width, height, None)
+    }
+
+    /// [`settle`](Self::settle) for heights with holes: texels equal to
+    /// `nodata` (as stored, the fit's rule) and non-finite ones are
+    /// skipped by the tiling check ([holes](crate::tiling#holes)).
+    ///
+    /// Errors: as [`settle`](Self::settle).
+    pub fn settle_with_holes<H: crate::Sample>(
+        &self,
+        heights: &[H],
+        width: usize,
+        height: usize,
+        nodata: Option<f64>,
+    ) -> Result<Borders> {
         if !self.any_auto() {
             return Ok(self.resolve(None));
         }
         if Some(heights.len()) != width.checked_mul(height) {
             return Err(Error::BufferSize { expected: width.saturating_mul(height), actual: heights.len() });
         }
-        let mut seams = HeightSeams::new(width, height)?;
+        let mut seams = HeightSeams::new(width, height)?.with_nodata(nodata);
         seams.push_heights(heights)?;
         Ok(self.resolve(Some(&seams.finish(&TilingOptions::new().with_kind(KindChoice::Height))?)))
     }

@@ -14,7 +14,10 @@ use crate::tiling::{self, TilingOptions, TilingReport};
 
 /// The tiling report of a decoded image: its kind as `opts.kind` says or
 /// detected ([`kind_of`]); a normal map judged on its R, G, B planes, a
-/// height map on its height (`channel`, else SPEC §1's rule).
+/// height map on its height (`channel`, else SPEC §1's rule). A height
+/// map's holes are skipped ([holes](crate::tiling#holes)) when a nodata
+/// value is known: `opts.nodata` (as stored, as `--nodata` gives it),
+/// else the GeoTIFF's GDAL_NODATA tag as read.
 ///
 /// Errors: those of [`kind_of`] and of reading the height.
 pub fn tiling_report(raster: &Raster, opts: &TilingOptions, channel: Option<&Channel>) -> Result<TilingReport> {
@@ -27,8 +30,20 @@ pub fn tiling_report(raster: &Raster, opts: &TilingOptions, channel: Option<&Cha
         },
         ..*opts
     };
+    let holes = crate::io::read::georef::holes_value(opts.nodata, raster.georef.as_ref());
     match (kind, rgb_planes(raster)?) {
-        (ImageKind::Normal, Some(planes)) => tiling::check(&planes.each_ref().map(Vec::as_slice), w, h, &fixed),
+        (ImageKind::Normal, Some(planes)) => {
+            tiling::check(&planes.each_ref().map(Vec::as_slice), w, h, &fixed.with_nodata(None))
+        }
+        (_, _) if holes.is_some() => {
+            // The heights as a conversion's fit reads them, holes and all:
+            // the streamed check takes them in their own type.
+            let nodata = holes.unwrap_or(f64::NAN);
+            let (heights, nodata) = raster.clone().into_heights_with_holes(channel.cloned(), false, nodata)?;
+            let mut seams = tiling::HeightSeams::new(w, h)?.with_nodata(Some(nodata));
+            seams.push_samples(&heights)?;
+            seams.finish(&fixed)
+        }
         _ => {
             let heights = raster.heights(channel.cloned())?;
             tiling::check(&[&heights], w, h, &fixed)

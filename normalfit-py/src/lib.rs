@@ -408,7 +408,7 @@ where
         // settled by the library's tiling check, as a conversion does.
         let borders = match window {
             Some(_) => window_borders(choices)?,
-            None => choices.settle(heights, w, h)?,
+            None => choices.settle_with_holes(heights, w, h, opts.nodata)?,
         };
         // Missing texels (with nodata, whose output is float32) are NaN.
         let mut request = FitRequest::new(opts).borders(borders).missing([f64::NAN; 3]);
@@ -1141,11 +1141,12 @@ fn range_pair([a, b]: [std::ops::Range<usize>; 2]) -> RangePair {
 #[pymethods]
 impl PyHeightSeams {
     /// `refuse_non_finite`: a NaN or infinite height among the lines read
-    /// raises ValueError naming its texel (else it counts as 0).
+    /// raises ValueError naming its texel (else it is a hole). `nodata`:
+    /// the stored value whose texels are holes, skipped by the check.
     #[new]
-    #[pyo3(signature = (width, height, refuse_non_finite = false))]
-    fn new(width: usize, height: usize, refuse_non_finite: bool) -> PyResult<Self> {
-        let seams = tiling::HeightSeams::new(width, height).map_err(to_py_err)?;
+    #[pyo3(signature = (width, height, refuse_non_finite = false, nodata = None))]
+    fn new(width: usize, height: usize, refuse_non_finite: bool, nodata: Option<f64>) -> PyResult<Self> {
+        let seams = tiling::HeightSeams::new(width, height).map_err(to_py_err)?.with_nodata(nodata);
         let seams = if refuse_non_finite { seams.refusing_non_finite() } else { seams };
         Ok(PyHeightSeams { seams: Mutex::new(Some(seams)), width, height })
     }

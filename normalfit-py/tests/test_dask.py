@@ -225,6 +225,33 @@ def test_check_tiling_equals_the_whole_array_check(client: Any, seamless: bool) 
     assert np.array_equal(nd.normals(array, patch=5, border=got.suggested_borders).compute(), auto)
 
 
+@pytest.mark.parametrize("seamless", [True, False])
+def test_check_tiling_skips_holes(seamless: bool) -> None:
+    """With nodata, its texels and NaN are holes (docs/tiling.md): an array
+    with holes at both seams keeps the verdict of the array without them,
+    and normalfit.normals(border="auto", nodata=...) picks the same
+    borders. Read as heights, the −9999 at the x seam would be a seam."""
+    rng = np.random.default_rng(11)
+    whole = rng.random((96, 130), dtype=np.float32)
+    if not seamless:
+        whole += np.linspace(0, 3, 130, dtype=np.float32)
+    holed = whole.copy()
+    holed[::7, 0] = -9999.0
+    holed[3::5, -1] = -9999.0
+    holed[0, ::6] = np.nan
+    holed[40:60, 50:70] = -9999.0
+    array = da.from_array(holed, chunks=(17, 40))
+    got = nd.check_tiling(array, nodata=-9999.0)
+    want = nd.check_tiling(da.from_array(whole, chunks=(17, 40)))
+    assert (got.x.seamless, got.y.seamless) == (want.x.seamless, want.y.seamless) == (seamless, True)
+    assert np.isfinite(got.x.score) and np.isfinite(got.y.score)
+    auto = normalfit.normals(holed, patch=5, border="auto", nodata=-9999.0)
+    fixed = normalfit.normals(holed, patch=5, border=got.suggested_borders, nodata=-9999.0)
+    assert np.array_equal(auto, fixed, equal_nan=True)
+    as_heights = nd.check_tiling(da.from_array(np.nan_to_num(holed, nan=0.5), chunks=(17, 40)))
+    assert not as_heights.x.seamless
+
+
 def counted(whole: np.ndarray, chunks: Any) -> tuple[Any, list[tuple[int, int]]]:
     """A Dask array of `whole` that records each chunk it makes."""
     made: list[tuple[int, int]] = []

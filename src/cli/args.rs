@@ -649,6 +649,9 @@ pub struct TilingArgs {
     pub read: ReadArgs,
 
     #[command(flatten)]
+    pub holes: HolesArgs,
+
+    #[command(flatten)]
     pub terrain: TerrainArgs,
 
     #[command(flatten)]
@@ -703,7 +706,8 @@ impl TerrainArgs {
     }
 }
 
-/// Holes (docs/terrain.md, "Holes"): `convert` and `shade`.
+/// Holes (docs/terrain.md, "Holes"): `convert`, `shade` and `tiling`
+/// (whose seam check skips them).
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Terrain")]
 pub struct HolesArgs {

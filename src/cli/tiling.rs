@@ -22,7 +22,7 @@ use super::report::Failure;
 /// could not be checked, else 1 if one has a seam, else 0: an error
 /// outranks a seam, since the images not checked may have seams too.
 pub fn run(args: TilingArgs) -> Result<u8, Failure> {
-    let mut opts = TilingOptions::default().with_kind(args.kind);
+    let mut opts = TilingOptions::default().with_kind(args.kind).with_nodata(args.holes.value());
     if let Some(t) = args.threshold {
         opts = opts.with_threshold(t);
     }
@@ -33,7 +33,7 @@ pub fn run(args: TilingArgs) -> Result<u8, Failure> {
     let many = batch.many();
     let plan = Plan {
         opts,
-        read: args.terrain.apply(args.read.options()),
+        read: args.holes.apply(args.terrain.apply(args.read.options())),
         channel: args.channel.clone(),
         json: args.json,
         plain: args.preview.as_deref().map(|p| PreviewTarget::new(p, many)).transpose()?,

@@ -63,10 +63,16 @@ impl Job<'_> {
     /// The streamed tiling check of a `width` × `height` image, or `None`
     /// with a warning when its memory is not there: the check only warns
     /// about a wrap that draws a seam. `auto` borders need its verdict, so
-    /// there the lack of memory is an error.
-    fn seam_check(&mut self, width: usize, height: usize) -> Result<Option<HeightSeams>, ConvertError> {
+    /// there the lack of memory is an error. Texels equal to `nodata` (as
+    /// the heights pushed hold it) and non-finite ones are holes, skipped.
+    fn seam_check(
+        &mut self,
+        width: usize,
+        height: usize,
+        nodata: Option<f64>,
+    ) -> Result<Option<HeightSeams>, ConvertError> {
         match HeightSeams::new(width, height) {
-            Ok(seams) => Ok(Some(seams)),
+            Ok(seams) => Ok(Some(seams.with_nodata(nodata))),
             Err(e) if self.settings.borders.any_auto() => Err(ConvertError { place: Place::Input, error: e }),
             Err(e) => {
                 self.warn(Warning::SeamCheckSkipped(e.to_string()));
@@ -126,7 +132,7 @@ impl Job<'_> {
             (false, None) => raster.into_heights(conversion.channel.clone()).map_err(&in_failure)?,
         };
         let report = match conversion.borders.needs_check() {
-            true => match self.seam_check(width, height)? {
+            true => match self.seam_check(width, height, fit_nodata)? {
                 Some(mut seams) => {
                     seams.push_samples(&heights).map_err(&in_failure)?;
                     Some(seams.finish(&TilingOptions::new().with_kind(KindChoice::Height)).map_err(&in_failure)?)
@@ -438,6 +444,8 @@ impl Job<'_> {
         // A PNG file takes its top rows last, in room kept after the header.
         let png_file = matches!(out, Output::File { .. }) && matches!(self.encoding, Encoding::Png(_));
         let needs_tail = may_wrap_y && !png_file;
+        // The nodata value as the rows hold it: holes to the tiling check.
+        let row_nodata = conversion.fit.nodata.map(|v| rows.row_value(v));
         let check_opts = TilingOptions::new().with_kind(KindChoice::Height);
         let cheap_tail = if needs_tail && !auto { S::last_rows(input, read, channel(), r) } else { None };
         let (report, tail) = match cheap_tail {
@@ -446,7 +454,7 @@ impl Job<'_> {
                 let first = S::reopen(input, read, channel()).map_err(&in_failure)?;
                 let first =
                     first.ok_or_else(|| in_failure(std::io::Error::other("changed while being read").into()))?;
-                let mut seams = self.seam_check(width, height)?;
+                let mut seams = self.seam_check(width, height, row_nodata)?;
                 let tail = first
                     .read_tail(r, |row| {
                         // Whole rows from the decoder, at most `height` of
@@ -473,7 +481,7 @@ impl Job<'_> {
         let fit = fit.clone().with_nodata(fit.nodata.map(|v| rows.row_value(v)));
         let tail = if fit.borders.y == Border::Wrap { tail.as_deref() } else { None };
         let mut seams = match self.summary.tiling.is_none() && borders.needs_check() {
-            true => self.seam_check(width, height)?,
+            true => self.seam_check(width, height, row_nodata)?,
             false => None,
         };
         let observer = self.observer;

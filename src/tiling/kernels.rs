@@ -27,19 +27,34 @@ pub(super) const LEVELS: usize = 6;
 pub(super) const JUDGE_SCALE: f32 = 1.0 / 4_294_967_296.0;
 
 /// 1 / [`JUDGE_SCALE`], to bring the sums back to height units.
-const UNSCALE: f64 = 4_294_967_296.0;
+pub(super) const UNSCALE: f64 = 4_294_967_296.0;
 
-/// A texel as judged: non-finite values as 0.
+/// A texel as judged: a non-finite value is a hole, NaN.
 #[inline]
 pub(super) fn finite(v: f32) -> f32 {
-    if v.is_finite() { v } else { 0.0 }
+    if v.is_finite() { v } else { HOLE }
 }
 
-/// A height as the kernels measure it: times [`JUDGE_SCALE`], non-finite
-/// values as 0.
+/// A height as the kernels measure it: times [`JUDGE_SCALE`], a
+/// non-finite value a hole.
 #[inline]
 pub(super) fn judged(v: f32) -> f32 {
     finite(v * JUDGE_SCALE)
+}
+
+/// A hole as the kernels hold it: NaN, so that every difference, crease
+/// and run that reads it is NaN too, and [`add_valid`] skips it.
+pub(super) const HOLE: f32 = f32::NAN;
+
+/// Adds `d` to the sum `s` and 1 to the count `n`, unless `d` read a hole
+/// (is NaN). Branch-free, so the loops still vectorise; adding 0 to a sum
+/// of absolute values leaves its bits, so an image without holes gives
+/// the sums it always gave.
+#[inline(always)]
+pub(super) fn add_valid(s: &mut f32, n: &mut f32, d: f32) {
+    let ok = !d.is_nan();
+    *s += if ok { d } else { 0.0 };
+    *n += if ok { 1.0 } else { 0.0 };
 }
 
 /// A kernel's f32 sum back in height units, exactly.
@@ -228,6 +243,9 @@ pub(super) struct EdgeLog {
 pub(super) struct XSums<'a> {
     pub(super) vx: &'a mut [f32],
     pub(super) cx: &'a mut [f32],
+    /// How many pairs (creases) of two (four) valid texels each sum holds.
+    pub(super) nvx: &'a mut [f32],
+    pub(super) ncx: &'a mut [f32],
     pub(super) crease: bool,
     pub(super) edges: &'a mut EdgeLog,
 }
@@ -249,6 +267,8 @@ fn add_row_x(r: &[f32], cols: &Cols, level: usize, sums: &mut XSums) {
     let (first, last) = (cols.is_first(), cols.is_last());
     let vx = &mut sums.vx[level * w..][..w];
     let cx = &mut sums.cx[level * w..][..w];
+    let nvx = &mut sums.nvx[level * w..][..w];
+    let ncx = &mut sums.ncx[level * w..][..w];
     let log = &mut *sums.edges;
     let event = log.next;
     log.next += 1;
@@ -278,14 +298,15 @@ fn add_row_x(r: &[f32], cols: &Cols, level: usize, sums: &mut XSums) {
     };
     let crease_at = |k: usize| ((h(k + 2) - h(k + 1)) - (h(k) - h(k + w - 1))).abs();
     // Values: pair k → k + 1, the last one the wrap.
-    for ((v, &b), &c) in vx[x0..x1 - 1].iter_mut().zip(&r[x0..x1]).zip(&r[x0 + 1..x1]) {
-        *v += (c - b).abs();
+    let pairs = vx[x0..x1 - 1].iter_mut().zip(&mut nvx[x0..x1 - 1]);
+    for (((v, n), &b), &c) in pairs.zip(&r[x0..x1]).zip(&r[x0 + 1..x1]) {
+        add_valid(v, n, (c - b).abs());
     }
     if !first {
-        vx[x0 - 1] += (r[x0] - before[2]).abs();
+        add_valid(&mut vx[x0 - 1], &mut nvx[x0 - 1], (r[x0] - before[2]).abs());
     }
     if last {
-        vx[w - 1] += (h(0) - r[w - 1]).abs();
+        add_valid(&mut vx[w - 1], &mut nvx[w - 1], (h(0) - r[w - 1]).abs());
     }
     if !sums.crease {
         return;
@@ -296,23 +317,24 @@ fn add_row_x(r: &[f32], cols: &Cols, level: usize, sums: &mut XSums) {
         // through the wrap for k = 0, W−2 and W−1.
         let inside = (x0 + 1).min(x1.saturating_sub(2));
         let lo = if first { 1 } else { x0 - 2 };
-        for (k, s) in cx.iter_mut().enumerate().take(inside).skip(lo) {
-            *s += crease_at(k);
+        for k in lo..inside {
+            add_valid(&mut cx[k], &mut ncx[k], crease_at(k));
         }
         if x1 >= inside + 3 {
             let (a, b, c, d) = (&r[inside - 1..x1 - 3], &r[inside..x1 - 2], &r[inside + 1..x1 - 1], &r[inside + 2..x1]);
-            for (k, s) in cx[inside..x1 - 2].iter_mut().enumerate() {
-                *s += ((d[k] - c[k]) - (b[k] - a[k])).abs();
+            let creases = cx[inside..x1 - 2].iter_mut().zip(&mut ncx[inside..x1 - 2]);
+            for (k, (s, n)) in creases.enumerate() {
+                add_valid(s, n, ((d[k] - c[k]) - (b[k] - a[k])).abs());
             }
         }
         if last {
             for k in [0, w - 2, w - 1] {
-                cx[k] += crease_at(k);
+                add_valid(&mut cx[k], &mut ncx[k], crease_at(k));
             }
         }
     } else {
-        for (k, s) in cx[..w].iter_mut().enumerate() {
-            *s += crease_at(k);
+        for k in 0..w {
+            add_valid(&mut cx[k], &mut ncx[k], crease_at(k));
         }
     }
 }
@@ -327,11 +349,19 @@ fn set_or_push(log: &mut Vec<[f32; 3]>, at: usize, value: [f32; 3]) {
 }
 
 /// Adds the f32 block sums that a pass over `cols` adds to into the f64
-/// totals, and clears them: the columns each pass's x kernels own (see
-/// [`add_row_x`]), so that each column is flushed after all its rows'
-/// additions, as with whole rows.
+/// totals, times `scale` ([`UNSCALE`] for sums, 1 for counts), and clears
+/// them: the columns each pass's x kernels own (see [`add_row_x`]), so
+/// that each column is flushed after all its rows' additions, as with
+/// whole rows.
 #[inline(always)]
-pub(super) fn flush_cols(vx: &mut [f64], vx_block: &mut [f32], cx: &mut [f64], cx_block: &mut [f32], cols: &Cols) {
+pub(super) fn flush_cols(
+    vx: &mut [f64],
+    vx_block: &mut [f32],
+    cx: &mut [f64],
+    cx_block: &mut [f32],
+    cols: &Cols,
+    scale: f64,
+) {
     let w = cols.w;
     let (first, last) = (cols.is_first(), cols.is_last());
     let value = if first { 0 } else { cols.x0 - 1 }..if last { w } else { cols.x1 - 1 };
@@ -344,42 +374,44 @@ pub(super) fn flush_cols(vx: &mut [f64], vx_block: &mut [f32], cx: &mut [f64], c
     };
     for level in 0..LEVELS {
         let at = |r: &std::ops::Range<usize>| level * w + r.start..level * w + r.end;
-        flush(&mut vx[at(&value)], &mut vx_block[at(&value)]);
+        flush(&mut vx[at(&value)], &mut vx_block[at(&value)], scale);
         for part in &crease {
-            flush(&mut cx[at(part)], &mut cx_block[at(part)]);
+            flush(&mut cx[at(part)], &mut cx_block[at(part)], scale);
         }
     }
 }
 
-/// Adds the f32 block sums into the f64 totals and clears them.
+/// Adds the f32 block sums into the f64 totals, times `scale`, and
+/// clears them (`unscaled` for sums, the counts as they are).
 #[inline(always)]
-fn flush(total: &mut [f64], block: &mut [f32]) {
+fn flush(total: &mut [f64], block: &mut [f32], scale: f64) {
     for (t, b) in total.iter_mut().zip(block.iter_mut()) {
-        *t += unscaled(*b);
+        *t += f64::from(*b) * scale;
         *b = 0.0;
     }
 }
 
-/// The y value sum of the row pair `b` → `c`.
+/// The y value sum of the row pair `b` → `c`, and how many valid pairs
+/// it holds.
 #[inline]
-pub(super) fn y_value(b: &[f32], c: &[f32]) -> f64 {
+pub(super) fn y_value(b: &[f32], c: &[f32]) -> (f64, f64) {
     lane_sum([b, c], |[b, c]| (c - b).abs())
 }
 
 /// The y crease sum of the row pair `b` → `c`, `a` the row before `b` and
-/// `d` the row after `c`.
+/// `d` the row after `c`, and how many valid creases it holds.
 #[inline]
-pub(super) fn y_crease(a: &[f32], b: &[f32], c: &[f32], d: &[f32]) -> f64 {
+pub(super) fn y_crease(a: &[f32], b: &[f32], c: &[f32], d: &[f32]) -> (f64, f64) {
     lane_sum([a, b, c, d], |[a, b, c, d]| ((d - c) - (b - a)).abs())
 }
 
-/// Σ f(rows at x) for x in 0 … n − 1 (n the first row's length): see
-/// [`Lanes`].
+/// Σ f(rows at x) for x in 0 … n − 1 (n the first row's length), and the
+/// count of terms that read no hole: see [`Lanes`].
 #[inline(always)]
-fn lane_sum<const K: usize>(rows: [&[f32]; K], f: impl Fn([f32; K]) -> f32) -> f64 {
+fn lane_sum<const K: usize>(rows: [&[f32]; K], f: impl Fn([f32; K]) -> f32) -> (f64, f64) {
     let mut lanes = Lanes::default();
     lanes.add(0..rows[0].len(), rows, f);
-    lanes.total()
+    (lanes.total(), lanes.count())
 }
 
 /// A y sum over the texels of rows, some columns at a time: in 8 f32
@@ -392,6 +424,9 @@ fn lane_sum<const K: usize>(rows: [&[f32]; K], f: impl Fn([f32; K]) -> f32) -> f
 pub(super) struct Lanes {
     lanes: [f32; 8],
     tail: f64,
+    /// The terms that read no hole, counted as the sums are.
+    counts: [f32; 8],
+    tail_count: f64,
 }
 
 impl Lanes {
@@ -407,16 +442,16 @@ impl Lanes {
         let whole = (n - n % 8).min(part.end);
         let rows_whole = rows.map(|r| &r[part.start..whole]);
         // A local copy: through `self` the lanes were stored at every step.
-        let mut lanes = self.lanes;
+        let (mut lanes, mut counts) = (self.lanes, self.counts);
         for x0 in (0..whole - part.start).step_by(8) {
             let at: [&[f32; 8]; K] = rows_whole.map(|r| r[x0..x0 + 8].try_into().expect("8 values"));
-            for (l, lane) in lanes.iter_mut().enumerate() {
-                *lane += f(at.map(|c| c[l]));
+            for (l, (lane, count)) in lanes.iter_mut().zip(&mut counts).enumerate() {
+                add_valid(lane, count, f(at.map(|c| c[l])));
             }
         }
-        self.lanes = lanes;
+        (self.lanes, self.counts) = (lanes, counts);
         if part.end > whole {
-            self.tail = (whole..part.end).map(|x| f64::from(f(rows.map(|r| r[x])))).sum();
+            (self.tail, self.tail_count) = tail_sum((whole..part.end).map(|x| f(rows.map(|r| r[x]))));
         }
     }
 
@@ -429,19 +464,22 @@ impl Lanes {
         let whole = (n - n % 8).min(part.end);
         let [a, b, c, d] = rows.map(|r| &r[part.start..whole]);
         let (mut v, mut k) = (value.lanes, crease.lanes);
+        let (mut nv, mut nk) = (value.counts, crease.counts);
         for x0 in (0..whole - part.start).step_by(8) {
             let at = |r: &[f32]| -> [f32; 8] { r[x0..x0 + 8].try_into().expect("8 values") };
             let (a, b, c, d) = (at(a), at(b), at(c), at(d));
             for l in 0..8 {
-                v[l] += (d[l] - c[l]).abs();
-                k[l] += ((d[l] - c[l]) - (b[l] - a[l])).abs();
+                add_valid(&mut v[l], &mut nv[l], (d[l] - c[l]).abs());
+                add_valid(&mut k[l], &mut nk[l], ((d[l] - c[l]) - (b[l] - a[l])).abs());
             }
         }
         (value.lanes, crease.lanes) = (v, k);
+        (value.counts, crease.counts) = (nv, nk);
         if part.end > whole {
             let [a, b, c, d] = rows;
-            value.tail = (whole..part.end).map(|x| f64::from((d[x] - c[x]).abs())).sum();
-            crease.tail = (whole..part.end).map(|x| f64::from(((d[x] - c[x]) - (b[x] - a[x])).abs())).sum();
+            (value.tail, value.tail_count) = tail_sum((whole..part.end).map(|x| (d[x] - c[x]).abs()));
+            (crease.tail, crease.tail_count) =
+                tail_sum((whole..part.end).map(|x| ((d[x] - c[x]) - (b[x] - a[x])).abs()));
         }
     }
 
@@ -449,6 +487,18 @@ impl Lanes {
     pub(super) fn total(&self) -> f64 {
         (self.tail + self.lanes.iter().map(|&l| f64::from(l)).sum::<f64>()) * UNSCALE
     }
+
+    /// How many terms the sum holds that read no hole.
+    pub(super) fn count(&self) -> f64 {
+        self.tail_count + self.counts.iter().map(|&n| f64::from(n)).sum::<f64>()
+    }
+}
+
+/// The f64 sum of the terms that read no hole, and their count: the tail
+/// of a lane sum.
+#[inline(always)]
+fn tail_sum(terms: impl Iterator<Item = f32>) -> (f64, f64) {
+    terms.filter(|d| !d.is_nan()).fold((0.0, 0.0), |(s, n), d| (s + f64::from(d), n + 1.0))
 }
 
 #[cfg(test)]
@@ -471,7 +521,8 @@ mod tests {
                 let mut edges = EdgeLog::default();
                 for x0 in (0..w).step_by(pass) {
                     edges.next = 0;
-                    let mut sums = XSums { vx: &mut vx, cx: &mut cx, crease: true, edges: &mut edges };
+                    let (nvx, ncx) = (&mut vec![0.0; w], &mut vec![0.0; w]);
+                    let mut sums = XSums { vx: &mut vx, cx: &mut cx, nvx, ncx, crease: true, edges: &mut edges };
                     add_row_x(&r, &Cols { x0, x1: (x0 + pass).min(w), w }, 0, &mut sums);
                 }
                 for k in 0..w {
@@ -483,7 +534,8 @@ mod tests {
             }
             let (mut vx, mut untouched) = (earlier.clone(), earlier.clone());
             let mut edges = EdgeLog::default();
-            let mut sums = XSums { vx: &mut vx, cx: &mut untouched, crease: false, edges: &mut edges };
+            let (nvx, ncx) = (&mut vec![0.0; w], &mut vec![0.0; w]);
+            let mut sums = XSums { vx: &mut vx, cx: &mut untouched, nvx, ncx, crease: false, edges: &mut edges };
             add_row_x(&r, &Cols::whole(w), 0, &mut sums);
             assert_eq!(untouched, earlier, "no creases asked for, W = {w}");
         }

@@ -207,11 +207,28 @@
 //!   crease pair, so only the value is judged; R is then the interior's
 //!   median-or-above, never a rank that does not exist.
 //! * A zero-sized image tiles on both axes, score 1.
-//! * Non-finite texels are taken as 0 (a NaN must not make the verdict
-//!   NaN); callers that care reject them before, as `normalfit::io` does.
+//! * Non-finite texels are holes (below); [`check`] refuses them unless
+//!   [`TilingOptions::nodata`] is given.
 //! * Finite heights anywhere in f32's range give finite scores: the sums
 //!   run on the heights times 2⁻³², exactly, and are scaled back in f64,
 //!   so that the difference of ±3.4·10³⁸ and its sums do not overflow f32.
+//!
+//! # Holes
+//!
+//! A nodata value ([`TilingOptions::nodata`], [`HeightSeams::with_nodata`];
+//! `--nodata` and a GeoTIFF's nodata behind `--border auto`) or a NaN or
+//! infinite texel is not a height. Every pair or crease whose stencil
+//! reads a hole is skipped, in the seam's sum and in the interior ones, and
+//! each sum keeps the count of the pairs it holds; a run of a level that
+//! holds a hole is a hole. Before ranking, a level's sums are scaled to
+//! the count of its fullest pair (sum × fullest / count: a line with half
+//! its pairs in holes weighs as a whole one; a sum over every pair is left
+//! as it is, so an image without holes keeps its scores bit for bit), and
+//! a sum of no valid pair is no sample. ε is the mean over the valid pairs.
+//! When no pair across the seam at level 0 is valid, or none inside, the
+//! axis cannot be judged: its score is infinite and it is not seamless (a
+//! nodata collar along an edge: `--border auto` mirrors it); a coarser
+//! level that cannot be judged is left out.
 //!
 //! # Cost
 //!
@@ -299,7 +316,8 @@ pub fn shift_half<T: Copy>(texels: &[T], width: usize, height: usize) -> Result<
 /// height is NaN or infinite when the planes are judged as a height map,
 /// [`Error::NonFiniteNormal`] the first whose normal has a NaN or infinite
 /// component when they are judged as a normal map (a score from samples
-/// some of which are not numbers would be a verdict on nothing),
+/// some of which are not numbers would be a verdict on nothing), unless
+/// `opts.nodata` says there are holes ([module docs](self#holes)),
 /// [`Error::Limits`] when the profiles need more memory than the process
 /// may take.
 pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOptions) -> Result<TilingReport> {
@@ -313,7 +331,8 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
         KindChoice::Height => ImageKind::Height,
         KindChoice::Normal => ImageKind::Normal,
     };
-    if let Some((x, y)) = Profiles::first_non_finite(planes, len, width) {
+    let nodata = opts.nodata.unwrap_or(f64::NAN);
+    if let Some((x, y)) = Profiles::first_non_finite(planes, len, width).filter(|_| opts.nodata.is_none()) {
         return Err(match kind {
             ImageKind::Height => Error::NonFiniteHeight { x, y },
             ImageKind::Normal => Error::NonFiniteNormal { x, y },
@@ -325,14 +344,14 @@ pub fn check(planes: &[&[f32]], width: usize, height: usize, opts: &TilingOption
         // Every column is read: one pass over the image gives the x
         // profiles, and the y ones of every row, of which the kept are used.
         crate::io::check_memory("the tiling check", Profiles::bytes_needed(width, height))?;
-        let p = Profiles::measure(planes, cols, all_rows, kind);
+        let p = Profiles::measure(planes, cols, all_rows, kind, nodata);
         return Ok(report(&p.x_axis(height, cols), &p.y_axis(width, all_rows, rows), kind, opts));
     }
     // The kept columns of every row for x, the kept rows whole for y.
     let bytes = Profiles::bytes_needed(cols.kept(), height) + Profiles::bytes_needed(width, rows.kept());
     crate::io::check_memory("the tiling check", bytes)?;
-    let x = Profiles::measure(planes, cols, all_rows, kind).x_axis(height, cols);
-    let y = Profiles::measure(planes, Cut::whole(width), rows, kind).y_axis(width, rows, rows);
+    let x = Profiles::measure(planes, cols, all_rows, kind, nodata).x_axis(height, cols);
+    let y = Profiles::measure(planes, Cut::whole(width), rows, kind, nodata).y_axis(width, rows, rows);
     Ok(report(&x, &y, kind, opts))
 }
 

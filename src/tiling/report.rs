@@ -19,11 +19,17 @@ pub struct TilingOptions {
     pub threshold: f64,
     /// What the planes hold. Default: [`KindChoice::Auto`].
     pub kind: KindChoice,
+    /// Holes: with a value, texels equal to it and non-finite ones are not
+    /// heights, and every pair that reads one is skipped (see the
+    /// [module docs](crate::tiling#holes)); NaN makes only the non-finite
+    /// texels holes. Default: `None`, and [`check`](super::check) refuses
+    /// a non-finite texel.
+    pub nodata: Option<f64>,
 }
 
 impl Default for TilingOptions {
     fn default() -> Self {
-        TilingOptions { threshold: DEFAULT_THRESHOLD, kind: KindChoice::Auto }
+        TilingOptions { threshold: DEFAULT_THRESHOLD, kind: KindChoice::Auto, nodata: None }
     }
 }
 
@@ -48,6 +54,13 @@ impl TilingOptions {
         self
     }
 
+    /// Sets [`nodata`](Self::nodata).
+    #[must_use]
+    pub fn with_nodata(mut self, nodata: Option<f64>) -> Self {
+        self.nodata = nodata;
+        self
+    }
+
     /// Checks the options as a caller gave them: the threshold must be a
     /// positive number (the library itself judges with any value; a NaN
     /// passes nothing).
@@ -68,7 +81,9 @@ impl TilingOptions {
 pub struct AxisReport {
     /// How the wrap pair compares with the interior pairs: about 1 or less
     /// when it looks like them, larger for a more visible seam. Finite and
-    /// positive.
+    /// positive, but infinite when holes leave no pair of valid texels
+    /// across the seam (or none inside to compare it with): nothing shows
+    /// that the axis tiles. Never NaN.
     pub score: f64,
     /// `score <= threshold`.
     pub seamless: bool,

@@ -84,6 +84,12 @@ impl Cut {
 pub(super) struct Axis {
     value: Vec<f64>,
     crease: Vec<f64>,
+    /// How many pairs (creases) of valid texels each sum holds.
+    nvalue: Vec<f64>,
+    ncrease: Vec<f64>,
+    /// Signals summed per texel: each valid texel pair counts once per
+    /// signal.
+    signals: f64,
     /// Pairs per level.
     pairs: usize,
     line: usize,
@@ -94,17 +100,27 @@ pub(super) struct Axis {
 impl Axis {
     /// The profile of every line of an axis (`pairs` per level) reduced to
     /// the lines `cut` keeps.
-    fn kept(value: Vec<f64>, crease: Vec<f64>, line: usize, cut: Cut) -> Axis {
+    fn kept(sums: [Vec<f64>; 4], signals: f64, line: usize, cut: Cut) -> Axis {
+        let [value, crease, nvalue, ncrease] = sums;
         let pairs = value.len() / LEVELS;
         if cut.is_whole() {
-            return Axis { value, crease, pairs, line, joint: None };
+            return Axis { value, crease, nvalue, ncrease, signals, pairs, line, joint: None };
         }
         // The pairs between kept lines are the image's pairs of the same
         // lines; those across the cut are taken from anywhere, unread.
         let gather = |p: &[f64]| -> Vec<f64> {
             (0..LEVELS).flat_map(|level| (0..cut.kept()).map(move |i| p[level * pairs + cut.line(i)])).collect()
         };
-        Axis { value: gather(&value), crease: gather(&crease), pairs: cut.kept(), line, joint: cut.joint() }
+        Axis {
+            value: gather(&value),
+            crease: gather(&crease),
+            nvalue: gather(&nvalue),
+            ncrease: gather(&ncrease),
+            signals,
+            pairs: cut.kept(),
+            line,
+            joint: cut.joint(),
+        }
     }
 
     /// The pairs that are the image's own (all but the joint).
@@ -118,12 +134,19 @@ impl Axis {
 /// k → k+1 at level l (k = W−1 the wrap), `vy[y·LEVELS + l]`,
 /// `cy[y·LEVELS + l]` for the row pair y → y+1 (row after row, so that
 /// the parallel tasks own whole chunks of it). The crease sums stay 0 when
-/// not asked for.
+/// not asked for. `n*`, laid out alike, count the pairs (creases) of valid
+/// texels each sum holds: a pair reading a hole adds to neither.
 pub(super) struct Profiles {
     pub(super) vx: Vec<f64>,
     pub(super) cx: Vec<f64>,
     pub(super) vy: Vec<f64>,
     pub(super) cy: Vec<f64>,
+    pub(super) nvx: Vec<f64>,
+    pub(super) ncx: Vec<f64>,
+    pub(super) nvy: Vec<f64>,
+    pub(super) ncy: Vec<f64>,
+    /// Signals summed per texel (3 for a normal map's R, G, B; else 1).
+    pub(super) signals: f64,
 }
 
 impl Profiles {
@@ -133,6 +156,9 @@ impl Profiles {
         Axis {
             value: self.vx.clone(),
             crease: self.cx.clone(),
+            nvalue: self.nvx.clone(),
+            ncrease: self.ncx.clone(),
+            signals: self.signals,
             pairs: self.vx.len() / LEVELS,
             line,
             joint: cols.joint(),
@@ -147,12 +173,13 @@ impl Profiles {
         let by_level = |p: &[f64]| -> Vec<f64> {
             (0..LEVELS).flat_map(|level| p.iter().skip(level).step_by(LEVELS).copied()).collect()
         };
-        let (value, crease) = (by_level(&self.vy), by_level(&self.cy));
+        let sums = [&self.vy, &self.cy, &self.nvy, &self.ncy].map(|p| by_level(p));
         if measured == kept {
+            let [value, crease, nvalue, ncrease] = sums;
             let pairs = value.len() / LEVELS;
-            Axis { value, crease, pairs, line, joint: kept.joint() }
+            Axis { value, crease, nvalue, ncrease, signals: self.signals, pairs, line, joint: kept.joint() }
         } else {
-            Axis::kept(value, crease, line, kept)
+            Axis::kept(sums, self.signals, line, kept)
         }
     }
 }
@@ -163,9 +190,12 @@ pub(super) fn report(x: &Axis, y: &Axis, kind: ImageKind, opts: &TilingOptions) 
     // ε from the mean |Δ| per texel over both axes (every pair's texels,
     // the seam's included: 2·W·H differences when all lines are kept),
     // times the line length each axis's profile sums over.
+    // Holes: the valid pairs only (each counted once per signal); an image
+    // of holes alone has no pairs, and ε its floor.
     let total: f64 = x.own_pairs().map(|k| x.value[k]).chain(y.own_pairs().map(|k| y.value[k])).sum();
-    let count = x.own_pairs().count() * x.line + y.own_pairs().count() * y.line;
-    let mean = total / count as f64;
+    let valid = |a: &Axis| a.own_pairs().map(|k| a.nvalue[k]).sum::<f64>() / a.signals;
+    let count = valid(x) + valid(y);
+    let mean = if count > 0.0 { total / count } else { 0.0 };
     let eps_x = FLOOR_FRACTION * mean * x.line as f64 + 1e-30;
     let eps_y = FLOOR_FRACTION * mean * y.line as f64 + 1e-30;
     let crease = kind == ImageKind::Height;
@@ -176,37 +206,72 @@ pub(super) fn report(x: &Axis, y: &Axis, kind: ImageKind, opts: &TilingOptions) 
     }
 }
 
-/// The score of one axis: the largest of its levels' scores.
+/// The score of one axis: the largest of its levels' scores. Infinite
+/// when level 0 cannot be judged (no pair across the seam, or none inside,
+/// holds two valid texels): nothing shows that the axis tiles, so it is
+/// not seamless (and `--border auto` mirrors it). A coarser level that
+/// cannot be judged is left out.
 fn axis_score(axis: &Axis, with_crease: bool, eps: f64) -> f64 {
     let n = axis.pairs;
-    (0..LEVELS)
-        .filter(|&level| level == 0 || axis.line >= MIN_RUNS << level)
-        .map(|level| {
-            let (v, c) = (&axis.value[level * n..][..n], &axis.crease[level * n..][..n]);
-            level_score(v, c, axis.joint, with_crease, eps)
-        })
-        .fold(0.0, f64::max)
+    let mut score = 0.0f64;
+    for level in (0..LEVELS).filter(|&level| level == 0 || axis.line >= MIN_RUNS << level) {
+        let at = |p: &[f64]| -> Vec<f64> { p[level * n..][..n].to_vec() };
+        let sums = [at(&axis.value), at(&axis.crease)];
+        let counts = [at(&axis.nvalue), at(&axis.ncrease)];
+        match level_score(sums, counts, axis.joint, with_crease, eps) {
+            Some(s) => score = score.max(s),
+            None if level == 0 => return f64::INFINITY,
+            None => {}
+        }
+    }
+    score
 }
 
-/// The score of one level from its value and crease profiles (seam last):
-/// the seam against the interior pairs, those whose stencils neither
-/// cross the seam nor the `joint` of a cut.
-fn level_score(value: &[f64], crease: &[f64], joint: Option<usize>, with_crease: bool, eps: f64) -> f64 {
+/// The score of one level from its value and crease profiles (seam last)
+/// and their counts of valid pairs: the seam against the interior pairs,
+/// those whose stencils neither cross the seam nor the `joint` of a cut.
+/// A sum over fewer valid pairs than the level's fullest is scaled up to
+/// that many (a sum over every pair is left as it is, bit for bit), and a
+/// sum of no valid pair is no sample; `None` when the seam, or every
+/// interior pair, is such a sum.
+fn level_score(
+    [value, crease]: [Vec<f64>; 2],
+    [nvalue, ncrease]: [Vec<f64>; 2],
+    joint: Option<usize>,
+    with_crease: bool,
+    eps: f64,
+) -> Option<f64> {
     let n = value.len();
     if n < 2 {
-        return 1.0;
+        return Some(1.0);
     }
     // A value pair reads lines k, k + 1; a crease k − 1 … k + 2, so the
     // creases k = joint − 1 … joint + 1 reach across the cut.
     let apart = |k: usize, reach: usize| joint.is_none_or(|j| k + reach < j || k > j + reach);
-    let interior = |p: &[f64], ks: std::ops::Range<usize>, reach| -> Vec<f64> {
-        ks.filter(|&k| apart(k, reach)).map(|k| p[k]).collect()
+    // The sum of pair k as if all the level's fullest count were valid.
+    let scaled = |p: &[f64], counts: &[f64], full: f64, k: usize| {
+        if counts[k] == full { p[k] } else { p[k] * (full / counts[k]) }
     };
-    let mut score = seam_ratio(value[n - 1], interior(value, 0..n - 1, 0), eps);
+    let ratio = |p: &[f64], counts: &[f64], ks: std::ops::Range<usize>, reach| -> Option<f64> {
+        if counts[n - 1] == 0.0 {
+            return None;
+        }
+        // The fullest of the pairs judged (the interior and the seam; the
+        // streamed check leaves the other creases unmeasured).
+        let judged: Vec<usize> = ks.filter(|&k| apart(k, reach)).collect();
+        let full = judged.iter().chain([&(n - 1)]).map(|&k| counts[k]).fold(0.0, f64::max);
+        let interior: Vec<f64> =
+            judged.iter().filter(|&&k| counts[k] > 0.0).map(|&k| scaled(p, counts, full, k)).collect();
+        (!interior.is_empty()).then(|| seam_ratio(scaled(p, counts, full, n - 1), interior, eps))
+    };
+    let mut score = ratio(&value, &nvalue, 0..n - 1, 0)?;
     if with_crease && n >= 4 {
-        score = score.max(seam_ratio(crease[n - 1], interior(crease, 1..n - 2, 1), eps));
+        // A crease seam with no valid stencil leaves the value's verdict.
+        if let Some(c) = ratio(&crease, &ncrease, 1..n - 2, 1) {
+            score = score.max(c);
+        }
     }
-    score
+    Some(score)
 }
 
 /// (seam + ε) / (R + ε), R the k-th largest of `interior` (see module docs).
@@ -244,6 +309,9 @@ mod tests {
     fn a_level_counts_only_when_the_seam_holds_8_of_its_runs() {
         let axis = |value: Vec<f64>, crease: &[f64], line| Axis {
             pairs: value.len() / LEVELS,
+            nvalue: vec![1.0; value.len()],
+            ncrease: vec![1.0; crease.len()],
+            signals: 1.0,
             value,
             crease: crease.to_vec(),
             line,

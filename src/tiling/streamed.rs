@@ -2,7 +2,7 @@
 //! memory O(W + H), and [`RowSeams`], the profiles it keeps.
 
 use super::kernels::{
-    CHUNK, Cols, EdgeLog, LEVELS, Lanes, RowStack, Runs, XSums, flush_cols, judged, y_crease, y_value,
+    CHUNK, Cols, EdgeLog, HOLE, LEVELS, Lanes, RowStack, Runs, UNSCALE, XSums, flush_cols, judged, y_crease, y_value,
 };
 use super::report::{TilingOptions, TilingReport};
 use super::score::{Cut, Profiles, report};
@@ -95,8 +95,10 @@ pub struct HeightSeams {
     y_rows: usize,
     /// A row's kept columns, converted.
     kept: Vec<f32>,
-    /// Whether a NaN or infinite height is an error rather than 0.
+    /// Whether a NaN or infinite height is an error rather than a hole.
     refuse_non_finite: bool,
+    /// The nodata value whose texels are holes; NaN: none.
+    nodata: f64,
 }
 
 impl HeightSeams {
@@ -126,14 +128,26 @@ impl HeightSeams {
             y_rows: 0,
             kept: Vec::with_capacity(cols.kept()),
             refuse_non_finite: false,
+            nodata: f64::NAN,
         })
+    }
+
+    /// The same check with holes at the texels equal to `nodata` (as
+    /// pushed: a row's f32 value, a sample's stored value), besides the
+    /// non-finite ones: the pairs that read one are skipped (see the
+    /// [module docs](crate::tiling#holes)). `None` or NaN: only non-finite
+    /// texels are holes.
+    #[must_use]
+    pub fn with_nodata(mut self, nodata: Option<f64>) -> Self {
+        self.nodata = nodata.unwrap_or(f64::NAN);
+        self
     }
 
     /// The same check refusing a NaN or infinite height among the lines it
     /// reads, as [`check`](super::check) refuses one anywhere: each push
     /// holding one fails with [`Error::NonFiniteHeight`] naming its texel
     /// in the image (the first in the order pushed), and pushes nothing.
-    /// Without it such heights count as 0 (the rule `--border auto` needs
+    /// Without it such heights are holes (the rule `--border auto` needs
     /// for maps with nodata holes). Python's `normalfit.dask.check_tiling`
     /// refuses them, as `normalfit.check_tiling` of the whole array does.
     #[must_use]
@@ -159,7 +173,7 @@ impl HeightSeams {
         let mut row = try_vec(per_row)?;
         row.resize(per_row, 0.0f32);
         for (i, part) in texels.chunks_exact(per_row).take(count).enumerate() {
-            convert_row(part, &mut row);
+            convert_row(part, &mut row, f64::NAN);
             if let Some((k, _)) = crate::samples::first_non_finite(&row, per_row) {
                 let (x, y) = at(i, k);
                 return Err(Error::NonFiniteHeight { x, y });
@@ -169,8 +183,8 @@ impl HeightSeams {
     }
 
     /// The bytes a check of a `width` × `height` image holds (its profiles,
-    /// row buffers and pending rows, at every level): about 350 a column
-    /// and 96 a row.
+    /// row buffers and pending rows, at every level): about 450 a column
+    /// and 192 a row.
     #[must_use]
     pub fn bytes_needed(width: usize, height: usize) -> u64 {
         let (cols, rows) = (Cut::of(width), Cut::of(height));
@@ -202,9 +216,10 @@ impl HeightSeams {
         self.x.rows
     }
 
-    /// Adds the next row, `width` heights. Non-finite values count as 0
-    /// (unlike [`check`](super::check), which refuses them): this check
-    /// settles `--border auto` for maps with nodata holes.
+    /// Adds the next row, `width` heights. Non-finite values and the
+    /// [nodata value](Self::with_nodata) are holes (unlike
+    /// [`check`](super::check) without a nodata value, which refuses
+    /// them): this check settles `--border auto` for maps with holes.
     ///
     /// Errors: [`Error::BufferSize`] when `row.len() != width`,
     /// [`Error::InvalidOption`] when all `height` rows are in already, or
@@ -218,6 +233,20 @@ impl HeightSeams {
         self.check_room(1)?;
         let y = self.x.rows;
         self.refuse_non_finite(row, w, 1, |_, x| (x, y))?;
+        let nodata = self.nodata;
+        if row.iter().any(|&v| f64::from(v) == nodata) {
+            let mut holes = try_vec(w)?;
+            holes.extend(row.iter().map(|&v| if f64::from(v) == nodata { HOLE } else { v }));
+            self.push_judged(&holes)
+        } else {
+            self.push_judged(row)
+        }
+    }
+
+    /// Adds the next row (its length and room checked by the caller), its
+    /// holes NaN.
+    fn push_judged(&mut self, row: &[f32]) -> Result<()> {
+        let y = self.x.rows;
         let is_kept = |y: usize| self.rows.ranges().iter().any(|r| r.contains(&y));
         if self.y.is_some() && is_kept(y) && self.rows.line(self.y_rows) != y {
             return Err(Error::InvalidOption("the tiling check was given edge rows and whole rows both".into()));
@@ -262,8 +291,9 @@ impl HeightSeams {
         let mut row = try_vec(w)?;
         row.resize(w, 0.0f32);
         for rows in heights.chunks_exact(w.max(1)).take(count) {
-            convert_row(rows, &mut row);
-            self.push_row(&row)?;
+            convert_row(rows, &mut row, self.nodata);
+            self.check_room(1)?;
+            self.push_judged(&row)?;
         }
         Ok(())
     }
@@ -283,7 +313,7 @@ impl HeightSeams {
         let mut row = std::mem::take(&mut self.kept);
         row.resize(n, 0.0);
         for part in texels.chunks_exact(n.max(1)).take(count) {
-            convert_row(part, &mut row);
+            convert_row(part, &mut row, self.nodata);
             self.x.push_row(&row);
         }
         self.kept = row;
@@ -307,11 +337,12 @@ impl HeightSeams {
         let count = whole_rows(heights.len(), w, left)?;
         let (pushed, rows) = (self.y_rows, self.rows);
         self.refuse_non_finite(heights, w, count, |i, x| (x, rows.line(pushed + i)))?;
+        let nodata = self.nodata;
         let Some(y) = self.y.as_mut() else { return Ok(()) };
         let mut row = try_vec(w)?;
         row.resize(w, 0.0f32);
         for rows in heights.chunks_exact(w.max(1)).take(count) {
-            convert_row(rows, &mut row);
+            convert_row(rows, &mut row, nodata);
             y.push_row(&row);
         }
         self.y_rows += count;
@@ -363,10 +394,11 @@ fn whole_rows(len: usize, per_row: usize, left: usize) -> Result<usize> {
     Ok(count)
 }
 
-/// Converts a row of samples into the contract's f32 units.
-fn convert_row<H: crate::Sample>(from: &[H], to: &mut [f32]) {
+/// Converts a row of samples into the contract's f32 units, the samples
+/// equal to `nodata` (as stored: the fit's rule) made holes, NaN.
+fn convert_row<H: crate::Sample>(from: &[H], to: &mut [f32], nodata: f64) {
     for (o, &v) in to.iter_mut().zip(from) {
-        *o = crate::samples::contract(v) as f32;
+        *o = if v.to_f64() == nodata { HOLE } else { crate::samples::contract(v) as f32 };
     }
 }
 
@@ -409,6 +441,9 @@ struct RowSeams {
     /// the whole-image check's `Block`, level after level.
     vx_block: Vec<f32>,
     cx_block: Vec<f32>,
+    /// Their counts of valid pairs.
+    nvx_block: Vec<f32>,
+    ncx_block: Vec<f32>,
     /// The profiles of the [module docs](crate::tiling), laid out as in
     /// [`Profiles`]; x over the finished blocks. The crease pairs 0 and
     /// H − 2 stay 0: their stencils cross the wrap, but they are neither
@@ -417,6 +452,11 @@ struct RowSeams {
     cx: Vec<f64>,
     vy: Vec<f64>,
     cy: Vec<f64>,
+    /// Their counts of valid pairs, as in [`Profiles`].
+    nvx: Vec<f64>,
+    ncx: Vec<f64>,
+    nvy: Vec<f64>,
+    ncy: Vec<f64>,
 }
 
 impl RowSeams {
@@ -440,24 +480,30 @@ impl RowSeams {
             lanes: vec![[Lanes::default(); 2]; block_rows * LEVELS],
             vx_block: vec![0.0; LEVELS * width],
             cx_block: vec![0.0; LEVELS * width],
+            nvx_block: vec![0.0; LEVELS * width],
+            ncx_block: vec![0.0; LEVELS * width],
             vx: vec![0.0; LEVELS * width],
             cx: vec![0.0; LEVELS * width],
             vy: vec![0.0; LEVELS * height],
             cy: vec![0.0; LEVELS * height],
+            nvx: vec![0.0; LEVELS * width],
+            ncx: vec![0.0; LEVELS * width],
+            nvy: vec![0.0; LEVELS * height],
+            ncy: vec![0.0; LEVELS * height],
         }
     }
 
     /// The bytes a check of a `width` × `height` image holds (its profiles,
-    /// row buffers and pending rows, at every level): about 350 a column
-    /// and 96 a row.
+    /// row buffers and pending rows, at every level, with the counts of
+    /// valid pairs): about 450 a column and 192 a row.
     fn bytes_needed(width: usize, height: usize) -> u64 {
         let (w, h, levels) = (width as u64, height as u64, LEVELS as u64);
         // One row at every level: ⌈W / 2^l⌉ values each.
         let row_levels: u64 = (0..LEVELS).map(|l| w.div_ceil(1 << l)).sum();
         let runs = (2.min(h) + 4.min(h)) * row_levels * 4;
-        let x_sums = levels * w * 4 + 2 * levels * w * 4 + 2 * levels * w * 8;
+        let x_sums = levels * w * 4 + 4 * levels * w * 4 + 4 * levels * w * 8;
         let pending = pending_rows_for(width, height) as u64 * w * 4;
-        runs + x_sums + pending + 2 * levels * h * 8
+        runs + x_sums + pending + 4 * levels * h * 8
     }
 
     /// Adds the next row, `width` heights (the caller has checked its
@@ -470,6 +516,7 @@ impl RowSeams {
         if w == 0 {
             return;
         }
+        // Holes (non-finite) stay NaN.
         for (o, &v) in self.pending[self.pending_rows * w..][..w].iter_mut().zip(row) {
             *o = judged(v);
         }
@@ -513,11 +560,17 @@ impl RowSeams {
                 if y < 2 {
                     self.first.copy_slot(y, &self.ring, slot, &cols);
                 }
-                let mut sums =
-                    XSums { vx: &mut self.vx_block, cx: &mut self.cx_block, crease: true, edges: &mut self.edges };
+                let mut sums = XSums {
+                    vx: &mut self.vx_block,
+                    cx: &mut self.cx_block,
+                    nvx: &mut self.nvx_block,
+                    ncx: &mut self.ncx_block,
+                    crease: true,
+                    edges: &mut self.edges,
+                };
                 self.stack.push(self.ring.row(0, slot), &cols, &mut sums);
                 if (y + 1).is_multiple_of(CHUNK) {
-                    flush_cols(&mut self.vx, &mut self.vx_block, &mut self.cx, &mut self.cx_block, &cols);
+                    self.flush(&cols);
                 }
                 // The y pairs whose stencils end at this row and do not wrap.
                 let ring = &self.ring;
@@ -535,10 +588,16 @@ impl RowSeams {
                 }
             }
             if last {
-                let mut sums =
-                    XSums { vx: &mut self.vx_block, cx: &mut self.cx_block, crease: true, edges: &mut self.edges };
+                let mut sums = XSums {
+                    vx: &mut self.vx_block,
+                    cx: &mut self.cx_block,
+                    nvx: &mut self.nvx_block,
+                    ncx: &mut self.ncx_block,
+                    crease: true,
+                    edges: &mut self.edges,
+                };
                 self.stack.finish(&cols, &mut sums);
-                flush_cols(&mut self.vx, &mut self.vx_block, &mut self.cx, &mut self.cx_block, &cols);
+                self.flush(&cols);
             }
         }
         for (i, lanes) in self.lanes[..n * LEVELS].chunks_exact(LEVELS).enumerate() {
@@ -546,13 +605,23 @@ impl RowSeams {
             for (level, [value, crease]) in lanes.iter().enumerate() {
                 if y >= 1 {
                     self.vy[(y - 1) * LEVELS + level] = value.total();
+                    self.nvy[(y - 1) * LEVELS + level] = value.count();
                 }
                 if y >= 3 {
                     self.cy[(y - 2) * LEVELS + level] = crease.total();
+                    self.ncy[(y - 2) * LEVELS + level] = crease.count();
                 }
             }
         }
         self.pending_rows = 0;
+    }
+
+    /// Adds the x sums of the block and their counts, over the columns
+    /// `cols` owns, into the totals.
+    #[inline(always)]
+    fn flush(&mut self, cols: &Cols) {
+        flush_cols(&mut self.vx, &mut self.vx_block, &mut self.cx, &mut self.cx_block, cols, UNSCALE);
+        flush_cols(&mut self.nvx, &mut self.nvx_block, &mut self.ncx, &mut self.ncx_block, cols, 1.0);
     }
 
     /// The profiles of the image of the rows pushed (its last row wraps
@@ -565,9 +634,10 @@ impl RowSeams {
         // The pending rows, and the runs of rows cut short by the last row.
         self.measure_pending(true);
         let (first, ring) = (&self.first, &self.ring);
-        let (mut vy, mut cy) = (self.vy, self.cy);
-        vy.truncate(h * LEVELS);
-        cy.truncate(h * LEVELS);
+        let (mut vy, mut cy, mut nvy, mut ncy) = (self.vy, self.cy, self.nvy, self.ncy);
+        for p in [&mut vy, &mut cy, &mut nvy, &mut ncy] {
+            p.truncate(h * LEVELS);
+        }
         // The seams; the passes did the interior pairs. Row j mod H: the
         // seam stencils only reach rows H − 2, H − 1, 0, 1.
         for level in 0..LEVELS {
@@ -575,10 +645,11 @@ impl RowSeams {
                 let j = j % h;
                 if j < 2 { first.row(level, j) } else { ring.row(level, j % 4) }
             };
-            vy[(h - 1) * LEVELS + level] = y_value(row(h - 1), row(h));
-            cy[(h - 1) * LEVELS + level] = y_crease(row(2 * h - 2), row(h - 1), row(h), row(h + 1));
+            let at = (h - 1) * LEVELS + level;
+            (vy[at], nvy[at]) = y_value(row(h - 1), row(h));
+            (cy[at], ncy[at]) = y_crease(row(2 * h - 2), row(h - 1), row(h), row(h + 1));
         }
-        Some(Profiles { vx: self.vx, cx: self.cx, vy, cy })
+        Some(Profiles { vx: self.vx, cx: self.cx, vy, cy, nvx: self.nvx, ncx: self.ncx, nvy, ncy, signals: 1.0 })
     }
 }
 
@@ -639,7 +710,9 @@ mod tests {
             seams.push_row(row);
         }
         seams.measure_pending(true);
-        [&seams.vx, &seams.cx, &seams.vy, &seams.cy].map(|p| p.iter().map(|v| v.to_bits()).collect()).to_vec()
+        [&seams.vx, &seams.cx, &seams.vy, &seams.cy, &seams.nvx, &seams.ncx, &seams.nvy, &seams.ncy]
+            .map(|p| p.iter().map(|v| v.to_bits()).collect())
+            .to_vec()
     }
 
     #[test]

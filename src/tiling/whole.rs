@@ -4,7 +4,7 @@
 use crate::par::prelude::*;
 
 use super::kernels::{
-    CHUNK, Cols, EdgeLog, JUDGE_SCALE, LEVELS, RowStack, Runs, XSums, finite, judged, unscaled, y_crease, y_value,
+    CHUNK, Cols, EdgeLog, HOLE, JUDGE_SCALE, LEVELS, RowStack, Runs, XSums, finite, judged, unscaled, y_crease, y_value,
 };
 use super::score::{Cut, Profiles};
 use crate::normal_map::ImageKind;
@@ -31,69 +31,81 @@ impl Profiles {
     }
 
     /// The profiles of the image made of the columns `cols` keeps of the
-    /// rows `rows` keeps, in their order.
-    pub(super) fn measure(planes: &[&[f32]], cols: Cut, rows: Cut, kind: ImageKind) -> Profiles {
+    /// rows `rows` keeps, in their order; texels equal to `nodata` (NaN:
+    /// none) are holes, as non-finite ones are.
+    pub(super) fn measure(planes: &[&[f32]], cols: Cut, rows: Cut, kind: ImageKind, nodata: f64) -> Profiles {
         let (w, h) = (cols.kept(), rows.kept());
         let signals: Vec<Signal> = match kind {
             ImageKind::Height if planes.len() >= 3 => {
-                vec![Signal::Luma(planes[0], planes[1], planes[2])]
+                vec![Signal::Luma(planes[0], planes[1], planes[2], nodata)]
             }
-            ImageKind::Normal if planes.len() >= 3 => planes[..3].iter().map(|p| Signal::Plane(p)).collect(),
-            _ => vec![Signal::Plane(planes[0])],
+            ImageKind::Normal if planes.len() >= 3 => planes[..3].iter().map(|p| Signal::Plane(p, nodata)).collect(),
+            _ => vec![Signal::Plane(planes[0], nodata)],
         };
         let crease = kind == ImageKind::Height;
-        let mut vy = vec![0.0f64; LEVELS * h];
-        let mut cy = vec![0.0f64; LEVELS * h];
-        let zeros = || vec![0.0f64; LEVELS * w];
+        // The y sums, then their counts of valid pairs, per row pair.
+        let mut y = vec![[0.0f64; 4]; LEVELS * h];
+        let zeros = || vec![[0.0f64; 4]; LEVELS * w];
         // Each task owns CHUNK row pairs of the y profiles and adds its rows
         // to a per-thread x profile; the x profiles are summed at the end.
-        let (vx, cx, _) = crate::par::fold_reduce(
-            vy.par_chunks_mut(CHUNK * LEVELS).zip(cy.par_chunks_mut(CHUNK * LEVELS)).enumerate(),
-            || (zeros(), zeros(), Block::new(w)),
-            |(mut vx, mut cx, mut block), (c, (vy, cy))| {
+        let (x, _) = crate::par::fold_reduce(
+            y.par_chunks_mut(CHUNK * LEVELS).enumerate(),
+            || (zeros(), Block::new(w)),
+            |(mut x, mut block), (c, y)| {
                 for signal in &signals {
-                    block.measure(signal, cols, rows, c * CHUNK, vy.len() / LEVELS, crease);
-                    for (acc, s) in vy.iter_mut().zip(&block.vy) {
-                        *acc += s;
+                    block.measure(signal, cols, rows, c * CHUNK, y.len() / LEVELS, crease);
+                    for (k, acc) in y.iter_mut().enumerate() {
+                        acc[0] += block.vy[k];
+                        acc[1] += block.cy[k];
+                        acc[2] += block.nvy[k];
+                        acc[3] += block.ncy[k];
                     }
-                    for (acc, s) in cy.iter_mut().zip(&block.cy) {
-                        *acc += s;
-                    }
-                    for (acc, &s) in vx.iter_mut().zip(&block.vx) {
-                        *acc += unscaled(s);
-                    }
-                    for (acc, &s) in cx.iter_mut().zip(&block.cx) {
-                        *acc += unscaled(s);
+                    for (k, acc) in x.iter_mut().enumerate() {
+                        acc[0] += unscaled(block.vx[k]);
+                        acc[1] += unscaled(block.cx[k]);
+                        acc[2] += f64::from(block.nvx[k]);
+                        acc[3] += f64::from(block.ncx[k]);
                     }
                 }
-                (vx, cx, block)
+                (x, block)
             },
-            |(mut vx, mut cx, block), (vx2, cx2, _)| {
-                for (a, b) in vx.iter_mut().zip(vx2) {
-                    *a += b;
+            |(mut x, block), (x2, _)| {
+                for (a, b) in x.iter_mut().zip(x2) {
+                    for i in 0..4 {
+                        a[i] += b[i];
+                    }
                 }
-                for (a, b) in cx.iter_mut().zip(cx2) {
-                    *a += b;
-                }
-                (vx, cx, block)
+                (x, block)
             },
         );
-        Profiles { vx, cx, vy, cy }
+        let part = |p: &[[f64; 4]], i: usize| -> Vec<f64> { p.iter().map(|s| s[i]).collect() };
+        Profiles {
+            vx: part(&x, 0),
+            cx: part(&x, 1),
+            vy: part(&y, 0),
+            cy: part(&y, 1),
+            nvx: part(&x, 2),
+            ncx: part(&x, 3),
+            nvy: part(&y, 2),
+            ncy: part(&y, 3),
+            signals: signals.len() as f64,
+        }
     }
 }
 
 /// What is measured of one signal, before it is compared.
+/// Each with the nodata value (NaN: none) whose texels are holes.
 enum Signal<'a> {
     /// A plane as it is.
-    Plane(&'a [f32]),
-    /// The luma of three planes.
-    Luma(&'a [f32], &'a [f32], &'a [f32]),
+    Plane(&'a [f32], f64),
+    /// The luma of three planes: a hole where any of them has one.
+    Luma(&'a [f32], &'a [f32], &'a [f32], f64),
 }
 
 impl Signal<'_> {
     /// Writes the kept columns `cols` of image row `y` into `out`
-    /// (`cols.kept()` values), times [`JUDGE_SCALE`], non-finite values
-    /// as 0.
+    /// (`cols.kept()` values), times [`JUDGE_SCALE`], holes (non-finite
+    /// values, the nodata value) as [`HOLE`].
     fn fill(&self, y: usize, cols: Cut, out: &mut [f32]) {
         let w = cols.len;
         let mut at = 0;
@@ -102,17 +114,18 @@ impl Signal<'_> {
             at += part.len();
             let part = y * w + part.start..y * w + part.end;
             match *self {
-                Signal::Plane(p) => {
+                Signal::Plane(p, nodata) => {
                     for (o, &v) in out.iter_mut().zip(&p[part]) {
-                        *o = judged(v);
+                        *o = if f64::from(v) == nodata { HOLE } else { judged(v) };
                     }
                 }
-                Signal::Luma(r, g, b) => {
+                Signal::Luma(r, g, b, nodata) => {
                     let rows = r[part.clone()].iter().zip(&g[part.clone()]).zip(&b[part]);
                     // The weights carry the scale: w·S·r is S·(w·r) exactly.
                     let [wr, wg, wb] = [0.2126, 0.7152, 0.0722].map(|w: f32| w * JUDGE_SCALE);
                     for (o, ((&r, &g), &b)) in out.iter_mut().zip(rows) {
-                        *o = finite(wr * r + wg * g + wb * b);
+                        let hole = [r, g, b].iter().any(|&v| f64::from(v) == nodata);
+                        *o = if hole { HOLE } else { finite(wr * r + wg * g + wb * b) };
                     }
                 }
             }
@@ -134,12 +147,16 @@ struct Block {
     /// The runs of rows of the task's rows (CHUNK is a multiple of the
     /// longest run, so a task's runs are whole but at the image's end).
     stack: RowStack,
-    /// Level-major, as in [`Profiles`].
+    /// Level-major, as in [`Profiles`], with their counts.
     vx: Vec<f32>,
     cx: Vec<f32>,
-    /// Row after row, as in [`Profiles`].
+    nvx: Vec<f32>,
+    ncx: Vec<f32>,
+    /// Row after row, as in [`Profiles`], with their counts.
     vy: Vec<f64>,
     cy: Vec<f64>,
+    nvy: Vec<f64>,
+    ncy: Vec<f64>,
     /// Unused: a block's rows are measured whole.
     edges: EdgeLog,
 }
@@ -151,8 +168,12 @@ impl Block {
             stack: RowStack::new(w),
             vx: vec![0.0; LEVELS * w],
             cx: vec![0.0; LEVELS * w],
+            nvx: vec![0.0; LEVELS * w],
+            ncx: vec![0.0; LEVELS * w],
             vy: Vec::with_capacity(CHUNK * LEVELS),
             cy: Vec::with_capacity(CHUNK * LEVELS),
+            nvy: Vec::with_capacity(CHUNK * LEVELS),
+            ncy: Vec::with_capacity(CHUNK * LEVELS),
             edges: EdgeLog::default(),
         }
     }
@@ -164,8 +185,12 @@ impl Block {
         let h = kept_rows.kept();
         self.vx.fill(0.0);
         self.cx.fill(0.0);
+        self.nvx.fill(0.0);
+        self.ncx.fill(0.0);
         self.vy.clear();
         self.cy.clear();
+        self.nvy.clear();
+        self.ncy.clear();
         // Block row i is image row (y0 − 1 + i) mod H. Each row is measured
         // as soon as it is made, while it and the three before it are in
         // cache: its x pairs (rows 1 … n), and the y pair whose stencil it
@@ -177,19 +202,37 @@ impl Block {
             self.rows.coarsen(i % 4, &whole);
             let rows = &self.rows;
             if (1..=n).contains(&i) {
-                let mut sums = XSums { vx: &mut self.vx, cx: &mut self.cx, crease, edges: &mut self.edges };
+                let mut sums = XSums {
+                    vx: &mut self.vx,
+                    cx: &mut self.cx,
+                    nvx: &mut self.nvx,
+                    ncx: &mut self.ncx,
+                    crease,
+                    edges: &mut self.edges,
+                };
                 self.stack.push(rows.row(0, i % 4), &whole, &mut sums);
             }
             if i >= 3 {
                 for level in 0..LEVELS {
                     // Rows y − 1, y, y + 1, y + 2 for the pair y → y + 1.
                     let r = |j: usize| rows.row(level, j % 4);
-                    self.vy.push(y_value(r(i - 2), r(i - 1)));
-                    self.cy.push(if crease { y_crease(r(i - 3), r(i - 2), r(i - 1), r(i)) } else { 0.0 });
+                    let (value, count) = y_value(r(i - 2), r(i - 1));
+                    self.vy.push(value);
+                    self.nvy.push(count);
+                    let (c, count) = if crease { y_crease(r(i - 3), r(i - 2), r(i - 1), r(i)) } else { (0.0, 0.0) };
+                    self.cy.push(c);
+                    self.ncy.push(count);
                 }
             }
         }
-        let mut sums = XSums { vx: &mut self.vx, cx: &mut self.cx, crease, edges: &mut self.edges };
+        let mut sums = XSums {
+            vx: &mut self.vx,
+            cx: &mut self.cx,
+            nvx: &mut self.nvx,
+            ncx: &mut self.ncx,
+            crease,
+            edges: &mut self.edges,
+        };
         self.stack.finish(&whole, &mut sums);
     }
 }
@@ -202,7 +245,7 @@ mod tests {
     fn profiles_match_the_formulas() {
         // 4×3 image, hand-checked sums.
         let h = [0.0, 1.0, 3.0, 6.0, 0.0, 1.0, 3.0, 6.0, 1.0, 1.0, 1.0, 1.0];
-        let p = Profiles::measure(&[&h], Cut::whole(4), Cut::whole(3), ImageKind::Height);
+        let p = Profiles::measure(&[&h], Cut::whole(4), Cut::whole(3), ImageKind::Height, f64::NAN);
         let y_level = |p: &[f64], level: usize| -> Vec<f64> { p.iter().skip(level).step_by(LEVELS).copied().collect() };
         // x pairs: rows 0, 1 give |1|, |2|, |3|, |−6|; row 2 gives 0.
         assert_eq!(p.vx[..4], [2.0, 4.0, 6.0, 12.0]);

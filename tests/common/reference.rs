@@ -442,3 +442,105 @@ pub fn slope_aspect_gdal(n: [f64; 3]) -> (f64, Option<f64>) {
     };
     (slope, aspect)
 }
+
+/// The tiling check's seam scores (x, y) of a height map of `w` × `h` ≤ 512
+/// (every line read), written plainly from `src/tiling/mod.rs`'s docs in
+/// f64: at each level l (runs of 2^l texels along the lines compared, a
+/// run holding a hole a hole), the value sums V[k] = Σ |h(k+1) − h(k)| and
+/// the creases C[k] over the pairs whose texels are all valid, with their
+/// counts; each sum scaled to the level's fullest count; the seam against
+/// the k-th largest interior sum; the largest level; infinite when level 0
+/// has no valid seam pair or no valid interior pair. `hole(texel)` says
+/// which texels are holes.
+pub fn seam_scores(heights: &[f64], w: usize, h: usize, hole: impl Fn(f64) -> bool) -> (f64, f64) {
+    let at = |x: usize, y: usize| {
+        let v = heights[y * w + x];
+        if hole(v) { None } else { Some(v) }
+    };
+    let transposed = |x: usize, y: usize| at(y, x);
+    // Each axis's per-level sums and counts: value, crease, their counts.
+    let x = axis_sums(&at, w, h);
+    let y = axis_sums(&transposed, h, w);
+    // ε from the level-0 value sums over every pair of both axes.
+    let total: f64 = x[0].0.iter().chain(&y[0].0).sum();
+    let count: f64 = x[0].2.iter().chain(&y[0].2).sum();
+    let mean = if count > 0.0 { total / count } else { 0.0 };
+    let score = |levels: &[LevelSums], line: usize| {
+        let eps = 1e-3 * mean * line as f64 + 1e-30;
+        let mut best = 0.0f64;
+        for (l, (v, c, nv, nc)) in levels.iter().enumerate() {
+            if l > 0 && line < 8 << l {
+                continue;
+            }
+            match level_score_plain(v, c, nv, nc, eps) {
+                Some(s) => best = best.max(s),
+                None if l == 0 => return f64::INFINITY,
+                None => {}
+            }
+        }
+        best
+    };
+    (score(&x, h), score(&y, w))
+}
+
+type LevelSums = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// The sums of the pairs of columns k → k + 1 (mod `n`) of an image whose
+/// texel (k, j) is `at(k, j)`, lines `len` long, at levels 0 … 5.
+fn axis_sums(at: &dyn Fn(usize, usize) -> Option<f64>, n: usize, len: usize) -> Vec<LevelSums> {
+    (0..6)
+        .map(|l| {
+            let run = 1usize << l;
+            let runs = len.div_ceil(run);
+            // The run J of line k: the sum of its texels, None if one is a hole.
+            let r = |k: usize, j: usize| -> Option<f64> {
+                (j * run..((j + 1) * run).min(len)).map(|t| at(k % n, t)).sum::<Option<f64>>()
+            };
+            let (mut v, mut c, mut nv, mut nc) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            for k in 0..n {
+                for j in 0..runs {
+                    if let (Some(a), Some(b)) = (r(k, j), r(k + 1, j)) {
+                        v[k] += (b - a).abs();
+                        nv[k] += 1.0;
+                    }
+                    if let (Some(a), Some(b), Some(cc), Some(d)) = (r(k + n - 1, j), r(k, j), r(k + 1, j), r(k + 2, j))
+                    {
+                        c[k] += ((d - cc) - (b - a)).abs();
+                        nc[k] += 1.0;
+                    }
+                }
+            }
+            (v, c, nv, nc)
+        })
+        .collect()
+}
+
+/// One level's score (seam last), or None when it cannot be judged.
+fn level_score_plain(v: &[f64], c: &[f64], nv: &[f64], nc: &[f64], eps: f64) -> Option<f64> {
+    let n = v.len();
+    if n < 2 {
+        return Some(1.0);
+    }
+    let ratio = |p: &[f64], counts: &[f64], interior: std::ops::Range<usize>| -> Option<f64> {
+        // The fullest of the pairs judged: the interior and the seam.
+        let full = interior.clone().chain([n - 1]).map(|k| counts[k]).fold(0.0, f64::max);
+        if counts[n - 1] == 0.0 {
+            return None;
+        }
+        let mut inner: Vec<f64> = interior.filter(|&k| counts[k] > 0.0).map(|k| p[k] * full / counts[k]).collect();
+        if inner.is_empty() {
+            return None;
+        }
+        inner.sort_by(|a, b| b.total_cmp(a));
+        let m = inner.len();
+        let rank = 4usize.max((m as f64 * 0.01).ceil() as usize).min(m.div_ceil(2)).max(1);
+        Some((p[n - 1] * full / counts[n - 1] + eps) / (inner[rank - 1] + eps))
+    };
+    let mut score = ratio(v, nv, 0..n - 1)?;
+    if n >= 4
+        && let Some(s) = ratio(c, nc, 1..n - 2)
+    {
+        score = score.max(s);
+    }
+    Some(score)
+}

@@ -365,3 +365,67 @@ fn an_alpha_of_heights_is_zero_at_holes_and_metres_need_floats() {
         assert!(!output.exists(), "{args:?}: no output");
     }
 }
+
+#[test]
+fn border_auto_skips_the_holes_of_a_dem() {
+    // A DEM that tiles along x (periodic noise) and not along y (a crop of
+    // its rows), with nodata −9999 in a block inside and at a fifth of
+    // the texels of its edges, across both seams. `auto` must pick wrap
+    // along x and mirror along y, as for the DEM without holes: read as
+    // heights, the −9999 at the edges would be a seam along x too.
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (64usize, 48usize);
+    let big = crate::tiling_support::periodic_noise(w, 3 * h, 3, 2, 31);
+    let plain: Vec<f64> = big[w * h / 2..][..w * h].iter().map(|&v| 300.0 + 80.0 * f64::from(v)).collect();
+    let mut state = 99u64;
+    let holed: Vec<f64> = plain
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let (x, y) = (k % w, k / w);
+            let edge = x == 0 || y == 0 || x == w - 1 || y == h - 1;
+            let block = (20..30).contains(&x) && (10..22).contains(&y);
+            if block || (edge && (state >> 33).is_multiple_of(5)) { -9999.0 } else { v }
+        })
+        .collect();
+    let layout = Layout::gray(Kind::F32);
+    let mut tags: Vec<GeoTag> =
+        geotiff::utm_tags().into_iter().filter(|t| !matches!(t, GeoTag::Ascii(42113, _))).collect();
+    tags.push(GeoTag::Ascii(42113, "-9999".into()));
+    for (name, values) in [("plain", &plain), ("holed", &holed)] {
+        let input = dir.path().join(format!("{name}.tif"));
+        std::fs::write(&input, geotiff::write(w, h, &layout, std::slice::from_ref(values), &tags)).unwrap();
+        // Streamed (a TIFF's rows), then whole (a residual asks for it).
+        for whole in [false, true] {
+            let normals = |border: &str| {
+                let out = dir.path().join(format!("{name}-{border}-{whole}.png"));
+                let residual = dir.path().join("residual.png");
+                let mut args = vec!["convert", s(&input), "-o", s(&out), "-n", "5", "--border", border];
+                if whole {
+                    args.extend(["--residual", s(&residual)]);
+                }
+                let r = run(&args);
+                assert!(r.status.success(), "{name} {border}: {}", stderr(&r));
+                image::open(&out).unwrap().into_rgba16().into_raw()
+            };
+            let auto = normals("auto");
+            assert!(auto == normals("wrap,mirror"), "{name}, whole {whole}: auto is not wrap,mirror");
+            assert!(auto != normals("mirror"), "{name}, whole {whole}: the borders change nothing");
+        }
+        // `tiling` reads the tag as `convert` does; `--nodata none` makes
+        // the −9999 heights, and a seam along x.
+        let verdict = |extra: &[&str]| {
+            let r = run(&[&["tiling", s(&input)][..], extra].concat());
+            assert_eq!(r.status.code(), Some(1), "{name} {extra:?}: {}", stderr(&r));
+            String::from_utf8_lossy(&r.stdout).into_owned()
+        };
+        let line = verdict(&[]);
+        assert!(line.contains(" seamless, y ") && line.trim_end().ends_with("SEAM)"), "{name}: {line}");
+        assert_eq!(verdict(&["--nodata", "-9999"]), line, "{name}");
+        if name == "holed" {
+            let line = verdict(&["--nodata", "none"]);
+            assert!(line.contains("SEAM, y "), "{name}, --nodata none: {line}");
+        }
+    }
+}

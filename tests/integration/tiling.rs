@@ -1,6 +1,7 @@
 //! The tiling check on the shared real textures, the contract's public
 //! cases and generated cases, and its edge cases.
 
+use crate::common::reference;
 use crate::tiling_support;
 
 use normalfit::normal_map::{ImageKind, KindChoice};
@@ -370,7 +371,7 @@ fn streaming_constant_images_tile_with_score_one() {
 }
 
 #[test]
-fn streaming_non_finite_values_count_as_zero() {
+fn streaming_non_finite_values_are_holes() {
     for (w, h) in [(32, 32), (5, 4), (3, 2), (1, 6), (40, 70)] {
         let mut v = tiling_support::periodic_noise(w, h, 2, 2, 3);
         // In the first rows, the last rows, the first and last columns.
@@ -380,16 +381,137 @@ fn streaming_non_finite_values_count_as_zero() {
             v[k] = bad[i % 3];
         }
         // The streamed check (which settles the borders of maps with
-        // holes) counts them as 0, as the whole check measures zeros; the
-        // whole check refuses a height map that holds them.
-        let zeroed: Vec<f32> = v.iter().map(|&x| if x.is_finite() { x } else { 0.0 }).collect();
-        assert_stream_matches(&zeroed, w, h, 1.5, "non-finite");
-        let (a, b) = (stream(&v, w, h, &TilingOptions::new()), stream(&zeroed, w, h, &TilingOptions::new()));
-        assert_eq!(a, b, "{w}×{h}");
-        assert!(a.x.score.is_finite() && a.y.score.is_finite());
-        let e = check(&[&v], w, h, &TilingOptions::new().with_kind(KindChoice::Height)).unwrap_err();
+        // holes) skips them, as the whole check does when told there are
+        // holes; without being told, the whole check refuses them.
+        let opts = TilingOptions::new().with_kind(KindChoice::Height);
+        let holes = opts.with_nodata(Some(f64::NAN));
+        let (a, b) = (stream(&v, w, h, &opts), check(&[&v], w, h, &holes).unwrap());
+        assert_eq!((a.x.seamless, a.y.seamless), (b.x.seamless, b.y.seamless), "{w}×{h}: {a:?} {b:?}");
+        for (s, t) in [(a.x.score, b.x.score), (a.y.score, b.y.score)] {
+            assert!(!s.is_nan() && (s == t || (s - t).abs() <= 1e-9 * s.abs()), "{w}×{h}: {a:?} {b:?}");
+        }
+        let e = check(&[&v], w, h, &opts).unwrap_err();
         assert!(matches!(e, Error::NonFiniteHeight { x: 0, y: 0 }), "{e}");
     }
+}
+
+/// `v` (`w` × `h`) with holes: a block of `nodata` inside, NaN at random
+/// texels (1 in 12), and `nodata` at some texels of the first and last
+/// columns and rows, across both seams.
+fn with_holes(v: &[f32], w: usize, h: usize, nodata: f32, seed: u64) -> Vec<f32> {
+    let mut rng = Rng(seed);
+    let mut out = v.to_vec();
+    for (k, t) in out.iter_mut().enumerate() {
+        let (x, y) = (k % w, k / w);
+        let block = (w / 3..w / 3 + w / 5).contains(&x) && (h / 2..h / 2 + h / 4).contains(&y);
+        let edge = (x == 0 || x == w - 1 || y == 0 || y == h - 1) && rng.next() < 0.2;
+        if block || edge {
+            *t = nodata;
+        } else if rng.next() < 1.0 / 12.0 {
+            *t = f32::NAN;
+        }
+    }
+    out
+}
+
+/// The plain reference's scores of `v` with holes at `nodata` and NaN.
+fn reference_scores(v: &[f32], w: usize, h: usize, nodata: f32) -> (f64, f64) {
+    let heights: Vec<f64> = v.iter().map(|&t| f64::from(t)).collect();
+    reference::seam_scores(&heights, w, h, |t| t.is_nan() || t == f64::from(nodata))
+}
+
+#[test]
+fn holes_are_skipped_as_the_plain_reference_skips_them() {
+    // Tileable noise, a crop of it that does not tile, and a ramp along
+    // x: known scores far from 0 and 1, every level judged up to 64 lines.
+    let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+    for (w, h) in [(48, 40), (70, 33), (9, 64)] {
+        let tiles = tiling_support::periodic_noise(w, h, 3, 2, 11);
+        let big = tiling_support::periodic_noise(2 * w, 2 * h, 5, 2, 12);
+        let crop = tiling_support::crop(&big, 2 * w, w / 3, h / 4, w, h);
+        let ramp: Vec<f32> = (0..w * h).map(|k| (k % w) as f32 * 0.3 + (k / w % 5) as f32 * 0.01).collect();
+        for (name, v) in [("tiles", tiles), ("crop", crop), ("ramp", ramp)] {
+            let holed = with_holes(&v, w, h, -9999.0, (w * h) as u64);
+            let opts = TilingOptions::new().with_kind(KindChoice::Height).with_nodata(Some(-9999.0));
+            let got = check(&[&holed], w, h, &opts).unwrap();
+            let want = reference_scores(&holed, w, h, -9999.0);
+            let label = format!("{name} {w}×{h}: {got:?}, reference {want:?}");
+            assert!(rel(got.x.score, want.0) < 1e-5 && rel(got.y.score, want.1) < 1e-5, "{label}");
+            // Without holes, the same reference gives the scores as ever.
+            let plain = check(&[&v], w, h, &opts.with_nodata(None)).unwrap();
+            let want = reference_scores(&v, w, h, f32::NAN);
+            assert!(rel(plain.x.score, want.0) < 1e-5 && rel(plain.y.score, want.1) < 1e-5, "{name} {plain:?}");
+            // The streamed check: the same, within the f64 order of sums.
+            let mut seams = HeightSeams::new(w, h).unwrap().with_nodata(Some(-9999.0));
+            seams.push_heights(&holed).unwrap();
+            let streamed = seams.finish(&opts).unwrap();
+            assert!(rel(streamed.x.score, got.x.score) <= 1e-12, "{label}: streamed {streamed:?}");
+            assert!(rel(streamed.y.score, got.y.score) <= 1e-12, "{label}: streamed {streamed:?}");
+            assert_eq!((streamed.x.seamless, streamed.y.seamless), (got.x.seamless, got.y.seamless), "{label}");
+        }
+    }
+}
+
+#[test]
+fn holes_keep_the_verdict_of_a_texture_that_tiles_and_of_one_that_does_not() {
+    let (w, h) = (96, 80);
+    let opts = TilingOptions::new().with_kind(KindChoice::Height).with_nodata(Some(-9999.0));
+    let tiles = tiling_support::periodic_noise(w, h, 4, 3, 21);
+    let big = tiling_support::periodic_noise(3 * w, 3 * h, 9, 3, 22);
+    let crop = tiling_support::crop(&big, 3 * w, 37, 29, w, h);
+    for (v, expect) in [(&tiles, true), (&crop, false)] {
+        let before = check(&[v], w, h, &opts).unwrap();
+        assert_eq!((before.x.seamless, before.y.seamless), (expect, expect), "{before:?}");
+        let holed = with_holes(v, w, h, -9999.0, 5);
+        let after = check(&[&holed], w, h, &opts).unwrap();
+        assert_eq!((after.x.seamless, after.y.seamless), (expect, expect), "before {before:?}, after {after:?}");
+        // Read as heights, the −9999 at the seams would be a seam.
+        let as_heights: Vec<f32> = holed.iter().map(|&t| if t.is_nan() { 0.5 } else { t }).collect();
+        let wrong = check(&[&as_heights], w, h, &opts.with_nodata(None)).unwrap();
+        assert!(!wrong.x.seamless && !wrong.y.seamless, "{wrong:?}");
+    }
+}
+
+#[test]
+fn streamed_equals_whole_with_holes_at_many_sizes() {
+    for &w in &SIZES_W {
+        for &h in &SIZES_H {
+            let v = tiling_support::periodic_noise(w, h, 2, 2, (w * 131 + h) as u64);
+            let holed = with_holes(&v, w, h, -9999.0, (w * 7 + h) as u64);
+            let opts = TilingOptions::new().with_kind(KindChoice::Height).with_nodata(Some(-9999.0));
+            let whole = check(&[&holed], w, h, &opts).unwrap();
+            let mut seams = HeightSeams::new(w, h).unwrap().with_nodata(Some(-9999.0));
+            for row in holed.chunks_exact(w) {
+                seams.push_row(row).unwrap();
+            }
+            let streamed = seams.finish(&opts).unwrap();
+            for (a, b) in [(whole.x, streamed.x), (whole.y, streamed.y)] {
+                assert!(!a.score.is_nan() && a.score > 0.0, "{w}×{h}: {whole:?}");
+                let same = a.score == b.score || (a.score - b.score).abs() <= 1e-12 * a.score;
+                assert!(same && a.seamless == b.seamless, "{w}×{h}: whole {whole:?}, streamed {streamed:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn an_edge_of_holes_alone_is_judged_not_to_tile_and_no_score_is_nan() {
+    let (w, h) = (40, 36);
+    let opts = TilingOptions::new().with_kind(KindChoice::Height).with_nodata(Some(-9999.0));
+    let mut v = tiling_support::periodic_noise(w, h, 2, 2, 4);
+    // The last column all holes: no pair across the x seam is valid.
+    for y in 0..h {
+        v[y * w + w - 1] = -9999.0;
+    }
+    let r = check(&[&v], w, h, &opts).unwrap();
+    assert!(r.x.score == f64::INFINITY && !r.x.seamless, "{r:?}");
+    assert!(r.y.score.is_finite() && r.y.seamless, "{r:?}");
+    assert_eq!(r.suggested_borders(), normalfit::Borders { x: normalfit::Border::Mirror, y: normalfit::Border::Wrap });
+    let streamed = stream(&v.iter().map(|&t| if t == -9999.0 { f32::NAN } else { t }).collect::<Vec<_>>(), w, h, &opts);
+    assert!(streamed.x.score == f64::INFINITY && streamed.y.seamless, "{streamed:?}");
+    // Holes alone: neither axis can be judged.
+    let r = check(&[&vec![f32::NAN; w * h]], w, h, &opts).unwrap();
+    assert!(r.x.score == f64::INFINITY && r.y.score == f64::INFINITY && !r.seamless(), "{r:?}");
 }
 
 #[test]

@@ -253,7 +253,9 @@ def _map(
     )
 
 
-def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> TilingReport:
+def check_tiling(
+    array: Any, *, threshold: float = 1.5, kind: str = "auto", nodata: float | None = None
+) -> TilingReport:
     """Whether a 2-D Dask array of heights tiles: the report of
     ``normalfit.check_tiling`` on the whole computed array, and the
     ``suggested_borders`` that ``normalfit.normals(border="auto")`` picks.
@@ -273,10 +275,15 @@ def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> T
     threshold: as for normalfit.check_tiling. kind: "auto" or "height"
     (a 2-D array is a height map; "normal" is refused).
 
-    A NaN or infinite height among the lines read raises ValueError naming
-    its texel, as normalfit.check_tiling does for the whole array; one
-    elsewhere is not read, so not judged. An array without texels raises
-    ValueError.
+    nodata: holes (docs/tiling.md): texels whose stored value is nodata,
+    and NaN or infinite ones, are not heights; every pair that reads one
+    is skipped. An axis whose seam holds no pair of two valid texels
+    scores inf and is not seamless.
+
+    Without nodata, a NaN or infinite height among the lines read raises
+    ValueError naming its texel, as normalfit.check_tiling does for the
+    whole array; one elsewhere is not read, so not judged. An array
+    without texels raises ValueError.
     """
     array = da.asarray(array)
     if array.ndim != 2:
@@ -284,9 +291,9 @@ def check_tiling(array: Any, *, threshold: float = 1.5, kind: str = "auto") -> T
     if kind not in ("auto", "height"):
         raise ValueError(f"invalid option: kind of a 2-D array of heights must be auto or height, got {kind!r}")
     (h, w) = (int(array.shape[0]), int(array.shape[1]))
-    # A NaN or infinite height among the lines read raises ValueError, as
-    # normalfit.check_tiling of the whole array does.
-    seams = _normalfit._HeightSeams(w, h, True)
+    # Without nodata, a NaN or infinite height among the lines read raises
+    # ValueError, as normalfit.check_tiling of the whole array does.
+    seams = _normalfit._HeightSeams(w, h, nodata is None, None if nodata is None else float(nodata))
     # The library says which lines it reads: every row's edge columns
     # (the whole row of a narrow array) and the edge rows whole (none when
     # the columns are whole rows: they serve both axes).
