@@ -79,7 +79,15 @@ def normals(
     pixel_size: float | tuple[float, float] | npt.NDArray[Any] | None = None,
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
+    _product: dict[str, Any] | None = None,
 ) -> Any: ...
+def slope(
+    heights: _Heights, *, slope_units: Literal["degrees", "percent"] = "degrees", **options: Any
+) -> npt.NDArray[np.float32]: ...
+def aspect(heights: _Heights, *, zero_for_flat: bool = False, **options: Any) -> npt.NDArray[np.float32]: ...
+def hillshade(
+    heights: _Heights, *, azimuth: float = 315.0, altitude: float = 45.0, **options: Any
+) -> npt.NDArray[np.uint8]: ...
 def curvature(
     heights: _Heights,
     *,

@@ -55,6 +55,11 @@ def normals(
     pixel_size: Any | None,
     nodata: float | None,
     detail: Any | None = None,
+    product: str | None = None,
+    slope_units: str = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> Any: ...
 def curvature(
     heights: Any,
@@ -206,6 +211,11 @@ def window_normals(
     detail: Any | None = None,
     units: str = "texels",
     pixel_size: Any | None = None,
+    product: str | None = None,
+    slope_units: str = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],

@@ -29,6 +29,7 @@ def normals(
     detail: Sequence[tuple[int, float]] | None = None,
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | Any | None = None,
+    _product: dict[str, Any] | None = None,
 ) -> Any: ...
 @overload
 def normals(
