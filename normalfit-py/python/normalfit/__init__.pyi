@@ -23,9 +23,12 @@ __all__ = [
     "decode_normals",
     "height",
     "height_file",
+    "aspect",
+    "hillshade",
     "lit_view",
     "mips",
     "normals",
+    "slope",
 ]
 
 _Border = Literal["wrap", "clamp", "mirror"]

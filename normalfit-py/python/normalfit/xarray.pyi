@@ -5,7 +5,7 @@ from typing import Any, Literal, overload
 
 import xarray as xr
 
-__all__ = ["NormalfitAccessor", "curvature", "normals", "spacing"]
+__all__ = ["NormalfitAccessor", "aspect", "curvature", "hillshade", "normals", "slope", "spacing"]
 
 _Border = Literal["wrap", "clamp", "mirror", "auto"]
 
