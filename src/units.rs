@@ -453,7 +453,8 @@ pub enum Measure {
 impl Measure {
     /// The measure of unit normal `n` of a fit in `convention` (see
     /// [`slope_aspect`]), as the map stores it. A normal need not be unit
-    /// length: both numbers are ratios of its components.
+    /// length: both numbers are ratios of its components (the slope's
+    /// horizontal length √(x² + y²) holds while x² + y² is a normal f64).
     ///
     /// ```
     /// use normalfit::{Convention, SlopeUnits};
