@@ -24,6 +24,10 @@
 #   bench/terrain.sh          # 4096² (bench/.work/dem4096.tif: the ridged noise
 #                             # of examples/heightmap.rs, 0–2000 m, 10 m texels, UTM 33N)
 #   bench/terrain.sh 2048     # another size
+#   NO_BUILD=1 ONLY=products BASELINE=/path/to/old/normalfit bench/terrain.sh
+#                             # the like-with-like table alone, with another
+#                             # build's wall time beside (run in turn with
+#                             # the others: one load for all three)
 #
 # Needs a Rust toolchain, GDAL and GNU time (apt-get install -y gdal-bin time).
 set -euo pipefail
@@ -35,7 +39,8 @@ mkdir -p "$work"
 for tool in gdal_translate gdaldem /usr/bin/time; do
   command -v "$tool" >/dev/null || { echo "$tool is missing: apt-get install -y gdal-bin time" >&2; exit 1; }
 done
-cargo build --release --locked --bin normalfit --example heightmap
+# NO_BUILD=1: the binary (and the DEMs) are there already.
+[ -n "${NO_BUILD:-}" ] || cargo build --release --locked --bin normalfit --example heightmap
 bin=$target/release/normalfit
 h=$work/h$size.png
 dem=$work/dem$size.tif
@@ -75,9 +80,7 @@ measure() {
 }
 
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg), $(nproc) cores"
-echo
-echo "| ${size}² float32 GeoTIFF, 10 m texels | wall (best of 5) | peak RSS | output | GDAL | GDAL wall | GDAL RSS | speed-up |"
-echo "|---|---|---|---|---|---|---|---|"
+baseline=${BASELINE:-}
 row() {
   local label=$1 gdal_label=$2 gdal_cmd=$3; shift 3
   read -r t m _ < <(measure "$@")
@@ -91,14 +94,25 @@ row() {
   ratio=$(python3 -c "print(f'{$tg / $t:.2f}×')")
   echo "| $label | $t s | $m MiB | $mb | $gdal_label | $tg s | $mg MiB | $ratio |"
 }
-# A row of the like-with-like table: the same product from both tools.
+# A row of the like-with-like table: the same product from both tools
+# (and from the BASELINE build, the same arguments, when given).
 product_row() {
   local label=$1 gdal_cmd=$2; shift 2
   read -r t m u < <(measure "$@")
   # shellcheck disable=SC2086
   read -r tg mg ug < <(measure $gdal_cmd)
-  echo "| $label | $t s | $u s | $m MiB | $tg s | $ug s | $mg MiB | $(python3 -c "print(f'{$tg / $t:.2f}×')") |"
+  local base=""
+  if [ -n "$baseline" ]; then
+    local tb
+    read -r tb _ _ < <(measure "$baseline" "${@:2}")
+    base=" $tb s | $(python3 -c "print(f'{$tg / $tb:.2f}×')") |"
+  fi
+  echo "| $label | $t s | $u s | $m MiB | $tg s | $ug s | $mg MiB | $(python3 -c "print(f'{$tg / $t:.2f}×')") |$base"
 }
+if [ "${ONLY:-}" != products ]; then
+echo
+echo "| ${size}² float32 GeoTIFF, 10 m texels | wall (best of 5) | peak RSS | output | GDAL | GDAL wall | GDAL RSS | speed-up |"
+echo "|---|---|---|---|---|---|---|---|"
 slope="gdaldem slope -q $dem $work/slope.tif"
 hillshade="gdaldem hillshade -q $dem $work/hillshade.tif"
 # Projected, strips of one row: map units, as GIS users call it.
@@ -147,9 +161,10 @@ row "EPSG:4326: convert --units map --border clamp → float GeoTIFF" "slope -s 
   "$bin" convert "$geo" -o "$work/n.tif" --units map --border clamp --bits 32
 row "EPSG:4326: shade --units map --border clamp → PNG" "hillshade -s 111120" "$hillshade_g" \
   "$bin" shade "$geo" -o "$work/lit.png" --units map --border clamp
+fi
 echo
-echo "| ${size}² float32 GeoTIFF, like with like | wall (best of 5) | user CPU | peak RSS | gdaldem wall | gdaldem user CPU | gdaldem RSS | speed-up (wall) |"
-echo "|---|---|---|---|---|---|---|---|"
+echo "| ${size}² float32 GeoTIFF, like with like | wall (best of 5) | user CPU | peak RSS | gdaldem wall | gdaldem user CPU | gdaldem RSS | speed-up (wall) |${baseline:+ baseline wall | baseline speed-up |}"
+echo "|---|---|---|---|---|---|---|---|${baseline:+---|---|}"
 # gdaldem's N = 3 gradient is a plane's: --fit vertical is its fit.
 fit=(--units map --border clamp --fit vertical)
 product_row "slope (degrees) → float32 GeoTIFF" "gdaldem slope -q $dem $work/slope.tif" \

@@ -217,6 +217,7 @@ pub mod normal_map;
 pub mod options;
 mod par;
 pub mod pipeline;
+pub mod products;
 pub mod samples;
 pub mod shade;
 pub mod tiling;

@@ -37,12 +37,14 @@ use normalfit::mips::{MipChoice, MipLevel};
 use normalfit::normal_map::ImageKind;
 use normalfit::normal_map::{self, Storage};
 use normalfit::options::UnitsName;
+use normalfit::products::{hillshade_into, measure_into};
+use normalfit::shade::Sun;
 use normalfit::shade::{self, Light, LitOptions};
 use normalfit::tiling::{self, TilingOptions};
-use normalfit::units::{Crs, MapSpacing};
+use normalfit::units::{Crs, MapSpacing, Measure};
 use normalfit::{
-    Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Sample, Samples, Spacing, Strength, Units,
-    Weights,
+    Border, Convention, Detail, Error, Fit, FitRequest, FromNormal, Options, Product, Sample, Samples, SlopeUnits,
+    Spacing, Strength, Units, Weights,
 };
 use numpy::ndarray::ArrayView2;
 use numpy::{
@@ -631,7 +633,7 @@ fn mips<'py>(
 /// `normals` with every argument given (see `normalfit.normals`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata, detail=None, weights="uniform"))]
+#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata, detail=None, weights="uniform", product=None, slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0))]
 fn normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -651,6 +653,11 @@ fn normals<'py>(
     nodata: Option<f64>,
     detail: Option<&Bound<'py, PyAny>>,
     weights: &str,
+    product: Option<&str>,
+    slope_units: &str,
+    zero_for_flat: bool,
+    azimuth: f64,
+    altitude: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
@@ -660,10 +667,123 @@ fn normals<'py>(
         opts = opts.with_units(units);
     }
     let opts = opts.with_nodata(nodata);
+    let terrain = terrain_of(product, slope_units, zero_for_flat, azimuth, altitude)?;
     let output = output_kind(py, dtype)?;
-    check_nodata_output(nodata, output)?;
+    if terrain.is_none() {
+        check_nodata_output(nodata, output)?;
+    }
     let call = Call { opts: &opts, borders, out, residual, pool: pool(threads)?, window: None };
-    fit_call(heights, kind, output, &call)
+    match terrain {
+        Some(terrain) => terrain_call(heights, kind, &call, terrain),
+        None => fit_call(heights, kind, output, &call),
+    }
+}
+
+/// A terrain product asked for by `normals`' `product=` and its options:
+/// a slope or aspect map, or the hillshade.
+#[derive(Clone, Copy)]
+enum Terrain {
+    Measure(Measure),
+    Hillshade(Sun),
+}
+
+/// `product=` ("slope", "aspect", "hillshade" or None for the normals)
+/// and its options, checked by the library's parsers.
+fn terrain_of(
+    product: Option<&str>,
+    slope_units: &str,
+    zero_for_flat: bool,
+    azimuth: f64,
+    altitude: f64,
+) -> PyResult<Option<Terrain>> {
+    let Some(product) = product else { return Ok(None) };
+    Ok(match parse_named::<Product>(product)? {
+        Product::Slope => Some(Terrain::Measure(Measure::Slope(parse_named::<SlopeUnits>(slope_units)?))),
+        Product::Aspect => Some(Terrain::Measure(Measure::Aspect { zero_for_flat })),
+        Product::Hillshade => Some(Terrain::Hillshade(Sun::new(azimuth, altitude).map_err(to_py_err)?)),
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "invalid option: product of the terrain functions is slope, aspect or hillshade, got {other}"
+            )));
+        }
+    })
+}
+
+/// [`terrain_typed`] for the heights' sample type.
+fn terrain_call<'py>(
+    heights: &Bound<'py, PyUntypedArray>,
+    kind: SampleKind,
+    call: &Call<'_, 'py>,
+    terrain: Terrain,
+) -> PyResult<Bound<'py, PyAny>> {
+    if call.residual || call.out.is_some() {
+        return Err(PyValueError::new_err("a slope, aspect or hillshade takes no residual and no out="));
+    }
+    match kind {
+        SampleKind::U8 => terrain_typed::<u8>(heights, call, terrain),
+        SampleKind::U16 => terrain_typed::<u16>(heights, call, terrain),
+        SampleKind::F32 => terrain_typed::<f32>(heights, call, terrain),
+        SampleKind::F64 => terrain_typed::<f64>(heights, call, terrain),
+    }
+}
+
+/// A slope or aspect map (float32, NaN at holes) or a hillshade (uint8,
+/// 0 at holes) of the heights, or of the window they hold: the library's
+/// `products::measure_into` and `hillshade_into`, the command line's
+/// values.
+fn terrain_typed<'py, H: Stored>(
+    heights: &Bound<'py, PyUntypedArray>,
+    call: &Call<'_, 'py>,
+    terrain: Terrain,
+) -> PyResult<Bound<'py, PyAny>> {
+    let py = heights.py();
+    let (h, w) = (heights.shape()[0], heights.shape()[1]);
+    let (ow, oh) = call.window.map_or((w, h), |win| win.size);
+    let source = heights.cast::<PyArray2<H>>()?.try_readonly().map_err(borrow_error)?;
+    let in_place = if heights.is_c_contiguous() { source.as_slice().ok() } else { None };
+    let view = source.as_array();
+    let out = match terrain {
+        Terrain::Measure(_) => empty(py, &[oh, ow], dtype::<f32>(py))?,
+        Terrain::Hillshade(_) => empty(py, &[oh, ow], dtype::<u8>(py))?,
+    };
+    let (choices, pool, window) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()), call.window);
+    let opts = call.opts;
+    let run = |out_f32: Option<&mut [f32]>, out_u8: Option<&mut [u8]>| {
+        py.detach(|| -> Result<(), Error> {
+            let heights = in_row_order(in_place, &view)?;
+            let heights: &[H] = &heights;
+            let borders = match window {
+                Some(_) => window_borders(choices)?,
+                None => choices.settle(heights, w, h)?,
+            };
+            let mut request = FitRequest::new(opts).borders(borders);
+            if let Some(window) = window {
+                request = request.window(window);
+            }
+            on_pool(pool, || match (terrain, out_f32, out_u8) {
+                (Terrain::Measure(m), Some(out), _) => measure_into(request, m, f32::NAN, heights, w, h, out),
+                (Terrain::Hillshade(sun), _, Some(out)) => hillshade_into(request, sun, heights, w, h, out),
+                _ => Err(Error::InvalidOption("the output's type is not the product's".into())),
+            })
+            .map(|_missing| ())
+        })
+        .map_err(to_py_err)
+    };
+    match terrain {
+        Terrain::Measure(_) => {
+            let array = out.cast::<PyArray2<f32>>()?;
+            let mut rw = array.try_readwrite().map_err(borrow_error)?;
+            let flat = rw.as_slice_mut().map_err(|e| PyValueError::new_err(format!("out: {e}")))?;
+            run(Some(flat), None)?;
+        }
+        Terrain::Hillshade(_) => {
+            let array = out.cast::<PyArray2<u8>>()?;
+            let mut rw = array.try_readwrite().map_err(borrow_error)?;
+            let flat = rw.as_slice_mut().map_err(|e| PyValueError::new_err(format!("out: {e}")))?;
+            run(None, Some(flat))?;
+        }
+    }
+    Ok(out)
 }
 
 /// Holes need float32 normals: a missing texel's normal is NaN, the NumPy
@@ -781,7 +901,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None, units="texels", pixel_size=None, weights="uniform"))]
+#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None, units="texels", pixel_size=None, weights="uniform", product=None, slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0))]
 fn window_normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -803,6 +923,11 @@ fn window_normals<'py>(
     units: &str,
     pixel_size: Option<&Bound<'py, PyAny>>,
     weights: &str,
+    product: Option<&str>,
+    slope_units: &str,
+    zero_for_flat: bool,
+    azimuth: f64,
+    altitude: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
@@ -813,8 +938,11 @@ fn window_normals<'py>(
         opts = opts.with_units(units);
     }
     let opts = opts.with_nodata(nodata);
+    let terrain = terrain_of(product, slope_units, zero_for_flat, azimuth, altitude)?;
     let output = output_kind(py, dtype)?;
-    check_nodata_output(nodata, output)?;
+    if terrain.is_none() {
+        check_nodata_output(nodata, output)?;
+    }
     let (left, right, top, bottom) = halo;
     let (held_h, held_w) = (heights.shape()[0], heights.shape()[1]);
     let size =
@@ -827,7 +955,10 @@ fn window_normals<'py>(
     };
     let window = Window { image, origin, size: (w, h), halo: Halo { left, right, top, bottom } };
     let call = Call { opts: &opts, borders, out: None, residual, pool: pool(threads)?, window: Some(window) };
-    fit_call(heights, kind, output, &call)
+    match terrain {
+        Some(terrain) => terrain_call(heights, kind, &call, terrain),
+        None => fit_call(heights, kind, output, &call),
+    }
 }
 
 /// What `normalfit.dask.normals` asks before it makes a graph: the

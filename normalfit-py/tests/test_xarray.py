@@ -199,3 +199,124 @@ def test_bad_arrays_are_refused_in_one_line(tmp_path: Path) -> None:
         nx.normals(da.transpose("x", "y"))
     with pytest.raises(TypeError, match=r"NumPy-backed"):
         nx.curvature(da.chunk({"y": 8}))
+
+
+def cli_product(cli: Path, tif: Path, tmp_path: Path, product: str, *extra: str) -> np.ndarray:
+    """``normalfit convert --units map --product PRODUCT --fit vertical
+    --border clamp`` of the file, as (rows, columns)."""
+    out = tmp_path / f"{tif.stem}_{product}.tif"
+    run_cli(cli, "convert", tif, "-o", out, "--units", "map", "--product", product, "--fit", "vertical", "--border",
+            "clamp", *extra)
+    written: np.ndarray = rioxarray.open_rasterio(out).values
+    assert written.shape == (1, ROWS, COLS)
+    return written[0]
+
+
+PRODUCTS = [
+    ("slope", {}, ["--slope-units", "degrees"], "degrees", np.float32),
+    ("slope", {"slope_units": "percent"}, ["--slope-units", "percent"], "percent", np.float32),
+    ("aspect", {}, [], "degrees", np.float32),
+    ("aspect", {"zero_for_flat": True}, ["--zero-for-flat"], "degrees", np.float32),
+    ("hillshade", {"azimuth": 200.0, "altitude": 30.0}, ["--azimuth", "200", "--altitude", "30"], None, np.uint8),
+]
+
+
+@pytest.mark.parametrize("kind", ["projected", "geographic"])
+@pytest.mark.parametrize(("product", "keywords", "flags", "units", "dtype"), PRODUCTS)
+def test_products_round_trip_keep_the_grid_and_equal_the_cli(
+    cli: Path, tmp_path: Path, kind: str, product: str, keywords: dict[str, object], flags: list[str],
+    units: str | None, dtype: type,
+) -> None:
+    tif = projected(tmp_path) if kind == "projected" else geographic(tmp_path)
+    da = opened(tif)
+    p = getattr(nx, product)(da, fit="vertical", border="clamp", **keywords)
+    assert p.dims == ("y", "x") and p.dtype == dtype and p.attrs.get("units") == units
+    assert p.rio.crs == da.rio.crs and p.name == product
+    np.testing.assert_array_equal(p.x.values, da.x.values)
+    np.testing.assert_array_equal(p.y.values, da.y.values)
+    # The command line's product of the same file, bit for bit (no holes
+    # here: aspect's −9999 is a flat texel's, as the command line's).
+    expected = cli_product(cli, tif, tmp_path, product, *flags)
+    assert expected.dtype == dtype and np.array_equal(p.values, expected)
+    assert np.ptp(p.values) > 0
+    # The accessor is the function.
+    assert np.array_equal(getattr(da.normalfit, product)(fit="vertical", border="clamp", **keywords).values, p.values)
+    # Written by rioxarray, read by GDAL: the same CRS and transform.
+    out = tmp_path / f"{product}.tif"
+    p.rio.to_raster(out)
+    (src, dst) = (info(tif), info(out))
+    assert dst["geoTransform"] == src["geoTransform"]
+    assert dst["coordinateSystem"] == src["coordinateSystem"]
+    assert [b["type"] for b in dst["bands"]] == ["Byte" if dtype == np.uint8 else "Float32"]
+
+
+@pytest.mark.parametrize("kind", ["projected", "geographic"])
+@pytest.mark.parametrize("product", ["slope", "aspect", "hillshade"])
+def test_products_dask_backed_equal_numpy_backed_bit_for_bit(tmp_path: Path, kind: str, product: str) -> None:
+    tif = projected(tmp_path, holes=True) if kind == "projected" else geographic(tmp_path)
+    options = dict(border=("clamp", "mirror"), patch=5, fit="vertical")
+    whole = getattr(nx, product)(opened(tif), **options)
+    chunked = getattr(nx, product)(opened(tif, chunks={"y": 7, "x": 6}), **options)
+    assert isinstance(chunked.data, dask_array.Array)
+    assert chunked.data.chunks == ((7, 7, 7, 3), (6, 6, 6, 2))
+    computed = chunked.compute()
+    assert computed.dtype == whole.dtype
+    assert np.array_equal(computed.values, whole.values, equal_nan=product != "hillshade")
+    assert computed.rio.crs == whole.rio.crs and computed.attrs.keys() == whole.attrs.keys()
+    assert computed.attrs.get("units") == whole.attrs.get("units")
+    # Chunks smaller than the halo are joined for the fit and cut back.
+    tiny = getattr(nx, product)(opened(tif, chunks={"y": 1, "x": 3}), **options)
+    assert tiny.data.chunks == ((1,) * ROWS, (3,) * 6 + (2,))
+    assert np.array_equal(tiny.compute().values, whole.values, equal_nan=product != "hillshade")
+
+
+def test_products_holes_are_nan_or_0_where_the_cli_writes_its_nodata(cli: Path, tmp_path: Path) -> None:
+    tif = projected(tmp_path, holes=True)
+    da = opened(tif)
+    s = nx.slope(da, fit="vertical", border="clamp")
+    missing = np.isnan(s.values)
+    assert missing[3:6, 4].all() and missing[15, 11:14].all() and missing.sum() == 6
+    expected = cli_product(cli, tif, tmp_path, "slope")
+    assert np.array_equal(expected == -9999, missing)
+    assert np.array_equal(s.values[~missing], expected[~missing])
+    # NaN holes (masked on reading) are the same holes.
+    assert np.array_equal(nx.slope(opened(tif, masked=True), fit="vertical", border="clamp").values, s.values,
+                          equal_nan=True)
+    shade = nx.hillshade(da, fit="vertical", border="clamp")
+    assert shade.rio.nodata == 0 and np.array_equal(shade.values == 0, missing)
+    assert np.array_equal(shade.values, cli_product(cli, tif, tmp_path, "hillshade"))
+    out = tmp_path / "shade.tif"
+    shade.rio.to_raster(out)
+    assert info(out)["bands"][0]["noDataValue"] == 0
+
+
+def test_products_of_bare_arrays_are_the_references_fit() -> None:
+    import reference
+
+    z = dem().astype(np.float64)
+    s = normalfit.slope(z, fit="vertical", border="clamp", scale=0.2)
+    a = normalfit.aspect(z, fit="vertical", border="clamp", scale=0.2)
+    n = reference.normals(z, fit="vertical", border=("clamp", "clamp"), scale=0.2)
+    horizontal = np.hypot(n[..., 0], n[..., 1])
+    want_slope = np.degrees(np.arctan2(horizontal, n[..., 2]))
+    want_aspect = np.degrees(np.arctan2(n[..., 0], n[..., 1])) % 360
+    assert s.dtype == np.float32 and np.abs(s - want_slope).max() < 1e-4 and want_slope.max() > 20
+    turn = np.abs(a - want_aspect) % 360
+    assert np.minimum(turn, 360 - turn).max() < 1e-3
+    # The xarray function on a DataArray of it, in texel units.
+    da = xr.DataArray(z, dims=("y", "x"))
+    assert np.array_equal(nx.slope(da, units="texels", fit="vertical", border="clamp", scale=0.2).values, s)
+
+
+def test_products_refuse_a_normal_maps_options_and_unknown_keywords(tmp_path: Path) -> None:
+    da = opened(projected(tmp_path))
+    with pytest.raises(TypeError, match=r"slope\(\) got an unexpected keyword argument 'dtype'"):
+        nx.slope(da, dtype=np.uint8)
+    with pytest.raises(TypeError, match=r"residual"):
+        normalfit.aspect(da.values, residual=True)
+    with pytest.raises(TypeError, match=r"unexpected keyword argument 'colour'"):
+        nx.hillshade(da, colour=3)
+    with pytest.raises(ValueError, match=r"slope units"):
+        nx.slope(da, slope_units="radians")
+    with pytest.raises(ValueError, match=r"altitude must be from 0 to 90"):
+        da.normalfit.hillshade(altitude=95)

@@ -161,6 +161,11 @@ impl<'a> FitRequest<'a> {
         self
     }
 
+    /// The options' convention: how a caller of the normals reads their y.
+    pub(crate) fn convention(&self) -> crate::options::Convention {
+        self.opts.convention
+    }
+
     /// Runs the fit of `heights` (`width` × `height`, row-major, any
     /// [`Heights`]: a slice of a [`Sample`] type or [`Samples`]) into
     /// `out`, in any texel type: `[f32; 3]` for the normal itself,

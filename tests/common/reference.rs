@@ -543,4 +543,18 @@ fn level_score_plain(v: &[f64], c: &[f64], nv: &[f64], nc: &[f64], eps: f64) -> 
         score = score.max(s);
     }
     Some(score)
+/// The slope (degrees) and aspect (degrees clockwise from north, in
+/// [0, 360]; None where the normal does not lean) of normal `n` in
+/// OpenGL's frame by libm's `hypot` and `atan2` in f64: what
+/// `normalfit::units::slope_aspect` computed before its own arctangent,
+/// which is held to this.
+pub fn slope_aspect_libm(n: [f64; 3]) -> (f64, Option<f64>) {
+    let [east, north, up] = n;
+    let horizontal = east.hypot(north);
+    let slope = horizontal.atan2(up).to_degrees();
+    let aspect = (horizontal > 0.0).then(|| {
+        let a = east.atan2(north).to_degrees();
+        if a < 0.0 { a + 360.0 } else { a }
+    });
+    (slope, aspect)
 }

@@ -496,4 +496,204 @@ fn binomial_weights_match_gdaldem_on_a_dem() {
         100.0 * exact[1] as f64 / count as f64,
         100.0 * exact[2] as f64 / count as f64
     );
+/// The components a sweep of the arctangent takes: zeros of both signs,
+/// subnormals, the smallest and largest normals, infinities, and values
+/// between.
+const SPECIAL: [f64; 14] = [
+    0.0,
+    -0.0,
+    5e-324,
+    -5e-324,
+    1e-310,
+    2.2e-308,
+    -1e-300,
+    1e-8,
+    0.5,
+    -1.0,
+    3.0,
+    1e300,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+];
+
+/// Degrees between two angles, NaN equal to NaN.
+fn apart(a: f64, b: f64) -> f64 {
+    if a.is_nan() && b.is_nan() { 0.0 } else { (a - b).abs() }
+}
+
+/// `slope_aspect`'s own arctangent against libm's (the reference's
+/// `slope_aspect_libm`): over a million directions at radii from 1e-300 to
+/// 1e300 in every octant (ratios near 0, 1 and tan(π/8) among them), and
+/// the special components in every combination, the aspect within 1e-12°
+/// (the products promise 1e-9°), the slope too where e² + n² is a normal
+/// f64 (the length of a normal's horizontal part, a unit normal's), flat
+/// where libm is flat, and NaN where it is NaN (but a NaN beside an
+/// infinity, where libm's hypot is infinite).
+#[test]
+fn atan2_matches_libm() {
+    use normalfit::Convention;
+    use normalfit::units::slope_aspect;
+    let mut worst: f64 = 0.0;
+    let mut check = |n: [f64; 3]| {
+        let got = slope_aspect(n, Convention::OpenGl);
+        let (slope, aspect) = reference::slope_aspect_libm(n);
+        // The slope's horizontal length is √(e² + n²), not libm's hypot:
+        // held where e² + n² neither underflows nor overflows (normals are
+        // near unit length; components between 1e-154 and 1e154).
+        let [e, north, _] = n;
+        let h2 = e * e + north * north;
+        let representable = (e == 0.0 && north == 0.0)
+            || h2.is_normal()
+            || e.is_infinite()
+            || north.is_infinite()
+            || e.is_nan()
+            || north.is_nan();
+        let ds = if representable { apart(got.slope, slope) } else { 0.0 };
+        assert!(ds <= 1e-12, "{n:?}: slope {} against libm's {slope}", got.slope);
+        assert_eq!(got.aspect.is_some(), aspect.is_some(), "{n:?}: flat or not");
+        if let (Some(a), Some(b)) = (got.aspect, aspect) {
+            let da = apart(a, b).min(360.0 - apart(a, b));
+            assert!(da <= 1e-12 || (a.is_nan() && b.is_nan()), "{n:?}: aspect {a} against libm's {b}");
+            worst = worst.max(da);
+        }
+        worst = worst.max(ds);
+    };
+    for k in 0..1_000_000u32 {
+        let angle = -std::f64::consts::PI + std::f64::consts::TAU * f64::from(k) / 1e6;
+        let r = 10f64.powi((k % 601) as i32 - 300);
+        let up = [1.0, 0.3, 1e-9, 0.0, -0.7][(k % 5) as usize];
+        check([r * angle.sin(), r * angle.cos(), up]);
+    }
+    // Ratios right at the reduction's seams: 1 and tan(π/8), and their
+    // neighbours in both directions.
+    for t in [1.0f64, 0.414_213_562_373_095_03, 2.414_213_562_373_095] {
+        for ulps in -3i64..=3 {
+            let t = f64::from_bits((t.to_bits() as i64 + ulps) as u64);
+            for (e, n) in [(t, 1.0), (1.0, t), (-t, 1.0), (t, -1.0), (-1.0, -t)] {
+                check([e, n, 0.5]);
+            }
+        }
+    }
+    for e in SPECIAL {
+        for n in SPECIAL {
+            for up in SPECIAL {
+                check([e, n, up]);
+            }
+        }
+    }
+    for other in [0.0, -0.0, 1.0, -2.0] {
+        check([f64::NAN, other, 1.0]);
+        check([other, f64::NAN, 1.0]);
+        check([other, 1.0, f64::NAN]);
+    }
+    eprintln!("atan2_matches_libm: largest difference {worst:e}°");
+}
+
+/// The products of heights held in memory (`normalfit::products`, what
+/// the Python package calls) are the program's, bit for bit: the slope
+/// and aspect against the float TIFF `convert --product` writes (NaN or
+/// −9999 at the same holes), the hillshade against its 8-bit one; every
+/// border, projected and geographic; in windows of the image (each with
+/// the halo the library plans) as whole; on one thread as on four.
+#[test]
+fn the_products_in_memory_are_the_programs() {
+    use normalfit::FitRequest;
+    use normalfit::fit::HaloPlan;
+    use normalfit::products::{hillshade_into, measure_into};
+    use normalfit::shade::Sun;
+    use normalfit::units::{Measure, NODATA};
+    let dir = tempfile::tempdir().unwrap();
+    let (input, tif) = (dir.path().join("dem.tif"), dir.path().join("p.tif"));
+    let mut heights = terrain();
+    for k in [0, 5, W + 6, 3 * W + 17, W * H - 1] {
+        heights[k] = HOLE;
+    }
+    heights[9 * W + 20] = f64::NAN;
+    let measures = [
+        (Product::Slope, Measure::Slope(SlopeUnits::Degrees)),
+        (Product::Aspect, Measure::Aspect { zero_for_flat: false }),
+    ];
+    for (place, tags) in [("utm", geotiff::utm_tags()), ("geographic", geographic_tags())] {
+        dem(&input, &heights, &tags);
+        let georef = read_path(&input, &ReadOptions::default()).unwrap().georef;
+        let spacing = map_spacing(georef.as_ref(), H).unwrap();
+        for border in [Border::Wrap, Border::Clamp, Border::Mirror] {
+            let fit = Options::new().with_fit(Fit::Vertical).with_borders(Borders::both(border)).with_patch(5);
+            let opts = fit.clone().with_units(Units::Map(spacing.clone())).with_nodata(Some(HOLE));
+            let what = format!("{place} {border:?}");
+            let windows = |size: (usize, usize)| {
+                let plan = HaloPlan::new(&opts).unwrap();
+                (0..H).step_by(size.1).flat_map(move |y| {
+                    (0..W)
+                        .step_by(size.0)
+                        .map(move |x| plan.window((W, H), (x, y), (size.0.min(W - x), size.1.min(H - y))))
+                })
+            };
+            // The window and its halo, beyond the image's edges what the
+            // border gives there.
+            let held = |window: &normalfit::fit::Window| -> Vec<f64> {
+                let (hw, hh) = window.held_size();
+                let x0 = window.origin.0 as isize - window.halo.left as isize;
+                let y0 = window.origin.1 as isize - window.halo.top as isize;
+                (0..hh as isize)
+                    .flat_map(|j| (0..hw as isize).map(move |i| (y0 + j, x0 + i)))
+                    .map(|(y, x)| heights[opts.borders.y.map(y, H) * W + opts.borders.x.map(x, W)])
+                    .collect()
+            };
+            for (product, measure) in measures {
+                convert(&input, &tif, product, &fit, |c| c);
+                let program = values(&tif);
+                let mut whole = vec![0.0f32; W * H];
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+                let missing = pool
+                    .install(|| measure_into(FitRequest::new(&opts), measure, NODATA, &heights, W, H, &mut whole))
+                    .unwrap();
+                assert!(missing >= 6, "{what} {product}: {missing} missing");
+                let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same(&whole, &program), "{what} {product}: in memory ≠ the program's");
+                let mut four = vec![0.0f32; W * H];
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+                pool.install(|| measure_into(FitRequest::new(&opts), measure, f32::NAN, &heights, W, H, &mut four))
+                    .unwrap();
+                let nan_for_nodata: Vec<f32> = whole.iter().map(|&v| if v == NODATA { f32::NAN } else { v }).collect();
+                // Aspect's −9999 is a flat texel's too: compare where not.
+                let kept: Vec<(f32, f32)> = four
+                    .iter()
+                    .zip(&nan_for_nodata)
+                    .map(|(&a, &b)| if a == NODATA { (b, b) } else { (a, b) })
+                    .collect();
+                assert!(kept.iter().all(|(a, b)| a.to_bits() == b.to_bits()), "{what} {product}: 4 threads, NaN holes");
+                for size in [(7, 5), (11, 23), (29, 4)] {
+                    let mut chunked = vec![0.0f32; W * H];
+                    for window in windows(size) {
+                        let (hw, hh) = window.held_size();
+                        let mut out = vec![0.0f32; window.size.0 * window.size.1];
+                        measure_into(
+                            FitRequest::new(&opts).window(window),
+                            measure,
+                            NODATA,
+                            &held(&window),
+                            hw,
+                            hh,
+                            &mut out,
+                        )
+                        .unwrap();
+                        for (r, row) in out.chunks(window.size.0).enumerate() {
+                            let at = (window.origin.1 + r) * W + window.origin.0;
+                            chunked[at..at + window.size.0].copy_from_slice(row);
+                        }
+                    }
+                    assert!(same(&chunked, &whole), "{what} {product}: windows of {size:?} ≠ whole");
+                }
+            }
+            convert(&input, &tif, Product::Hillshade, &fit, |c| c);
+            let raster = read_path(&tif, &ReadOptions::default()).unwrap();
+            // The bytes as stored (to_f32 would give contract units, v / 255).
+            let normalfit::Samples::U8(program) = &raster.planes[0].data else { panic!("{what}: an 8-bit hillshade") };
+            let mut greys = vec![0u8; W * H];
+            hillshade_into(FitRequest::new(&opts), Sun::default(), &heights, W, H, &mut greys).unwrap();
+            assert!(greys.contains(&0) && greys.iter().any(|&g| g > 200), "{what}: hillshade");
+            assert!(greys == *program, "{what}: hillshade in memory ≠ the program's");
+        }
+    }
 }

@@ -37,9 +37,12 @@ __all__ = [
     "decode_normals",
     "height",
     "height_file",
+    "aspect",
+    "hillshade",
     "lit_view",
     "mips",
     "normals",
+    "slope",
 ]
 
 
@@ -62,6 +65,7 @@ def normals(
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
     weights: str = "uniform",
+    _product: dict[str, Any] | None = None,
 ) -> Any:
     """The normal map of a height map.
 
@@ -134,7 +138,63 @@ def normals(
     """
     return _normalfit.normals(
         heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units,
-        _pixel_size(pixel_size), nodata, detail, weights,
+        _pixel_size(pixel_size), nodata, detail, weights, **(_product or {}),
+    )
+
+
+def _terrain_options(name: str, options: dict[str, Any]) -> dict[str, Any]:
+    """``options`` for ``normals`` (every keyword it takes flows through),
+    refusing those that are a normal map's alone."""
+    for key in ("dtype", "residual", "out"):
+        if key in options:
+            raise TypeError(f"{name}() got an unexpected keyword argument {key!r} (a normal map's option)")
+    return options
+
+
+def slope(heights: Any, *, slope_units: str = "degrees", **options: Any) -> Any:
+    """The slope map of a height map: ``normalfit convert --product slope``
+    as a float32 (rows, columns) array (docs/products.md): the angle of
+    the plane fitted over each texel's patch, in degrees (0 flat), or
+    with slope_units="percent" 100 · rise over run (``gdaldem slope
+    -p``). A missing texel (a hole, or one whose patch has fewer than 3
+    valid points) is NaN.
+
+    Every other keyword is ``normals``'s, with its default (patch, fit,
+    border, convention, scale, relief, invert, threads, units,
+    pixel_size, nodata, detail, ...); for a DEM in metres give
+    pixel_size (map units) and border="clamp", as the command line's
+    terrain examples do. NaN heights are holes here even without nodata.
+    dtype, residual and out are refused (TypeError).
+
+    Raises as ``normals``."""
+    return normals(
+        heights, **_terrain_options("slope", options), _product={"product": "slope", "slope_units": slope_units}
+    )
+
+
+def aspect(heights: Any, *, zero_for_flat: bool = False, **options: Any) -> Any:
+    """The aspect map of a height map: ``normalfit convert --product
+    aspect`` as a float32 (rows, columns) array: the compass direction
+    the fitted plane faces (downhill), degrees clockwise from north (up
+    the array: row 0 is north), in [0, 360). Flat texels are -9999, as
+    gdaldem writes (0 with zero_for_flat, ``-zero_for_flat``); missing
+    ones NaN. The keywords as ``slope``'s."""
+    return normals(
+        heights, **_terrain_options("aspect", options), _product={"product": "aspect", "zero_for_flat": zero_for_flat}
+    )
+
+
+def hillshade(heights: Any, *, azimuth: float = 315.0, altitude: float = 45.0, **options: Any) -> Any:
+    """The hillshade of a height map: ``normalfit convert --product
+    hillshade`` as a uint8 (rows, columns) array, as ``gdaldem
+    hillshade`` draws it: 1 + 254 · max(0, n · L) rounded (1 is full
+    shadow), 0 at missing texels (gdaldem's nodata). The sun at azimuth
+    degrees clockwise from north (up the array), altitude degrees above
+    the horizon (0 to 90). The keywords as ``slope``'s."""
+    return normals(
+        heights,
+        **_terrain_options("hillshade", options),
+        _product={"product": "hillshade", "azimuth": azimuth, "altitude": altitude},
     )
 
 

@@ -23,9 +23,12 @@ __all__ = [
     "decode_normals",
     "height",
     "height_file",
+    "aspect",
+    "hillshade",
     "lit_view",
     "mips",
     "normals",
+    "slope",
 ]
 
 _Border = Literal["wrap", "clamp", "mirror"]
@@ -80,7 +83,15 @@ def normals(
     nodata: float | None = None,
     detail: Sequence[tuple[int, float]] | None = None,
     weights: Literal["uniform", "binomial"] = "uniform",
+    _product: dict[str, Any] | None = None,
 ) -> Any: ...
+def slope(
+    heights: _Heights, *, slope_units: Literal["degrees", "percent"] = "degrees", **options: Any
+) -> npt.NDArray[np.float32]: ...
+def aspect(heights: _Heights, *, zero_for_flat: bool = False, **options: Any) -> npt.NDArray[np.float32]: ...
+def hillshade(
+    heights: _Heights, *, azimuth: float = 315.0, altitude: float = 45.0, **options: Any
+) -> npt.NDArray[np.uint8]: ...
 def curvature(
     heights: _Heights,
     *,

@@ -56,6 +56,11 @@ def normals(
     nodata: float | None,
     detail: Any | None = None,
     weights: str = "uniform",
+    product: str | None = None,
+    slope_units: str = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> Any: ...
 def curvature(
     heights: Any,
@@ -210,6 +215,11 @@ def window_normals(
     units: str = "texels",
     pixel_size: Any | None = None,
     weights: str = "uniform",
+    product: str | None = None,
+    slope_units: str = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],

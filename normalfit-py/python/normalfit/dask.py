@@ -110,7 +110,7 @@ def _fit_block(
             held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
             options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
             options["dtype"], options["residual"], options["threads"], options["nodata"], options["detail"],
-            options["units"], options["pixel_size"], options["weights"],
+            options["units"], options["pixel_size"], options["weights"], **(options["product"] or {}),
         )
     except Exception as e:
         raise _chunk_error(e, _describe(index, rows, cols)) from e
@@ -141,6 +141,7 @@ def normals(
     units: str = "texels",
     pixel_size: Any = None,
     weights: str = "uniform",
+    _product: dict[str, Any] | None = None,
 ) -> Any:
     """The normal map of a 2-D Dask array of heights, lazily: a (rows,
     columns, 3) Dask array chunked like ``array`` (one chunk of 3 on the
@@ -206,6 +207,10 @@ def normals(
         units, pixel_size, weights,
     )
     out_dtype = np.dtype(dtype)
+    # A terrain product (normalfit.xarray's slope, aspect, hillshade): one
+    # value a texel, float32, or uint8 for the hillshade.
+    if _product is not None:
+        out_dtype = np.dtype(np.uint8 if _product["product"] == "hillshade" else np.float32)
     chunks = tuple(_merged(c, r) for c in array.chunks)
     work = array if chunks == array.chunks else array.rechunk(chunks)
     # An axis in one chunk takes no halo (the library plans none: every
@@ -216,11 +221,12 @@ def normals(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
         dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
         detail=None if detail is None else list(detail), units=units, pixel_size=pixel_size, weights=weights,
+        product=None if _product is None else dict(_product),
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)
     if chunks != array.chunks:
-        result = result.rechunk(array.chunks + ((4 if residual else 3),))
+        result = result.rechunk(array.chunks if _product is not None else array.chunks + ((4 if residual else 3),))
     if residual:
         return result[..., :3].astype(out_dtype), result[..., 3].astype(np.float32)
     return result
@@ -236,6 +242,21 @@ def _map(
     dtype: np.dtype[Any],
 ) -> Any:
     last = 4 if options["residual"] else 3
+    if options["product"] is not None:
+        return da.map_overlap(
+            _fit_block,
+            work,
+            depth={0: depth[0], 1: depth[1]},
+            boundary={0: "periodic" if periodic[0] else "none", 1: "periodic" if periodic[1] else "none"},
+            trim=False,
+            allow_rechunk=False,
+            chunks=chunks,
+            dtype=dtype,
+            meta=np.empty((0, 0), dtype),
+            name="normalfit-terrain-" + dask.base.tokenize(work, depth, periodic, image, sorted(options.items())),
+            image=image,
+            options=options,
+        )
     return da.map_overlap(
         _fit_block,
         work,

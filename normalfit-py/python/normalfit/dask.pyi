@@ -30,6 +30,7 @@ def normals(
     weights: Literal["uniform", "binomial"] = "uniform",
     units: Literal["texels", "map"] = "texels",
     pixel_size: float | tuple[float, float] | Any | None = None,
+    _product: dict[str, Any] | None = None,
 ) -> Any: ...
 @overload
 def normals(

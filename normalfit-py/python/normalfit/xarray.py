@@ -36,7 +36,7 @@ from . import _normalfit
 from . import curvature as _curvature
 from . import normals as _normals
 
-__all__ = ["NormalfitAccessor", "curvature", "normals", "spacing"]
+__all__ = ["NormalfitAccessor", "aspect", "curvature", "hillshade", "normals", "slope", "spacing"]
 
 # Attributes that describe the heights' values and no longer hold for a
 # product made from them (its units are set anew).
@@ -180,7 +180,13 @@ def _units(da: xr.DataArray, units: str, pixel_size: Any) -> tuple[str, Any]:
 
 
 def _product(
-    da: xr.DataArray, values: Any, name: str, units: str | None, band: bool, dims: tuple[str, str]
+    da: xr.DataArray,
+    values: Any,
+    name: str,
+    units: str | None,
+    band: bool,
+    dims: tuple[str, str],
+    hole: Any = None,
 ) -> xr.DataArray:
     """``values`` on ``da``'s grid: its coords (the CRS's ``spatial_ref``
     among them), its attributes but those of the heights' values, and
@@ -203,6 +209,9 @@ def _product(
     if rio is not None and np.issubdtype(out.dtype, np.floating):
         # Holes are NaN: a GeoTIFF written from it says so.
         out = out.rio.write_nodata(np.nan, encoded=False)
+    elif rio is not None and hole is not None:
+        # An integer product's holes (the hillshade's 0).
+        out = out.rio.write_nodata(hole, encoded=False)
     return out
 
 
@@ -315,6 +324,69 @@ def curvature(
     return _product(da, values, "mean curvature", unit, False, dims)
 
 
+def _terrain(
+    da: xr.DataArray, product: dict[str, Any], name: str, unit: str | None, options: dict[str, Any]
+) -> xr.DataArray:
+    """A terrain product of ``da`` (``normalfit.slope``, ``aspect`` or
+    ``hillshade``, or their Dask twins), on its grid: every keyword of
+    ``normals`` flows through, with this module's defaults for units,
+    pixel_size, nodata and threads."""
+    for key in ("dtype", "residual", "out"):
+        if key in options:
+            raise TypeError(f"{name}() got an unexpected keyword argument {key!r} (a normal map's option)")
+    dims = _axes(da)
+    rest = dict(options)
+    (units, pixel_size) = _units(da, rest.pop("units", "map"), rest.pop("pixel_size", None))
+    holes = _nodata(da, rest.pop("nodata", "auto"), True)
+    threads = rest.pop("threads", None)
+    if _is_dask(da.data):
+        from . import dask as ndask
+
+        values = ndask.normals(
+            da.data, threads=1 if threads is None else threads, units=units, pixel_size=pixel_size, nodata=holes,
+            _product=product, **rest,
+        )
+    else:
+        values = _normals(
+            np.asarray(da.data), threads=threads, units=units, pixel_size=pixel_size, nodata=holes,
+            _product=product, **rest,
+        )
+    hole = 0 if product["product"] == "hillshade" else None
+    return _product(da, values, name, unit, False, dims, hole)
+
+
+def slope(da: xr.DataArray, *, slope_units: str = "degrees", **options: Any) -> xr.DataArray:
+    """The slope of a 2-D DataArray of heights, a float32 (y, x) DataArray
+    on its grid: ``normalfit convert --product slope``'s values, in
+    degrees (``units`` "degrees") or percent (slope_units="percent",
+    ``units`` "percent"), NaN at holes. Coords (``spatial_ref``), dims and
+    attributes as ``normals``; NumPy in, NumPy out; Dask in, Dask out,
+    chunked equal to whole bit for bit. Every keyword of ``normals`` but
+    dtype, residual and out, with its defaults (units="map": the spacing
+    from the DataArray; nodata="auto"); for a DEM pass border="clamp",
+    and fit="vertical" for gdaldem's gradient."""
+    product = {"product": "slope", "slope_units": slope_units}
+    return _terrain(da, product, "slope", "percent" if slope_units == "percent" else "degrees", options)
+
+
+def aspect(da: xr.DataArray, *, zero_for_flat: bool = False, **options: Any) -> xr.DataArray:
+    """The aspect of a 2-D DataArray of heights (``--product aspect``): a
+    float32 (y, x) DataArray, degrees clockwise from north in [0, 360)
+    (``units`` "degrees"), the raster north-up (row 0 north, as
+    rioxarray opens a GeoTIFF); flat texels -9999 as gdaldem writes (0
+    with zero_for_flat), holes NaN. The keywords as ``slope``'s."""
+    return _terrain(da, {"product": "aspect", "zero_for_flat": zero_for_flat}, "aspect", "degrees", options)
+
+
+def hillshade(da: xr.DataArray, *, azimuth: float = 315.0, altitude: float = 45.0, **options: Any) -> xr.DataArray:
+    """The hillshade of a 2-D DataArray of heights (``--product
+    hillshade``): a uint8 (y, x) DataArray as ``gdaldem hillshade`` draws
+    it, 1 (full shadow) to 255, 0 at holes (its rioxarray nodata); the sun
+    at azimuth degrees clockwise from north, altitude above the horizon;
+    the raster north-up. The keywords as ``slope``'s."""
+    return _terrain(da, {"product": "hillshade", "azimuth": azimuth, "altitude": altitude}, "hillshade", None, options)
+
+
 @xr.register_dataarray_accessor("normalfit")
 class NormalfitAccessor:
     """``da.normalfit``: this module's functions on ``da``."""
@@ -329,6 +401,18 @@ class NormalfitAccessor:
     def curvature(self, **options: Any) -> xr.DataArray:
         """``normalfit.xarray.curvature(da, **options)``."""
         return curvature(self._da, **options)
+
+    def slope(self, **options: Any) -> xr.DataArray:
+        """``normalfit.xarray.slope(da, **options)``."""
+        return slope(self._da, **options)
+
+    def aspect(self, **options: Any) -> xr.DataArray:
+        """``normalfit.xarray.aspect(da, **options)``."""
+        return aspect(self._da, **options)
+
+    def hillshade(self, **options: Any) -> xr.DataArray:
+        """``normalfit.xarray.hillshade(da, **options)``."""
+        return hillshade(self._da, **options)
 
     def spacing(self) -> Any:
         """``normalfit.xarray.spacing(da)``."""

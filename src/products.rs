@@ -1,0 +1,96 @@
+//! Slope, aspect and hillshade of heights held in memory (docs/products.md):
+//! what `convert --product slope|aspect|hillshade` writes, for a caller
+//! holding the heights (the Python package's `normalfit.slope` and
+//! `normalfit.xarray`), the whole image or a window of it (a Dask chunk).
+//!
+//! The fit is [`FitRequest`]'s, the value of each texel the engine's own
+//! per-texel functions: [`Measure::fill`] (the slope or aspect map's
+//! stage, streamed or whole) on normals fitted in `f64`, and the GIS
+//! sun's grey ([`crate::light`]) on normals fitted in `f32`, as the lit
+//! view's stage fits them. So the values are the command line's on the
+//! same heights and options, bit for bit.
+
+use crate::error::Result;
+use crate::fit::{FitRequest, Heights};
+use crate::light::Sun;
+use crate::options::Convention;
+use crate::par::prelude::*;
+use crate::samples::try_filled;
+use crate::units::Measure;
+
+/// The slope or aspect map ([`Measure`]) of `heights` (`width` ×
+/// `height`, row-major, any [`Heights`]), fitted as `request` says (the
+/// whole image, or its [`window`](FitRequest::window)) into `out` (as
+/// many texels as the normals `request` makes), `hole` at missing texels
+/// (the command line's [`crate::units::NODATA`], or NaN). Holes are
+/// texels of the options' nodata value and non-finite heights (as
+/// [`FitRequest::holes`] says); a texel whose patch has fewer than three
+/// valid points, or collinear ones, is missing too. Returns the count of
+/// missing texels.
+///
+/// ```
+/// use normalfit::{FitRequest, Options, SlopeUnits};
+/// use normalfit::products::measure_into;
+/// use normalfit::units::Measure;
+/// // A plane rising 1 in 10 to the east, 1-metre texels: 5.7106°.
+/// let (w, h) = (6, 5);
+/// let heights: Vec<f64> = (0..w * h).map(|k| 0.1 * (k % w) as f64).collect();
+/// let opts = Options::new().with_fit(normalfit::Fit::Vertical).with_borders(normalfit::Borders::both(normalfit::Border::Clamp));
+/// let mut slope = vec![0.0f32; w * h];
+/// let missing = measure_into(FitRequest::new(&opts), Measure::Slope(SlopeUnits::Degrees), f32::NAN, &heights, w, h, &mut slope)?;
+/// assert_eq!(missing, 0);
+/// assert!((slope[2 * w + 3] - 5.710_593).abs() < 1e-5);
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+///
+/// Errors: those of [`FitRequest::normals_into`]; [`crate::Error::Limits`]
+/// when the normals' memory (24 bytes a texel) is not there.
+pub fn measure_into<S: Heights + ?Sized>(
+    request: FitRequest<'_>,
+    measure: Measure,
+    hole: f32,
+    heights: &S,
+    width: usize,
+    height: usize,
+    out: &mut [f32],
+) -> Result<usize> {
+    let convention = request.convention();
+    let mut normals = try_filled(out.len(), [0.0f64; 3])?;
+    let mut valid = try_filled(out.len(), false)?;
+    let missing = request.holes(&mut valid).normals_into(heights, width, height, &mut normals)?;
+    measure.fill(&normals, convention, out);
+    drop(normals);
+    if missing > 0 {
+        out.iter_mut().zip(&valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = hole);
+    }
+    Ok(missing)
+}
+
+/// The hillshade of `heights` under `sun`, as `convert --product
+/// hillshade` and `gdaldem hillshade` draw it: one byte a texel, 1 + 254 ·
+/// max(0, n · L) rounded (1 full shadow), 0 at missing texels (gdaldem's
+/// nodata). The rows run east and row 0 is north (a north-up raster).
+/// `request`, `heights` and the holes as for [`measure_into`]; `out` one
+/// byte a texel. Returns the count of missing texels.
+///
+/// Errors: those of [`FitRequest::normals_into`]; [`crate::Error::Limits`]
+/// when the normals' memory (12 bytes a texel) is not there.
+pub fn hillshade_into<S: Heights + ?Sized>(
+    request: FitRequest<'_>,
+    sun: Sun,
+    heights: &S,
+    width: usize,
+    height: usize,
+    out: &mut [u8],
+) -> Result<usize> {
+    let convention: Convention = request.convention();
+    let mut normals = try_filled(out.len(), [0.0f32; 3])?;
+    let mut valid = try_filled(out.len(), false)?;
+    let missing = request.holes(&mut valid).normals_into(heights, width, height, &mut normals)?;
+    let lamp = crate::light::Lamp::sun(sun, None, convention);
+    out.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
+    if missing > 0 {
+        out.iter_mut().zip(&valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = 0);
+    }
+    Ok(missing)
+}
