@@ -543,6 +543,8 @@ fn level_score_plain(v: &[f64], c: &[f64], nv: &[f64], nc: &[f64], eps: f64) -> 
         score = score.max(s);
     }
     Some(score)
+}
+
 /// The slope (degrees) and aspect (degrees clockwise from north, in
 /// [0, 360]; None where the normal does not lean) of normal `n` in
 /// OpenGL's frame by libm's `hypot` and `atan2` in f64: what

@@ -496,6 +496,8 @@ fn binomial_weights_match_gdaldem_on_a_dem() {
         100.0 * exact[1] as f64 / count as f64,
         100.0 * exact[2] as f64 / count as f64
     );
+}
+
 /// The components a sweep of the arctangent takes: zeros of both signs,
 /// subnormals, the smallest and largest normals, infinities, and values
 /// between.
