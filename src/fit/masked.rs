@@ -810,6 +810,84 @@ fn orthogonal_normals(
     }
 }
 
+/// The valid points' weighted moments of each column's patch, for the
+/// output rows of one strip: Σw, Σw·i, Σw·j, Σw·i², Σw·j², Σw·ij (j
+/// down, w = w(i)·w(j), over the valid points), each summed outright as
+/// the z sums are.
+pub(super) struct WeightedMask {
+    cols: Range<usize>,
+    /// Each source row's Σw·m, Σw·u·m, Σw·u²·m along the window, by row.
+    rows: Vec<(isize, [Vec<f64>; 3])>,
+    moments: [Vec<f64>; 6],
+    valid: Vec<u8>,
+}
+
+impl WeightedMask {
+    pub(super) fn new(plan: &Plan, cols: Range<usize>) -> WeightedMask {
+        let w = cols.len();
+        let planes = || [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
+        WeightedMask {
+            cols,
+            rows: (0..plan.n).map(|_| (isize::MIN, planes())).collect(),
+            moments: std::array::from_fn(|_| vec![0.0; w]),
+            valid: Vec::new(),
+        }
+    }
+
+    /// Column x's moments, as [`super::masked::Moments::weighted`] takes them.
+    pub(super) fn at(&self, x: usize) -> [f64; 6] {
+        self.moments.each_ref().map(|plane| plane[x])
+    }
+
+    /// Makes the moments those of output row `y`.
+    pub(super) fn advance<'a, H: Sample>(&mut self, plan: &Plan, rows: &SourceRows<'_, 'a, H>, y: isize, nodata: f64) {
+        let (n, r, w) = (plan.n, plan.r as isize, self.cols.len());
+        let [wk, wuk, wuuk] = &plan.axis;
+        for v in y - r..=y + r {
+            let slot = v.rem_euclid(n as isize) as usize;
+            if self.rows[slot].0 == v {
+                continue;
+            }
+            valid_row(plan, self.cols.clone(), rows(v), nodata, &mut self.valid);
+            let [m0, m1, m2] = &mut self.rows[slot].1;
+            let (m0, m1, m2) = (&mut m0[..w], &mut m1[..w], &mut m2[..w]);
+            for q in 0..n {
+                let m = &self.valid[q..q + w];
+                let (a, b, c) = (wk[q], wuk[q], wuuk[q]);
+                if q == 0 {
+                    m0.iter_mut().zip(m).for_each(|(o, &m)| *o = a * f64::from(m));
+                    m1.iter_mut().zip(m).for_each(|(o, &m)| *o = b * f64::from(m));
+                    m2.iter_mut().zip(m).for_each(|(o, &m)| *o = c * f64::from(m));
+                } else {
+                    m0.iter_mut().zip(m).for_each(|(o, &m)| *o += a * f64::from(m));
+                    m1.iter_mut().zip(m).for_each(|(o, &m)| *o += b * f64::from(m));
+                    m2.iter_mut().zip(m).for_each(|(o, &m)| *o += c * f64::from(m));
+                }
+            }
+            self.rows[slot].0 = v;
+        }
+        let [c, si, sj, sii, sjj, sij] = &mut self.moments;
+        for j in 0..n {
+            let v = y - r + j as isize;
+            let [m0, m1, m2] = &self.rows[v.rem_euclid(n as isize) as usize].1;
+            let (a, b, cc) = (wk[j], wuk[j], wuuk[j]);
+            for x in 0..w {
+                let (p0, p1, p2) = (m0[x], m1[x], m2[x]);
+                if j == 0 {
+                    (c[x], si[x], sj[x], sii[x], sjj[x], sij[x]) = (a * p0, a * p1, b * p0, a * p2, cc * p0, b * p1);
+                } else {
+                    c[x] += a * p0;
+                    si[x] += a * p1;
+                    sj[x] += b * p0;
+                    sii[x] += a * p2;
+                    sjj[x] += cc * p0;
+                    sij[x] += b * p1;
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

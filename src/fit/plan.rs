@@ -44,7 +44,7 @@ pub(super) struct StripHoles<'t> {
     /// With weights: the valid points' weighted moments (the integer
     /// `mask` still decides which patches hold a hole and which determine
     /// a plane: the weights are all positive, so they change neither).
-    pub(super) weighted: Option<super::weighted::WeightedMask>,
+    pub(super) weighted: Option<super::masked::WeightedMask>,
 }
 
 /// One parallel task of the fit: a strip of a tile, its rows from `y0`,
@@ -367,8 +367,7 @@ impl Plan {
             valid.iter_mut().for_each(|row| row.fill(true));
             return None;
         }
-        let weighted =
-            (self.weights != Weights::Uniform).then(|| super::weighted::WeightedMask::new(self, cols.clone()));
+        let weighted = (self.weights != Weights::Uniform).then(|| super::masked::WeightedMask::new(self, cols.clone()));
         Some(StripHoles { mask: MaskSums::new(cols), patches: MaskedRow::default(), valid, nodata, weighted })
     }
 
