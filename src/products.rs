@@ -4,9 +4,9 @@
 //! `normalfit.xarray`), the whole image or a window of it (a Dask chunk).
 //!
 //! The fit is [`FitRequest`]'s, the value of each texel the engine's own
-//! per-texel functions: [`Measure::fill`] (the slope or aspect map's
+//! per-texel functions: `Measure::fill` (the slope or aspect map's
 //! stage, streamed or whole) on normals fitted in `f64`, and the GIS
-//! sun's grey ([`crate::light`]) on normals fitted in `f32`, as the lit
+//! sun's grey (`light.rs`) on normals fitted in `f32`, as the lit
 //! view's stage fits them. So the values are the command line's on the
 //! same heights and options, bit for bit.
 
