@@ -241,22 +241,15 @@ def _map(
     options: dict[str, Any],
     dtype: np.dtype[Any],
 ) -> Any:
-    last = 4 if options["residual"] else 3
+    # A terrain product is one value a texel (2-D chunks); normals add an
+    # axis of 3 components (4 with the residual).
     if options["product"] is not None:
-        return da.map_overlap(
-            _fit_block,
-            work,
-            depth={0: depth[0], 1: depth[1]},
-            boundary={0: "periodic" if periodic[0] else "none", 1: "periodic" if periodic[1] else "none"},
-            trim=False,
-            allow_rechunk=False,
-            chunks=chunks,
-            dtype=dtype,
-            meta=np.empty((0, 0), dtype),
-            name="normalfit-terrain-" + dask.base.tokenize(work, depth, periodic, image, sorted(options.items())),
-            image=image,
-            options=options,
-        )
+        shape: dict[str, Any] = dict(chunks=chunks, meta=np.empty((0, 0), dtype))
+        what = "terrain"
+    else:
+        last = 4 if options["residual"] else 3
+        shape = dict(new_axis=2, chunks=(chunks[0], chunks[1], (last,)), meta=np.empty((0, 0, 0), dtype))
+        what = "normals"
     return da.map_overlap(
         _fit_block,
         work,
@@ -264,13 +257,11 @@ def _map(
         boundary={0: "periodic" if periodic[0] else "none", 1: "periodic" if periodic[1] else "none"},
         trim=False,
         allow_rechunk=False,
-        new_axis=2,
-        chunks=(chunks[0], chunks[1], (last,)),
         dtype=dtype,
-        meta=np.empty((0, 0, 0), dtype),
-        name="normalfit-normals-" + dask.base.tokenize(work, depth, periodic, image, sorted(options.items())),
+        name=f"normalfit-{what}-" + dask.base.tokenize(work, depth, periodic, image, sorted(options.items())),
         image=image,
         options=options,
+        **shape,
     )
 
 
