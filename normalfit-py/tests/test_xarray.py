@@ -167,6 +167,34 @@ def test_coordinates_without_a_transform_give_the_spacing() -> None:
     assert r.dims == ("y", "x") and r.attrs["units"] == "m"
 
 
+@pytest.mark.parametrize("product", ["slope", "aspect", "hillshade"])
+def test_a_south_up_grid_is_measured_on_the_map(product: str) -> None:
+    """y growing down the rows (row 0 south, as many netCDF grids are):
+    the aspect and the sun are the map's, so the products are the
+    north-up grid's with the rows flipped, NumPy- and Dask-backed; read
+    as north-up, the aspect would be 180° − a."""
+    z = dem().astype(np.float64)
+    x = 10.0 + 30 * np.arange(COLS)
+    north_up = xr.DataArray(z, dims=("y", "x"), coords={"y": 5000.0 - 30 * np.arange(ROWS), "x": x})
+    south_up = xr.DataArray(z[::-1], dims=("y", "x"), coords={"y": north_up.y.values[::-1], "x": x})
+    options = dict(border="clamp", fit="vertical", weights="binomial")
+    want = getattr(nx, product)(north_up, **options).values[::-1]
+    for grid in (south_up, south_up.chunk({"y": 7, "x": 6})):
+        got = np.asarray(getattr(nx, product)(grid, **options).values, dtype=np.float64)
+        if product == "aspect":
+            off = np.abs(got - want)
+            off = np.minimum(off, 360 - off)
+            assert off.max() < 1e-3, off.max()
+        elif product == "hillshade":
+            assert np.abs(got - want).max() <= 1
+        else:
+            assert np.abs(got - want).max() < 1e-4
+    # The bare call takes the transform: the same values as the DataArray's.
+    transform = (x[0] - 15, 30.0, 0.0, south_up.y.values[0] - 15, 0.0, 30.0)
+    bare = getattr(normalfit, product)(z[::-1].copy(), pixel_size=30.0, transform=transform, **options)
+    assert np.array_equal(bare, getattr(nx, product)(south_up, **options).values, equal_nan=True)
+
+
 def test_irregular_coordinates_are_refused() -> None:
     x = 10.0 + 4 * np.arange(COLS)
     x[7:] += 0.5

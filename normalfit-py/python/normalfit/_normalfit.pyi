@@ -61,6 +61,7 @@ def normals(
     zero_for_flat: bool = False,
     azimuth: float = 315.0,
     altitude: float = 45.0,
+    transform: Any | None = None,
 ) -> Any: ...
 def curvature(
     heights: Any,
@@ -220,6 +221,7 @@ def window_normals(
     zero_for_flat: bool = False,
     azimuth: float = 315.0,
     altitude: float = 45.0,
+    transform: Any | None = None,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],
