@@ -1623,7 +1623,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None, weights="uniform"))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None, weights="uniform", product="normals", slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -1655,6 +1655,11 @@ fn convert(
     nodata_tag: bool,
     detail: Option<&Bound<'_, PyAny>>,
     weights: &str,
+    product: &str,
+    slope_units: &str,
+    zero_for_flat: bool,
+    azimuth: f64,
+    altitude: f64,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let opts = with_weights(with_detail(opts, detail)?, weights)?.with_nodata(nodata);
@@ -1673,7 +1678,11 @@ fn convert(
         .with_compression(compression)
         .with_layout(layout)
         .with_residual(residual)
-        .with_map_units(map_units);
+        .with_map_units(map_units)
+        .with_product(parse_named::<Product>(product)?)
+        .with_slope_units(parse_named::<SlopeUnits>(slope_units)?)
+        .with_zero_for_flat(zero_for_flat)
+        .with_sun(Sun::new(azimuth, altitude).map_err(to_py_err)?);
     conversion.bits = bits;
     let summary = py.detach(|| conversion.convert_file(&src, &dst)).map_err(|e| match e.place {
         Place::Input => file_error(&src, e.error, false),

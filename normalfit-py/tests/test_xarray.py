@@ -278,6 +278,22 @@ def test_products_round_trip_keep_the_grid_and_equal_the_cli(
     assert [b["type"] for b in dst["bands"]] == ["Byte" if dtype == np.uint8 else "Float32"]
 
 
+@pytest.mark.parametrize(("product", "keywords", "flags", "units", "dtype"), PRODUCTS)
+def test_convert_writes_the_clis_product_files(
+    cli: Path, tmp_path: Path, product: str, keywords: dict[str, object], flags: list[str], units: str | None,
+    dtype: type,
+) -> None:
+    tif = projected(tmp_path, holes=True)
+    out = tmp_path / "python.tif"
+    summary = normalfit.convert(tif, out, units="map", product=product, fit="vertical", border="clamp", **keywords)
+    assert summary.missing > 0
+    written = rioxarray.open_rasterio(out)
+    assert written.dtype == dtype
+    assert np.array_equal(written.values[0], cli_product(cli, tif, tmp_path, product, *flags), equal_nan=True)
+    with pytest.raises(ValueError, match="product"):
+        normalfit.convert(tif, tmp_path / "bad.tif", units="map", product="relief")
+
+
 @pytest.mark.parametrize("kind", ["projected", "geographic"])
 @pytest.mark.parametrize("product", ["slope", "aspect", "hillshade"])
 def test_products_dask_backed_equal_numpy_backed_bit_for_bit(tmp_path: Path, kind: str, product: str) -> None:

@@ -379,6 +379,11 @@ def convert(
     nodata_tag: bool = True,
     detail: Sequence[tuple[int, float]] | None = None,
     weights: str = "uniform",
+    product: str = "normals",
+    slope_units: str = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -412,6 +417,11 @@ def convert(
     "terrarium", heights packed in 8-bit RGB tiles unpacked to metres
     (--decode).
 
+    product: "normals", "slope", "aspect", "hillshade" or "curvature"
+    (--product; docs/products.md), with slope_units ("degrees" or
+    "percent"), zero_for_flat, and the sun's azimuth and altitude for a
+    hillshade: the command line's files, bit for bit.
+
     Returns a ConversionSummary (width, height, input_format, borders as
     used, streamed, tiling, warnings, nodata, missing). Raises ValueError for a bad option,
     ValueError naming the file for a src whose extension names another
@@ -424,7 +434,7 @@ def convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
         compression, alpha, channels, residual, max_texels, layer, units,
         None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata, nodata_tag,
-        detail, weights,
+        detail, weights, product, slope_units, zero_for_flat, azimuth, altitude,
     )
 
 
