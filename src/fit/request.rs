@@ -225,7 +225,7 @@ impl<'a> FitRequest<'a> {
         self,
         heights: &S,
         (width, height): (usize, usize),
-        each: &mut dyn FnMut(usize, &[T], Option<&[bool]>),
+        each: &mut EachBand<'_, T>,
     ) -> Result<usize> {
         heights.fit_bands(self, (width, height), each)
     }
@@ -341,15 +341,18 @@ impl<'a> FitRequest<'a> {
         for first in (0..oh).step_by(band_rows) {
             let texels = (band_rows.min(oh - first)) * ow;
             let (normals, valid) = (&mut normals[..texels], valid.get_mut(..texels));
-            let valid = valid.map(|valid| {
-                detail::fit_rows(&plan, &rows, H::UNIT, (oy + first, cols.clone()), normals, None, Some((valid, nodata)));
-                missing += valid.iter().filter(|&&v| !v).count();
-                &*valid
-            });
-            if valid.is_none() {
-                detail::fit_rows(&plan, &rows, H::UNIT, (oy + first, cols.clone()), normals, None, None);
+            let place = (oy + first, cols.clone());
+            match valid {
+                Some(valid) => {
+                    detail::fit_rows(&plan, &rows, H::UNIT, place, normals, None, Some((&mut *valid, nodata)));
+                    missing += valid.iter().filter(|&&v| !v).count();
+                    each(first, normals, Some(valid));
+                }
+                None => {
+                    detail::fit_rows(&plan, &rows, H::UNIT, place, normals, None, None);
+                    each(first, normals, None);
+                }
             }
-            each(first, normals, valid);
         }
         Ok(missing)
     }
@@ -359,11 +362,16 @@ impl<'a> FitRequest<'a> {
 /// at once: a few megabytes, enough rows for every thread.
 pub(crate) const BAND_TEXELS: usize = 1 << 19;
 
+/// What takes [`FitRequest::normals_in_bands`]'s bands: the band's first
+/// output row, its normals and (with holes) which of them are valid.
+#[doc(hidden)]
+pub type EachBand<'a, T> = dyn FnMut(usize, &[T], Option<&[bool]>) + 'a;
+
 /// Where [`FitRequest::run`] puts the normals: the caller's buffer for the
 /// whole output, or bands handed to a consumer in turn.
 enum Sink<'s, T> {
     Whole(&'s mut [T]),
-    Bands(&'s mut dyn FnMut(usize, &[T], Option<&[bool]>)),
+    Bands(&'s mut EachBand<'s, T>),
 }
 
 /// Why a residual is refused with weights.
@@ -414,7 +422,7 @@ pub trait Heights: sealed::Sealed {
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
-        each: &mut dyn FnMut(usize, &[T], Option<&[bool]>),
+        each: &mut EachBand<'_, T>,
     ) -> Result<usize>;
 }
 
@@ -429,7 +437,7 @@ impl<H: Sample> Heights for [H] {
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
-        each: &mut dyn FnMut(usize, &[T], Option<&[bool]>),
+        each: &mut EachBand<'_, T>,
     ) -> Result<usize> {
         request.run(self, size, Sink::Bands(each))
     }
@@ -446,7 +454,7 @@ impl<H: Sample> Heights for Vec<H> {
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
-        each: &mut dyn FnMut(usize, &[T], Option<&[bool]>),
+        each: &mut EachBand<'_, T>,
     ) -> Result<usize> {
         self.as_slice().fit_bands(request, size, each)
     }
@@ -463,7 +471,7 @@ impl<H: Sample, const N: usize> Heights for [H; N] {
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
-        each: &mut dyn FnMut(usize, &[T], Option<&[bool]>),
+        each: &mut EachBand<'_, T>,
     ) -> Result<usize> {
         self.as_slice().fit_bands(request, size, each)
     }
@@ -480,7 +488,7 @@ impl Heights for Samples {
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
-        each: &mut dyn FnMut(usize, &[T], Option<&[bool]>),
+        each: &mut EachBand<'_, T>,
     ) -> Result<usize> {
         with_slice!(self, s => s.fit_bands(request, size, each))
     }

@@ -668,15 +668,19 @@ fn the_products_in_memory_are_the_programs() {
                 let mut whole = vec![0.0f32; W * H];
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
                 let missing = pool
-                    .install(|| measure_into(FitRequest::new(&opts), measure, affine, NODATA, &heights, W, H, &mut whole))
+                    .install(|| {
+                        measure_into(FitRequest::new(&opts), measure, affine, NODATA, &heights, W, H, &mut whole)
+                    })
                     .unwrap();
                 assert!(missing >= 6, "{what} {product}: {missing} missing");
                 let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits());
                 assert!(same(&whole, &program), "{what} {product}: in memory ≠ the program's");
                 let mut four = vec![0.0f32; W * H];
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
-                pool.install(|| measure_into(FitRequest::new(&opts), measure, affine, f32::NAN, &heights, W, H, &mut four))
-                    .unwrap();
+                pool.install(|| {
+                    measure_into(FitRequest::new(&opts), measure, affine, f32::NAN, &heights, W, H, &mut four)
+                })
+                .unwrap();
                 let nan_for_nodata: Vec<f32> = whole.iter().map(|&v| if v == NODATA { f32::NAN } else { v }).collect();
                 // Aspect's −9999 is a flat texel's too: compare where not.
                 let kept: Vec<(f32, f32)> = four
