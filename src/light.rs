@@ -322,14 +322,7 @@ impl Sun {
     pub fn direction(self, affine: Option<&Affine>) -> [f64; 3] {
         let (az, alt) = (self.azimuth_deg.to_radians(), self.altitude_deg.to_radians());
         let (east, north) = (az.sin(), az.cos());
-        let unit = |x: f64, y: f64| {
-            let l = x.hypot(y);
-            if l > 0.0 && l.is_finite() { (x / l, y / l) } else { (0.0, 0.0) }
-        };
-        let ((xe, xn), (ye, yn)) = match affine {
-            Some(t) => (unit(t.a, t.d), unit(-t.b, -t.e)),
-            None => ((1.0, 0.0), (0.0, 1.0)),
-        };
+        let crate::units::MapAxes { x: (xe, xn), up: (ye, yn) } = crate::units::MapAxes::of(affine);
         [alt.cos() * (east * xe + north * xn), alt.cos() * (east * ye + north * yn), alt.sin()]
     }
 }

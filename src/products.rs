@@ -12,16 +12,18 @@
 
 use crate::error::Result;
 use crate::fit::{FitRequest, Heights};
+use crate::io::Affine;
 use crate::light::Sun;
 use crate::options::Convention;
 use crate::par::prelude::*;
-use crate::samples::try_filled;
 use crate::units::Measure;
 
 /// The slope or aspect map ([`Measure`]) of `heights` (`width` ×
 /// `height`, row-major, any [`Heights`]), fitted as `request` says (the
 /// whole image, or its [`window`](FitRequest::window)) into `out` (as
-/// many texels as the normals `request` makes), `hole` at missing texels
+/// many texels as the normals `request` makes), on a raster placed on
+/// the map by `affine` (its GDAL geotransform; `None`: north-up, row 0
+/// north), the aspect the map's whichever way its rows run; `hole` at missing texels
 /// (the command line's [`crate::units::NODATA`], or NaN). Holes are
 /// texels of the options' nodata value and non-finite heights (as
 /// [`FitRequest::holes`] says); a texel whose patch has fewer than three
@@ -37,7 +39,7 @@ use crate::units::Measure;
 /// let heights: Vec<f64> = (0..w * h).map(|k| 0.1 * (k % w) as f64).collect();
 /// let opts = Options::new().with_fit(normalfit::Fit::Vertical).with_borders(normalfit::Borders::both(normalfit::Border::Clamp));
 /// let mut slope = vec![0.0f32; w * h];
-/// let missing = measure_into(FitRequest::new(&opts), Measure::Slope(SlopeUnits::Degrees), f32::NAN, &heights, w, h, &mut slope)?;
+/// let missing = measure_into(FitRequest::new(&opts), Measure::Slope(SlopeUnits::Degrees), None, f32::NAN, &heights, w, h, &mut slope)?;
 /// assert_eq!(missing, 0);
 /// assert!((slope[2 * w + 3] - 5.710_593).abs() < 1e-5);
 /// # Ok::<(), normalfit::Error>(())
@@ -45,9 +47,11 @@ use crate::units::Measure;
 ///
 /// Errors: those of [`FitRequest::normals_into`]; [`crate::Error::Limits`]
 /// when the normals' memory (24 bytes a texel) is not there.
+#[allow(clippy::too_many_arguments)] // the heights and output as `normals_into`'s, and what the map needs
 pub fn measure_into<S: Heights + ?Sized>(
     request: FitRequest<'_>,
     measure: Measure,
+    affine: Option<&Affine>,
     hole: f32,
     heights: &S,
     width: usize,
@@ -55,22 +59,27 @@ pub fn measure_into<S: Heights + ?Sized>(
     out: &mut [f32],
 ) -> Result<usize> {
     let convention = request.convention();
-    let mut normals = try_filled(out.len(), [0.0f64; 3])?;
-    let mut valid = try_filled(out.len(), false)?;
-    let missing = request.holes(&mut valid).normals_into(heights, width, height, &mut normals)?;
-    measure.fill(&normals, convention, out);
-    drop(normals);
-    if missing > 0 {
-        out.iter_mut().zip(&valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = hole);
-    }
-    Ok(missing)
+    let texels = out.len();
+    let row = request.output_width(width);
+    // Each band's values from its normals, which are then dropped: the
+    // normals (24 bytes a texel) are never held for the whole image.
+    let mut band = |first: usize, normals: &[[f64; 3]], valid: Option<&[bool]>| {
+        let Some(out) = out.get_mut(first * row..first * row + normals.len()) else { return };
+        measure.fill(normals, convention, affine, out);
+        if let Some(valid) = valid {
+            out.iter_mut().zip(valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = hole);
+        }
+    };
+    check_output(texels, request.output_size(width, height))?;
+    request.normals_in_bands(heights, (width, height), &mut band)
 }
 
 /// The hillshade of `heights` under `sun`, as `convert --product
 /// hillshade` and `gdaldem hillshade` draw it: one byte a texel, 1 + 254 ·
 /// max(0, n · L) rounded (1 full shadow), 0 at missing texels (gdaldem's
-/// nodata). The rows run east and row 0 is north (a north-up raster).
-/// `request`, `heights` and the holes as for [`measure_into`]; `out` one
+/// nodata). The sun's azimuth is the map's on a raster placed by
+/// `affine` (`None`: north-up). `request`, `heights` and the holes as for
+/// [`measure_into`]; `out` one
 /// byte a texel. Returns the count of missing texels.
 ///
 /// Errors: those of [`FitRequest::normals_into`]; [`crate::Error::Limits`]
@@ -78,19 +87,31 @@ pub fn measure_into<S: Heights + ?Sized>(
 pub fn hillshade_into<S: Heights + ?Sized>(
     request: FitRequest<'_>,
     sun: Sun,
+    affine: Option<&Affine>,
     heights: &S,
     width: usize,
     height: usize,
     out: &mut [u8],
 ) -> Result<usize> {
     let convention: Convention = request.convention();
-    let mut normals = try_filled(out.len(), [0.0f32; 3])?;
-    let mut valid = try_filled(out.len(), false)?;
-    let missing = request.holes(&mut valid).normals_into(heights, width, height, &mut normals)?;
-    let lamp = crate::light::Lamp::sun(sun, None, convention);
-    out.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
-    if missing > 0 {
-        out.iter_mut().zip(&valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = 0);
+    let lamp = crate::light::Lamp::sun(sun, affine, convention);
+    let (texels, row) = (out.len(), request.output_width(width));
+    let mut band = |first: usize, normals: &[[f32; 3]], valid: Option<&[bool]>| {
+        let Some(out) = out.get_mut(first * row..first * row + normals.len()) else { return };
+        out.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
+        if let Some(valid) = valid {
+            out.iter_mut().zip(valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = 0);
+        }
+    };
+    check_output(texels, request.output_size(width, height))?;
+    request.normals_in_bands(heights, (width, height), &mut band)
+}
+
+/// An output of `texels` for a request making `size` texels.
+fn check_output(texels: usize, (width, height): (usize, usize)) -> Result<()> {
+    let expected = crate::fit::checked_len(width, height)?;
+    if texels != expected {
+        return Err(crate::Error::BufferSize { expected, actual: texels });
     }
-    Ok(missing)
+    Ok(())
 }

@@ -300,6 +300,57 @@ fn turned(affine: &crate::io::read::georef::Affine) -> String {
     )
 }
 
+/// Where a raster's axes point on the map: the map directions (east,
+/// north), each made unit, of a column step (a, d) and of a step up the
+/// image (−b, −e), as GDAL's geotransform places them. A normal's +x runs
+/// along a row and its +y (OpenGL's) up the image, so these turn a normal
+/// into the map's east and north: row 0 is north on the usual north-up
+/// raster (e < 0) and south on a south-up one (e > 0), whose aspect and
+/// sun would otherwise come out mirrored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct MapAxes {
+    /// (east, north) of a column step.
+    pub(crate) x: (f64, f64),
+    /// (east, north) of a step up the image.
+    pub(crate) up: (f64, f64),
+}
+
+impl MapAxes {
+    /// A north-up raster's, and a raster's without georeferencing.
+    pub(crate) const NORTH_UP: MapAxes = MapAxes { x: (1.0, 0.0), up: (0.0, 1.0) };
+
+    /// The axes of a raster placed by `affine` (none: north-up).
+    pub(crate) fn of(affine: Option<&crate::io::Affine>) -> MapAxes {
+        let unit = |x: f64, y: f64| {
+            let l = x.hypot(y);
+            if l > 0.0 && l.is_finite() { (x / l, y / l) } else { (0.0, 0.0) }
+        };
+        match affine {
+            Some(t) => MapAxes { x: unit(t.a, t.d), up: unit(-t.b, -t.e) },
+            None => MapAxes::NORTH_UP,
+        }
+    }
+
+    /// Normal `n` of a fit in `convention` as (east, north, up): OpenGL's
+    /// components on a north-up raster. The north-up axes give `n`'s own
+    /// bits back (times 1, or −1 for DirectX's y).
+    #[inline(always)]
+    pub(crate) fn to_map(self, [x, y, up]: [f64; 3], convention: Convention) -> [f64; 3] {
+        let y = match convention {
+            Convention::OpenGl => y,
+            Convention::DirectX => -y,
+        };
+        let MapAxes { x: (xe, xn), up: (ye, yn) } = self;
+        if xn == 0.0 && ye == 0.0 {
+            // Axes along the map's (the only ones map units take): a sign
+            // each, exact.
+            [x * xe, y * yn, up]
+        } else {
+            [x * xe + y * ye, x * xn + y * yn, up]
+        }
+    }
+}
+
 /// A surface's slope and aspect at a texel, as GIS tools give them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SlopeAspect {
@@ -499,12 +550,27 @@ impl Measure {
     /// The measures of `normals` into `out`, in parallel, each chunk
     /// compiled for the widest vectors the processor has
     /// ([`pulp::Arch::dispatch`]; the arithmetic is the same IEEE
-    /// operations on every target, so the bits are too). The callers
-    /// write [`NODATA`] at the holes, which they know.
-    pub(crate) fn fill(self, normals: &[[f64; 3]], convention: Convention, out: &mut [f32]) {
+    /// operations on every target, so the bits are too), on a raster
+    /// placed by `affine` (none: north-up): the aspect is the map's,
+    /// whichever way the raster's rows and columns run. The callers write
+    /// [`NODATA`] at the holes, which they know.
+    pub(crate) fn fill(
+        self,
+        normals: &[[f64; 3]],
+        convention: Convention,
+        affine: Option<&crate::io::Affine>,
+        out: &mut [f32],
+    ) {
         use crate::par::prelude::*;
+        let axes = MapAxes::of(affine);
         out.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(out, normals)| {
-            pulp::Arch::new().dispatch(MeasureRow { measure: self, convention, normals, out });
+            if axes == MapAxes::NORTH_UP {
+                pulp::Arch::new().dispatch(MeasureRow { measure: self, convention, normals, out });
+            } else {
+                out.iter_mut()
+                    .zip(normals)
+                    .for_each(|(o, &n)| *o = self.of(axes.to_map(n, convention), Convention::OpenGl));
+            }
         });
     }
 }

@@ -31,7 +31,7 @@ use normalfit::height::file::HeightConversion;
 use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
 use normalfit::inspect;
 use normalfit::io::{
-    ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
+    Affine, ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
 };
 use normalfit::mips::{MipChoice, MipLevel};
 use normalfit::normal_map::ImageKind;
@@ -633,7 +633,7 @@ fn mips<'py>(
 /// `normals` with every argument given (see `normalfit.normals`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata, detail=None, weights="uniform", product=None, slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0))]
+#[pyo3(signature = (heights, patch, fit, border, convention, scale, relief, invert, dtype, residual, out, threads, units, pixel_size, nodata, detail=None, weights="uniform", product=None, slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0, transform=None))]
 fn normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -658,6 +658,7 @@ fn normals<'py>(
     zero_for_flat: bool,
     azimuth: f64,
     altitude: f64,
+    transform: Option<[f64; 6]>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
@@ -667,7 +668,7 @@ fn normals<'py>(
         opts = opts.with_units(units);
     }
     let opts = opts.with_nodata(nodata);
-    let terrain = terrain_of(product, slope_units, zero_for_flat, azimuth, altitude)?;
+    let terrain = terrain_of(product, slope_units, zero_for_flat, (azimuth, altitude), transform)?;
     let output = output_kind(py, dtype)?;
     if terrain.is_none() {
         check_nodata_output(nodata, output)?;
@@ -683,8 +684,8 @@ fn normals<'py>(
 /// a slope or aspect map, or the hillshade.
 #[derive(Clone, Copy)]
 enum Terrain {
-    Measure(Measure),
-    Hillshade(Sun),
+    Measure(Measure, Option<Affine>),
+    Hillshade(Sun, Option<Affine>),
 }
 
 /// `product=` ("slope", "aspect", "hillshade" or None for the normals)
@@ -693,14 +694,23 @@ fn terrain_of(
     product: Option<&str>,
     slope_units: &str,
     zero_for_flat: bool,
-    azimuth: f64,
-    altitude: f64,
+    (azimuth, altitude): (f64, f64),
+    transform: Option<[f64; 6]>,
 ) -> PyResult<Option<Terrain>> {
-    let Some(product) = product else { return Ok(None) };
+    // GDAL's order: x of the corner, x per column, x per row, y of the
+    // corner, y per column, y per row.
+    let affine = transform.map(|[c, a, b, f, d, e]| Affine { a, b, c, d, e, f });
+    let Some(product) = product else {
+        if affine.is_some() {
+            let problem = "transform= places a slope, aspect or hillshade on the map; normals are in the image's frame";
+            return Err(PyValueError::new_err(format!("invalid option: {problem}")));
+        }
+        return Ok(None);
+    };
     Ok(match parse_named::<Product>(product)? {
-        Product::Slope => Some(Terrain::Measure(Measure::Slope(parse_named::<SlopeUnits>(slope_units)?))),
-        Product::Aspect => Some(Terrain::Measure(Measure::Aspect { zero_for_flat })),
-        Product::Hillshade => Some(Terrain::Hillshade(Sun::new(azimuth, altitude).map_err(to_py_err)?)),
+        Product::Slope => Some(Terrain::Measure(Measure::Slope(parse_named::<SlopeUnits>(slope_units)?), affine)),
+        Product::Aspect => Some(Terrain::Measure(Measure::Aspect { zero_for_flat }, affine)),
+        Product::Hillshade => Some(Terrain::Hillshade(Sun::new(azimuth, altitude).map_err(to_py_err)?, affine)),
         other => {
             return Err(PyValueError::new_err(format!(
                 "invalid option: product of the terrain functions is slope, aspect or hillshade, got {other}"
@@ -743,8 +753,8 @@ fn terrain_typed<'py, H: Stored>(
     let in_place = if heights.is_c_contiguous() { source.as_slice().ok() } else { None };
     let view = source.as_array();
     let out = match terrain {
-        Terrain::Measure(_) => empty(py, &[oh, ow], dtype::<f32>(py))?,
-        Terrain::Hillshade(_) => empty(py, &[oh, ow], dtype::<u8>(py))?,
+        Terrain::Measure(..) => empty(py, &[oh, ow], dtype::<f32>(py))?,
+        Terrain::Hillshade(..) => empty(py, &[oh, ow], dtype::<u8>(py))?,
     };
     let (choices, pool, window) = (call.borders, call.pool.as_ref().and_then(|b| b.pool.as_ref()), call.window);
     let opts = call.opts;
@@ -761,8 +771,12 @@ fn terrain_typed<'py, H: Stored>(
                 request = request.window(window);
             }
             on_pool(pool, || match (terrain, out_f32, out_u8) {
-                (Terrain::Measure(m), Some(out), _) => measure_into(request, m, f32::NAN, heights, w, h, out),
-                (Terrain::Hillshade(sun), _, Some(out)) => hillshade_into(request, sun, heights, w, h, out),
+                (Terrain::Measure(m, affine), Some(out), _) => {
+                    measure_into(request, m, affine.as_ref(), f32::NAN, heights, w, h, out)
+                }
+                (Terrain::Hillshade(sun, affine), _, Some(out)) => {
+                    hillshade_into(request, sun, affine.as_ref(), heights, w, h, out)
+                }
                 _ => Err(Error::InvalidOption("the output's type is not the product's".into())),
             })
             .map(|_missing| ())
@@ -770,13 +784,13 @@ fn terrain_typed<'py, H: Stored>(
         .map_err(to_py_err)
     };
     match terrain {
-        Terrain::Measure(_) => {
+        Terrain::Measure(..) => {
             let array = out.cast::<PyArray2<f32>>()?;
             let mut rw = array.try_readwrite().map_err(borrow_error)?;
             let flat = rw.as_slice_mut().map_err(|e| PyValueError::new_err(format!("out: {e}")))?;
             run(Some(flat), None)?;
         }
-        Terrain::Hillshade(_) => {
+        Terrain::Hillshade(..) => {
             let array = out.cast::<PyArray2<u8>>()?;
             let mut rw = array.try_readwrite().map_err(borrow_error)?;
             let flat = rw.as_slice_mut().map_err(|e| PyValueError::new_err(format!("out: {e}")))?;
@@ -901,7 +915,7 @@ fn window_borders(choices: BorderChoices) -> Result<normalfit::Borders, Error> {
 /// (left, right, top, bottom). The options are `normals`'s (no `out`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None, units="texels", pixel_size=None, weights="uniform", product=None, slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0))]
+#[pyo3(signature = (heights, image, origin, halo, patch, fit, border, convention, scale, relief, invert, dtype, residual, threads, nodata=None, detail=None, units="texels", pixel_size=None, weights="uniform", product=None, slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0, transform=None))]
 fn window_normals<'py>(
     py: Python<'py>,
     heights: &Bound<'py, PyAny>,
@@ -928,6 +942,7 @@ fn window_normals<'py>(
     zero_for_flat: bool,
     azimuth: f64,
     altitude: f64,
+    transform: Option<[f64; 6]>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let heights = as_array(heights, "heights", &[2])?;
     let kind = sample_kind(heights, "heights")?;
@@ -938,7 +953,7 @@ fn window_normals<'py>(
         opts = opts.with_units(units);
     }
     let opts = opts.with_nodata(nodata);
-    let terrain = terrain_of(product, slope_units, zero_for_flat, azimuth, altitude)?;
+    let terrain = terrain_of(product, slope_units, zero_for_flat, (azimuth, altitude), transform)?;
     let output = output_kind(py, dtype)?;
     if terrain.is_none() {
         check_nodata_output(nodata, output)?;
@@ -1608,7 +1623,7 @@ impl ConversionSummary {
 /// `convert` with every argument given (see `normalfit.convert`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None, weights="uniform"))]
+#[pyo3(signature = (src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed, compression, alpha, channels, residual, max_texels, layer, units, pixel_size, band, size, byte_order, decode, nodata, nodata_tag, detail=None, weights="uniform", product="normals", slope_units="degrees", zero_for_flat=false, azimuth=315.0, altitude=45.0))]
 fn convert(
     py: Python<'_>,
     src: PathBuf,
@@ -1640,6 +1655,11 @@ fn convert(
     nodata_tag: bool,
     detail: Option<&Bound<'_, PyAny>>,
     weights: &str,
+    product: &str,
+    slope_units: &str,
+    zero_for_flat: bool,
+    azimuth: f64,
+    altitude: f64,
 ) -> PyResult<ConversionSummary> {
     let (opts, borders) = fit_options(patch, fit, border, convention, scale, relief, invert)?;
     let opts = with_weights(with_detail(opts, detail)?, weights)?.with_nodata(nodata);
@@ -1658,7 +1678,11 @@ fn convert(
         .with_compression(compression)
         .with_layout(layout)
         .with_residual(residual)
-        .with_map_units(map_units);
+        .with_map_units(map_units)
+        .with_product(parse_named::<Product>(product)?)
+        .with_slope_units(parse_named::<SlopeUnits>(slope_units)?)
+        .with_zero_for_flat(zero_for_flat)
+        .with_sun(Sun::new(azimuth, altitude).map_err(to_py_err)?);
     conversion.bits = bits;
     let summary = py.detach(|| conversion.convert_file(&src, &dst)).map_err(|e| match e.place {
         Place::Input => file_error(&src, e.error, false),

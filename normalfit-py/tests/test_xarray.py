@@ -167,6 +167,34 @@ def test_coordinates_without_a_transform_give_the_spacing() -> None:
     assert r.dims == ("y", "x") and r.attrs["units"] == "m"
 
 
+@pytest.mark.parametrize("product", ["slope", "aspect", "hillshade"])
+def test_a_south_up_grid_is_measured_on_the_map(product: str) -> None:
+    """y growing down the rows (row 0 south, as many netCDF grids are):
+    the aspect and the sun are the map's, so the products are the
+    north-up grid's with the rows flipped, NumPy- and Dask-backed; read
+    as north-up, the aspect would be 180° − a."""
+    z = dem().astype(np.float64)
+    x = 10.0 + 30 * np.arange(COLS)
+    north_up = xr.DataArray(z, dims=("y", "x"), coords={"y": 5000.0 - 30 * np.arange(ROWS), "x": x})
+    south_up = xr.DataArray(z[::-1], dims=("y", "x"), coords={"y": north_up.y.values[::-1], "x": x})
+    options = dict(border="clamp", fit="vertical", weights="binomial")
+    want = getattr(nx, product)(north_up, **options).values[::-1]
+    for grid in (south_up, south_up.chunk({"y": 7, "x": 6})):
+        got = np.asarray(getattr(nx, product)(grid, **options).values, dtype=np.float64)
+        if product == "aspect":
+            off = np.abs(got - want)
+            off = np.minimum(off, 360 - off)
+            assert off.max() < 1e-3, off.max()
+        elif product == "hillshade":
+            assert np.abs(got - want).max() <= 1
+        else:
+            assert np.abs(got - want).max() < 1e-4
+    # The bare call takes the transform: the same values as the DataArray's.
+    transform = (x[0] - 15, 30.0, 0.0, south_up.y.values[0] - 15, 0.0, 30.0)
+    bare = getattr(normalfit, product)(z[::-1].copy(), pixel_size=30.0, transform=transform, **options)
+    assert np.array_equal(bare, getattr(nx, product)(south_up, **options).values, equal_nan=True)
+
+
 def test_irregular_coordinates_are_refused() -> None:
     x = 10.0 + 4 * np.arange(COLS)
     x[7:] += 0.5
@@ -248,6 +276,22 @@ def test_products_round_trip_keep_the_grid_and_equal_the_cli(
     assert dst["geoTransform"] == src["geoTransform"]
     assert dst["coordinateSystem"] == src["coordinateSystem"]
     assert [b["type"] for b in dst["bands"]] == ["Byte" if dtype == np.uint8 else "Float32"]
+
+
+@pytest.mark.parametrize(("product", "keywords", "flags", "units", "dtype"), PRODUCTS)
+def test_convert_writes_the_clis_product_files(
+    cli: Path, tmp_path: Path, product: str, keywords: dict[str, object], flags: list[str], units: str | None,
+    dtype: type,
+) -> None:
+    tif = projected(tmp_path, holes=True)
+    out = tmp_path / "python.tif"
+    summary = normalfit.convert(tif, out, units="map", product=product, fit="vertical", border="clamp", **keywords)
+    assert summary.missing > 0
+    written = rioxarray.open_rasterio(out)
+    assert written.dtype == dtype
+    assert np.array_equal(written.values[0], cli_product(cli, tif, tmp_path, product, *flags), equal_nan=True)
+    with pytest.raises(ValueError, match="product"):
+        normalfit.convert(tif, tmp_path / "bad.tif", units="map", product="relief")
 
 
 @pytest.mark.parametrize("kind", ["projected", "geographic"])

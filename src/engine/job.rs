@@ -514,6 +514,7 @@ impl Job<'_> {
             Stage::Terrain { measure, .. } => Some(measure),
             _ => None,
         };
+        let affine = self.georef.and_then(crate::io::Georef::affine);
         let (curvature, range) = match self.stage {
             Stage::Curvature { range, .. } => (true, range),
             _ => (false, 0.0),
@@ -524,7 +525,7 @@ impl Job<'_> {
             #[cfg(feature = "tiff")]
             (None, Output::File { path, .. }, Encoding::Tiff(_)) if measure.is_some() => files.write(path, |file| {
                 if let Some(measure) = measure {
-                    missing = pipeline::measure_tiff(rows, tail, &fit, measure, tags, visit, file)
+                    missing = pipeline::measure_tiff(rows, tail, &fit, (measure, affine.as_ref()), tags, visit, file)
                         .inspect_err(&mut on_input)?;
                 }
                 Ok(())
@@ -799,7 +800,8 @@ impl Job<'_> {
         let normals: Vec<[f64; 3]> =
             fitted(heights, width, height, fit, None, valid.as_deref_mut()).map_err(&in_failure)?;
         let mut values = zeroed::<f32>(normals.len()).map_err(&in_failure)?;
-        measure.fill(&normals, fit.convention, &mut values);
+        let affine = self.georef.and_then(crate::io::Georef::affine);
+        measure.fill(&normals, fit.convention, affine.as_ref(), &mut values);
         drop(normals);
         if let Some(valid) = &valid {
             for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| !**valid) {

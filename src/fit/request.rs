@@ -162,6 +162,17 @@ impl<'a> FitRequest<'a> {
     }
 
     /// The options' convention: how a caller of the normals reads their y.
+    /// The output's width and height for heights of `width` × `height`:
+    /// the window's size, or theirs.
+    pub(crate) fn output_size(&self, width: usize, height: usize) -> (usize, usize) {
+        self.window.map_or((width, height), |w| w.size)
+    }
+
+    /// The output's width (see [`Self::output_size`]).
+    pub(crate) fn output_width(&self, width: usize) -> usize {
+        self.output_size(width, 0).0
+    }
+
     pub(crate) fn convention(&self) -> crate::options::Convention {
         self.opts.convention
     }
@@ -201,12 +212,30 @@ impl<'a> FitRequest<'a> {
         heights.fit(self, (width, height), out)
     }
 
-    /// [`Self::normals_into`] for a slice of one sample type.
+    /// [`Self::normals_into`] a band of output rows at a time: `each` gets
+    /// the band's first output row, its normals and (with holes) which of
+    /// them are valid, in order from the top. For a caller that turns
+    /// normals into something else (a slope map) and need not hold them
+    /// all: the normals of about [`BAND_TEXELS`] texels at once. Holes as
+    /// [`Self::holes`] makes them (NaN and infinite heights, and the
+    /// options' nodata, are missing texels); the same bits as the whole
+    /// request gives; no residual, and the request's own `valid` (if any)
+    /// is not written. Returns the count of missing texels.
+    pub(crate) fn normals_in_bands<S: Heights + ?Sized, T: FromNormal>(
+        self,
+        heights: &S,
+        (width, height): (usize, usize),
+        each: &mut EachBand<'_, T>,
+    ) -> Result<usize> {
+        heights.fit_bands(self, (width, height), each)
+    }
+
+    /// [`Self::normals_into`] for a slice of one sample type, into `sink`.
     fn run<H: Sample, T: FromNormal>(
         self,
         heights: &[H],
         (width, height): (usize, usize),
-        out: &mut [T],
+        sink: Sink<'_, T>,
     ) -> Result<usize> {
         let FitRequest { opts, borders, window, residual, valid, missing } = self;
         let image = window.map_or((width, height), |w| w.image);
@@ -231,9 +260,18 @@ impl<'a> FitRequest<'a> {
             }
         };
         let (held_len, out_len) = (checked_len(width, height)?, ow * oh);
+        // In bands the caller's `valid` is not written, nor a residual made.
+        let (residual, valid) = match sink {
+            Sink::Whole(_) => (residual, valid),
+            Sink::Bands(_) => (None, None),
+        };
+        let out_given = match &sink {
+            Sink::Whole(out) => Some(out.len()),
+            Sink::Bands(_) => None,
+        };
         let expected = [held_len, out_len, out_len, out_len];
         let actual =
-            [Some(heights.len()), Some(out.len()), residual.as_ref().map(|r| r.len()), valid.as_ref().map(|v| v.len())];
+            [Some(heights.len()), out_given, residual.as_ref().map(|r| r.len()), valid.as_ref().map(|v| v.len())];
         for (expected, actual) in expected.into_iter().zip(actual) {
             if let Some(actual) = actual
                 && actual != expected
@@ -244,17 +282,27 @@ impl<'a> FitRequest<'a> {
         if let Some(window) = &window {
             window.check_reads(&plan)?;
         }
-        let masked = plan.nodata.is_some() || valid.is_some();
+        // Bands are fitted with holes, as `holes` asks: NaN and infinite
+        // heights are missing texels, not an error.
+        let masked = plan.nodata.is_some() || valid.is_some() || matches!(sink, Sink::Bands(_));
         if !masked && let Some((x, y)) = first_non_finite(heights, width) {
             let x = plan.borders.x.map(held_x.start + x as isize, image.0);
             let y = plan.borders.y.map(held_y.start + y as isize, image.1);
             return Err(Error::NonFiniteHeight { x, y });
         }
         // The memory rule, before the fit allocates: its sums grow with N.
-        let work = detail::work_bytes(&plan, H::UNIT, (ow, oh), masked, residual.is_some());
-        let own_valid = if masked && valid.is_none() { out_len as u64 } else { 0 };
+        let band_rows = match sink {
+            Sink::Whole(_) => oh,
+            Sink::Bands(_) => (BAND_TEXELS / ow.max(1)).clamp(1, oh),
+        };
+        let work = detail::work_bytes(&plan, H::UNIT, (ow, band_rows), masked, residual.is_some());
+        let band_normals = match sink {
+            Sink::Whole(_) => 0,
+            Sink::Bands(_) => (band_rows * ow * std::mem::size_of::<T>()) as u64,
+        };
+        let own_valid = if masked && valid.is_none() { (band_rows * ow) as u64 } else { 0 };
         let hole_rows = if masked { height as u64 } else { 0 };
-        crate::memory::check_memory("fitting the normals", work + own_valid + hole_rows)?;
+        crate::memory::check_memory("fitting the normals", work + own_valid + hole_rows + band_normals)?;
         let nodata = plan.nodata.unwrap_or(f64::NAN);
         let holes: Vec<bool> = if masked {
             let mut holes = try_vec(height)?;
@@ -271,18 +319,59 @@ impl<'a> FitRequest<'a> {
             RowRef { values: &heights[k * width..][..width], x0: held_x.start, holes: masked && holes[k] }
         };
         let cols = ox..ox + ow;
-        if !masked {
-            detail::fit_rows(&plan, &rows, H::UNIT, (oy, cols), out, residual, None);
-            return Ok(0);
-        }
-        let mut own = if valid.is_none() { try_filled(out_len, false)? } else { Vec::new() };
-        let valid = match valid {
-            Some(valid) => valid,
-            None => &mut own[..],
+        let each = match sink {
+            Sink::Whole(out) => {
+                if !masked {
+                    detail::fit_rows(&plan, &rows, H::UNIT, (oy, cols), out, residual, None);
+                    return Ok(0);
+                }
+                let mut own = if valid.is_none() { try_filled(out_len, false)? } else { Vec::new() };
+                let valid = match valid {
+                    Some(valid) => valid,
+                    None => &mut own[..],
+                };
+                detail::fit_rows(&plan, &rows, H::UNIT, (oy, cols), out, residual, Some((&mut *valid, nodata)));
+                return Ok(valid.iter().filter(|&&v| !v).count());
+            }
+            Sink::Bands(each) => each,
         };
-        detail::fit_rows(&plan, &rows, H::UNIT, (oy, cols), out, residual, Some((&mut *valid, nodata)));
-        Ok(valid.iter().filter(|&&v| !v).count())
+        let mut normals = try_filled(band_rows * ow, T::from_normal([0.0, 0.0, 1.0]))?;
+        let mut valid = if masked { try_filled(band_rows * ow, false)? } else { Vec::new() };
+        let mut missing = 0;
+        for first in (0..oh).step_by(band_rows) {
+            let texels = (band_rows.min(oh - first)) * ow;
+            let (normals, valid) = (&mut normals[..texels], valid.get_mut(..texels));
+            let place = (oy + first, cols.clone());
+            match valid {
+                Some(valid) => {
+                    detail::fit_rows(&plan, &rows, H::UNIT, place, normals, None, Some((&mut *valid, nodata)));
+                    missing += valid.iter().filter(|&&v| !v).count();
+                    each(first, normals, Some(valid));
+                }
+                None => {
+                    detail::fit_rows(&plan, &rows, H::UNIT, place, normals, None, None);
+                    each(first, normals, None);
+                }
+            }
+        }
+        Ok(missing)
     }
+}
+
+/// About how many texels' normals [`FitRequest::normals_in_bands`] holds
+/// at once: a few megabytes, enough rows for every thread.
+pub(crate) const BAND_TEXELS: usize = 1 << 19;
+
+/// What takes [`FitRequest::normals_in_bands`]'s bands: the band's first
+/// output row, its normals and (with holes) which of them are valid.
+#[doc(hidden)]
+pub type EachBand<'a, T> = dyn FnMut(usize, &[T], Option<&[bool]>) + 'a;
+
+/// Where [`FitRequest::run`] puts the normals: the caller's buffer for the
+/// whole output, or bands handed to a consumer in turn.
+enum Sink<'s, T> {
+    Whole(&'s mut [T]),
+    Bands(&'s mut EachBand<'s, T>),
 }
 
 /// Why a residual is refused with weights.
@@ -325,13 +414,32 @@ pub trait Heights: sealed::Sealed {
     /// [`FitRequest::normals_into`] calls).
     #[doc(hidden)]
     fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize>;
+
+    /// Runs `request` a band at a time (what
+    /// `FitRequest::normals_in_bands` calls).
+    #[doc(hidden)]
+    fn fit_bands<T: FromNormal>(
+        &self,
+        request: FitRequest<'_>,
+        size: (usize, usize),
+        each: &mut EachBand<'_, T>,
+    ) -> Result<usize>;
 }
 
 impl<H: Sample> sealed::Sealed for [H] {}
 
 impl<H: Sample> Heights for [H] {
     fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
-        request.run(self, size, out)
+        request.run(self, size, Sink::Whole(out))
+    }
+
+    fn fit_bands<T: FromNormal>(
+        &self,
+        request: FitRequest<'_>,
+        size: (usize, usize),
+        each: &mut EachBand<'_, T>,
+    ) -> Result<usize> {
+        request.run(self, size, Sink::Bands(each))
     }
 }
 
@@ -339,7 +447,16 @@ impl<H: Sample> sealed::Sealed for Vec<H> {}
 
 impl<H: Sample> Heights for Vec<H> {
     fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
-        request.run(self.as_slice(), size, out)
+        self.as_slice().fit(request, size, out)
+    }
+
+    fn fit_bands<T: FromNormal>(
+        &self,
+        request: FitRequest<'_>,
+        size: (usize, usize),
+        each: &mut EachBand<'_, T>,
+    ) -> Result<usize> {
+        self.as_slice().fit_bands(request, size, each)
     }
 }
 
@@ -347,7 +464,16 @@ impl<H: Sample, const N: usize> sealed::Sealed for [H; N] {}
 
 impl<H: Sample, const N: usize> Heights for [H; N] {
     fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
-        request.run(self.as_slice(), size, out)
+        self.as_slice().fit(request, size, out)
+    }
+
+    fn fit_bands<T: FromNormal>(
+        &self,
+        request: FitRequest<'_>,
+        size: (usize, usize),
+        each: &mut EachBand<'_, T>,
+    ) -> Result<usize> {
+        self.as_slice().fit_bands(request, size, each)
     }
 }
 
@@ -355,6 +481,15 @@ impl sealed::Sealed for Samples {}
 
 impl Heights for Samples {
     fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
-        with_slice!(self, s => request.run(s, size, out))
+        with_slice!(self, s => s.fit(request, size, out))
+    }
+
+    fn fit_bands<T: FromNormal>(
+        &self,
+        request: FitRequest<'_>,
+        size: (usize, usize),
+        each: &mut EachBand<'_, T>,
+    ) -> Result<usize> {
+        with_slice!(self, s => s.fit_bands(request, size, each))
     }
 }

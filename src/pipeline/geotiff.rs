@@ -83,7 +83,8 @@ pub(crate) fn shade_tiff<W: Write + Seek>(
 /// A height map's slope or aspect ([`crate::units::Measure`]), a float
 /// TIFF of one sample with `tags` (the nodata value among them), written as
 /// it is fitted: the values the whole image gives
-/// ([`crate::units::Measure::fill`] of its normals, fitted in `f64`).
+/// ([`crate::units::Measure::fill`] of its normals, fitted in `f64`, on
+/// the raster placed by the affine given with the measure).
 /// `tail` (the image's last rows) is needed for a wrap in y. Returns the
 /// count of missing texels.
 ///
@@ -92,16 +93,16 @@ pub(crate) fn measure_tiff<W: Write + Seek>(
     rows: impl RowSource,
     tail: Option<&[f64]>,
     opts: &Options,
-    measure: crate::units::Measure,
+    (measure, affine): (crate::units::Measure, Option<&crate::io::Affine>),
     tags: TiffTags<'_>,
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<usize> {
     let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
-    let convention = opts.convention;
+    let (convention, affine) = (opts.convention, affine.copied());
     let values = move |normals: &mut [[f64; 3]], valid: &[f32], values: &mut Vec<f32>| {
         values.resize(normals.len(), 0.0);
-        measure.fill(normals, convention, values);
+        measure.fill(normals, convention, affine.as_ref(), values);
         // `valid` is one a texel with holes, else empty.
         for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| **valid == 0.0) {
             *v = crate::units::NODATA;

@@ -40,6 +40,22 @@ fn geographic_tags() -> Vec<GeoTag> {
     ]
 }
 
+/// utm_tags' place with row 0 south: a ModelTransformation whose y grows
+/// down the rows (e = +30), its first row the north-up raster's last.
+fn south_up_tags() -> Vec<GeoTag> {
+    let mut tags = geotiff::utm_tags();
+    let south = 4_500_000.0 - PIXEL * H as f64;
+    let transform = [PIXEL, 0.0, 0.0, 500_000.0, 0.0, PIXEL, 0.0, south, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    tags.retain(|t| !matches!(t, GeoTag::Doubles(33550 | 33922, _)));
+    tags.push(GeoTag::Doubles(34264, transform.to_vec()));
+    tags
+}
+
+/// `values` (W × H) with its rows in the other order.
+fn rows_flipped<T: Copy>(values: &[T]) -> Vec<T> {
+    values.chunks(W).rev().flatten().copied().collect()
+}
+
 /// A float64 GeoTIFF of `values` (W × H) with `tags`.
 fn dem(path: &Path, values: &[f64], tags: &[GeoTag]) {
     std::fs::write(path, geotiff::write(W, H, &Layout::gray(Kind::F64), &[values.to_vec()], tags)).unwrap();
@@ -615,10 +631,14 @@ fn the_products_in_memory_are_the_programs() {
         (Product::Slope, Measure::Slope(SlopeUnits::Degrees)),
         (Product::Aspect, Measure::Aspect { zero_for_flat: false }),
     ];
-    for (place, tags) in [("utm", geotiff::utm_tags()), ("geographic", geographic_tags())] {
+    for (place, tags) in
+        [("utm", geotiff::utm_tags()), ("geographic", geographic_tags()), ("south-up", south_up_tags())]
+    {
         dem(&input, &heights, &tags);
         let georef = read_path(&input, &ReadOptions::default()).unwrap().georef;
         let spacing = map_spacing(georef.as_ref(), H).unwrap();
+        let affine = georef.as_ref().and_then(normalfit::io::Georef::affine);
+        let affine = affine.as_ref();
         for border in [Border::Wrap, Border::Clamp, Border::Mirror] {
             let fit = Options::new().with_fit(Fit::Vertical).with_borders(Borders::both(border)).with_patch(5);
             let opts = fit.clone().with_units(Units::Map(spacing.clone())).with_nodata(Some(HOLE));
@@ -648,15 +668,19 @@ fn the_products_in_memory_are_the_programs() {
                 let mut whole = vec![0.0f32; W * H];
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
                 let missing = pool
-                    .install(|| measure_into(FitRequest::new(&opts), measure, NODATA, &heights, W, H, &mut whole))
+                    .install(|| {
+                        measure_into(FitRequest::new(&opts), measure, affine, NODATA, &heights, W, H, &mut whole)
+                    })
                     .unwrap();
                 assert!(missing >= 6, "{what} {product}: {missing} missing");
                 let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits());
                 assert!(same(&whole, &program), "{what} {product}: in memory ≠ the program's");
                 let mut four = vec![0.0f32; W * H];
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
-                pool.install(|| measure_into(FitRequest::new(&opts), measure, f32::NAN, &heights, W, H, &mut four))
-                    .unwrap();
+                pool.install(|| {
+                    measure_into(FitRequest::new(&opts), measure, affine, f32::NAN, &heights, W, H, &mut four)
+                })
+                .unwrap();
                 let nan_for_nodata: Vec<f32> = whole.iter().map(|&v| if v == NODATA { f32::NAN } else { v }).collect();
                 // Aspect's −9999 is a flat texel's too: compare where not.
                 let kept: Vec<(f32, f32)> = four
@@ -673,6 +697,7 @@ fn the_products_in_memory_are_the_programs() {
                         measure_into(
                             FitRequest::new(&opts).window(window),
                             measure,
+                            affine,
                             NODATA,
                             &held(&window),
                             hw,
@@ -693,9 +718,60 @@ fn the_products_in_memory_are_the_programs() {
             // The bytes as stored (to_f32 would give contract units, v / 255).
             let normalfit::Samples::U8(program) = &raster.planes[0].data else { panic!("{what}: an 8-bit hillshade") };
             let mut greys = vec![0u8; W * H];
-            hillshade_into(FitRequest::new(&opts), Sun::default(), &heights, W, H, &mut greys).unwrap();
+            hillshade_into(FitRequest::new(&opts), Sun::default(), affine, &heights, W, H, &mut greys).unwrap();
             assert!(greys.contains(&0) && greys.iter().any(|&g| g > 200), "{what}: hillshade");
             assert!(greys == *program, "{what}: hillshade in memory ≠ the program's");
+        }
+    }
+}
+
+/// A south-up raster (row 0 south, the transform's e > 0) is the same map
+/// as the north-up one with its rows the other way: its slope, aspect and
+/// hillshade are the north-up file's, rows flipped, in both fits and every
+/// border (each border is the same read from either end). Read as
+/// north-up, its aspect would be mirrored (180° − a), its sun from the
+/// south-west.
+#[test]
+fn a_south_up_raster_is_measured_on_the_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let (north_up, south_up) = (dir.path().join("n.tif"), dir.path().join("s.tif"));
+    let (a, b) = (dir.path().join("a.tif"), dir.path().join("b.tif"));
+    let heights = terrain();
+    dem(&north_up, &heights, &geotiff::utm_tags());
+    dem(&south_up, &rows_flipped(&heights), &south_up_tags());
+    for fit in [Fit::Vertical, Fit::Orthogonal] {
+        for border in [Border::Wrap, Border::Clamp, Border::Mirror] {
+            let opts = Options::new().with_fit(fit).with_borders(Borders::both(border)).with_patch(3);
+            let what = format!("{fit:?} {border:?}");
+            let mut compared = 0;
+            for product in [Product::Slope, Product::Aspect] {
+                convert(&north_up, &a, product, &opts, |c| c);
+                convert(&south_up, &b, product, &opts, |c| c);
+                let (want, got) = (values(&a), rows_flipped(&values(&b)));
+                let slope = values(&a);
+                for (k, (w, g)) in want.iter().zip(&got).enumerate() {
+                    let (w, g) = (f64::from(*w), f64::from(*g));
+                    let off = match product {
+                        Product::Aspect if slope[k] > 0.1 => {
+                            compared += 1;
+                            (w - g).abs().min(360.0 - (w - g).abs())
+                        }
+                        Product::Aspect => continue,
+                        _ => (w - g).abs(),
+                    };
+                    assert!(off < 1e-3, "{what} {product} at {k}: north-up {w}, south-up {g}");
+                }
+            }
+            assert!(compared > W * H / 2, "{what}: {compared} aspects compared");
+            convert(&north_up, &a, Product::Hillshade, &opts, |c| c);
+            convert(&south_up, &b, Product::Hillshade, &opts, |c| c);
+            let greys = |p: &Path| match read_path(p, &ReadOptions::default()).unwrap().planes.remove(0).data {
+                normalfit::Samples::U8(g) => g,
+                _ => panic!("an 8-bit hillshade"),
+            };
+            let (want, got) = (greys(&a), rows_flipped(&greys(&b)));
+            let worst = want.iter().zip(&got).map(|(w, g)| w.abs_diff(*g)).max().unwrap();
+            assert!(worst <= 1, "{what}: hillshade off by {worst} grey levels");
         }
     }
 }

@@ -144,11 +144,20 @@ def normals(
 
 def _terrain_options(name: str, options: dict[str, Any]) -> dict[str, Any]:
     """``options`` for ``normals`` (every keyword it takes flows through),
-    refusing those that are a normal map's alone."""
+    refusing those that are a normal map's alone; ``transform`` (where
+    the raster lies on the map) goes with the product."""
     for key in ("dtype", "residual", "out"):
         if key in options:
             raise TypeError(f"{name}() got an unexpected keyword argument {key!r} (a normal map's option)")
-    return options
+    return {k: v for k, v in options.items() if k != "transform"}
+
+
+def _placed(product: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
+    """The product with the raster's ``transform`` (GDAL's geotransform:
+    the aspect and the sun are the map's, whichever way its rows run),
+    when given."""
+    transform = options.get("transform")
+    return product if transform is None else {**product, "transform": [float(t) for t in transform]}
 
 
 def slope(heights: Any, *, slope_units: str = "degrees", **options: Any) -> Any:
@@ -164,11 +173,17 @@ def slope(heights: Any, *, slope_units: str = "degrees", **options: Any) -> Any:
     pixel_size, nodata, detail, ...); for a DEM in metres give
     pixel_size (map units) and border="clamp", as the command line's
     terrain examples do. NaN heights are holes here even without nodata.
-    dtype, residual and out are refused (TypeError).
+    dtype, residual and out are refused (TypeError). transform, the
+    raster's GDAL geotransform (x0, dx, rx, y0, ry, dy; rasterio's
+    ``transform.to_gdal()``), places it on the map for the aspect and
+    the sun: a south-up raster (dy > 0) has north at its last row.
+    Without it row 0 is north.
 
     Raises as ``normals``."""
     return normals(
-        heights, **_terrain_options("slope", options), _product={"product": "slope", "slope_units": slope_units}
+        heights,
+        **_terrain_options("slope", options),
+        _product=_placed({"product": "slope", "slope_units": slope_units}, options),
     )
 
 
@@ -176,11 +191,13 @@ def aspect(heights: Any, *, zero_for_flat: bool = False, **options: Any) -> Any:
     """The aspect map of a height map: ``normalfit convert --product
     aspect`` as a float32 (rows, columns) array: the compass direction
     the fitted plane faces (downhill), degrees clockwise from north (up
-    the array: row 0 is north), in [0, 360). Flat texels are -9999, as
+    the array: row 0 is north, unless ``transform`` places it otherwise), in [0, 360). Flat texels are -9999, as
     gdaldem writes (0 with zero_for_flat, ``-zero_for_flat``); missing
     ones NaN. The keywords as ``slope``'s."""
     return normals(
-        heights, **_terrain_options("aspect", options), _product={"product": "aspect", "zero_for_flat": zero_for_flat}
+        heights,
+        **_terrain_options("aspect", options),
+        _product=_placed({"product": "aspect", "zero_for_flat": zero_for_flat}, options),
     )
 
 
@@ -194,7 +211,7 @@ def hillshade(heights: Any, *, azimuth: float = 315.0, altitude: float = 45.0, *
     return normals(
         heights,
         **_terrain_options("hillshade", options),
-        _product={"product": "hillshade", "azimuth": azimuth, "altitude": altitude},
+        _product=_placed({"product": "hillshade", "azimuth": azimuth, "altitude": altitude}, options),
     )
 
 
@@ -362,6 +379,11 @@ def convert(
     nodata_tag: bool = True,
     detail: Sequence[tuple[int, float]] | None = None,
     weights: str = "uniform",
+    product: str = "normals",
+    slope_units: str = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> ConversionSummary:
     """``normalfit convert SRC -o DST`` with these options (the command
     line's names and values; see ``normalfit convert --help``): a height
@@ -395,6 +417,11 @@ def convert(
     "terrarium", heights packed in 8-bit RGB tiles unpacked to metres
     (--decode).
 
+    product: "normals", "slope", "aspect", "hillshade" or "curvature"
+    (--product; docs/products.md), with slope_units ("degrees" or
+    "percent"), zero_for_flat, and the sun's azimuth and altitude for a
+    hillshade: the command line's files, bit for bit.
+
     Returns a ConversionSummary (width, height, input_format, borders as
     used, streamed, tiling, warnings, nodata, missing). Raises ValueError for a bad option,
     ValueError naming the file for a src whose extension names another
@@ -407,7 +434,7 @@ def convert(
         src, dst, patch, fit, border, convention, scale, relief, invert, channel, bits, format, signed,
         compression, alpha, channels, residual, max_texels, layer, units,
         None if pixel_size is None else _pair(pixel_size), band, size, byte_order, decode, nodata, nodata_tag,
-        detail, weights,
+        detail, weights, product, slope_units, zero_for_flat, azimuth, altitude,
     )
 
 

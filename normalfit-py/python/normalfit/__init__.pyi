@@ -183,6 +183,11 @@ def convert(
     nodata_tag: bool = True,
     detail: Sequence[tuple[int, float]] | None = None,
     weights: Literal["uniform", "binomial"] = "uniform",
+    product: Literal["normals", "slope", "aspect", "hillshade", "curvature"] = "normals",
+    slope_units: Literal["degrees", "percent"] = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> ConversionSummary: ...
 def decode_normals(
     path: _Path, *, signed: bool = False, max_texels: int | None = None, layer: str | None = None

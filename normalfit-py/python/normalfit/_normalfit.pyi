@@ -61,6 +61,7 @@ def normals(
     zero_for_flat: bool = False,
     azimuth: float = 315.0,
     altitude: float = 45.0,
+    transform: Any | None = None,
 ) -> Any: ...
 def curvature(
     heights: Any,
@@ -122,6 +123,11 @@ def convert(
     nodata_tag: bool,
     detail: Any | None = None,
     weights: str = "uniform",
+    product: str = "normals",
+    slope_units: str = "degrees",
+    zero_for_flat: bool = False,
+    azimuth: float = 315.0,
+    altitude: float = 45.0,
 ) -> ConversionSummary: ...
 def blend(
     base: Any, detail: Any, method: str, strength: float, convention: str, detail_convention: str | None
@@ -220,6 +226,7 @@ def window_normals(
     zero_for_flat: bool = False,
     azimuth: float = 315.0,
     altitude: float = 45.0,
+    transform: Any | None = None,
 ) -> Any: ...
 def window_plan(
     image: tuple[int, int],

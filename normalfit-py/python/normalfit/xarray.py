@@ -339,6 +339,15 @@ def _terrain(
     (units, pixel_size) = _units(da, rest.pop("units", "map"), rest.pop("pixel_size", None))
     holes = _nodata(da, rest.pop("nodata", "auto"), True)
     threads = rest.pop("threads", None)
+    if "transform" in rest:
+        raise TypeError(f"{name}() got an unexpected keyword argument 'transform' (the DataArray's own is used)")
+    # The aspect and the sun are the map's whichever way the rows run (a
+    # south-up grid's y grows down the rows); a grid with neither a
+    # transform nor coordinates is north-up.
+    try:
+        product = {**product, "transform": _geotransform(da, dims)}
+    except ValueError:
+        pass
     if _is_dask(da.data):
         from . import dask as ndask
 
