@@ -18,7 +18,8 @@ already there).
 
 Each of K rounds runs every contender once, in turn (the core: one
 process, 3 repetitions, its best), so a change in the shared machine's
-load falls on all of them; the figures are the best of the K rounds.
+load falls on all of them, each round starting one contender later; the
+figures are the best of the K rounds (medians beside them).
 A call is timed until it returns: its result is dropped after the clock
 stops (freeing is not the call's work, for either side). Prints; asserts
 nothing.
@@ -32,6 +33,7 @@ nothing.
 from __future__ import annotations
 
 import argparse
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -141,18 +143,25 @@ def main() -> None:
         "np.empty((H, W, 3), float32).fill(0)": lambda: written_once((size, size, 3)),
         "buf.fill(0) (pages already there)": lambda: out32.fill(0),
     }
-    best = {name: float("inf") for name in contenders}
+    times: dict[str, list[float]] = {name: [] for name in contenders}
     core = float("inf")
+    items = list(contenders.items())
     with tempfile.NamedTemporaryFile(suffix=".u16") as raw:
         raw.write(h.tobytes())
         raw.flush()
-        for _ in range(args.rounds):
-            for name, work in contenders.items():
-                best[name] = min(best[name], timed(work))
+        for k in range(args.rounds):
+            # Each round starts one contender later: what a call follows
+            # matters (memory just freed is cheaper to take again than
+            # pages the system took back), so no call always follows
+            # the recipe's frees.
+            for name, work in items[k % len(items) :] + items[: k % len(items)]:
+                times[name].append(timed(work))
             line = subprocess.run(
                 [str(args.core), raw.name, str(size), str(size), "3"], capture_output=True, text=True, check=True
             ).stdout.split()
             core = min(core, float(line[3]))
+    best = {name: min(t) for name, t in times.items()}
+    median = {name: statistics.median(t) for name, t in times.items()}
 
     names = list(contenders)
     recipe, fresh, into, u8, one = (best[n] for n in names[:5])
@@ -160,10 +169,12 @@ def main() -> None:
           f"normalfit {normalfit.__version__}, NumPy {np.__version__}")
 
     def row(name: str, seconds: float, note: str = "") -> None:
-        print(f"  {name:<58} {seconds * 1000:8.1f} ms  {note}")
+        mid = f"(median {median[name] * 1000:6.1f})" if name in median else " " * 15
+        print(f"  {name:<58} {seconds * 1000:8.1f} ms {mid}  {note}")
 
     row(names[0], recipe)
-    row(names[1], fresh, f"recipe ÷ this: {recipe / fresh:.1f}× (asked ≥ 10×); this ÷ core: {fresh / core:.2f}×")
+    row(names[1], fresh, f"recipe ÷ this: {recipe / fresh:.1f}× (asked ≥ 10×; of the medians "
+        f"{median[names[0]] / median[names[1]]:.1f}×); this ÷ core: {fresh / core:.2f}×")
     row(names[2], into, f"recipe ÷ this: {recipe / into:.1f}×; this ÷ core: {into / core:.3f}× (asked ≤ 1.1×)")
     row("core: FitRequest::normals_into, kept buffer (Rust, no Python)", core)
     row(names[3], u8, f"recipe ÷ this: {recipe / u8:.1f}× (asked ≥ 20×)")
