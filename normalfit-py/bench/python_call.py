@@ -17,9 +17,9 @@ cost alone (numpy.empty written once, against the same write into pages
 already there).
 
 Each of K rounds runs every contender once, in turn (the core in a
-process of its own), so a change in the shared machine's
-load falls on all of them, each round starting one contender later; the
-figures are the best of the K rounds (medians beside them).
+process of its own), each round starting one contender later, so that a
+change in the shared machine's load falls on all of them; the figures
+are the best of the K rounds (medians beside them).
 A call is timed until it returns: its result is dropped after the clock
 stops (freeing is not the call's work, for either side). Prints; asserts
 nothing.
@@ -134,7 +134,7 @@ def main() -> None:
         "normalfit.normals(h) (new float32 array)": lambda: normalfit.normals(h),
         "normalfit.normals(h, out=buf)": lambda: normalfit.normals(h, out=out32),
         "normalfit.normals(h32, dtype=np.uint8, out=buf)": lambda: normalfit.normals(h32, dtype=np.uint8, out=out8),
-        # One thread, as the recipe runs: the comparison core for core.
+        # One thread, as the recipe runs: a core against a core.
         "normalfit.normals(h, threads=1) (new float32 array)": lambda: normalfit.normals(h, threads=1),
         "normalfit.normals(h), NumPy's huge pages off": without_huge_pages(lambda: normalfit.normals(h)),
         # What a new array's pages cost alone: numpy.empty written once,
