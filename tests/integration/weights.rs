@@ -206,7 +206,7 @@ fn at_n_3_the_vertical_fit_is_horns_gradient() {
 /// Flat in → flat out, exactly, at every N, whatever the level.
 #[test]
 fn flat_heights_give_flat_normals() {
-    for n in [3, 9, 33, 255] {
+    for n in [3, 9, 15, 33, 63, 255] {
         for fit in [Fit::Orthogonal, Fit::Vertical] {
             for level in [0.0f32, 0.37, 412.5] {
                 let (w, h) = (40, 37);
@@ -223,7 +223,9 @@ fn flat_heights_give_flat_normals() {
 fn wrap_commutes_with_shifting() {
     let (w, h) = (29, 23);
     let z = dem(w, h);
-    for n in [3, 9, 33] {
+    // 17 and 33 by blocks: the shift moves texels across blocks, which
+    // rounds differently (an ulp of the sums), hence 1e-12 and not bits.
+    for n in [3, 9, 17, 33] {
         for fit in [Fit::Orthogonal, Fit::Vertical] {
             let opts = binomial(n, fit, Borders::both(Border::Wrap)).with_strength(Strength::Scale(0.5));
             let base = fitted(&z, w, h, &opts);
@@ -248,7 +250,8 @@ fn threads_bands_and_windows_give_the_whole_image_bits() {
     for k in (0..w * h).step_by(37) {
         z[k] = -9999.0;
     }
-    for n in [3, 9, 33] {
+    // 17, 33 and 65 by blocks of 48, 96 and 192 columns and rows.
+    for n in [3, 9, 17, 33, 65] {
         for nodata in [None, Some(-9999.0)] {
             let heights: Vec<f32> = match nodata {
                 None => z.iter().map(|&v| if v == -9999.0 { 400.0 } else { v }).collect(),
@@ -282,7 +285,7 @@ fn threads_bands_and_windows_give_the_whole_image_bits() {
             assert!(banded == whole, "{what}: bands");
             // Windows of a few cuts, each fitted from its own held texels.
             let plan = HaloPlan::new(&opts).unwrap();
-            for (xs, ys) in [(0..300, 0..40), (300..777, 40..90), (777..1100, 7..61)] {
+            for (xs, ys) in [(0..300, 0..40), (300..777, 40..90), (777..1100, 7..61), (50..51, 20..21)] {
                 let window = plan.window((w, h), (xs.start, ys.start), (xs.len(), ys.len()));
                 let (hw, hh) = window.held_size();
                 let (x0, y0) =
@@ -306,6 +309,99 @@ fn threads_bands_and_windows_give_the_whole_image_bits() {
             }
         }
     }
+}
+
+/// Past the crossover (sums by FFT in blocks): the reference's weighted
+/// least squares on every border pair, both fits, with holes, on images of
+/// several blocks each way (N = 17: blocks of 48; 33: 96; 65: 192).
+#[test]
+fn by_blocks_the_fit_is_the_references_with_holes_on_every_border() {
+    let mut cases = 0;
+    for (n, (w, h), pairs) in [
+        (17, (110, 70), all_borders().collect::<Vec<_>>()),
+        (33, (120, 60), all_borders().collect()),
+        (
+            65,
+            (200, 40),
+            vec![Borders { x: Border::Wrap, y: Border::Mirror }, Borders { x: Border::Clamp, y: Border::Wrap }],
+        ),
+    ] {
+        let mut z = dem(w, h);
+        let mut valid = vec![true; w * h];
+        // A few scattered holes and a run of them, in some blocks only.
+        for k in (0..w * h).filter(|k| (k * 7919) % 400 < 3 || (k / w == h / 2 && (k % w) / 4 == 3)) {
+            z[k] = -9999.0;
+            valid[k] = false;
+        }
+        for borders in pairs {
+            for fit in [Fit::Orthogonal, Fit::Vertical] {
+                for nodata in [None, Some(-9999.0)] {
+                    let heights: Vec<f64> = match nodata {
+                        None => z.iter().map(|&v| if v == -9999.0 { 401.0 } else { v }).collect(),
+                        Some(_) => z.clone(),
+                    };
+                    let opts = binomial(n, fit, borders)
+                        .with_units(Units::Map(Spacing::Uniform { x: 1.5, y: 1.0 }))
+                        .with_nodata(nodata);
+                    let mut got = vec![[0.0f64; 3]; w * h];
+                    let mut got_valid = vec![false; w * h];
+                    FitRequest::new(&opts).holes(&mut got_valid).normals_into(&heights, w, h, &mut got).unwrap();
+                    let mask = nodata.map(|_| &valid[..]);
+                    let expected = reference::masked_normal_map(&heights, mask, w, h, &opts);
+                    let what = format!("N {n} {fit:?} {borders:?} nodata {nodata:?}");
+                    let (mut worst, mut fitted) = (0.0f64, 0);
+                    for (k, e) in expected.iter().enumerate() {
+                        match e {
+                            None => assert!(!got_valid[k], "{what}: texel {k} should be missing"),
+                            Some(e) => {
+                                assert!(got_valid[k], "{what}: texel {k} should be valid");
+                                worst = worst.max((0..3).map(|c| (got[k][c] - e[c]).abs()).fold(0.0, f64::max));
+                                fitted += 1;
+                            }
+                        }
+                    }
+                    assert!(fitted * 10 > w * h * 9, "{what}: {fitted} fitted");
+                    // Heights near 400 m: the transforms' rounding scales
+                    // with the relief within a block (about 1e-13 here); the
+                    // spec asks 1e-5.
+                    assert!(worst < 1e-9, "{what}: {worst:e}");
+                    cases += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(cases, (9 + 9 + 2) * 2 * 2);
+}
+
+/// By blocks a window's halo holds its blocks' inputs: the plan says so,
+/// and a window holding only r texels around it is refused in one line.
+#[test]
+fn by_blocks_a_halo_too_small_for_the_blocks_is_refused() {
+    let (w, h) = (300, 200);
+    let z = dem(w, h);
+    let opts = binomial(33, Fit::Vertical, Borders::both(Border::Wrap));
+    let plan = HaloPlan::new(&opts).unwrap();
+    // r = 16 and blocks of 96: columns from 0, rows from 16.
+    assert_eq!((plan.radius(), plan.reach()), (16, 16 + 95));
+    let window = plan.window((w, h), (100, 120), (10, 10));
+    assert_eq!(
+        window.halo,
+        normalfit::fit::Halo {
+            left: 100 - 96 + 16,
+            right: 192 - 110 + 16,
+            top: 120 - 112 + 16,
+            bottom: 200 - 130 + 16
+        }
+    );
+    // Uniform weights and N < 15 keep the halo of r.
+    assert_eq!(HaloPlan::new(&binomial(13, Fit::Vertical, Borders::both(Border::Wrap))).unwrap().reach(), 6);
+    let small = normalfit::fit::Window { halo: normalfit::fit::Halo::uniform(16), ..window };
+    let (hw, hh) = small.held_size();
+    let held: Vec<f64> = (0..hw * hh).map(|k| z[((120 - 16 + k / hw) % h) * w + (100 - 16 + k % hw) % w]).collect();
+    let mut out = vec![[0.0f64; 3]; 100];
+    let e = FitRequest::new(&opts).window(small).normals_into(&held, hw, hh, &mut out).unwrap_err();
+    let e = e.to_string();
+    assert!(e.contains("the window's patches read column 80") && e.contains("HaloPlan") && !e.contains('\n'), "{e}");
 }
 
 /// What the weighted fit does not define yet is refused in one line.
