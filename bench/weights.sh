@@ -28,7 +28,7 @@ user() {
   for _ in $(seq "$reps"); do
     rm -f "$out/s.tif" "$out"/s.tif.*
     /usr/bin/time -f '%U' -o "$out/t" "$1" convert "$dem" -o "$out/s.tif" --units map --product slope \
-      --border clamp -n "$2" --weights "$3" >/dev/null
+      --border clamp -n "$2" --weights "$3" >/dev/null || { echo "$1 failed at N = $2, $3" >&2; exit 1; }
     local t
     t=$(cat "$out/t")
     best=$(python3 -c "print(min(x for x in [$t, ${best:-$t}]))")
@@ -43,12 +43,13 @@ else
   echo "|---|---|---|---|"
 fi
 for n in $sizes; do
-  u=$(user "$bin" "$n" uniform)
-  b=$(user "$bin" "$n" binomial)
+  # `user` exits in its subshell: stop here too.
+  u=$(user "$bin" "$n" uniform) || exit 1
+  b=$(user "$bin" "$n" binomial) || exit 1
   row="| $n | $u | $b | $(python3 -c "print(f'{$b / $u:.2f}')") |"
   if [ -n "${BASELINE:-}" ]; then
-    bu=$(user "$BASELINE" "$n" uniform)
-    bb=$(user "$BASELINE" "$n" binomial)
+    bu=$(user "$BASELINE" "$n" uniform) || exit 1
+    bb=$(user "$BASELINE" "$n" binomial) || exit 1
     row="$row $bu | $bb | $(python3 -c "print(f'{$bb / $bu:.2f}')") |"
   fi
   echo "$row"
