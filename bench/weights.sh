@@ -2,8 +2,8 @@
 # The cost of binomial weights against uniform ones, by patch size: user
 # CPU seconds of `convert --units map --product slope --border clamp -n N
 # --weights W` on a DEM (default bench/.work/dem4096.tif, which
-# bench/terrain.sh makes), at N = 3, 9, 33, 63, 255 (or $SIZES). Past
-# N = 15 binomial sums are made by FFT in blocks (src/fit/convolve.rs),
+# bench/terrain.sh makes), at N = 3, 9, 33, 63, 255 (or $SIZES). From
+# N = 37 on binomial sums are made by FFT in blocks (src/fit/convolve.rs),
 # below it outright: this is how that crossover was measured.
 #
 #   bench/weights.sh [dem.tif]                       # target/release/normalfit

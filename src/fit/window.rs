@@ -140,7 +140,7 @@ impl Window {
 ///   the edge into the texels held (Dask's boundary `none`).
 /// * None on an axis the window spans whole: every read maps into it.
 ///
-/// With binomial weights from N = 15 on the sums are made by FFT in blocks
+/// With binomial weights from N = 37 on the sums are made by FFT in blocks
 /// aligned on the image (`convolve`): a window's halo then holds its blocks'
 /// inputs, r texels beyond the blocks that hold its first and last
 /// texels, up to [`Self::reach`] = r + B − 1 on a side (B, the block,
@@ -198,7 +198,7 @@ impl HaloPlan {
     }
 
     /// The most a halo holds on a side: r, or with sums by blocks of B
-    /// (binomial weights from N = 15 on), r + B − 1. What a caller that
+    /// (binomial weights from N = 37 on), r + B − 1. What a caller that
     /// holds one depth around every window (Dask's `map_overlap`) holds.
     #[must_use]
     pub fn reach(&self) -> usize {
