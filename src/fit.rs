@@ -72,6 +72,7 @@ use crate::options::Options;
 use crate::samples::Sample;
 
 mod band;
+mod convolve;
 mod detail;
 mod eigen;
 mod emit;

@@ -981,7 +981,8 @@ fn window_normals<'py>(
 /// without fitting (the image's `(width, height)`, refused without
 /// texels as the whole-array fit refuses it, the heights' dtype, every option, the output dtype,
 /// `threads`, border `auto`'s refusal), and the library's halo plan for
-/// them (`fit::HaloPlan`): the radius r a chunk's halo reaches, and
+/// them (`fit::HaloPlan`): the most a chunk's halo reaches on a side
+/// (`HaloPlan::reach`: r, or more with binomial weights summed by blocks), and
 /// whether along x and along y a chunk at the image's edge holds a halo
 /// beyond it (wrap: Dask's `periodic` boundary; clamp and mirror hold none).
 #[pyfunction]
@@ -1017,7 +1018,7 @@ fn window_plan(
     thread_count(threads)?;
     let borders = window_borders(borders).map_err(to_py_err)?;
     let plan = HaloPlan::new(&opts.with_borders(borders)).map_err(to_py_err)?;
-    Ok((plan.radius(), plan.beyond_edges()))
+    Ok((plan.reach(), plan.beyond_edges()))
 }
 
 /// The halo (left, right, top, bottom) the library plans for the window
@@ -1026,7 +1027,7 @@ fn window_plan(
 /// modes (`fit::HaloPlan::halo`): what `normalfit.dask` holds around each
 /// chunk.
 #[pyfunction]
-#[pyo3(signature = (image, origin, size, patch, border, detail=None))]
+#[pyo3(signature = (image, origin, size, patch, border, detail=None, weights="uniform"))]
 fn window_halo(
     image: (usize, usize),
     origin: (usize, usize),
@@ -1034,6 +1035,7 @@ fn window_halo(
     patch: &Bound<'_, PyAny>,
     border: &Bound<'_, PyAny>,
     detail: Option<&Bound<'_, PyAny>>,
+    weights: &str,
 ) -> PyResult<(usize, usize, usize, usize)> {
     let patch = whole(patch, "patch")?;
     let Ok(patch) = usize::try_from(patch) else {
@@ -1042,7 +1044,7 @@ fn window_halo(
         )));
     };
     let borders = window_borders(parse_borders(border)?).map_err(to_py_err)?;
-    let opts = with_detail(Options::new().with_patch(patch).with_borders(borders), detail)?;
+    let opts = with_weights(with_detail(Options::new().with_patch(patch).with_borders(borders), detail)?, weights)?;
     let Halo { left, right, top, bottom } = HaloPlan::new(&opts).map_err(to_py_err)?.halo(image, origin, size);
     Ok((left, right, top, bottom))
 }

@@ -145,6 +145,23 @@ def test_holes_chunked_equal_the_whole_array(client: Any, border: Any) -> None:
         nd.normals(da.from_array(whole, chunks=(5, 6)), nodata=-9999.0, dtype=np.uint8)
 
 
+@pytest.mark.parametrize("border", ["wrap", ("clamp", "mirror")])
+def test_binomial_weights_by_blocks_chunked_equal_the_whole_array(client: Any, border: Any) -> None:
+    """Binomial weights from N = 37 on are summed by FFT in blocks aligned
+    on the image: each chunk holds its blocks' inputs, a halo the library
+    plans chunk by chunk (up to r + B - 1 a side, B = 88 at N = 41), so the
+    lazy normals equal the whole array's bit for bit, holes included."""
+    whole = heights((70, 130), np.float64, seed=3) * 100.0 + 400.0
+    whole[30:33, 50:60] = -9999.0
+    for patch, chunks in ((41, (25, 40)), (65, ((10, 45, 15), (31, 99)))):
+        opts = dict(patch=patch, border=border, weights="binomial", nodata=-9999.0, fit="vertical")
+        got = nd.normals(da.from_array(whole, chunks=chunks), **opts).compute()
+        want = normalfit.normals(whole, **opts)
+        assert np.array_equal(got, want, equal_nan=True), (patch, chunks)
+        plain = normalfit.normals(whole, **{**opts, "weights": "uniform"})
+        assert not np.allclose(plain, want, equal_nan=True), "the weights made no difference"
+
+
 def test_a_patch_wider_than_the_image(client: Any) -> None:
     """N = 15 on a 6 x 5 image: indices keep mapping by the border's rule."""
     whole = heights((5, 6), np.float64)

@@ -96,6 +96,9 @@ pub(super) struct Plan {
     /// With weights, one axis's: w(k), w(k)·u and w(k)·u² at u = k − r
     /// (empty unweighted).
     pub(super) axis: [Vec<f64>; 3],
+    /// With binomial weights from [`super::convolve::FFT_FROM`] on: the
+    /// transforms of the sums by blocks (`None`: summed directly).
+    pub(super) blocks: Option<std::sync::Arc<super::convolve::Blocks>>,
     pub(super) borders: Borders,
     pub(super) height: usize,
     pub(super) block_rows: usize,
@@ -146,6 +149,7 @@ impl Plan {
             count: 0.0,
             weights: opts.weights,
             axis: Default::default(),
+            blocks: None,
             borders: opts.borders,
             height,
             block_rows: 0,
@@ -173,11 +177,18 @@ impl Plan {
             let wu: Vec<f64> = w.iter().enumerate().map(|(k, w)| w * (k as f64 - rf)).collect();
             let wuu: Vec<f64> = wu.iter().enumerate().map(|(k, wu)| wu * (k as f64 - rf)).collect();
             let a = wuu.iter().sum();
-            return Plan { n, r, a, count: 1.0, axis: [w, wu, wuu], block_rows, detail: Vec::new(), ..self.clone() };
+            // By blocks, a tile (and so a streaming caller's band) holds
+            // whole blocks of rows: their inputs are the rows it reads.
+            let blocks = super::convolve::block_len(self.weights, n)
+                .map(|len| std::sync::Arc::new(super::convolve::Blocks::new(len, &w, &wu)));
+            let block_rows = blocks.as_ref().map_or(block_rows, |b| block_rows.div_ceil(b.len) * b.len);
+            let axis = [w, wu, wuu];
+            return Plan { n, r, a, count: 1.0, axis, blocks, block_rows, detail: Vec::new(), ..self.clone() };
         }
         let a = n as f64 * rf * (rf + 1.0) * (2.0 * rf + 1.0) / 3.0;
         let count = (n * n) as f64;
-        Plan { n, r, a, count, axis: Default::default(), block_rows, detail: Vec::new(), ..self.clone() }
+        let axis = Default::default();
+        Plan { n, r, a, count, axis, blocks: None, block_rows, detail: Vec::new(), ..self.clone() }
     }
 
     /// Fits the output rows from `y0`, columns `cols`, into `out` (rows of
@@ -340,7 +351,18 @@ impl Plan {
             Kernel::Blocked => 2 * n * row(48 * n) + (n + 3) * window,
             // N rows' sums and their squares; with holes, N rows' weighted
             // mask sums (three planes) and the six moments' planes.
-            Kernel::Weighted => n * row(8 * padded) + window + if holes { 24 * (n + 2) * w + padded } else { 0 },
+            Kernel::Weighted => {
+                let direct = n * row(8 * padded) + window + if holes { 24 * (n + 2) * w + padded } else { 0 };
+                // By blocks, also a block's inputs (three planes of B + 2r
+                // rows) and outputs (four of B), a block of one row's sums,
+                // and the transforms' buffers (about 7 of L ≤ 1.5·B + 2r
+                // complex values).
+                direct
+                    + self.blocks.as_ref().map_or(0, |b| {
+                        let (len, r) = (b.len as u64, b.r as u64);
+                        8 * w * (3 * (len + 2 * r) + 4 * len) + row(0) + 16 * 7 * (2 * len + 2 * r)
+                    })
+            }
         };
         // The normals' three planes; in map units, the unequal spacing's
         // matrices and Newton planes (about 160 bytes a column).
@@ -437,6 +459,11 @@ impl Plan {
     pub(super) fn strip_cols(&self) -> usize {
         // The weighted sums have no start-up cost to spread: a strip of
         // ~512 columns keeps their N rows small at any N.
+        // By blocks, strips of whole blocks (from column 0), so that none
+        // is made twice.
+        if let Some(blocks) = &self.blocks {
+            return STRIP_COLS.div_ceil(blocks.len) * blocks.len;
+        }
         if self.weights != Weights::Uniform {
             return STRIP_COLS;
         }

@@ -3,12 +3,14 @@
 //! windows gives exactly the whole image's output, bit for bit, because
 //! the fit makes every texel's sums from its own patch alone, in an order
 //! fixed by the image (see the [module docs](super)): a window needs only
-//! its heights and a halo of r = N / 2 texels around them, which
-//! [`HaloPlan`] says side by side. [`FitRequest::window`](super::FitRequest::window)
+//! its heights and a halo of r = N / 2 texels around them, or with
+//! binomial weights summed by blocks (`convolve`), the whole blocks'
+//! inputs, which [`HaloPlan`] says side by side. [`FitRequest::window`](super::FitRequest::window)
 //! fits one.
 
 use std::ops::Range;
 
+use super::convolve::{Layout, block_len};
 use super::{Plan, checked_len};
 use crate::error::{Error, Result};
 use crate::options::{Border, Borders, Options};
@@ -96,26 +98,33 @@ impl Window {
         Ok(())
     }
 
-    /// Refuses a halo that lacks a texel the window's patches read,
-    /// naming it.
+    /// Refuses a halo that lacks a texel the window's patches read (with
+    /// sums by blocks, a texel its blocks read), naming it.
     pub(super) fn check_reads(&self, plan: &Plan) -> Result<()> {
         let borders = plan.borders;
         let (held_x, held_y) = self.held();
-        let r = plan.r as isize;
-        let reads = |axis: &str, first: usize, len: usize, held: &Range<isize>, border: Border, n: usize| {
-            let wanted = first as isize - r..(first + len) as isize + r;
+        let r = plan.r;
+        let layouts = plan.blocks.as_ref().map(|b| (Layout { len: b.len, first: 0 }, Layout { len: b.len, first: r }));
+        let reads = |axis: &str, first: usize, len: usize, held: &Range<isize>, border: Border, n: usize, blocks| {
+            let (lo, hi) = match blocks {
+                Some(layout) if len > 0 => Layout::cover(&layout, first..first + len, n),
+                _ => (first, first + len),
+            };
+            let wanted = lo as isize - r as isize..(hi + r) as isize;
+            let (before, after) = (first - lo + r, hi - first - len + r);
             match wanted.clone().find(|&u| !held.contains(&u) && !held.contains(&(border.map(u, n) as isize))) {
                 Some(u) => Err(Error::InvalidOption(format!(
                     "the window's patches read {axis} {u}, which the heights held ({axis}s {} to {}) lack: hold a \
-                     halo of {r} beyond the window wherever the image goes on",
+                     halo of {before} before the window and {after} after it wherever the image goes on \
+                     (HaloPlan plans it)",
                     held.start,
                     held.end - 1
                 ))),
                 None => Ok(()),
             }
         };
-        reads("column", self.origin.0, self.size.0, &held_x, borders.x, self.image.0)?;
-        reads("row", self.origin.1, self.size.1, &held_y, borders.y, self.image.1)
+        reads("column", self.origin.0, self.size.0, &held_x, borders.x, self.image.0, layouts.map(|l| l.0))?;
+        reads("row", self.origin.1, self.size.1, &held_y, borders.y, self.image.1, layouts.map(|l| l.1))
     }
 }
 
@@ -130,6 +139,14 @@ impl Window {
 ///   are up to the edge), none beyond it: the fit maps the reads beyond
 ///   the edge into the texels held (Dask's boundary `none`).
 /// * None on an axis the window spans whole: every read maps into it.
+///
+/// With binomial weights from N = 37 on the sums are made by FFT in blocks
+/// aligned on the image (`convolve`): a window's halo then holds its blocks'
+/// inputs, r texels beyond the blocks that hold its first and last
+/// texels, up to [`Self::reach`] = r + B − 1 on a side (B, the block,
+/// from N alone; along y the top r rows are a block of their own and the
+/// rest are cut from row r). A window whose halo lacks one of those
+/// inputs is refused, never fitted with other bits.
 ///
 /// ```
 /// use normalfit::fit::{Halo, HaloPlan};
@@ -151,6 +168,8 @@ impl Window {
 pub struct HaloPlan {
     radius: usize,
     borders: Borders,
+    /// The block length B of sums by blocks, or `None`.
+    block: Option<usize>,
 }
 
 impl HaloPlan {
@@ -160,7 +179,8 @@ impl HaloPlan {
     /// Errors: [`Error::InvalidOption`] for invalid options.
     pub fn new(opts: &Options) -> Result<HaloPlan> {
         opts.validate()?;
-        Ok(HaloPlan { radius: opts.largest_patch() / 2, borders: opts.borders })
+        let n = opts.largest_patch();
+        Ok(HaloPlan { radius: n / 2, borders: opts.borders, block: block_len(opts.weights, n) })
     }
 
     /// The same plan with these borders instead of the options' (as
@@ -175,6 +195,14 @@ impl HaloPlan {
     #[must_use]
     pub fn radius(&self) -> usize {
         self.radius
+    }
+
+    /// The most a halo holds on a side: r, or with sums by blocks of B
+    /// (binomial weights from N = 37 on), r + B − 1. What a caller that
+    /// holds one depth around every window (Dask's `map_overlap`) holds.
+    #[must_use]
+    pub fn reach(&self) -> usize {
+        self.radius + self.block.map_or(0, |b| b - 1)
     }
 
     /// The borders planned for.
@@ -195,8 +223,8 @@ impl HaloPlan {
     /// `image` texels (widths first), as the [type's docs](Self) say.
     #[must_use]
     pub fn halo(&self, image: (usize, usize), origin: (usize, usize), size: (usize, usize)) -> Halo {
-        let (left, right) = self.axis(image.0, origin.0, size.0, self.borders.x);
-        let (top, bottom) = self.axis(image.1, origin.1, size.1, self.borders.y);
+        let (left, right) = self.axis(image.0, origin.0, size.0, self.borders.x, 0);
+        let (top, bottom) = self.axis(image.1, origin.1, size.1, self.borders.y, self.radius);
         Halo { left, right, top, bottom }
     }
 
@@ -208,16 +236,25 @@ impl HaloPlan {
     }
 
     /// The halo before and after a run of `len` texels from `start` of an
-    /// axis of `n`.
-    fn axis(&self, n: usize, start: usize, len: usize, border: Border) -> (usize, usize) {
+    /// axis of `n` (with blocks, cut from `first` on).
+    fn axis(&self, n: usize, start: usize, len: usize, border: Border, first: usize) -> (usize, usize) {
         let r = self.radius;
         let end = start.saturating_add(len);
+        // With blocks, the reads reach r beyond the blocks that hold the
+        // run's first and last texels.
+        let (before, after) = match self.block {
+            Some(len) if end > start && end <= n => {
+                let (lo, hi) = Layout { len, first }.cover(start..end, n);
+                (start - lo + r, hi - end + r)
+            }
+            _ => (r, r),
+        };
         if start == 0 && end >= n {
             (0, 0)
         } else if border == Border::Wrap {
-            (r, r)
+            (before, after)
         } else {
-            (r.min(start), r.min(n.saturating_sub(end)))
+            (before.min(start), after.min(n.saturating_sub(end)))
         }
     }
 }

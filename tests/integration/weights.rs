@@ -206,7 +206,7 @@ fn at_n_3_the_vertical_fit_is_horns_gradient() {
 /// Flat in → flat out, exactly, at every N, whatever the level.
 #[test]
 fn flat_heights_give_flat_normals() {
-    for n in [3, 9, 33, 255] {
+    for n in [3, 9, 15, 33, 63, 255] {
         for fit in [Fit::Orthogonal, Fit::Vertical] {
             for level in [0.0f32, 0.37, 412.5] {
                 let (w, h) = (40, 37);
@@ -223,7 +223,9 @@ fn flat_heights_give_flat_normals() {
 fn wrap_commutes_with_shifting() {
     let (w, h) = (29, 23);
     let z = dem(w, h);
-    for n in [3, 9, 33] {
+    // 41 by blocks: the shift moves texels across blocks, which round
+    // differently (about 1e-12 of a normal), hence 1e-10, not bits.
+    for n in [3, 9, 41] {
         for fit in [Fit::Orthogonal, Fit::Vertical] {
             let opts = binomial(n, fit, Borders::both(Border::Wrap)).with_strength(Strength::Scale(0.5));
             let base = fitted(&z, w, h, &opts);
@@ -232,7 +234,7 @@ fn wrap_commutes_with_shifting() {
             let got = fitted(&shifted, w, h, &opts);
             for k in 0..w * h {
                 let expected = base[((k / w + dy) % h) * w + (k % w + dx) % w];
-                let close = (0..3).all(|c| (got[k][c] - expected[c]).abs() < 1e-12);
+                let close = (0..3).all(|c| (got[k][c] - expected[c]).abs() < 1e-10);
                 assert!(close, "N {n} {fit:?}: texel {k}: {:?} against {expected:?}", got[k]);
             }
         }
@@ -248,7 +250,8 @@ fn threads_bands_and_windows_give_the_whole_image_bits() {
     for k in (0..w * h).step_by(37) {
         z[k] = -9999.0;
     }
-    for n in [3, 9, 33] {
+    // 41 and 65 by blocks of 88 and 192 columns and rows.
+    for n in [3, 9, 41, 65] {
         for nodata in [None, Some(-9999.0)] {
             let heights: Vec<f32> = match nodata {
                 None => z.iter().map(|&v| if v == -9999.0 { 400.0 } else { v }).collect(),
@@ -282,7 +285,7 @@ fn threads_bands_and_windows_give_the_whole_image_bits() {
             assert!(banded == whole, "{what}: bands");
             // Windows of a few cuts, each fitted from its own held texels.
             let plan = HaloPlan::new(&opts).unwrap();
-            for (xs, ys) in [(0..300, 0..40), (300..777, 40..90), (777..1100, 7..61)] {
+            for (xs, ys) in [(0..300, 0..40), (300..777, 40..90), (777..1100, 7..61), (50..51, 20..21)] {
                 let window = plan.window((w, h), (xs.start, ys.start), (xs.len(), ys.len()));
                 let (hw, hh) = window.held_size();
                 let (x0, y0) =
@@ -305,6 +308,93 @@ fn threads_bands_and_windows_give_the_whole_image_bits() {
                 }
             }
         }
+    }
+}
+
+/// Past the crossover (sums by FFT in blocks): the reference's weighted
+/// least squares with holes, each border mode on each axis, both fits, on
+/// an image of two blocks across and two down (N = 37: blocks of 92
+/// columns from 0; rows 0..18, then 92 from row 18), holes in some blocks
+/// only (those rows' blocks summed directly, the others by FFT). The
+/// reference costs N² a texel: three pairs keep it to a few seconds (the
+/// bits of the other pairs are the whole fit's in the window tests).
+#[test]
+fn by_blocks_the_fit_is_the_references_with_holes() {
+    let (n, w, h) = (37, 94, 22);
+    let mut z = dem(w, h);
+    let mut valid = vec![true; w * h];
+    for k in (0..w * h).filter(|k| (k * 7919) % 500 < 3 || (k / w == 12 && (k % w) / 4 == 3)) {
+        z[k] = -9999.0;
+        valid[k] = false;
+    }
+    let pairs = [
+        (Borders { x: Border::Wrap, y: Border::Clamp }, Fit::Orthogonal),
+        (Borders { x: Border::Clamp, y: Border::Mirror }, Fit::Vertical),
+        (Borders { x: Border::Mirror, y: Border::Wrap }, Fit::Orthogonal),
+    ];
+    for (borders, fit) in pairs {
+        let opts = binomial(n, fit, borders)
+            .with_units(Units::Map(Spacing::Uniform { x: 1.5, y: 1.0 }))
+            .with_nodata(Some(-9999.0));
+        let mut got = vec![[0.0f64; 3]; w * h];
+        let mut got_valid = vec![false; w * h];
+        FitRequest::new(&opts).holes(&mut got_valid).normals_into(&z, w, h, &mut got).unwrap();
+        let expected = reference::masked_normal_map(&z, Some(&valid), w, h, &opts);
+        let what = format!("N {n} {fit:?} {borders:?}");
+        let (mut worst, mut fitted) = (0.0f64, 0);
+        for (k, e) in expected.iter().enumerate() {
+            match e {
+                None => assert!(!got_valid[k], "{what}: texel {k} should be missing"),
+                Some(e) => {
+                    assert!(got_valid[k], "{what}: texel {k} should be valid");
+                    worst = worst.max((0..3).map(|c| (got[k][c] - e[c]).abs()).fold(0.0, f64::max));
+                    fitted += 1;
+                }
+            }
+        }
+        assert!(fitted * 10 > w * h * 9, "{what}: {fitted} fitted");
+        // Heights near 400 m: the transforms' rounding scales with the
+        // relief within a block (about 1e-12 of a normal here, the direct
+        // sums' about 1e-13); the spec asks 1e-5.
+        assert!(worst < 1e-9, "{what}: {worst:e}");
+    }
+}
+
+/// By blocks a window's halo holds its blocks' inputs: the plan says so,
+/// and a window holding only r texels around it is refused in one line.
+#[test]
+fn by_blocks_a_halo_too_small_for_the_blocks_is_refused() {
+    let (w, h) = (300, 200);
+    let z = dem(w, h);
+    let opts = binomial(41, Fit::Vertical, Borders::both(Border::Wrap));
+    let plan = HaloPlan::new(&opts).unwrap();
+    // r = 20 and blocks of 88: columns from 0, rows from 20.
+    assert_eq!((plan.radius(), plan.reach()), (20, 20 + 87));
+    let window = plan.window((w, h), (100, 120), (10, 10));
+    let halo = normalfit::fit::Halo {
+        left: 100 - 88 + 20,
+        right: 176 - 110 + 20,
+        top: 120 - 108 + 20,
+        bottom: 196 - 130 + 20,
+    };
+    assert_eq!(window.halo, halo);
+    // Below N = 37 the halo stays r.
+    assert_eq!(HaloPlan::new(&binomial(35, Fit::Vertical, Borders::both(Border::Wrap))).unwrap().reach(), 17);
+    let small = normalfit::fit::Window { halo: normalfit::fit::Halo::uniform(20), ..window };
+    let (hw, hh) = small.held_size();
+    let held: Vec<f64> = (0..hw * hh).map(|k| z[((120 - 20 + k / hw) % h) * w + (100 - 20 + k % hw) % w]).collect();
+    let mut out = vec![[0.0f64; 3]; 100];
+    let e = FitRequest::new(&opts).window(small).normals_into(&held, hw, hh, &mut out).unwrap_err();
+    let e = e.to_string();
+    assert!(e.contains("the window's patches read column 68") && e.contains("HaloPlan") && !e.contains('\n'), "{e}");
+    // The planned halo fits, and gives the whole image's bits.
+    let (hw, hh) = window.held_size();
+    let (x0, y0) = (100 - window.halo.left, 120 - window.halo.top);
+    let held: Vec<f64> = (0..hw * hh).map(|k| z[((y0 + k / hw) % h) * w + (x0 + k % hw) % w]).collect();
+    FitRequest::new(&opts).window(window).normals_into(&held, hw, hh, &mut out).unwrap();
+    let whole = fitted(&z, w, h, &opts);
+    for (k, got) in out.iter().enumerate() {
+        assert_eq!(*got, whole[(120 + k / 10) * w + 100 + k % 10], "texel {k}");
     }
 }
 

@@ -101,11 +101,21 @@ def _fit_block(
     try:
         size = (cols[1] - cols[0], rows[1] - rows[0])
         (left, right, top, bottom) = _normalfit.window_halo(
-            image, (cols[0], rows[0]), size, options["patch"], options["border"], options["detail"]
+            image, (cols[0], rows[0]), size, options["patch"], options["border"], options["detail"],
+            options["weights"],
         )
-        expected = (rows[1] - rows[0] + top + bottom, cols[1] - cols[0] + left + right)
-        if held.shape != expected:
-            raise ValueError(f"the chunk and its halo hold {held.shape} texels, expected {expected}")
+        # map_overlap holds the same depth round every chunk (none beyond
+        # an edge that does not wrap); the library's halo for this chunk is
+        # at most that (binomial weights by blocks plan it chunk by chunk).
+        (depth_y, depth_x), (wrap_y, wrap_x) = options["depth"], options["periodic"]
+        held_top = depth_y if wrap_y or rows[0] > 0 else 0
+        held_bottom = depth_y if wrap_y or rows[1] < image[1] else 0
+        held_left = depth_x if wrap_x or cols[0] > 0 else 0
+        held_right = depth_x if wrap_x or cols[1] < image[0] else 0
+        gathered = (size[1] + held_top + held_bottom, size[0] + held_left + held_right)
+        if held.shape != gathered or top > held_top or bottom > held_bottom or left > held_left or right > held_right:
+            raise ValueError(f"the chunk and its halo hold {held.shape} texels, expected {gathered}")
+        held = held[held_top - top:held_top + size[1] + bottom, held_left - left:held_left + size[0] + right]
         result = _normalfit.window_normals(
             held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
             options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
@@ -198,7 +208,8 @@ def normals(
     bx, by = _normalfit.border_names(border)
     # Checked now, by the library, without a fit: every option, the
     # array's dtype, the output dtype, and border auto's refusal; and the
-    # halo it plans: r texels, beyond the image's edges along an axis that
+    # most its halo reaches on a side, r (more for binomial weights by
+    # blocks), beyond the image's edges along an axis that
     # wraps (x, y).
     pixel_size = _pixel_size(pixel_size)
     r, (beyond_x, beyond_y) = _normalfit.window_plan(
@@ -221,7 +232,7 @@ def normals(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
         dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
         detail=None if detail is None else list(detail), units=units, pixel_size=pixel_size, weights=weights,
-        product=None if _product is None else dict(_product),
+        product=None if _product is None else dict(_product), depth=depth, periodic=periodic,
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)
