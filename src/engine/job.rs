@@ -514,6 +514,7 @@ impl Job<'_> {
             Stage::Terrain { measure, .. } => Some(measure),
             _ => None,
         };
+        #[cfg(feature = "tiff")]
         let affine = self.georef.and_then(crate::io::Georef::affine);
         let (curvature, range) = match self.stage {
             Stage::Curvature { range, .. } => (true, range),
