@@ -411,6 +411,35 @@ impl Plan {
         v.with_hole.extend(holes.mask.c.iter().map(|&c| c != n2));
     }
 
+    /// Output row `y` (row `k` of the strip) from its window sums `v`, as
+    /// every kernel ends a row: with holes the valid points' sums made
+    /// first ([`Self::advance_holes`]), then [`Self::emit`] and the
+    /// residual, then the patches that hold a hole refitted
+    /// ([`Self::patch_holes`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn finish_row<'a, H: Sample, T: FromNormal>(
+        &self,
+        rows: &SourceRows<'_, 'a, H>,
+        v: &mut WindowSums,
+        gain: f64,
+        (y, k): (usize, usize),
+        mut holes: Option<&mut StripHoles<'_>>,
+        scratch: &mut EmitScratch,
+        out: &mut [T],
+        mut residual: Option<&mut [f32]>,
+    ) {
+        if let Some(holes) = holes.as_deref_mut() {
+            self.advance_holes(rows, y, holes, v);
+        }
+        self.emit(v, gain, y, scratch, out);
+        if let Some(residual) = residual.as_deref_mut() {
+            self.emit_residual(v, gain, y, scratch, residual);
+        }
+        if let Some(holes) = holes {
+            self.patch_holes(v, gain, (y, k), holes, out, residual);
+        }
+    }
+
     /// Refits the texels of output row `y` (row `k` of the strip) whose
     /// patch has a hole, from the valid points' moments (see `masked`;
     /// [`Self::advance_holes`] made them), over what [`Self::emit`] wrote,
@@ -581,16 +610,8 @@ impl Plan {
                 v.slide(&ring[p_out % n], &entering, rf, r1);
                 std::mem::swap(&mut ring[p_out % n], &mut entering);
             }
-            if let Some(holes) = holes.as_mut() {
-                self.advance_holes(rows, y0 + k, holes, &mut v);
-            }
-            self.emit(&v, gain, y0 + k, &mut scratch, out_row);
-            if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, gain, y0 + k, &mut scratch, residual[k]);
-            }
-            if let Some(holes) = holes.as_mut() {
-                self.patch_holes(&v, gain, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
-            }
+            let residual = residual.as_mut().map(|r| &mut *r[k]);
+            self.finish_row(rows, &mut v, gain, (y0 + k, k), holes.as_mut(), &mut scratch, out_row, residual);
         }
     }
 
@@ -658,16 +679,8 @@ impl Plan {
             }
             let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
             v.sum_rows(&patch_rows);
-            if let Some(holes) = holes.as_mut() {
-                self.advance_holes(rows, y0 + k, holes, &mut v);
-            }
-            self.emit(&v, 1.0, y0 + k, &mut scratch, out_row);
-            if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, 1.0, y0 + k, &mut scratch, residual[k]);
-            }
-            if let Some(holes) = holes.as_mut() {
-                self.patch_holes(&v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
-            }
+            let residual = residual.as_mut().map(|r| &mut *r[k]);
+            self.finish_row(rows, &mut v, 1.0, (y0 + k, k), holes.as_mut(), &mut scratch, out_row, residual);
         }
     }
 
@@ -776,16 +789,8 @@ impl Plan {
                     v.combine(&suffix[t], &prefix, shift);
                 }
                 let k = block * n + t - y0;
-                if let Some(holes) = holes.as_mut() {
-                    self.advance_holes(rows, y0 + k, holes, &mut v);
-                }
-                self.emit(&v, 1.0, y0 + k, &mut scratch, out[k]);
-                if let Some(residual) = residual.as_mut() {
-                    self.emit_residual(&v, 1.0, y0 + k, &mut scratch, residual[k]);
-                }
-                if let Some(holes) = holes.as_mut() {
-                    self.patch_holes(&v, 1.0, (y0 + k, k), holes, out[k], residual.as_mut().map(|r| &mut *r[k]));
-                }
+                let residual = residual.as_mut().map(|r| &mut *r[k]);
+                self.finish_row(rows, &mut v, 1.0, (y0 + k, k), holes.as_mut(), &mut scratch, out[k], residual);
             }
         }
     }

@@ -93,16 +93,8 @@ impl Plan {
                 cache.get(y - r + j, &row_sums);
             }
             self.weighted_window(&cache, y, &mut v);
-            if let Some(holes) = holes.as_mut() {
-                self.advance_holes(rows, y0 + k, holes, &mut v);
-            }
-            self.emit(&v, 1.0, y0 + k, &mut scratch, out_row);
-            if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, 1.0, y0 + k, &mut scratch, residual[k]);
-            }
-            if let Some(holes) = holes.as_mut() {
-                self.patch_holes(&v, 1.0, (y0 + k, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
-            }
+            let residual = residual.as_mut().map(|r| &mut *r[k]);
+            self.finish_row(rows, &mut v, 1.0, (y0 + k, k), holes.as_mut(), &mut scratch, out_row, residual);
         }
     }
 
@@ -213,16 +205,8 @@ impl Plan {
                 }
                 b.row(y, &mut v);
             }
-            if let Some(holes) = holes.as_mut() {
-                self.advance_holes(rows, y, holes, &mut v);
-            }
-            self.emit(&v, 1.0, y, &mut emit, out_row);
-            if let Some(residual) = residual.as_mut() {
-                self.emit_residual(&v, 1.0, y, &mut emit, residual[k]);
-            }
-            if let Some(holes) = holes.as_mut() {
-                self.patch_holes(&v, 1.0, (y, k), holes, out_row, residual.as_mut().map(|r| &mut *r[k]));
-            }
+            let residual = residual.as_mut().map(|r| &mut *r[k]);
+            self.finish_row(rows, &mut v, 1.0, (y, k), holes.as_mut(), &mut emit, out_row, residual);
         }
     }
 
