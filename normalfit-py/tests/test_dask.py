@@ -409,6 +409,20 @@ def test_read_zarr_names_the_chunk_that_cannot_be_read(client: Any, zarr: Any, t
         nd.normals(array, patch=3).compute()
 
 
+def test_to_zarr_writes_every_chunk_unless_told_otherwise(client: Any, zarr: Any, tmp_path: Path) -> None:
+    # Zarr skips a chunk equal to the fill value when asked to (its own
+    # default): to_zarr writes them all, and a caller's config still rules.
+    values = np.zeros((16, 16), np.float32)
+    values[8:, 8:] = 1.0
+    for config, stored in [(None, 4), ({"write_empty_chunks": False}, 1)]:
+        target = tmp_path / f"{stored}.zarr"
+        kwargs = {} if config is None else {"config": config}
+        nd.to_zarr(da.from_array(values, chunks=8), target, **kwargs)
+        chunks = [p for p in target.rglob("*") if p.is_file() and p.parent.parent.name == "c"]
+        assert len(chunks) == stored, sorted(str(p.relative_to(target)) for p in target.rglob("*"))
+        assert np.array_equal(np.asarray(zarr.open_array(os.fspath(target), mode="r")[...]), values)
+
+
 def test_to_zarr_writes_whole_or_not_at_all(client: Any, zarr: Any, tmp_path: Path) -> None:
     whole = heights((32, 48), np.uint16)
     target = tmp_path / "normals.zarr"
