@@ -610,7 +610,7 @@ impl pulp::WithSimd for MeasureRow<'_> {
 /// normals stored and read back: 4 bytes a texel where the `f64` normal
 /// took 24, and no pass of its own. A slope is a ratio of the normal's
 /// components, so the square grid's fit leaves its normalisation out
-/// ([`FromNormal::UNIT`]); the ratio, and the angle, are the unit
+/// ([`crate::fit::FromNormal::UNIT`]); the ratio, and the angle, are the unit
 /// normal's within an ulp of `f64`. It needs neither the convention nor
 /// the raster's axes: turning or mirroring the map's axes keeps
 /// √(x² + y²) (a mirror, bit for bit).
