@@ -101,7 +101,14 @@ pub use window::{Halo, HaloPlan, Window};
 /// c = (n + 1)/2, rounded). Writing texels straight from the fit saves a
 /// pass and a float copy of the image.
 pub trait FromNormal: Copy + Send + Sync {
-    /// Makes the texel from the normal's (x, y, z), a unit vector with z ≥ 0.
+    /// Whether the texel needs the normal at unit length. A texel made of
+    /// ratios of its components (a slope: √(x² + y²) / z) takes any
+    /// positive multiple of it, and the square grid's fit then hands it
+    /// the plane's (−Cx, −Cy, n_z) as they are: a square root, a division
+    /// and three products a texel saved (see `emit::normal_from_sums`).
+    const UNIT: bool = true;
+    /// Makes the texel from the normal's (x, y, z), a unit vector with z ≥ 0
+    /// (with [`Self::UNIT`] false, a positive multiple of one).
     fn from_normal(n: [f64; 3]) -> Self;
 }
 
@@ -315,15 +322,15 @@ mod tests {
             v.szz[x] = czz + v.s0[x] * v.s0[x] / 9.0;
         }
         let mut normal = [vec![0.0; w], vec![0.0; w], vec![0.0; w]];
-        plan.emit_with::<true>(&v, 1.0, &mut normal);
+        plan.emit_with::<true>(&v, 1.0, true, &mut normal);
         let mut cancelling = 0;
         for x in 0..w {
             let czz = ((9.0 * v.szz[x] - v.s0[x] * v.s0[x]) * (1.0 / 9.0)).max(0.0);
             assert_eq!(czz > plan.a, steep(x), "texel {x}: czz {czz}");
-            let with_division = normal_from_sums::<true, true>(plan.a, v.si[x], plan.sigma * v.sj[x], czz);
+            let with_division = normal_from_sums::<true, true>(plan.a, v.si[x], plan.sigma * v.sj[x], czz, true);
             let got = [normal[0][x], normal[1][x], normal[2][x]];
             assert_eq!(got.map(f64::to_bits), with_division.map(f64::to_bits), "texel {x}");
-            let without = normal_from_sums::<true, false>(plan.a, v.si[x], plan.sigma * v.sj[x], czz);
+            let without = normal_from_sums::<true, false>(plan.a, v.si[x], plan.sigma * v.sj[x], czz, true);
             if without.map(f64::to_bits) != with_division.map(f64::to_bits) {
                 assert!(steep(x), "texel {x}: gentle, but the formulas differ");
                 cancelling += 1;

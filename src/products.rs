@@ -4,11 +4,12 @@
 //! `normalfit.xarray`), the whole image or a window of it (a Dask chunk).
 //!
 //! The fit is [`FitRequest`]'s, the value of each texel the engine's own
-//! per-texel functions: `Measure::fill` (the slope or aspect map's
-//! stage, streamed or whole) on normals fitted in `f64`, and the GIS
-//! sun's grey (`light.rs`) on normals fitted in `f32`, as the lit
-//! view's stage fits them. So the values are the command line's on the
-//! same heights and options, bit for bit.
+//! per-texel functions: the texel `Measure::with_texel` chooses (a slope
+//! made in the fit's loop; an aspect by `Measure::fill` of normals fitted
+//! in `f64`), as the slope or aspect map's stage, streamed or whole,
+//! makes it, and the GIS sun's grey (`light.rs`) on normals fitted in
+//! `f32`, as the lit view's stage fits them. So the values are the
+//! command line's on the same heights and options, bit for bit.
 
 use crate::error::Result;
 use crate::fit::{FitRequest, Heights};
@@ -16,7 +17,7 @@ use crate::io::Affine;
 use crate::light::Sun;
 use crate::options::Convention;
 use crate::par::prelude::*;
-use crate::units::Measure;
+use crate::units::{Measure, MeasureTexel, WithTexel};
 
 /// The slope or aspect map ([`Measure`]) of `heights` (`width` ×
 /// `height`, row-major, any [`Heights`]), fitted as `request` says (the
@@ -46,7 +47,8 @@ use crate::units::Measure;
 /// ```
 ///
 /// Errors: those of [`FitRequest::normals_into`]; [`crate::Error::Limits`]
-/// when the normals' memory (24 bytes a texel) is not there.
+/// when the memory of a band's texels (4 bytes a texel for a slope, 24
+/// for an aspect's normal) is not there.
 #[allow(clippy::too_many_arguments)] // the heights and output as `normals_into`'s, and what the map needs
 pub fn measure_into<S: Heights + ?Sized>(
     request: FitRequest<'_>,
@@ -58,20 +60,40 @@ pub fn measure_into<S: Heights + ?Sized>(
     height: usize,
     out: &mut [f32],
 ) -> Result<usize> {
-    let convention = request.convention();
-    let texels = out.len();
-    let row = request.output_width(width);
-    // Each band's values from its normals, which are then dropped: the
-    // normals (24 bytes a texel) are never held for the whole image.
-    let mut band = |first: usize, normals: &[[f64; 3]], valid: Option<&[bool]>| {
-        let Some(out) = out.get_mut(first * row..first * row + normals.len()) else { return };
-        measure.fill(normals, convention, affine, out);
-        if let Some(valid) = valid {
-            out.iter_mut().zip(valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = hole);
-        }
-    };
-    check_output(texels, request.output_size(width, height))?;
-    request.normals_in_bands(heights, (width, height), &mut band)
+    check_output(out.len(), request.output_size(width, height))?;
+    measure.with_texel(MeasureBands { request, measure, affine, hole, heights, size: (width, height), out })
+}
+
+/// [`measure_into`]'s bands, in the texel the measure's fit makes
+/// ([`Measure::with_texel`]).
+struct MeasureBands<'a, S: ?Sized> {
+    request: FitRequest<'a>,
+    measure: Measure,
+    affine: Option<&'a Affine>,
+    hole: f32,
+    heights: &'a S,
+    size: (usize, usize),
+    out: &'a mut [f32],
+}
+
+impl<S: Heights + ?Sized> WithTexel for MeasureBands<'_, S> {
+    type Output = Result<usize>;
+
+    fn run<T: MeasureTexel>(self) -> Result<usize> {
+        let MeasureBands { request, measure, affine, hole, heights, size, out } = self;
+        let convention = request.convention();
+        let row = request.output_width(size.0);
+        // Each band's values from its texels, which are then dropped: the
+        // texels are never held for the whole image.
+        let mut band = |first: usize, texels: &[T], valid: Option<&[bool]>| {
+            let Some(out) = out.get_mut(first * row..first * row + texels.len()) else { return };
+            T::values(measure, texels, convention, affine, out);
+            if let Some(valid) = valid {
+                out.iter_mut().zip(valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = hole);
+            }
+        };
+        request.normals_in_bands(heights, size, &mut band)
+    }
 }
 
 /// The hillshade of `heights` under `sun`, as `convert --product

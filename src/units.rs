@@ -604,3 +604,84 @@ impl pulp::WithSimd for MeasureRow<'_> {
         }
     }
 }
+
+/// A slope map's texel, made by the fit in its own loop over a row (the
+/// row's normals still in the core's cache) rather than from a band of
+/// normals stored and read back: 4 bytes a texel where the `f64` normal
+/// took 24, and no pass of its own. A slope is a ratio of the normal's
+/// components, so the square grid's fit leaves its normalisation out
+/// ([`crate::fit::FromNormal::UNIT`]); the ratio, and the angle, are the unit
+/// normal's within an ulp of `f64`. It needs neither the convention nor
+/// the raster's axes: turning or mirroring the map's axes keeps
+/// √(x² + y²) (a mirror, bit for bit).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct SlopeTexel<const PERCENT: bool>(f32);
+
+impl<const PERCENT: bool> crate::fit::FromNormal for SlopeTexel<PERCENT> {
+    const UNIT: bool = false;
+    #[inline(always)]
+    fn from_normal(n: [f64; 3]) -> Self {
+        use crate::options::SlopeUnits;
+        let units = if PERCENT { SlopeUnits::Percent } else { SlopeUnits::Degrees };
+        SlopeTexel(Measure::Slope(units).of(n, Convention::OpenGl))
+    }
+}
+
+/// What the fit makes at each texel of a slope or an aspect map
+/// ([`Measure::with_texel`] says which), and the map's values of a band
+/// of them.
+pub(crate) trait MeasureTexel: crate::fit::FromNormal + Default + Send {
+    /// The values of `texels` into `out` (as long), as `measure` of a fit
+    /// in `convention` on the raster placed by `affine` (none: north-up);
+    /// the callers write [`NODATA`] at the holes, which they know.
+    fn values(
+        measure: Measure,
+        texels: &[Self],
+        convention: Convention,
+        affine: Option<&crate::io::Affine>,
+        out: &mut [f32],
+    );
+}
+
+/// The fitted normal itself (the aspect's texel): [`Measure::fill`].
+impl MeasureTexel for [f64; 3] {
+    fn values(
+        measure: Measure,
+        texels: &[Self],
+        convention: Convention,
+        affine: Option<&crate::io::Affine>,
+        out: &mut [f32],
+    ) {
+        measure.fill(texels, convention, affine, out);
+    }
+}
+
+/// The slope, made already: copied.
+impl<const PERCENT: bool> MeasureTexel for SlopeTexel<PERCENT> {
+    fn values(_: Measure, texels: &[Self], _: Convention, _: Option<&crate::io::Affine>, out: &mut [f32]) {
+        out.iter_mut().zip(texels).for_each(|(o, t)| *o = t.0);
+    }
+}
+
+/// A computation over a measure's texels, generic in their type: what
+/// [`Measure::with_texel`] runs.
+pub(crate) trait WithTexel {
+    type Output;
+    fn run<T: MeasureTexel>(self) -> Self::Output;
+}
+
+impl Measure {
+    /// Runs `work` with the texel the fit makes for this measure: the
+    /// slope, made in the fit's loop ([`SlopeTexel`]); the aspect's `f64`
+    /// normal, which [`Measure::fill`] turns into the map's angle (it
+    /// needs the raster's axes and the convention). The one choice of
+    /// every slope or aspect map, streamed, whole or in memory.
+    pub(crate) fn with_texel<W: WithTexel>(self, work: W) -> W::Output {
+        use crate::options::SlopeUnits;
+        match self {
+            Measure::Slope(SlopeUnits::Degrees) => work.run::<SlopeTexel<false>>(),
+            Measure::Slope(SlopeUnits::Percent) => work.run::<SlopeTexel<true>>(),
+            Measure::Aspect { .. } => work.run::<[f64; 3]>(),
+        }
+    }
+}

@@ -787,23 +787,10 @@ impl Job<'_> {
             let problem = "nothing to write: no output given";
             return Err(ConvertError { place: Place::Output, error: Error::InvalidOption(problem.into()) });
         };
-        // The normals (24 bytes a texel), the validity (1), the values (4);
-        // and the fit's own work, which grows with N.
-        let texels = (width as u64).saturating_mul(height as u64);
-        let holes = fit.nodata.is_some();
-        let work = crate::fit::work_bytes(fit, (width, height), heights.unit(), holes, false).map_err(&in_failure)?;
-        io::check_memory("measuring the slopes", texels.saturating_mul(29).saturating_add(work))
-            .map_err(&in_failure)?;
-        let mut valid = match fit.nodata {
-            Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
-            None => None,
-        };
-        let normals: Vec<[f64; 3]> =
-            fitted(heights, width, height, fit, None, valid.as_deref_mut()).map_err(&in_failure)?;
-        let mut values = zeroed::<f32>(normals.len()).map_err(&in_failure)?;
         let affine = self.georef.and_then(crate::io::Georef::affine);
-        measure.fill(&normals, fit.convention, affine.as_ref(), &mut values);
-        drop(normals);
+        let mut valid = None;
+        let whole = MeasureWhole { heights, size: (width, height), fit, measure, affine, valid: &mut valid };
+        let mut values = measure.with_texel(whole).map_err(&in_failure)?;
         if let Some(valid) = &valid {
             for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| !**valid) {
                 *v = crate::units::NODATA;
@@ -817,6 +804,41 @@ impl Job<'_> {
             .map_err(ConvertError::at(Place::Output))?;
         self.files = files;
         Ok(())
+    }
+}
+
+/// [`Job::terrain_whole`]'s values: the measure's texels
+/// ([`crate::units::Measure::with_texel`]) fitted over the whole image,
+/// then the values of them; with holes, `valid` is set to which texels
+/// have one.
+struct MeasureWhole<'a> {
+    heights: &'a Samples,
+    size: (usize, usize),
+    fit: &'a Options,
+    measure: crate::units::Measure,
+    affine: Option<crate::io::Affine>,
+    valid: &'a mut Option<Vec<bool>>,
+}
+
+impl crate::units::WithTexel for MeasureWhole<'_> {
+    type Output = crate::Result<Vec<f32>>;
+
+    fn run<T: crate::units::MeasureTexel>(self) -> crate::Result<Vec<f32>> {
+        let MeasureWhole { heights, size: (width, height), fit, measure, affine, valid } = self;
+        // The texels, the validity (1 byte a texel), the values (4); and
+        // the fit's own work, which grows with N.
+        let texels = (width as u64).saturating_mul(height as u64);
+        let holes = fit.nodata.is_some();
+        let work = crate::fit::work_bytes(fit, (width, height), heights.unit(), holes, false)?;
+        let per_texel = size_of::<T>() as u64 + 5;
+        io::check_memory("measuring the slopes", texels.saturating_mul(per_texel).saturating_add(work))?;
+        if holes {
+            *valid = Some(zeroed::<bool>(heights.len())?);
+        }
+        let fitted: Vec<T> = fitted(heights, width, height, fit, None, valid.as_deref_mut())?;
+        let mut values = zeroed::<f32>(fitted.len())?;
+        T::values(measure, &fitted, fit.convention, affine.as_ref(), &mut values);
+        Ok(values)
     }
 }
 

@@ -38,13 +38,17 @@ pub(super) fn squared_distance_sum<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: 
 /// cases may divide by zero; their values are discarded.
 ///
 /// `STEEP`: some patch of the loop may have Czz > A (d < 0), the case that
-/// divides; without it, d ≥ 0 is taken as given.
+/// divides; without it, d ≥ 0 is taken as given. `unit` false: the
+/// normal (−Cx, −Cy, n_z) as it is, not divided by its length, for the
+/// texels made of its ratios ([`FromNormal::UNIT`]); a constant where it
+/// is inlined, so the loop has no branch for it.
 #[inline(always)]
 pub(super) fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(
     a: f64,
     cx: f64,
     cy: f64,
     czz: f64,
+    unit: bool,
 ) -> [f64; 3] {
     let tilt2 = cx * cx + cy * cy;
     let flat = tilt2 <= 1e-20 * (a + czz) * (a + czz);
@@ -60,8 +64,12 @@ pub(super) fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(
     } else {
         a
     };
-    let inv = 1.0 / (tilt2 + nz * nz).sqrt();
-    let n = [-cx * inv, -cy * inv, nz * inv];
+    let n = if unit {
+        let inv = 1.0 / (tilt2 + nz * nz).sqrt();
+        [-cx * inv, -cy * inv, nz * inv]
+    } else {
+        [-cx, -cy, nz]
+    };
     if flat { [0.0, 0.0, 1.0] } else { n }
 }
 

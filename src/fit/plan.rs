@@ -926,7 +926,13 @@ impl Plan {
     }
 
     #[inline(always)]
-    pub(super) fn emit_with<const ORTHOGONAL: bool>(&self, v: &WindowSums, gain: f64, normal: &mut [Vec<f64>; 3]) {
+    pub(super) fn emit_with<const ORTHOGONAL: bool>(
+        &self,
+        v: &WindowSums,
+        gain: f64,
+        unit: bool,
+        normal: &mut [Vec<f64>; 3],
+    ) {
         let n2 = self.count;
         let czz_gain = gain * gain / n2;
         let (gx, gy) = (gain, self.sigma * gain);
@@ -951,12 +957,12 @@ impl Plan {
                 };
             if steep {
                 for x in texels {
-                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz_at(x));
+                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz_at(x), unit);
                     [nx[x], ny[x], nz[x]] = n;
                 }
             } else {
                 for x in texels {
-                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, gx * si[x], gy * sj[x], czz_at(x));
+                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, gx * si[x], gy * sj[x], czz_at(x), unit);
                     [nx[x], ny[x], nz[x]] = n;
                 }
             }
@@ -1031,7 +1037,7 @@ impl<T: FromNormal, const ORTHOGONAL: bool> pulp::WithSimd for EmitRow<'_, T, OR
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         // Inlined here, so that it is compiled for each instruction set.
         let EmitRow { plan, v, gain, normal, out } = self;
-        plan.emit_with::<ORTHOGONAL>(v, gain, normal);
+        plan.emit_with::<ORTHOGONAL>(v, gain, T::UNIT, normal);
         store_normals(normal, out);
     }
 }

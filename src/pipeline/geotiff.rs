@@ -13,6 +13,7 @@ use crate::io::texels::{Container, Sample, lay_out};
 use crate::io::tiff::write::{TiffSample, write_tiff_rows};
 use crate::options::Options;
 use crate::par::prelude::*;
+use crate::units::{Measure, MeasureTexel, WithTexel};
 
 /// Converts a height map's rows to a TIFF normal map as `options` says,
 /// with `tags`: the samples [`crate::io::encode_normals`] writes for the
@@ -82,33 +83,53 @@ pub(crate) fn shade_tiff<W: Write + Seek>(
 
 /// A height map's slope or aspect ([`crate::units::Measure`]), a float
 /// TIFF of one sample with `tags` (the nodata value among them), written as
-/// it is fitted: the values the whole image gives
-/// ([`crate::units::Measure::fill`] of its normals, fitted in `f64`, on
-/// the raster placed by the affine given with the measure).
-/// `tail` (the image's last rows) is needed for a wrap in y. Returns the
-/// count of missing texels.
+/// it is fitted: the values the whole image gives (the texels
+/// [`crate::units::Measure::with_texel`] chooses, on the raster placed by
+/// the affine given with the measure). `tail` (the image's last rows) is
+/// needed for a wrap in y. Returns the count of missing texels.
 ///
 /// Errors: as [`convert_tiff_counting`].
 pub(crate) fn measure_tiff<W: Write + Seek>(
     rows: impl RowSource,
     tail: Option<&[f64]>,
     opts: &Options,
-    (measure, affine): (crate::units::Measure, Option<&crate::io::Affine>),
+    (measure, affine): (Measure, Option<&crate::io::Affine>),
     tags: TiffTags<'_>,
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<usize> {
-    let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
-    let (convention, affine) = (opts.convention, affine.copied());
-    let values = move |normals: &mut [[f64; 3]], valid: &[f32], values: &mut Vec<f32>| {
-        values.resize(normals.len(), 0.0);
-        measure.fill(normals, convention, affine.as_ref(), values);
-        // `valid` is one a texel with holes, else empty.
-        for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| **valid == 0.0) {
-            *v = crate::units::NODATA;
-        }
-    };
-    stream_tiff(rows, tail, opts, (1, extra), tags, values, visit, out)
+    measure.with_texel(MeasureStream { rows, tail, opts, measure, affine: affine.copied(), tags, visit, out })
+}
+
+/// [`measure_tiff`]'s arguments, for the measure's texel.
+struct MeasureStream<'a, R, V, W> {
+    rows: R,
+    tail: Option<&'a [f64]>,
+    opts: &'a Options,
+    measure: Measure,
+    affine: Option<crate::io::Affine>,
+    tags: TiffTags<'a>,
+    visit: V,
+    out: W,
+}
+
+impl<R: RowSource, V: FnMut(&[f32]) + Send, W: Write + Seek> WithTexel for MeasureStream<'_, R, V, W> {
+    type Output = Result<usize>;
+
+    fn run<T: MeasureTexel>(self) -> Result<usize> {
+        let MeasureStream { rows, tail, opts, measure, affine, tags, visit, out } = self;
+        let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
+        let convention = opts.convention;
+        let values = move |texels: &mut [T], valid: &[f32], values: &mut Vec<f32>| {
+            values.resize(texels.len(), 0.0);
+            T::values(measure, texels, convention, affine.as_ref(), values);
+            // `valid` is one a texel with holes, else empty.
+            for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| **valid == 0.0) {
+                *v = crate::units::NODATA;
+            }
+        };
+        stream_tiff(rows, tail, opts, (1, extra), tags, values, visit, out)
+    }
 }
 
 /// Fits `rows` band by band into a TIFF of `channels` samples `S` a
