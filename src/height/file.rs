@@ -233,11 +233,9 @@ impl HeightConversion {
             }
         };
         for plane in planes {
-            with_slice!(plane, s => {
-                for (m, &v) in mask.iter_mut().zip(s) {
-                    *m |= !f64::from(v).is_finite();
-                }
-            });
+            for (k, m) in mask.iter_mut().enumerate() {
+                *m |= plane.height(k).is_some_and(|v| !v.is_finite());
+            }
         }
         Ok(mask.iter().any(|&m| m).then_some(mask))
     }
