@@ -2,7 +2,7 @@
 //! without it.
 //!
 //! Call sites import [`prelude`] instead of `rayon::prelude` and write
-//! `par_chunks_mut`, `par_iter`, `into_par_iter`, `par_extend` as usual.
+//! `par_chunks_mut`, `par_iter`, `par_iter_mut`, `into_par_iter`, `par_extend` as usual.
 //! With `parallel` (the default) these are rayon's; without it they are
 //! traits of the same names that hand back the standard library's serial
 //! iterators (`chunks_mut`, `iter`, `into_iter`, `extend`), whose `map`,
@@ -24,7 +24,7 @@ pub(crate) mod prelude {
 pub(crate) mod prelude {
     //! Serial twins of the rayon methods the crate calls.
 
-    use std::slice::{Chunks, ChunksExact, ChunksMut, Iter};
+    use std::slice::{Chunks, ChunksExact, ChunksMut, Iter, IterMut};
 
     /// rayon's bound on "an iterator of items", serially any iterator.
     pub(crate) use std::iter::Iterator as ParallelIterator;
@@ -58,14 +58,18 @@ pub(crate) mod prelude {
         }
     }
 
-    /// `par_chunks_mut` on slices.
+    /// `par_chunks_mut` and `par_iter_mut` on slices.
     pub(crate) trait ParallelSliceMut<T> {
         fn par_chunks_mut(&mut self, size: usize) -> ChunksMut<'_, T>;
+        fn par_iter_mut(&mut self) -> IterMut<'_, T>;
     }
 
     impl<T> ParallelSliceMut<T> for [T] {
         fn par_chunks_mut(&mut self, size: usize) -> ChunksMut<'_, T> {
             self.chunks_mut(size)
+        }
+        fn par_iter_mut(&mut self) -> IterMut<'_, T> {
+            self.iter_mut()
         }
     }
 

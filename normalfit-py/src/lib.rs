@@ -28,7 +28,7 @@ use normalfit::check::{CheckOptions, CheckReport, FixOptions, MapLayout, check_a
 use normalfit::convert::{BorderChoice, BorderChoices, Conversion, Place};
 use normalfit::fit::{Halo, HaloPlan, Window};
 use normalfit::height::file::HeightConversion;
-use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows};
+use normalfit::height::{ConventionChoice, HeightOptions, Model, heights_of_rows_with_holes};
 use normalfit::inspect;
 use normalfit::io::{
     Affine, ByteOrder, Channel, Layout, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
@@ -48,8 +48,8 @@ use normalfit::{
 };
 use numpy::ndarray::ArrayView2;
 use numpy::{
-    Element, PyArray1, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
-    PyUntypedArrayMethods, dtype,
+    Element, PyArray1, PyArray2, PyArray3, PyArrayDescr, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2,
+    PyUntypedArray, PyUntypedArrayMethods, dtype,
 };
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -1799,6 +1799,7 @@ fn check_tiling_file(
 /// the library's rule for their storage (encoded integers: 2c − 1).
 fn height_typed<T: Element + Sample>(
     normals: &Bound<'_, PyUntypedArray>,
+    holes: Option<&[bool]>,
     opts: &HeightOptions,
     stored: Storage,
     pool: Option<Borrowed>,
@@ -1818,7 +1819,7 @@ fn height_typed<T: Element + Sample>(
                 *o = [0, 1, 2].map(|c| stored.normal(view[[y, x, c]]));
             }
         };
-        let found = on_pool(pool, || heights_of_rows(&row, w, h, opts))?;
+        let found = on_pool(pool, || heights_of_rows_with_holes(&row, w, h, holes, opts))?;
         Ok((found.values, w, h, found.report))
     })
     .map_err(to_py_err)
@@ -1827,7 +1828,7 @@ fn height_typed<T: Element + Sample>(
 /// `height` with every argument given (see `normalfit.height`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (normals, patch, fit, border, convention, scale, relief, invert, model, step, threads))]
+#[pyo3(signature = (normals, patch, fit, border, convention, scale, relief, invert, model, step, threads, holes))]
 fn height<'py>(
     py: Python<'py>,
     normals: &Bound<'py, PyAny>,
@@ -1841,8 +1842,24 @@ fn height<'py>(
     model: &str,
     step: Option<f64>,
     threads: Option<&Bound<'py, PyAny>>,
+    holes: Option<PyReadonlyArray2<'py, bool>>,
 ) -> PyResult<(Bound<'py, PyAny>, HeightInfo)> {
     let normals = as_array(normals, "normals", &[3])?;
+    let shape = normals.shape();
+    // The mask in row-major order, checked against the map's shape here:
+    // the library takes a flat slice.
+    let holes: Option<Vec<bool>> = match &holes {
+        Some(mask) if mask.shape() != &shape[..2] => {
+            return Err(PyValueError::new_err(format!(
+                "holes must have the normals' shape ({}, {}), got {:?}",
+                shape[0],
+                shape[1],
+                mask.shape()
+            )));
+        }
+        Some(mask) => Some(mask.as_array().iter().copied().collect()),
+        None => None,
+    };
     let kind = sample_kind(normals, "normals")?;
     let opts = height_options(patch, fit, border, convention, scale, relief, invert, model)?;
     // Integers hold (n + 1)/2, as normals(dtype=...) and PNGs store it;
@@ -1857,10 +1874,10 @@ fn height<'py>(
     opts.validate().map_err(to_py_err)?;
     let pool = pool(threads)?;
     let (values, w, h, report) = match kind {
-        SampleKind::U8 => height_typed::<u8>(normals, &opts, stored, pool),
-        SampleKind::U16 => height_typed::<u16>(normals, &opts, stored, pool),
-        SampleKind::F32 => height_typed::<f32>(normals, &opts, stored, pool),
-        SampleKind::F64 => height_typed::<f64>(normals, &opts, stored, pool),
+        SampleKind::U8 => height_typed::<u8>(normals, holes.as_deref(), &opts, stored, pool),
+        SampleKind::U16 => height_typed::<u16>(normals, holes.as_deref(), &opts, stored, pool),
+        SampleKind::F32 => height_typed::<f32>(normals, holes.as_deref(), &opts, stored, pool),
+        SampleKind::F64 => height_typed::<f64>(normals, holes.as_deref(), &opts, stored, pool),
     }?;
     let array = PyArray1::from_vec(py, values).reshape([h, w])?.into_any();
     Ok((array, HeightInfo::from_report(&report, Vec::new(), None, None)))
@@ -1902,8 +1919,12 @@ struct HeightInfo {
     converged: bool,
     /// The RMS height error the input's quantisation leaves, if not exact.
     quantisation_error: Option<f64>,
-    /// The smallest and largest height.
+    /// The smallest and largest height (NaNs left out).
     range: (f64, f64),
+    /// Holes given, NaN in the heights.
+    holes: usize,
+    /// Texels no patch free of holes holds: NaN in the heights.
+    undetermined: usize,
     /// A PNG output: the heights 0 and 1 stand for.
     png_range: Option<(f64, f64)>,
     /// A PNG output: the gain S·(hi − lo) with which `convert` of the PNG
@@ -1928,6 +1949,8 @@ impl HeightInfo {
             converged: r.converged,
             quantisation_error: r.quantisation_error,
             range: r.range,
+            holes: r.holes,
+            undetermined: r.undetermined,
             png_range,
             png_scale,
             warnings,

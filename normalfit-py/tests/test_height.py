@@ -153,3 +153,29 @@ def test_height_file_matches_the_command_line(tmp_path: Path) -> None:
     assert by_relief.png_scale == pytest.approx(as_png.png_scale, rel=1e-9)
     with pytest.raises(OSError, match="missing.exr"):
         normalfit.height_file(tmp_path / "missing.exr", tmp_path / "x.exr")
+
+
+def test_holes_come_back_as_holes_and_the_rest_up_to_a_constant() -> None:
+    # Odd sides, not multiples of 3: under wrap at N = 3 only the constant
+    # is then unseen (no alternating heights, no zeros of the box).
+    h = periodic(35, 41)
+    holes = np.zeros(h.shape, dtype=bool)
+    holes[10:16, 20:24] = True
+    n = normalfit.normals(np.where(holes, np.nan, h), fit="vertical", scale=6.0, nodata=float("nan"))
+    back, info = normalfit.height(n, fit="vertical", scale=6.0, holes=holes)
+    assert np.array_equal(np.isnan(back), holes)
+    assert (info.holes, info.undetermined, info.converged) == (24, 0, True)
+    diff = (back - h)[~holes]
+    assert np.ptp(diff) < 1e-6
+    # No hole: the inverse without holes, to the bit.
+    plain, _ = normalfit.height(n, fit="vertical", scale=6.0)
+    none, _ = normalfit.height(n, fit="vertical", scale=6.0, holes=np.zeros(h.shape, dtype=bool))
+    assert np.array_equal(plain, none)
+
+
+def test_a_mask_of_the_wrong_shape_raises() -> None:
+    n = normalfit.normals(periodic(16, 24))
+    with pytest.raises(ValueError, match="holes must have the normals' shape"):
+        normalfit.height(n, holes=np.zeros((24, 16), dtype=bool))
+    with pytest.raises((TypeError, ValueError)):
+        normalfit.height(n, holes=np.zeros(16 * 24, dtype=bool))

@@ -10,6 +10,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use clap_complete::Shell;
 use normalfit::blend::{BlendOptions, Method};
 use normalfit::convert::{BorderChoices, Conversion};
+use normalfit::height::file::Holes;
 use normalfit::height::{ConventionChoice, HeightOptions, Model};
 use normalfit::io::{
     Alpha, ByteOrder, Channel, OutputChannels, OutputFormat, PackedElevation, PngCompression, RawOptions, ReadOptions,
@@ -492,6 +493,13 @@ pub struct HeightArgs {
           value_parser = named::<ConventionChoice>(ConventionChoice::ALL))]
     pub convention: ConventionChoice,
 
+    /// Texels whose heights are not asked for, NaN (alpha 0 in a PNG) in
+    /// the output: auto, those convert wrote for a nodata value (an alpha of 0 and
+    /// full only: its 0s; NaN normals); none; or a mask image of the map's
+    /// size (alpha 0, else a first channel not 0, is a hole).
+    #[arg(long, value_name = "MASK|auto|none", default_value = "auto", value_parser = parse_holes)]
+    pub holes: Holes,
+
     #[command(flatten)]
     pub read: ReadArgs,
 
@@ -870,6 +878,11 @@ fn default_borders() -> &'static str {
 }
 
 /// `--border` of `height`: fixed modes only (the map was made with them).
+/// `--holes`: the library's words (auto, none) or a mask's path.
+fn parse_holes(s: &str) -> Result<Holes, String> {
+    s.parse::<Holes>().map_err(|e| e.to_string())
+}
+
 fn parse_fixed_borders(s: &str) -> Result<Borders, String> {
     parse_borders(s)?.fixed().map_err(|_| {
         format!("--border of a normal map names the modes it was made with (wrap, clamp, mirror), got '{s}'")

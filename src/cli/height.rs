@@ -46,7 +46,8 @@ pub fn run(args: &HeightArgs) -> Result<usize, Failure> {
         .with_options(options)
         .with_read(args.read.options())
         .with_signed(args.signed)
-        .with_format(args.format);
+        .with_format(args.format)
+        .with_holes(args.holes.clone());
     if let Destination::File(path) = &destination {
         // A name the library cannot write is a usage error, before any work.
         conversion.output_format(Some(path)).map_err(|e| Failure::file(path, e))?;
@@ -102,6 +103,13 @@ impl Plan<'_> {
             print_line(&format!(
                 "normalfit: {name}: convention {} (auto: relative curl {gl:.4} as opengl, {dx:.4} as directx)",
                 report.convention
+            ));
+        }
+        if report.holes > 0 {
+            print_line(&format!(
+                "normalfit: {name}: {} of {} texels are holes: written as holes (NaN, alpha 0 in a PNG)",
+                report.holes,
+                summary.width * summary.height
             ));
         }
         for w in &summary.warnings {

@@ -7,6 +7,12 @@
 //! whole or not at all and never replace the input. Nothing prints:
 //! warnings are data ([`HeightWarning`]).
 //!
+//! Holes ([`Holes`]): by default those normalfit's `convert` writes, an
+//! alpha of validity's 0s (an alpha holding nothing but 0 and full) and
+//! normals with a component not finite; or a mask file's. They come back
+//! NaN in an EXR or float TIFF (its GDAL_NODATA tag "nan"), and alpha 0 in
+//! a PNG, which then is gray and alpha.
+//!
 //! ```no_run
 //! use normalfit::height::file::HeightConversion;
 //! use normalfit::height::{ConventionChoice, HeightOptions};
@@ -19,7 +25,7 @@
 //! ```
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::engine::{self, ConvertError, Input, Output, Place};
 use crate::error::{Error, Result};
@@ -27,7 +33,25 @@ use crate::io::{self, ExrDepth, InputFormat, OutputFormat, PngDepth, PngOptions,
 use crate::normal_map::Storage;
 use crate::samples::{Samples, try_vec, with_slice};
 
-use super::{HeightOptions, HeightReport, SlopeField, heights_of_slopes};
+use super::{HeightOptions, HeightReport, SlopeField, heights_of_slopes, heights_of_slopes_with_holes};
+
+/// Which texels of a normal map are holes (heights not asked for).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Holes {
+    /// The holes normalfit's `convert` writes: where an alpha channel
+    /// holding only 0 and full (an alpha of validity, not of heights) is 0,
+    /// and where a normal's component is not finite (a float map's NaN).
+    /// The default.
+    #[default]
+    Auto,
+    /// None: every texel's normal is read (one without a slope is flat).
+    None,
+    /// The texels a mask image marks: where its alpha is 0 if it has one,
+    /// else where its first channel (gray, or red) is not 0; and, as under
+    /// auto, normals with a component not finite. Same size as the map.
+    File(PathBuf),
+}
 
 /// Something the caller may want to tell its user; the heights were written.
 #[derive(Clone, Debug, PartialEq)]
@@ -51,6 +75,9 @@ pub enum HeightWarning {
         /// Solves run.
         iterations: usize,
     },
+    /// Texels that are not holes but that every patch holding them holds
+    /// a hole: no equation sees them, and they were written as holes.
+    Undetermined(usize),
 }
 
 impl fmt::Display for HeightWarning {
@@ -67,6 +94,23 @@ impl fmt::Display for HeightWarning {
             HeightWarning::NotConverged { iterations } => {
                 write!(f, "the iteration did not settle in {iterations} solves: the best heights found were written")
             }
+            HeightWarning::Undetermined(n) => {
+                write!(f, "{n} texels lie in no patch free of holes: undetermined, written as holes")
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for Holes {
+    type Err = Error;
+
+    /// `auto`, `none`, or a mask's path (`./auto` for a file named so).
+    fn from_str(s: &str) -> Result<Holes> {
+        match s {
+            "auto" => Ok(Holes::Auto),
+            "none" => Ok(Holes::None),
+            "" => Err(Error::InvalidOption("holes: auto, none or a mask file, not an empty name".into())),
+            path => Ok(Holes::File(PathBuf::from(path))),
         }
     }
 }
@@ -111,6 +155,8 @@ pub struct HeightConversion {
     pub format: Option<OutputFormat>,
     /// The step of a stored component, if not the file's.
     pub step: Option<f64>,
+    /// Which texels are holes. Default: [`Holes::Auto`].
+    pub holes: Holes,
 }
 
 impl HeightConversion {
@@ -142,6 +188,56 @@ impl HeightConversion {
     pub fn with_format(mut self, format: Option<OutputFormat>) -> Self {
         self.format = format;
         self
+    }
+    /// With these holes.
+    #[must_use]
+    pub fn with_holes(mut self, holes: Holes) -> Self {
+        self.holes = holes;
+        self
+    }
+
+    /// The holes of a decoded normal map (`None`: none), as
+    /// [`HeightConversion::holes`] says; a mask file is read here.
+    ///
+    /// Errors: a mask file that cannot be read, or whose size is not the
+    /// map's (the message names the file).
+    fn hole_mask(&self, raster: &io::Raster, planes: [&Samples; 3]) -> Result<Option<Vec<bool>>> {
+        let (w, h) = (raster.width, raster.height);
+        let len = w * h;
+        let mut mask = match &self.holes {
+            Holes::None => return Ok(None),
+            Holes::Auto => {
+                let validity = raster
+                    .plane("A")
+                    .map(|a| &a.data)
+                    .filter(|a| (0..a.len()).all(|i| a.height(i).is_some_and(|v| v == 0.0 || v == 1.0)));
+                match validity {
+                    Some(alpha) => (0..len).map(|i| alpha.height(i) == Some(0.0)).collect(),
+                    None => vec![false; len],
+                }
+            }
+            Holes::File(path) => {
+                let named = |problem: String| Error::InvalidOption(format!("holes mask {}: {problem}", path.display()));
+                let mask = engine::decode_whole(Input::Path(path), &self.read).map_err(|e| named(e.to_string()))?;
+                if (mask.width, mask.height) != (w, h) {
+                    return Err(named(format!(
+                        "{} × {} texels, the normal map {w} × {h}: a mask is the map's size",
+                        mask.width, mask.height
+                    )));
+                }
+                match (mask.plane("A"), mask.planes.first()) {
+                    (Some(alpha), _) => (0..len).map(|i| alpha.data.height(i) == Some(0.0)).collect(),
+                    (None, Some(first)) => (0..len).map(|i| first.data.height(i).is_none_or(|v| v != 0.0)).collect(),
+                    (None, None) => return Err(named("no channel".into())),
+                }
+            }
+        };
+        for plane in planes {
+            for (k, m) in mask.iter_mut().enumerate() {
+                *m |= plane.height(k).is_some_and(|v| !v.is_finite());
+            }
+        }
+        Ok(mask.iter().any(|&m| m).then_some(mask))
     }
 
     /// Reads the normal map `input` and writes its heights to `output`.
@@ -201,7 +297,12 @@ impl HeightConversion {
             _ => None,
         };
         let options = HeightOptions { step: self.step.unwrap_or(stored.step()), ..self.options.clone() };
-        super::memory::check(w, h, &options).map_err(fail_in)?;
+        let holes = self.hole_mask(&raster, [planes[0], planes[1], planes[2]]).map_err(fail_in)?;
+        match &holes {
+            Some(_) => super::check_masked(w, h, &options),
+            None => super::memory::check(w, h, &options),
+        }
+        .map_err(fail_in)?;
         let row = |y: usize, out: &mut [[f64; 3]]| {
             for (c, plane) in planes.iter().enumerate() {
                 with_slice!(plane, s => {
@@ -211,9 +312,13 @@ impl HeightConversion {
                 });
             }
         };
-        let field = SlopeField::of_rows(&row, w, h).map_err(fail_in)?;
+        let field = SlopeField::of_rows_masked(&row, w, h, holes.as_deref()).map_err(fail_in)?;
         drop(raster);
-        let found = heights_of_slopes(&field, &options).map_err(fail_in)?;
+        let found = match &holes {
+            Some(holes) => heights_of_slopes_with_holes(&field, holes, &options),
+            None => heights_of_slopes(&field, &options),
+        }
+        .map_err(fail_in)?;
         drop(field);
         let report = found.report.clone();
         let (lo, hi) = report.range;
@@ -254,7 +359,9 @@ impl HeightConversion {
             // Float heights, as in the EXR, a float32 one-band TIFF.
             #[cfg(feature = "tiff")]
             OutputFormat::Tiff => crate::engine::write_to(output, &mut files, |file| {
-                let tags = io::encoding::TiffTags::default();
+                // NaN at holes, which GDAL reads as nodata by the tag.
+                let nodata = holes.is_some().then_some(f64::NAN);
+                let tags = io::encoding::TiffTags { nodata, ..io::encoding::TiffTags::default() };
                 io::tiff::write::write_tiff_rows(file, (w, h), 1, tags, |push| {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
@@ -268,6 +375,24 @@ impl HeightConversion {
             OutputFormat::Tiff => Err(io::write::no_tiff()),
             OutputFormat::Dds | OutputFormat::Ktx2 => {
                 Err(Error::Unsupported("heights are written as .exr, .tif or .png, not as a GPU texture".into()))
+            }
+            OutputFormat::Png if holes.is_some() => {
+                // Gray and alpha: alpha 0 where the height is NaN.
+                let span = hi - lo;
+                let unit = if span > 0.0 { 65535.0 / span } else { 0.0 };
+                let mut stored: Vec<u16> = try_vec(values.len().saturating_mul(2)).map_err(fail_out)?;
+                stored.extend(values.iter().flat_map(|&v| {
+                    if v.is_nan() { [0, 0] } else { [((v - lo) * unit).round().clamp(0.0, 65535.0) as u16, 65535] }
+                }));
+                drop(values);
+                crate::engine::write_to(output, &mut files, |file| {
+                    io::png::write::png_gray_alpha16(
+                        &stored,
+                        (w, h),
+                        PngOptions::new(PngDepth::Sixteen).compression,
+                        file,
+                    )
+                })
             }
             OutputFormat::Png => {
                 let span = hi - lo;
@@ -292,6 +417,9 @@ impl HeightConversion {
                 error,
                 relative: if span > 0.0 { error / span } else { 0.0 },
             });
+        }
+        if report.undetermined > 0 {
+            warnings.push(HeightWarning::Undetermined(report.undetermined));
         }
         if !report.converged {
             warnings.push(HeightWarning::NotConverged { iterations: report.iterations });

@@ -276,7 +276,7 @@ impl Patch {
     /// The patch sums are the forward fit's own sliding sums
     /// ([`crate::fit::BandFit`], O(1) per texel whatever N), a band of rows
     /// at a time, so only a band's sums are held.
-    fn update_ratios(
+    pub(super) fn update_ratios(
         &self,
         z: &[f64],
         slopes: Slopes<'_>,
@@ -518,7 +518,7 @@ fn ratio_texel(a: f64, m: [f64; 3], gx: f64, gy: f64, out: &mut f64, dir: &mut i
 
 /// The period's multiplicities of `patch`'s axes (a mirrored axis holds
 /// its texels but the two edge ones twice), per column and per row.
-fn multiplicities(patch: &Patch, h: usize) -> (Vec<f64>, Vec<f64>) {
+pub(super) fn multiplicities(patch: &Patch, h: usize) -> (Vec<f64>, Vec<f64>) {
     let multiplicity =
         |n: usize, b: Border, k: usize| if b == Border::Mirror && n > 2 && k != 0 && k != n - 1 { 2.0 } else { 1.0 };
     let w = patch.w;

@@ -51,6 +51,18 @@
 //! slope: it counts as flat (slope 0), and [`HeightReport::bad_texels`]
 //! counts them.
 //!
+//! # Holes
+//!
+//! [`heights_with_holes`] takes a mask of holes (a DEM's nodata, as the
+//! forward fit's holes): holes come back NaN, and the other heights are
+//! the least-squares solution, of least norm, of the equations whose
+//! patches hold no hole, where the map's normals are the full patch's fit
+//! (`holes.rs`). Least norm gives each connected piece mean 0 and fixes
+//! the modes near holes' edges that no kept equation sees; a texel that
+//! no kept patch holds is undetermined, NaN too
+//! ([`HeightReport::undetermined`]). Without a hole the inverse is the
+//! one above, to the bit.
+//!
 //! # Quantisation
 //!
 //! Stored normals are rounded: [`HeightOptions::step`] is the step of a
@@ -72,6 +84,7 @@ mod banded;
 mod cost;
 mod dense;
 mod gauss_newton;
+mod holes;
 mod iterative;
 mod line;
 mod patch;
@@ -315,15 +328,22 @@ pub struct HeightReport {
     /// The RMS height error (in height units) that the input's quantisation
     /// leaves, through the solve; `None` for exact input.
     pub quantisation_error: Option<f64>,
-    /// The smallest and largest height.
+    /// The smallest and largest height (of those not NaN).
     pub range: (f64, f64),
+    /// Holes the caller marked, NaN in the heights.
+    pub holes: usize,
+    /// Texels not holes that no kept equation sees (every patch holding
+    /// them holds a hole): NaN in the heights.
+    pub undetermined: usize,
 }
 
 /// Heights found from a normal map.
 #[derive(Clone, Debug)]
 #[non_exhaustive]
 pub struct Heights {
-    /// Row-major, `width * height`, mean 0, in units of the gain.
+    /// Row-major, `width * height`, mean 0 (with holes: each connected
+    /// piece's, NaN at holes and undetermined texels), in units of the
+    /// gain.
     pub values: Vec<f64>,
     /// Columns.
     pub width: usize,
@@ -376,6 +396,73 @@ pub fn heights<T: NormalComponent>(
     heights_of_rows(&row, width, height, opts)
 }
 
+/// [`heights`] with holes: `holes[k]` marks texel k a hole (its normal is
+/// not read). Holes come back NaN; the other heights are solved from the
+/// slopes of the texels whose patches hold no hole, minimum-norm (each
+/// connected piece's mean 0); texels that no such patch holds are NaN
+/// too, counted in [`HeightReport::undetermined`]. Without a hole: the
+/// same bits as [`heights`].
+///
+/// ```
+/// use normalfit::height::{HeightOptions, heights_with_holes};
+/// use normalfit::{Fit, Options, normals};
+///
+/// let (w, h) = (24, 16);
+/// let original: Vec<f64> = (0..w * h).map(|k| ((k % w) as f64 * 0.3).sin() + (k / w) as f64 * 0.1).collect();
+/// let opts = Options::new().with_fit(Fit::Vertical);
+/// let n = normals(&original, w, h, &opts)?;
+/// let holes: Vec<bool> = (0..w * h).map(|k| (k % w) == 11).collect();
+/// let back = heights_with_holes(&n, w, h, &holes, &HeightOptions::from_fit(&opts))?;
+/// assert!(back.values[11].is_nan() && back.report.holes == h);
+/// # Ok::<(), normalfit::Error>(())
+/// ```
+///
+/// Errors: as [`heights`], and [`Error::BufferSize`] for a mask that is not
+/// `width * height`, [`Error::InvalidOption`] for the generic model (which
+/// has no patches to keep).
+pub fn heights_with_holes<T: NormalComponent>(
+    normals: &[[T; 3]],
+    width: usize,
+    height: usize,
+    holes: &[bool],
+    opts: &HeightOptions,
+) -> Result<Heights> {
+    let len = crate::fit::checked_len(width, height)?;
+    if normals.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: normals.len() });
+    }
+    let row = |y: usize, out: &mut [[f64; 3]]| {
+        for (o, n) in out.iter_mut().zip(&normals[y * width..][..width]) {
+            *o = n.map(T::to_f64);
+        }
+    };
+    heights_of_rows_with_holes(&row, width, height, Some(holes), opts)
+}
+
+/// [`heights_of_rows`] with holes (`None`: none), as [`heights_with_holes`].
+///
+/// Errors: as [`heights_with_holes`].
+pub fn heights_of_rows_with_holes(
+    row: &(dyn Fn(usize, &mut [[f64; 3]]) + Sync),
+    width: usize,
+    height: usize,
+    holes: Option<&[bool]>,
+    opts: &HeightOptions,
+) -> Result<Heights> {
+    opts.validate()?;
+    let len = crate::fit::checked_len(width, height)?;
+    if let Some(holes) = holes
+        && holes.len() != len
+    {
+        return Err(Error::BufferSize { expected: len, actual: holes.len() });
+    }
+    let Some(holes) = holes.filter(|m| m.iter().any(|&h| h)) else {
+        return heights_of_rows(row, width, height, opts);
+    };
+    check_masked(width, height, opts)?;
+    heights_of_slopes_with_holes(&SlopeField::of_rows_masked(row, width, height, Some(holes))?, holes, opts)
+}
+
 /// [`heights`] of a normal map given row by row: `row(y, out)` fills
 /// `out` (`width` normals) with row y's. For callers whose normals are
 /// stored otherwise (planes of a decoded file), without a copy of them.
@@ -422,6 +509,19 @@ impl SlopeField {
         width: usize,
         height: usize,
     ) -> Result<SlopeField> {
+        SlopeField::of_rows_masked(row, width, height, None)
+    }
+
+    /// [`Self::of_rows`], the texels `holes` marks left at slope 0 and not
+    /// counted without one.
+    ///
+    /// Errors: as [`Self::of_rows`].
+    pub(crate) fn of_rows_masked(
+        row: &(dyn Fn(usize, &mut [[f64; 3]]) + Sync),
+        width: usize,
+        height: usize,
+        holes: Option<&[bool]>,
+    ) -> Result<SlopeField> {
         let len = crate::fit::checked_len(width, height)?;
         let (mut x, mut y) = (try_filled(len, 0.0)?, try_filled(len, 0.0)?);
         let bad = x
@@ -432,11 +532,16 @@ impl SlopeField {
                 let mut normals = vec![[0.0; 3]; width];
                 row(k, &mut normals);
                 let mut bad = 0;
-                for ((n, sx), sy) in normals.iter().zip(sx).zip(sy) {
-                    [*sx, *sy] = slope(n).unwrap_or_else(|| {
-                        bad += 1;
+                let hole = |x: usize| holes.is_some_and(|m| m[k * width + x]);
+                for (x, ((n, sx), sy)) in normals.iter().zip(sx).zip(sy).enumerate() {
+                    [*sx, *sy] = if hole(x) {
                         [0.0, 0.0]
-                    });
+                    } else {
+                        slope(n).unwrap_or_else(|| {
+                            bad += 1;
+                            [0.0, 0.0]
+                        })
+                    };
                 }
                 bad
             })
@@ -460,12 +565,10 @@ impl SlopeField {
     }
 }
 
-/// [`heights`] of a slope field.
-pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Result<Heights> {
-    opts.validate()?;
-    let (width, height) = (field.width, field.height);
-    let len = width * height;
-    let (convention, curl) = match opts.convention() {
+/// The convention to read the slopes with, and under auto the curls
+/// that chose it.
+fn choose_convention(field: &SlopeField, opts: &HeightOptions) -> (Convention, Option<[f64; 2]>) {
+    match opts.convention() {
         ConventionChoice::OpenGl => (Convention::OpenGl, None),
         ConventionChoice::DirectX => (Convention::DirectX, None),
         ConventionChoice::Auto => {
@@ -473,7 +576,99 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
             let choice = if curl[0] <= curl[1] { Convention::OpenGl } else { Convention::DirectX };
             (choice, Some(curl))
         }
+    }
+}
+
+/// The checks of the inverse with holes before it starts: the exact model
+/// (the generic one has no patches to keep) and the memory it holds.
+fn check_masked(width: usize, height: usize, opts: &HeightOptions) -> Result<()> {
+    if opts.model != Model::Exact {
+        return Err(Error::InvalidOption(
+            "holes need the exact model: the generic one has no patches whose slopes are whole".into(),
+        ));
+    }
+    let texels = (width as u64).saturating_mul(height as u64);
+    let base = texels.saturating_mul(SlopeField::BYTES_PER_TEXEL + 8 + 4);
+    crate::memory::check_memory("finding the heights with holes", base.saturating_add(holes::bytes(width, height)))
+}
+
+/// [`heights_with_holes`] of a slope field whose holes are `holes` (at least
+/// one): see `holes.rs`.
+pub(crate) fn heights_of_slopes_with_holes(
+    field: &SlopeField,
+    holes: &[bool],
+    opts: &HeightOptions,
+) -> Result<Heights> {
+    opts.validate()?;
+    check_masked(field.width, field.height, opts)?;
+    let (width, height) = (field.width, field.height);
+    let (convention, curl) = choose_convention(field, opts);
+    let sigma = convention.sigma();
+    let slopes = |y: usize, gx: &mut [f64], gy: &mut [f64]| field.row(y, sigma, gx, gy);
+    let q = opts.step / 12f64.sqrt();
+    let lambda = opts.regularisation.unwrap_or(q * q / period_texels(width, height, opts.fit.borders));
+    let patch = patch::Patch::new(width, height, opts);
+    let support = holes::Support::new(&patch, height, holes)?;
+    drop(patch);
+    let mut z = try_filled(width * height, 0.0)?;
+    let (iterations, converged) = holes::solve(&slopes, width, height, opts, lambda, &support, &mut z)?;
+    // The quantisation's figure is the transform's, without holes: the
+    // noise a solve of the whole map lets through.
+    let (b, n) = (opts.fit.borders, opts.fit.patch);
+    let noise_gain = match solve::Solver::new(width, height, b, n, Model::Exact)
+        .or_else(|| solve::Solver::nearest(width, height, b, n, Model::Exact))
+    {
+        Some(solver) if opts.step > 0.0 => solver.noise_gain(lambda).noise_gain,
+        _ => 0.0,
     };
+    let scale = opts.scale_for_width(width);
+    // Least norm has made each piece's mean 0: only the gain and the NaNs.
+    let row_ranges: Vec<(f64, f64)> = z
+        .par_chunks_mut(width)
+        .zip(support.seen.par_chunks(width))
+        .map(|(row, seen)| {
+            let mut range = (f64::INFINITY, f64::NEG_INFINITY);
+            for (v, &seen) in row.iter_mut().zip(seen) {
+                if seen {
+                    *v /= scale;
+                    range = (range.0.min(*v), range.1.max(*v));
+                } else {
+                    *v = f64::NAN;
+                }
+            }
+            range
+        })
+        .collect();
+    let range = row_ranges.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+    let hole_count = holes.par_iter().filter(|&&h| h).count();
+    let seen_count = support.seen.par_iter().filter(|&&s| s).count();
+    let range = if seen_count == 0 { (0.0, 0.0) } else { range };
+    if !(range.0.is_finite() && range.1.is_finite()) {
+        return Err(Error::InvalidOption(format!(
+            "heights overflow: a gain of {scale:e} makes them larger than 64-bit floats hold; give a larger scale"
+        )));
+    }
+    let report = HeightReport {
+        convention,
+        curl,
+        bad_texels: field.bad,
+        iterations,
+        converged,
+        regularisation: lambda,
+        quantisation_error: (opts.step > 0.0).then(|| q * noise_gain / scale.abs()),
+        range,
+        holes: hole_count,
+        undetermined: width * height - hole_count - seen_count,
+    };
+    Ok(Heights { values: z, width, height, report })
+}
+
+/// [`heights`] of a slope field.
+pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Result<Heights> {
+    opts.validate()?;
+    let (width, height) = (field.width, field.height);
+    let len = width * height;
+    let (convention, curl) = choose_convention(field, opts);
     let sigma = convention.sigma();
     let bad_texels = field.bad;
     // The slopes of row y: gx = −nx/nz, gy = −σ ny/nz; 0 where there is none.
@@ -550,6 +745,8 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
         regularisation: lambda,
         quantisation_error,
         range,
+        holes: 0,
+        undetermined: 0,
     };
     Ok(Heights { values: z, width, height, report })
 }

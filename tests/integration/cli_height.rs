@@ -358,3 +358,96 @@ fn clamp_past_the_limit_of_time_is_one_line_and_writes_nothing() {
     assert!(!out.exists(), "nothing written");
     ok(&run(&["height", s(&nmap), "-o", s(&out), "-n", "255", "--border", "mirror"]));
 }
+
+/// Heights with a block of nodata (0) texels at x 10..14, y 8..12.
+fn write_heights_with_holes(path: &Path, w: u32, h: u32) -> (Vec<f64>, Vec<bool>) {
+    let heights = write_heights(path, w, h);
+    let hole = |k: usize| (10..14).contains(&(k % w as usize)) && (8..12).contains(&(k / w as usize));
+    let holes: Vec<bool> = (0..heights.len()).map(hole).collect();
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(w, h, |x, y| {
+        let k = (y * w + x) as usize;
+        image::Luma([if holes[k] { 0 } else { (heights[k] * 65535.0).round() as u16 }])
+    });
+    img.save(path).unwrap();
+    (heights, holes)
+}
+
+/// `convert --nodata` then `height`: the holes convert wrote (its alpha of
+/// validity) come back as holes without asking, NaN in EXR and TIFF and
+/// alpha 0 in a PNG, the rest up to a constant; `--holes none` reads
+/// every texel, and `--holes MASK` takes a mask's.
+#[test]
+fn holes_convert_wrote_come_back_as_holes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (hmap, nmap) = (dir.path().join("h.png"), dir.path().join("n.exr"));
+    // Odd sides, not multiples of 3: under wrap at N = 3 the constant is
+    // then the only height no patch sees (no alternating heights, no zeros
+    // of the box), so the rest comes back up to it.
+    let (original, holes) = write_heights_with_holes(&hmap, 47, 41);
+    ok(&run(&["convert", s(&hmap), "-o", s(&nmap), "-s", "6", "--nodata", "0"]));
+    let back = dir.path().join("back.exr");
+    let notes = ok(&run(&["height", s(&nmap), "-o", s(&back), "-s", "6"]));
+    assert!(notes.contains("16 of 1927 texels are holes"), "{notes}");
+    let found = plane(&back, "Y");
+    // Missing texels are the holes and, where a patch had fewer than 3
+    // points, none here: exactly the holes.
+    for (k, v) in found.iter().enumerate() {
+        assert_eq!(v.is_nan(), holes[k], "texel {k}");
+    }
+    let diffs: Vec<f64> = found.iter().zip(&original).filter(|(b, _)| !b.is_nan()).map(|(b, o)| b - o).collect();
+    let mean = diffs.iter().sum::<f64>() / diffs.len() as f64;
+    let spread = diffs.iter().fold(0.0f64, |m, d| m.max((d - mean).abs()));
+    assert!(spread < 1e-4, "round trip off by {spread:e}");
+
+    let png = dir.path().join("back.png");
+    ok(&run(&["height", s(&nmap), "-o", s(&png), "-s", "6"]));
+    let alpha = plane(&png, "A");
+    for (k, a) in alpha.iter().enumerate() {
+        assert_eq!(*a == 0.0, holes[k], "texel {k}");
+    }
+    let tif = dir.path().join("back.tif");
+    ok(&run(&["height", s(&nmap), "-o", s(&tif), "-s", "6"]));
+    let stored = plane(&tif, "Y");
+    assert!(stored.iter().zip(&holes).all(|(v, &hole)| v.is_nan() == hole));
+
+    let none = dir.path().join("none.exr");
+    ok(&run(&["height", s(&nmap), "-o", s(&none), "-s", "6", "--holes", "none"]));
+    assert!(plane(&none, "Y").iter().all(|v| v.is_finite()));
+
+    // A mask: the holes and one more column, white on black.
+    let mask = dir.path().join("mask.png");
+    let marked = |k: usize| holes[k] || k % 47 == 30;
+    image::ImageBuffer::<image::Luma<u8>, Vec<u8>>::from_fn(47, 41, |x, y| {
+        image::Luma([if marked((y * 47 + x) as usize) { 255 } else { 0 }])
+    })
+    .save(&mask)
+    .unwrap();
+    let masked = dir.path().join("masked.exr");
+    ok(&run(&["height", s(&nmap), "-o", s(&masked), "-s", "6", "--holes", s(&mask)]));
+    for (k, v) in plane(&masked, "Y").iter().enumerate() {
+        assert_eq!(v.is_nan(), marked(k), "texel {k}");
+    }
+}
+
+/// A mask of the wrong size, or that cannot be read: one line naming the
+/// mask, exit 2, nothing written.
+#[test]
+fn a_bad_mask_is_one_line_naming_it_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (hmap, nmap) = (dir.path().join("h.png"), dir.path().join("n.exr"));
+    write_heights(&hmap, 24, 16);
+    ok(&run(&["convert", s(&hmap), "-o", s(&nmap)]));
+    let small = dir.path().join("small.png");
+    image::ImageBuffer::<image::Luma<u8>, Vec<u8>>::new(8, 8).save(&small).unwrap();
+    let junk = dir.path().join("junk.png");
+    fs::write(&junk, b"not a png").unwrap();
+    let out = dir.path().join("out.exr");
+    for mask in [&small, &junk] {
+        let line = error_line(&run(&["height", s(&nmap), "-o", s(&out), "--holes", s(mask)]));
+        assert!(line.contains(&format!("holes mask {}", mask.display())), "{line}");
+    }
+    let line = error_line(&run(&["height", s(&nmap), "-o", s(&out), "--holes", s(&small)]));
+    assert!(line.contains("8 × 8 texels, the normal map 24 × 16"), "{line}");
+    assert!(!out.exists());
+    assert_eq!(listing(dir.path()).len(), 4, "nothing written: {:?}", listing(dir.path()));
+}

@@ -8,8 +8,8 @@
 use crate::common;
 
 use common::reference::source_index;
-use normalfit::height::{ConventionChoice, HeightOptions, Model, heights};
-use normalfit::{Border, Borders, Convention, Fit, Options, Strength, normals};
+use normalfit::height::{ConventionChoice, HeightOptions, Model, heights, heights_with_holes};
+use normalfit::{Border, Borders, Convention, Fit, FitRequest, Options, Strength, normals};
 
 /// Σ i² over the N×N patch.
 fn a_of(n: usize) -> f64 {
@@ -155,10 +155,66 @@ impl Lcg {
 /// (singular values 5e-7 of the largest at 2 × 5, N = 41): singular values
 /// below 1e-10 of the largest are the null space.
 fn dense_solve(gx: &[f64], gy: &[f64], w: usize, h: usize, n: usize, borders: Borders) -> Vec<f64> {
+    demean(&dense_least_squares(gx, gy, w, h, n, borders, &vec![false; w * h]).z)
+}
+
+/// The dense problem's solution of least W-norm (not demeaned), and its
+/// right singular vectors: `modes` holds each one's σ² and its vector in
+/// heights (v/√W, so that ⟨a, b⟩_W of two is the Kronecker δ).
+struct Dense {
+    z: Vec<f64>,
+    modes: Vec<(f64, Vec<f64>)>,
+    weight: Vec<f64>,
+}
+
+impl Dense {
+    /// The largest σ².
+    fn largest(&self) -> f64 {
+        self.modes.iter().fold(0.0f64, |m, (s, _)| m.max(*s))
+    }
+    /// The W-inner products of `z` (NaN read as 0) with the modes whose σ²
+    /// is `above` (true) or at most (false) `cut` times the largest,
+    /// summed in squares.
+    fn part(&self, z: &[f64], cut: f64, above: bool) -> f64 {
+        let largest = self.largest();
+        self.modes
+            .iter()
+            .filter(|(s, _)| (*s > cut * largest) == above)
+            .map(|(_, v)| {
+                let c: f64 =
+                    v.iter().zip(z).zip(&self.weight).map(|((v, z), w)| if z.is_nan() { 0.0 } else { v * z * w }).sum();
+                c * c
+            })
+            .sum()
+    }
+}
+
+/// The dense problem with holes: the equations of the period texels whose
+/// patches hold a hole left out, the holes' heights out of the unknowns
+/// (their columns 0, so their heights come out 0).
+fn dense_least_squares(
+    gx: &[f64],
+    gy: &[f64],
+    w: usize,
+    h: usize,
+    n: usize,
+    borders: Borders,
+    holes: &[bool],
+) -> Dense {
     let unknowns = w * h;
-    let texels = period_texels(gx, gy, w, h, n, borders);
+    let texels: Vec<PeriodTexel> = period_texels(gx, gy, w, h, n, borders)
+        .into_iter()
+        .filter(|t| !t.patch.iter().any(|&k| holes[k]))
+        .map(|mut t| {
+            for k in (0..unknowns).filter(|&k| holes[k]) {
+                (t.row_x[k], t.row_y[k]) = (0.0, 0.0);
+            }
+            t
+        })
+        .collect();
+    // Multiplicities as the period holds the texels, whatever is kept.
     let mut weight = vec![0.0f64; unknowns];
-    texels.iter().for_each(|t| weight[t.texel] += 1.0);
+    period_texels(gx, gy, w, h, n, borders).iter().for_each(|t| weight[t.texel] += 1.0);
     // In z' = W^½ z the minimum W-norm is the minimum norm: the operator's
     // columns divided by √W. Columns of M (rows of `columns`), targets g.
     let mut columns = vec![vec![0.0; 2 * texels.len()]; unknowns];
@@ -217,7 +273,9 @@ fn dense_solve(gx: &[f64], gy: &[f64], w: usize, h: usize, n: usize, borders: Bo
         }
     }
     let z: Vec<f64> = z.iter().zip(&weight).map(|(z, w)| z / w.sqrt()).collect();
-    demean(&z)
+    let modes =
+        (0..unknowns).map(|k| (sigma2[k], v[k].iter().zip(&weight).map(|(v, w)| v / w.sqrt()).collect())).collect();
+    Dense { z, modes, weight }
 }
 
 /// One texel of the period as the dense problem sees it: the image texel
@@ -227,6 +285,8 @@ fn dense_solve(gx: &[f64], gy: &[f64], w: usize, h: usize, n: usize, borders: Bo
 /// negated).
 struct PeriodTexel {
     texel: usize,
+    /// The image texels its patch reads.
+    patch: Vec<usize>,
     row_x: Vec<f64>,
     row_y: Vec<f64>,
     target: (f64, f64),
@@ -252,16 +312,18 @@ fn period_texels(gx: &[f64], gy: &[f64], w: usize, h: usize, n: usize, borders: 
             let sy = if reflected(qy, h, borders.y) { -1.0 } else { 1.0 };
             let mut row_x = vec![0.0; unknowns];
             let mut row_y = vec![0.0; unknowns];
+            let mut patch = Vec::new();
             for j in -r..=r {
                 for i in -r..=r {
                     let tx = map(qx as isize + i, w, borders.x);
                     let ty = map(qy as isize + j, h, borders.y);
                     row_x[ty * w + tx] += i as f64 / a;
                     row_y[ty * w + tx] += j as f64 / a;
+                    patch.push(ty * w + tx);
                 }
             }
             let texel = iy * w + ix;
-            texels.push(PeriodTexel { texel, row_x, row_y, target: (sx * gx[texel], sy * gy[texel]) });
+            texels.push(PeriodTexel { texel, patch, row_x, row_y, target: (sx * gx[texel], sy * gy[texel]) });
         }
     }
     texels
@@ -997,4 +1059,193 @@ fn clamp_past_1024_texels_a_side_is_refused_in_one_line() {
     let got = heights(&flat, w, h, &clamp(5)).unwrap();
     assert!(got.values.iter().all(|&v| v == 0.0));
     assert!(heights(&tilted, w, h, &clamp(3)).is_ok());
+}
+
+// ---- Holes -------------------------------------------------------------
+
+/// A `w` × `h` mask: a band of holes `band` columns wide from column 4
+/// (none when 0), and the texels `extra`.
+fn holes_mask(w: usize, h: usize, band: usize, extra: &[(usize, usize)]) -> Vec<bool> {
+    let mut holes: Vec<bool> = (0..w * h).map(|k| (4..4 + band).contains(&(k % w))).collect();
+    extra.iter().for_each(|&(x, y)| holes[y * w + x] = true);
+    holes
+}
+
+/// The texels that are not holes but lie in no patch free of holes (the
+/// reference's patches, read through its border rule).
+fn unseen(w: usize, h: usize, n: usize, borders: Borders, holes: &[bool]) -> Vec<bool> {
+    let zeros = vec![0.0; w * h];
+    let mut seen = vec![false; w * h];
+    for t in period_texels(&zeros, &zeros, w, h, n, borders) {
+        if !t.patch.iter().any(|&k| holes[k]) {
+            t.patch.iter().for_each(|&k| seen[k] = true);
+        }
+    }
+    (0..w * h).map(|k| !holes[k] && !seen[k]).collect()
+}
+
+/// The vertical fit's slopes of `z` (NaN read as 0) at the period texels
+/// whose patches hold no hole: what the least squares determine.
+fn kept_slopes(z: &[f64], w: usize, h: usize, n: usize, borders: Borders, holes: &[bool]) -> Vec<f64> {
+    let zeros = vec![0.0; w * h];
+    let z: Vec<f64> = z.iter().map(|&v| if v.is_nan() { 0.0 } else { v }).collect();
+    let dot = |row: &[f64]| row.iter().zip(&z).map(|(a, b)| a * b).sum::<f64>();
+    period_texels(&zeros, &zeros, w, h, n, borders)
+        .iter()
+        .filter(|t| !t.patch.iter().any(|&k| holes[k]))
+        .flat_map(|t| [dot(&t.row_x), dot(&t.row_y)])
+        .collect()
+}
+
+/// Random slopes with holes (a 4-wide band, and scattered holes), every
+/// border, N = 3 and 5, against the dense least squares of the kept
+/// equations: holes NaN, the unseen texels NaN (and counted), the fitted
+/// slopes equal, the heights equal on the modes the equations see, and
+/// nothing on the modes they do not (least norm).
+#[test]
+fn holes_match_a_dense_least_squares_solve() {
+    let mut rng = Lcg(35);
+    let wrap = Borders::both(Border::Wrap);
+    let cases = [
+        wrap,
+        Borders::both(Border::Clamp),
+        Borders::both(Border::Mirror),
+        Borders { x: Border::Clamp, y: Border::Wrap },
+    ];
+    for (w, h) in [(13, 7), (12, 10)] {
+        for n in [3, 5] {
+            for borders in cases {
+                for (band, extra) in [(4, vec![(0, 0)]), (0, vec![(2, 2), (3, 2), (9, 5), (10, 1), (0, 6)])] {
+                    let holes = holes_mask(w, h, band, &extra);
+                    let len = w * h;
+                    let (gx, gy): (Vec<f64>, Vec<f64>) = (0..len).map(|_| (rng.next(), rng.next())).unzip();
+                    let normals: Vec<[f64; 3]> =
+                        gx.iter().zip(&gy).map(|(&a, &b)| normal_of(a, b, Convention::OpenGl)).collect();
+                    let opts = HeightOptions::from_fit(&vertical(n, borders));
+                    let got = heights_with_holes(&normals, w, h, &holes, &opts).unwrap();
+                    let case = format!("{w}×{h} N {n} {borders:?} band {band}");
+                    assert!(got.report.converged, "{case}");
+                    let unseen = unseen(w, h, n, borders, &holes);
+                    for k in 0..len {
+                        assert_eq!(got.values[k].is_nan(), holes[k] || unseen[k], "{case}: texel {k}");
+                    }
+                    assert_eq!(got.report.holes, holes.iter().filter(|&&v| v).count(), "{case}");
+                    assert_eq!(got.report.undetermined, unseen.iter().filter(|&&v| v).count(), "{case}");
+                    let want = dense_least_squares(&gx, &gy, w, h, n, borders, &holes);
+                    let (fit_got, fit_want) = (
+                        kept_slopes(&got.values, w, h, n, borders, &holes),
+                        kept_slopes(&want.z, w, h, n, borders, &holes),
+                    );
+                    let size = fit_want.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1.0);
+                    let err = max_diff(&fit_got, &fit_want) / size;
+                    assert!(err < 1e-8, "{case}: fitted slopes off by {err:e}");
+                    // The heights, on the modes the kept equations see well.
+                    let diff: Vec<f64> = got.values.iter().zip(&want.z).map(|(g, w)| g - w).collect();
+                    let norm = want.z.iter().map(|v| v * v).sum::<f64>().max(1.0);
+                    let seen_part = want.part(&diff, 1e-12, true);
+                    assert!(seen_part < 1e-14 * norm, "{case}: heights off by {seen_part:e} of {norm:e}");
+                    // Least norm: nothing on the modes they do not see.
+                    let null_part = want.part(&got.values, 1e-20, false);
+                    assert!(null_part < 1e-14 * norm, "{case}: {null_part:e} on the null modes");
+                }
+            }
+        }
+    }
+}
+
+/// A terrain with a 4-wide band of holes and a blob, through the forward
+/// fit with holes (nodata NaN) and back with the same holes, N = 3 and 5,
+/// vertical (gain 8) and orthogonal (gain 1: with holes it has no
+/// Gauss–Newton finish, and at gain 8 on these maps its fixed point does
+/// not settle), every border: the holes come back NaN (and
+/// the texels no patch free of holes holds, as the reference finds them),
+/// and
+/// the heights' re-fitted normals are the given ones wherever a patch
+/// holds no hole (what the least squares determine), to 1e-7 (orthogonal:
+/// the fixed point's own 1e-4); at 16 × 12
+/// the heights themselves come back up to the modes no kept equation sees
+/// (the dense solve's null space: each piece's constant, and at N = 5 the
+/// modes along the band's edges).
+#[test]
+fn round_trips_with_holes_give_the_heights_back_up_to_what_no_patch_sees() {
+    for (w, h) in [(16, 12), (41, 33)] {
+        for n in [3, 5] {
+            for fit in [Fit::Vertical, Fit::Orthogonal] {
+                for b in [Border::Wrap, Border::Clamp, Border::Mirror] {
+                    let borders = Borders::both(b);
+                    let case = format!("{w}×{h} N {n} {fit:?} {b:?}");
+                    let holes = holes_mask(w, h, 4, &[(w - 3, h / 2), (w - 2, h / 2), (w - 3, h / 2 + 1)]);
+                    let original =
+                        if b == Border::Mirror { mirror_terrain(w, h, 3) } else { periodic_terrain(w, h, 3) };
+                    let with_holes: Vec<f64> =
+                        original.iter().zip(&holes).map(|(&v, &hole)| if hole { f64::NAN } else { v }).collect();
+                    let fit_opts = Options::new()
+                        .with_fit(fit)
+                        .with_patch(n)
+                        .with_borders(borders)
+                        .with_strength(Strength::Scale(if fit == Fit::Orthogonal { 1.0 } else { 8.0 }));
+                    let with_nodata = fit_opts.clone().with_nodata(Some(f64::NAN));
+                    let f64_normals = |heights: &[f64]| {
+                        let mut out = vec![[0.0f64; 3]; w * h];
+                        FitRequest::new(&with_nodata).normals_into(heights, w, h, &mut out).unwrap();
+                        out
+                    };
+                    let given = f64_normals(&with_holes);
+                    let back = heights_with_holes(&given, w, h, &holes, &HeightOptions::from_fit(&fit_opts)).unwrap();
+                    assert!(back.report.converged, "{case}: {:?}", back.report);
+                    // Texels beside the blob at a clamped edge lie in no patch
+                    // free of holes: NaN, counted.
+                    let unseen = unseen(w, h, n, borders, &holes);
+                    assert_eq!(back.report.undetermined, unseen.iter().filter(|&&u| u).count(), "{case}");
+                    for k in 0..w * h {
+                        assert_eq!(back.values[k].is_nan(), holes[k] || unseen[k], "{case}: texel {k}");
+                    }
+                    // The re-fit of the heights found, where no patch holds a hole.
+                    let again = f64_normals(&back.values);
+                    let zeros = vec![0.0; w * h];
+                    let mut worst = 0.0f64;
+                    for t in period_texels(&zeros, &zeros, w, h, n, borders) {
+                        if !t.patch.iter().any(|&k| holes[k]) {
+                            for c in 0..3 {
+                                worst = worst.max((again[t.texel][c] - given[t.texel][c]).abs());
+                            }
+                        }
+                    }
+                    let bound = if fit == Fit::Vertical { 1e-7 } else { 1e-4 };
+                    assert!(worst < bound, "{case}: re-fitted normals off by {worst:e}");
+                    if w * h <= 200 {
+                        let dense = dense_least_squares(&zeros, &zeros, w, h, n, borders, &holes);
+                        let diff: Vec<f64> = back
+                            .values
+                            .iter()
+                            .zip(&original)
+                            .map(|(b, o)| if b.is_nan() { 0.0 } else { b - o })
+                            .collect();
+                        let norm = original.iter().map(|v| v * v).sum::<f64>();
+                        let seen_part = dense.part(&diff, 1e-12, true);
+                        let bound = if fit == Fit::Vertical { 1e-12 } else { 1e-6 };
+                        assert!(seen_part < bound * norm, "{case}: heights off by {seen_part:e} of {norm:e}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Without a hole the mask changes nothing, to the bit; a mask of the wrong
+/// size and the generic model with holes are errors.
+#[test]
+fn an_empty_mask_is_the_inverse_without_holes_and_bad_masks_are_errors() {
+    let (w, h) = (24, 20);
+    let original = periodic_terrain(w, h, 5);
+    let fit = Options::new().with_patch(5).with_borders(Borders::both(Border::Clamp));
+    let n = normals(&original, w, h, &fit).unwrap();
+    let opts = HeightOptions::from_fit(&fit);
+    let plain = heights(&n, w, h, &opts).unwrap();
+    let masked = heights_with_holes(&n, w, h, &vec![false; w * h], &opts).unwrap();
+    assert!(plain.values.iter().zip(&masked.values).all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert!(heights_with_holes(&n, w, h, &[true; 3], &opts).is_err());
+    let generic = opts.with_model(Model::Generic);
+    let e = heights_with_holes(&n, w, h, &holes_mask(w, h, 2, &[]), &generic).unwrap_err();
+    assert!(e.to_string().contains("exact model"), "{e}");
 }

@@ -547,6 +547,7 @@ def height(
     model: str = "exact",
     step: float | None = None,
     threads: int | None = None,
+    holes: Any = None,
 ) -> tuple[Any, HeightInfo]:
     """The heights of a normal map: ``normalfit height`` on an array, the
     inverse of normals().
@@ -565,20 +566,26 @@ def height(
         regularisation and error figure; default from the dtype (2/255,
         2/65535, float32's epsilon, 0 for float64).
     threads: as for normals().
+    holes: a (rows, columns) bool array, True where a texel is a hole (a
+        DEM's nodata): holes come back NaN, the rest solved from the
+        patches that hold no hole (each connected piece's mean 0); texels
+        no such patch holds are NaN too (info.undetermined).
 
     Returns (heights, info): a (rows, columns) float64 array, mean 0, in
     units of the gain (``normals(h, scale=S)`` then ``height(n, scale=S)``
     gives h back up to a constant), and a HeightInfo (convention used,
     curl under auto, bad_texels, iterations, converged,
-    quantisation_error, range).
+    quantisation_error, range, holes, undetermined).
 
     Raises TypeError for an array of the wrong dimensions or dtype,
-    ValueError for a bad option or shape, MemoryError when the memory is
-    not there (what the solve holds, which grows with patch, is checked
-    against the memory the process may take before it starts).
+    ValueError for a bad option or shape (holes' included), MemoryError
+    when the memory is not there (what the solve holds, which grows with
+    patch, is checked against the memory the process may take before it
+    starts).
     """
+    mask = None if holes is None else np.ascontiguousarray(holes, dtype=bool)
     return _normalfit.height(
-        normals, patch, fit, border, convention, scale, relief, invert, model, step, threads
+        normals, patch, fit, border, convention, scale, relief, invert, model, step, threads, mask
     )
 
 

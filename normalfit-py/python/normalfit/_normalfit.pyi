@@ -184,6 +184,7 @@ def height(
     model: str,
     step: float | None,
     threads: int | None,
+    holes: Any,
 ) -> tuple[Any, HeightInfo]: ...
 def height_file(
     src: str | os.PathLike[str],

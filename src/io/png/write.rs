@@ -77,6 +77,21 @@ pub(crate) fn png_gray<S: PngSample>(
         .map_err(from_image_error)
 }
 
+/// A gray-and-alpha PNG of 16-bit samples, `pairs` holding each texel's
+/// value then its alpha: the heights of a map with holes (alpha 0 there).
+pub(crate) fn png_gray_alpha16(
+    pairs: &[u16],
+    (width, height): (usize, usize),
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<()> {
+    let (w, h) = png_size(pairs.len() / 2, width, height)?;
+    check_buffer(pairs.len(), width.saturating_mul(2), height)?;
+    png_encoder(out, compression)
+        .write_image(&u16::ne_bytes(pairs), w, h, ExtendedColorType::La16)
+        .map_err(from_image_error)
+}
+
 /// A PNG normal map, 8 or 16 bits by the sample type.
 ///
 /// `image`'s `PngEncoder::write_image` takes 16-bit samples as
