@@ -38,6 +38,7 @@ use crate::par::prelude::*;
 use crate::samples::try_filled;
 
 use super::HeightOptions;
+use super::iterative::preconditioned_cg;
 use super::line::{Work, columns_in_place, rows};
 use super::patch::Patch;
 use super::solve::SlopeRows as Slopes;
@@ -217,17 +218,13 @@ fn conjugate_gradients(
         patch.adjoint(gx, gy, out);
         out.par_iter_mut().zip(v).zip(holes).for_each(|((o, v), &hole)| *o = if hole { 0.0 } else { *o + lambda * v });
     };
-    let dot = |a: &[f64], b: &[f64]| -> f64 {
-        let rows: Vec<f64> =
-            a.par_chunks(w).zip(b.par_chunks(w)).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect();
-        rows.iter().sum()
-    };
-    let precondition = |r: &[f64], out: &mut [f64]| {
+    let precondition = |r: &[f64], out: &mut [f64]| -> Result<()> {
         out.par_chunks_mut(w).zip(r.par_chunks(w)).enumerate().for_each(|(y, (o, r))| {
             for ((o, r), m) in o.iter_mut().zip(r).zip(wx.iter()) {
                 *o = r / (m * wy[y]);
             }
         });
+        Ok(())
     };
     let mut rhs = plane()?;
     gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| slopes(y, rx, ry));
@@ -238,37 +235,7 @@ fn conjugate_gradients(
             *b = 0.0;
         }
     });
-    let mut r = plane()?;
-    normal(z, &mut r, &mut gx, &mut gy);
-    r.par_iter_mut().zip(&rhs).for_each(|(r, b)| *r = b - *r);
-    let mut y = plane()?;
-    precondition(&r, &mut y);
-    let mut p = y.clone();
-    let mut ap = plane()?;
-    let target = TOLERANCE * TOLERANCE * dot(&rhs, &rhs);
-    let mut ry = dot(&r, &y);
-    let mut converged = dot(&r, &r) <= target;
-    while !converged && *budget > 0 {
-        *budget -= 1;
-        normal(&p, &mut ap, &mut gx, &mut gy);
-        let pap = dot(&p, &ap);
-        if pap <= 0.0 {
-            break;
-        }
-        let alpha = ry / pap;
-        z.par_iter_mut().zip(&p).for_each(|(z, p)| *z += alpha * p);
-        r.par_iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-        converged = dot(&r, &r) <= target;
-        if converged {
-            break;
-        }
-        precondition(&r, &mut y);
-        let next = dot(&r, &y);
-        let beta = next / ry;
-        ry = next;
-        p.par_iter_mut().zip(&y).for_each(|(p, y)| *p = y + beta * *p);
-    }
-    Ok(converged)
+    preconditioned_cg(z, &rhs, (w, TOLERANCE), normal, precondition, (&mut gx, &mut gy), budget)
 }
 
 /// Bytes the solve with holes holds besides the slopes and heights: eight

@@ -601,11 +601,6 @@ fn conjugate_gradients(
         patch.slopes(z, gx, gy);
         gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| weigh(y, rx, ry));
     };
-    let dot = |a: &[f64], b: &[f64]| -> f64 {
-        let rows: Vec<f64> =
-            a.par_chunks(w).zip(b.par_chunks(w)).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect();
-        rows.iter().sum()
-    };
     // b = Dᵀ g.
     let mut rhs = alloc()?;
     gx.par_chunks_mut(w).zip(gy.par_chunks_mut(w)).enumerate().for_each(|(y, (rx, ry))| {
@@ -631,7 +626,7 @@ fn conjugate_gradients(
     // solution keeps the start's minimum norm there, as the transforms'
     // solutions have it.
     let mut weighted = alloc()?;
-    let mut precondition = |r: &[f64], out: &mut [f64]| -> Result<()> {
+    let precondition = |r: &[f64], out: &mut [f64]| -> Result<()> {
         weighted.par_chunks_mut(w).zip(r.par_chunks(w)).enumerate().for_each(|(y, (o, r))| {
             for ((o, r), m) in o.iter_mut().zip(r).zip(&wx) {
                 *o = r / (m * wy[y]);
@@ -645,35 +640,62 @@ fn conjugate_gradients(
             }
         }
     };
-    let mut r = alloc()?;
-    normal(z, &mut r, &mut gx, &mut gy);
-    r.iter_mut().zip(&rhs).for_each(|(r, b)| *r = b - *r);
-    let mut y = alloc()?;
+    let converged = preconditioned_cg(z, &rhs, (w, CG_TOLERANCE), normal, precondition, (&mut gx, &mut gy), budget)?;
+    Ok((converged, start))
+}
+
+/// Σ a·b, row by row in parallel, the rows' sums added in order: the same
+/// bits whatever the thread count.
+pub(super) fn dot(a: &[f64], b: &[f64], w: usize) -> f64 {
+    let rows: Vec<f64> =
+        a.par_chunks(w).zip(b.par_chunks(w)).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect();
+    rows.iter().sum()
+}
+
+/// Preconditioned conjugate gradients on `normal` z = `rhs` (`normal(v,
+/// out, gx, gy)` applies the normal equations' operator to v, with gx, gy
+/// as its scratch planes), from `z`, until the residual falls below
+/// `tolerance` of the right-hand side's or `budget` (iterations left) runs
+/// out; image rows of `w`. Returns whether it met the tolerance.
+pub(super) fn preconditioned_cg(
+    z: &mut [f64],
+    rhs: &[f64],
+    (w, tolerance): (usize, f64),
+    normal: impl Fn(&[f64], &mut [f64], &mut [f64], &mut [f64]),
+    mut precondition: impl FnMut(&[f64], &mut [f64]) -> Result<()>,
+    (gx, gy): (&mut [f64], &mut [f64]),
+    budget: &mut usize,
+) -> Result<bool> {
+    let plane = || try_filled(z.len(), 0.0);
+    let mut r = plane()?;
+    normal(z, &mut r, gx, gy);
+    r.par_iter_mut().zip(rhs).for_each(|(r, b)| *r = b - *r);
+    let mut y = plane()?;
     precondition(&r, &mut y)?;
     let mut p = y.clone();
-    let mut ap = alloc()?;
-    let target = CG_TOLERANCE * CG_TOLERANCE * dot(&rhs, &rhs);
-    let mut ry = dot(&r, &y);
-    let mut converged = dot(&r, &r) <= target;
+    let mut ap = plane()?;
+    let target = tolerance * tolerance * dot(rhs, rhs, w);
+    let mut ry = dot(&r, &y, w);
+    let mut converged = dot(&r, &r, w) <= target;
     while !converged && *budget > 0 {
         *budget -= 1;
-        normal(&p, &mut ap, &mut gx, &mut gy);
-        let pap = dot(&p, &ap);
+        normal(&p, &mut ap, gx, gy);
+        let pap = dot(&p, &ap, w);
         if pap <= 0.0 {
             break;
         }
         let alpha = ry / pap;
-        z.iter_mut().zip(&p).for_each(|(z, p)| *z += alpha * p);
-        r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-        converged = dot(&r, &r) <= target;
+        z.par_iter_mut().zip(&p).for_each(|(z, p)| *z += alpha * p);
+        r.par_iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
+        converged = dot(&r, &r, w) <= target;
         if converged {
             break;
         }
         precondition(&r, &mut y)?;
-        let next = dot(&r, &y);
+        let next = dot(&r, &y, w);
         let beta = next / ry;
         ry = next;
-        p.iter_mut().zip(&y).for_each(|(p, y)| *p = y + beta * *p);
+        p.par_iter_mut().zip(&y).for_each(|(p, y)| *p = y + beta * *p);
     }
-    Ok((converged, start))
+    Ok(converged)
 }

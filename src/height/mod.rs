@@ -384,16 +384,7 @@ pub fn heights<T: NormalComponent>(
     height: usize,
     opts: &HeightOptions,
 ) -> Result<Heights> {
-    let len = crate::fit::checked_len(width, height)?;
-    if normals.len() != len {
-        return Err(Error::BufferSize { expected: len, actual: normals.len() });
-    }
-    let row = |y: usize, out: &mut [[f64; 3]]| {
-        for (o, n) in out.iter_mut().zip(&normals[y * width..][..width]) {
-            *o = n.map(T::to_f64);
-        }
-    };
-    heights_of_rows(&row, width, height, opts)
+    of_normals(normals, width, height, None, opts)
 }
 
 /// [`heights`] with holes: `holes[k]` marks texel k a hole (its normal is
@@ -427,6 +418,18 @@ pub fn heights_with_holes<T: NormalComponent>(
     holes: &[bool],
     opts: &HeightOptions,
 ) -> Result<Heights> {
+    of_normals(normals, width, height, Some(holes), opts)
+}
+
+/// [`heights`] and [`heights_with_holes`]: the buffer checked, its rows
+/// read as f64 normals.
+fn of_normals<T: NormalComponent>(
+    normals: &[[T; 3]],
+    width: usize,
+    height: usize,
+    holes: Option<&[bool]>,
+    opts: &HeightOptions,
+) -> Result<Heights> {
     let len = crate::fit::checked_len(width, height)?;
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
@@ -436,7 +439,7 @@ pub fn heights_with_holes<T: NormalComponent>(
             *o = n.map(T::to_f64);
         }
     };
-    heights_of_rows_with_holes(&row, width, height, Some(holes), opts)
+    heights_of_rows_with_holes(&row, width, height, holes, opts)
 }
 
 /// [`heights_of_rows`] with holes (`None`: none), as [`heights_with_holes`].
