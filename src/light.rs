@@ -179,6 +179,7 @@ impl Lamp {
 
     /// The grey of a texel whose normal is `n` (normalised here; a zero
     /// or non-finite one is taken as flat).
+    #[inline(always)]
     pub(crate) fn grey(&self, n: [f32; 3]) -> u8 {
         if self.gis {
             return self.sun_grey(n);
@@ -215,6 +216,22 @@ impl Lamp {
     #[inline(always)]
     fn sun_direction(&self) -> [f32; 3] {
         self.direction.map(|v| v as f32)
+    }
+}
+
+/// A lit view's texel, made by the fit in its own loop over a row (the
+/// row's normals still in the core's cache) rather than from a band of
+/// `f32` normals stored and read back: the grey of the unit normal, cast
+/// to `f32` as the normal map's texel is, under the fit's lamp
+/// ([`crate::fit::TexelFrame`]): [`Lamp::grey`], the same bits as
+/// [`Lamp::grey_row`] of the `f32` normals gives.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Grey(pub(crate) u8);
+
+impl crate::fit::Texel for Grey {
+    #[inline(always)]
+    fn make(n: [f64; 3], frame: &crate::fit::TexelFrame) -> Self {
+        Grey(frame.lamp.grey(n.map(|c| c as f32)))
     }
 }
 

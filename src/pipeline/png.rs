@@ -198,10 +198,10 @@ struct LitTexels {
 }
 
 impl PngTexels for LitTexels {
-    type Normal = [f32; 3];
+    type Normal = crate::light::Grey;
     type Fit = BandFit;
     fn fit(&self, (w, h): (usize, usize), opts: &Options, unit: f64) -> Result<BandFit> {
-        Ok(BandFit::new(w, h, opts)?.with_unit(unit))
+        Ok(BandFit::new(w, h, opts)?.with_unit(unit).lit(self.lamp))
     }
     fn bits(&self) -> u8 {
         8
@@ -212,9 +212,9 @@ impl PngTexels for LitTexels {
     fn needs_heights(&self) -> Extra {
         if self.holes { Extra::Valid } else { Extra::None }
     }
-    fn raw<'a>(&self, normals: &'a mut [[f32; 3]], valid: &[f32]) -> Cow<'a, [u8]> {
-        let mut grey = vec![0u8; normals.len()];
-        super::lit_greys(self.lamp, normals, valid, &mut grey);
+    fn raw<'a>(&self, texels: &'a mut [crate::light::Grey], valid: &[f32]) -> Cow<'a, [u8]> {
+        let mut grey: Vec<u8> = texels.iter().map(|g| g.0).collect();
+        super::holes_grey(valid, &mut grey);
         Cow::Owned(grey)
     }
 }
