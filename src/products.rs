@@ -113,7 +113,7 @@ pub fn hillshade_into<S: Heights + ?Sized>(
     let convention: Convention = request.convention();
     let lamp = crate::light::Lamp::sun(sun, affine, convention);
     let (texels, row) = (out.len(), request.output_width(width));
-    let mut band = |first: usize, greys: &[Grey], valid: Option<&[bool]>| {
+    let mut band = |first: usize, greys: &[Grey<true>], valid: Option<&[bool]>| {
         let Some(out) = out.get_mut(first * row..first * row + greys.len()) else { return };
         out.iter_mut().zip(greys).for_each(|(o, g)| *o = g.0);
         if let Some(valid) = valid {

@@ -8,6 +8,7 @@ use super::sink::{
 };
 use super::source::{Reopen, Rows};
 use super::stage::{Texels, fitted, with_holes};
+use crate::light::Grey;
 use super::{ConvertError, MipStage, Observer, Place, Settings, Sink, Stage, Summary, chain_files};
 use crate::borders::{BorderChoice, Warning};
 use crate::error::Error;
@@ -691,9 +692,12 @@ impl Job<'_> {
         };
         let lamp = lighting.lamp(self.georef, fit.convention);
         let request = with_holes(crate::FitRequest::new(fit), None, valid.as_deref_mut()).lit(lamp);
-        let greys: Vec<crate::light::Grey> = fitted(heights, (width, height), request).map_err(&in_failure)?;
-        // The same buffer, its texels' bytes.
-        let mut greys: Vec<u8> = greys.into_iter().map(|g| g.0).collect();
+        // The texels' buffer, its bytes.
+        let greys = match lamp.is_sun() {
+            true => fitted(heights, (width, height), request).map(|g: Vec<Grey<true>>| g.into_iter().map(|g| g.0).collect()),
+            false => fitted(heights, (width, height), request).map(|g: Vec<Grey<false>>| g.into_iter().map(|g| g.0).collect()),
+        };
+        let mut greys: Vec<u8> = greys.map_err(&in_failure)?;
         if let Some(valid) = &valid {
             for (g, _) in greys.iter_mut().zip(valid).filter(|(_, v)| !**v) {
                 *g = 0;

@@ -75,11 +75,15 @@ pub(crate) fn shade_tiff<W: Write + Seek>(
     out: W,
 ) -> Result<usize> {
     let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
-    let greys = move |texels: &mut [Grey], valid: &[f32], grey: &mut Vec<u8>| {
+    fn greys<const SUN: bool>(texels: &mut [Grey<SUN>], valid: &[f32], grey: &mut Vec<u8>) {
         grey.extend(texels.iter().map(|g| g.0));
         super::holes_grey(valid, grey);
-    };
-    stream_tiff(rows, tail, (opts, (None, Some(lamp))), (1, extra), tags, greys, visit, out)
+    }
+    let frame = (opts, (None, Some(lamp)));
+    match lamp.is_sun() {
+        true => stream_tiff(rows, tail, frame, (1, extra), tags, greys::<true>, visit, out),
+        false => stream_tiff(rows, tail, frame, (1, extra), tags, greys::<false>, visit, out),
+    }
 }
 
 /// A height map's slope or aspect ([`crate::units::Measure`]), a float
