@@ -8,13 +8,13 @@ use super::sink::{
 };
 use super::source::{Reopen, Rows};
 use super::stage::{Texels, fitted, with_holes};
-use crate::light::Grey;
 use super::{ConvertError, MipStage, Observer, Place, Settings, Sink, Stage, Summary, chain_files};
 use crate::borders::{BorderChoice, Warning};
 use crate::error::Error;
 use crate::io::encoding::TiffTags;
 use crate::io::gpu::{self, Chain};
 use crate::io::{self, Encoding, FileSet, Georef, Layout, OutputFormat, Raster};
+use crate::light::Grey;
 use crate::light::Lighting;
 use crate::mips::{MipChoice, MipLevel};
 use crate::normal_map::{ImageKind, KindChoice, kind_of};
@@ -330,7 +330,8 @@ impl Job<'_> {
             let chain = if stage.all {
                 with_slice!(&heights, h => crate::mips::fit_chain(h, (width, height), &fit)).map_err(&in_failure)?
             } else {
-                let texels = fitted::<[f32; 3]>(&heights, (width, height), crate::FitRequest::new(&fit)).map_err(&in_failure)?;
+                let texels =
+                    fitted::<[f32; 3]>(&heights, (width, height), crate::FitRequest::new(&fit)).map_err(&in_failure)?;
                 vec![MipLevel { width, height, texels }]
             };
             let alpha = match with_heights {
@@ -692,12 +693,15 @@ impl Job<'_> {
         };
         let lamp = lighting.lamp(self.georef, fit.convention);
         let request = with_holes(crate::FitRequest::new(fit), None, valid.as_deref_mut()).lit(lamp);
-        // The texels' buffer, its bytes.
+        // The texels' buffer becomes the greys' (in place: the same size).
+        fn bytes<const SUN: bool>(greys: Vec<Grey<SUN>>) -> Vec<u8> {
+            greys.into_iter().map(|g| g.0).collect()
+        }
         let greys = match lamp.is_sun() {
-            true => fitted(heights, (width, height), request).map(|g: Vec<Grey<true>>| g.into_iter().map(|g| g.0).collect()),
-            false => fitted(heights, (width, height), request).map(|g: Vec<Grey<false>>| g.into_iter().map(|g| g.0).collect()),
+            true => fitted(heights, (width, height), request).map(bytes::<true>),
+            false => fitted(heights, (width, height), request).map(bytes::<false>),
         };
-        let mut greys: Vec<u8> = greys.map_err(&in_failure)?;
+        let mut greys = greys.map_err(&in_failure)?;
         if let Some(valid) = &valid {
             for (g, _) in greys.iter_mut().zip(valid).filter(|(_, v)| !**v) {
                 *g = 0;

@@ -4,9 +4,9 @@
 
 use super::sink::{WriteSeek, zeroed};
 use crate::error::Result;
+use crate::fit::Texel;
 use crate::io::encoding::{TiffDepth, TiffOptions, TiffTags};
 use crate::io::{self, Encoding, PngDepth, PngOptions};
-use crate::fit::Texel;
 use crate::{Options, Samples};
 
 /// The texel type an encoding stores: 8- or 16-bit integers, or floats.
@@ -58,22 +58,23 @@ impl Texels {
         residual: Option<&mut [f32]>,
         valid: Option<&mut [bool]>,
     ) -> Result<Texels> {
+        let request = with_holes(crate::FitRequest::new(opts), residual, valid);
         Ok(match encoding {
             Encoding::Texture(_) => return Err(crate::io::write::not_a_chain()),
             Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => {
-                Texels::Eight(fitted(heights, (w, h), with_holes(crate::FitRequest::new(opts), residual, valid))?)
+                Texels::Eight(fitted(heights, (w, h), request)?)
             }
             Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => {
-                Texels::Sixteen(fitted(heights, (w, h), with_holes(crate::FitRequest::new(opts), residual, valid))?)
+                Texels::Sixteen(fitted(heights, (w, h), request)?)
             }
             Encoding::Exr(_) | Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => {
-                Texels::Float(fitted(heights, (w, h), with_holes(crate::FitRequest::new(opts), residual, valid))?)
+                Texels::Float(fitted(heights, (w, h), request)?)
             }
             Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => {
-                Texels::Eight(fitted(heights, (w, h), with_holes(crate::FitRequest::new(opts), residual, valid))?)
+                Texels::Eight(fitted(heights, (w, h), request)?)
             }
             Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => {
-                Texels::Sixteen(fitted(heights, (w, h), with_holes(crate::FitRequest::new(opts), residual, valid))?)
+                Texels::Sixteen(fitted(heights, (w, h), request)?)
             }
         })
     }

@@ -7,10 +7,10 @@ use crate::error::{Error, Result};
 use crate::options::Options;
 use crate::samples::{Sample, first_non_finite};
 
-use super::{FromNormal, Texel};
 use super::masked::row_has_hole;
 use super::plan::{MAX_BLOCK_TEXELS, Plan};
 use super::sums::RowRef;
+use super::{FromNormal, Texel};
 
 /// The fit of an image whose rows arrive in bands, top to bottom, for
 /// callers that stream rows from a decoder to an encoder without holding

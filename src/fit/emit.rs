@@ -2,8 +2,8 @@
 //! square grid, written without branches so that a row of them
 //! vectorises, and the texels made from the normals.
 
-use super::{Texel, TexelFrame};
 use super::unequal::UnequalRow;
+use super::{Texel, TexelFrame};
 
 /// The summed squared distance of the patch's points from the fitted
 /// plane, from the patch sums. The scatter matrix of the points is

@@ -42,7 +42,7 @@
 use std::ops::Range;
 
 use super::eigen::{NEWTON_STEPS, eigen_start, eigenvector, newton_step, select};
-use super::{Texel, Plan, RowRef, SourceRows};
+use super::{Plan, RowRef, SourceRows, Texel};
 use crate::samples::Sample;
 
 /// Whether a value as given is a hole.

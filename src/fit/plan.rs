@@ -867,14 +867,7 @@ impl Plan {
     /// the texel type's conversion is a loop of its own. The sums are in
     /// units of z / `gain` (stored integers), or of z (`gain` 1); `y` is
     /// the image row, whose spacing map units fit with.
-    pub(super) fn emit<T: Texel>(
-        &self,
-        v: &WindowSums,
-        gain: f64,
-        y: usize,
-        scratch: &mut EmitScratch,
-        out: &mut [T],
-    ) {
+    pub(super) fn emit<T: Texel>(&self, v: &WindowSums, gain: f64, y: usize, scratch: &mut EmitScratch, out: &mut [T]) {
         let normal = &mut scratch.normal;
         if self.moments {
             let n2 = self.count;

@@ -1,6 +1,6 @@
 //! One fit request: the fit's one way in for heights held in memory.
 
-use super::{FromNormal, Plan, Texel, RowRef, Window, checked_len, detail, row_has_hole};
+use super::{FromNormal, Plan, RowRef, Texel, Window, checked_len, detail, row_has_hole};
 use crate::error::{Error, Result};
 use crate::options::{Borders, Options};
 use crate::samples::{Sample, Samples, first_non_finite, try_filled, try_vec, with_slice};

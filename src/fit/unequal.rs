@@ -23,7 +23,7 @@
 
 use super::eigen::{Diagonal, eigen_start_on, eigenvector, is_flat, is_near_plane, near_plane, select};
 use super::masked::{NewtonWork, newton};
-use super::{Texel, Plan, WindowSums, store_normals};
+use super::{Plan, Texel, WindowSums, store_normals};
 
 /// The planes of one row's unequal-spacing fit, kept from row to row (a
 /// strip's scratch): the matrix's varying entries, the Newton state.

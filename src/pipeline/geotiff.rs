@@ -8,10 +8,10 @@ use std::ops::Range;
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::Result;
 use crate::fit::{BandFit, Texel};
-use crate::light::Grey;
 use crate::io::encoding::{ExrDepth, ExrOptions, Layout, TiffDepth, TiffOptions, TiffTags};
 use crate::io::texels::{Container, Sample, lay_out};
 use crate::io::tiff::write::{TiffSample, write_tiff_rows};
+use crate::light::Grey;
 use crate::options::Options;
 use crate::par::prelude::*;
 use crate::units::{Measure, MeasureTexel, WithTexel};
@@ -37,7 +37,9 @@ pub(crate) fn convert_tiff_counting<W: Write + Seek>(
     let shape = (layout.png_samples(), Extra::of(layout));
     match options.depth {
         TiffDepth::Eight => stream_tiff(rows, tail, (opts, NORTH_UP), shape, tags, laid_out::<u8>(layout), visit, out),
-        TiffDepth::Sixteen => stream_tiff(rows, tail, (opts, NORTH_UP), shape, tags, laid_out::<u16>(layout), visit, out),
+        TiffDepth::Sixteen => {
+            stream_tiff(rows, tail, (opts, NORTH_UP), shape, tags, laid_out::<u16>(layout), visit, out)
+        }
         TiffDepth::Float => {
             // n itself, or (n + 1)/2: the rule of EXR's samples, in place
             // before the layout (a red-green map's B is then written 0).

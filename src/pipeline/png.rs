@@ -136,7 +136,9 @@ pub(crate) fn shade_png_seekable<W: Write + Seek>(
     // streamed lit view's processor time.
     let holes = opts.nodata.is_some();
     let (first_idat, missing) = match lamp.is_sun() {
-        true => convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels::<true> { lamp, holes })?,
+        true => {
+            convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels::<true> { lamp, holes })?
+        }
         false => {
             convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels::<false> { lamp, holes })?
         }
