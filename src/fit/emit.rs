@@ -76,8 +76,12 @@ pub(super) fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(
 /// The texels of a row's normals (x, y and z planes).
 #[inline(always)]
 pub(super) fn store_normals<T: Texel>([nx, ny, nz]: &[Vec<f64>; 3], frame: &TexelFrame, out: &mut [T]) {
+    // A copy of its own, which the texels' stores cannot alias: the loop
+    // keeps it in registers and vectorises (through the plan, a grey's
+    // loop reloaded the lamp after every byte stored, one texel at a time).
+    let frame = *frame;
     for (((texel, &x), &y), &z) in out.iter_mut().zip(nx.iter()).zip(ny.iter()).zip(nz.iter()) {
-        *texel = T::make([x, y, z], frame);
+        *texel = T::make([x, y, z], &frame);
     }
 }
 
