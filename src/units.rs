@@ -457,7 +457,7 @@ pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     let (small, large) = (ax.min(ay), ax.max(ay));
     // The ratio t = small / large, or above tan(π/8) (t − 1)/(t + 1)
     // as (small − large)/(small + large): one division either way.
-    let reduced = small > TAN_PI_8 * large || small == large;
+    let reduced = large != 0.0 && (small > TAN_PI_8 * large || small == large);
     let (num, den) = if reduced { (small - large, small + large) } else { (small, large) };
     // 0/0 is the angle 0 (libm: ±0 or ±π by the signs); equal parts (∞/∞
     // too) are π/4.
