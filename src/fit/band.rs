@@ -81,6 +81,7 @@ impl BandFit {
     /// The same fit, its texels made on a raster placed on the map by
     /// `affine` (see [`super::FitRequest::on_map`]).
     #[must_use]
+    #[cfg_attr(not(feature = "tiff"), allow(dead_code))]
     pub(crate) fn on_map(mut self, affine: Option<&crate::io::Affine>) -> BandFit {
         self.plan.frame.axes = crate::units::MapAxes::of(affine);
         self
