@@ -81,6 +81,7 @@ mod plan;
 pub mod quadratic;
 mod request;
 mod sums;
+mod texel;
 mod unequal;
 mod weighted;
 mod window;
@@ -92,6 +93,7 @@ pub use quadratic::{curvature, curvature_samples};
 pub(crate) use request::work_bytes;
 pub use request::{FitRequest, Heights};
 use sums::{RowRef, SourceRows, WindowSums};
+pub(crate) use texel::{Texel, TexelFrame};
 pub use window::{Halo, HaloPlan, Window};
 
 /// A type an output texel can be made from a unit normal.

@@ -177,8 +177,15 @@ impl Lamp {
         Lamp { direction: flip_y(sun.direction(affine), convention), gis: true }
     }
 
+    /// Whether this is the GIS sun ([`Lamp::sun`]): a lit view's texel is
+    /// then [`Grey<true>`].
+    pub(crate) fn is_sun(&self) -> bool {
+        self.gis
+    }
+
     /// The grey of a texel whose normal is `n` (normalised here; a zero
     /// or non-finite one is taken as flat).
+    #[inline(always)]
     pub(crate) fn grey(&self, n: [f32; 3]) -> u8 {
         if self.gis {
             return self.sun_grey(n);
@@ -215,6 +222,26 @@ impl Lamp {
     #[inline(always)]
     fn sun_direction(&self) -> [f32; 3] {
         self.direction.map(|v| v as f32)
+    }
+}
+
+/// A lit view's texel, made by the fit in its own loop over a row (the
+/// row's normals still in the core's cache) rather than from a band of
+/// `f32` normals stored and read back: the grey of the unit normal, cast
+/// to `f32` as the normal map's texel is, under the fit's lamp
+/// ([`crate::fit::TexelFrame`]): [`Lamp::grey`], the same bits as
+/// [`Lamp::grey_row`] of the `f32` normals gives. `SUN`: the lamp is the
+/// GIS sun ([`Lamp::is_sun`]), whose grey the fit's loop vectorises (the
+/// texture view's rounds by libm, which it would not), so its loop has no
+/// branch on the lamp.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Grey<const SUN: bool>(pub(crate) u8);
+
+impl<const SUN: bool> crate::fit::Texel for Grey<SUN> {
+    #[inline(always)]
+    fn make(n: [f64; 3], frame: &crate::fit::TexelFrame) -> Self {
+        let n = n.map(|c| c as f32);
+        Grey(if SUN { frame.lamp.sun_grey(n) } else { frame.lamp.grey(n) })
     }
 }
 

@@ -3,20 +3,18 @@
 //! holding the heights (the Python package's `normalfit.slope` and
 //! `normalfit.xarray`), the whole image or a window of it (a Dask chunk).
 //!
-//! The fit is [`FitRequest`]'s, the value of each texel the engine's own
-//! per-texel functions: the texel `Measure::with_texel` chooses (a slope
-//! made in the fit's loop; an aspect by `Measure::fill` of normals fitted
-//! in `f64`), as the slope or aspect map's stage, streamed or whole,
-//! makes it, and the GIS sun's grey (`light.rs`) on normals fitted in
-//! `f32`, as the lit view's stage fits them. So the values are the
-//! command line's on the same heights and options, bit for bit.
+//! The fit is [`FitRequest`]'s, the value of each texel made in the fit's
+//! loop by the engine's own per-texel functions: the texel
+//! `Measure::with_texel` chooses (a slope or an aspect), and the GIS sun's
+//! grey (`light::Grey`), as the slope or aspect map's and the lit view's
+//! stages, streamed or whole, make them. So the values are the command
+//! line's on the same heights and options, bit for bit.
 
 use crate::error::Result;
 use crate::fit::{FitRequest, Heights};
 use crate::io::Affine;
-use crate::light::Sun;
+use crate::light::{Grey, Sun};
 use crate::options::Convention;
-use crate::par::prelude::*;
 use crate::units::{Measure, MeasureTexel, WithTexel};
 
 /// The slope or aspect map ([`Measure`]) of `heights` (`width` ×
@@ -47,8 +45,7 @@ use crate::units::{Measure, MeasureTexel, WithTexel};
 /// ```
 ///
 /// Errors: those of [`FitRequest::normals_into`]; [`crate::Error::Limits`]
-/// when the memory of a band's texels (4 bytes a texel for a slope, 24
-/// for an aspect's normal) is not there.
+/// when the memory of a band's texels (4 bytes a texel) is not there.
 #[allow(clippy::too_many_arguments)] // the heights and output as `normals_into`'s, and what the map needs
 pub fn measure_into<S: Heights + ?Sized>(
     request: FitRequest<'_>,
@@ -61,14 +58,13 @@ pub fn measure_into<S: Heights + ?Sized>(
     out: &mut [f32],
 ) -> Result<usize> {
     check_output(out.len(), request.output_size(width, height))?;
-    measure.with_texel(MeasureBands { request, measure, affine, hole, heights, size: (width, height), out })
+    measure.with_texel(MeasureBands { request, affine, hole, heights, size: (width, height), out })
 }
 
 /// [`measure_into`]'s bands, in the texel the measure's fit makes
 /// ([`Measure::with_texel`]).
 struct MeasureBands<'a, S: ?Sized> {
     request: FitRequest<'a>,
-    measure: Measure,
     affine: Option<&'a Affine>,
     hole: f32,
     heights: &'a S,
@@ -80,19 +76,18 @@ impl<S: Heights + ?Sized> WithTexel for MeasureBands<'_, S> {
     type Output = Result<usize>;
 
     fn run<T: MeasureTexel>(self) -> Result<usize> {
-        let MeasureBands { request, measure, affine, hole, heights, size, out } = self;
-        let convention = request.convention();
+        let MeasureBands { request, affine, hole, heights, size, out } = self;
         let row = request.output_width(size.0);
         // Each band's values from its texels, which are then dropped: the
         // texels are never held for the whole image.
         let mut band = |first: usize, texels: &[T], valid: Option<&[bool]>| {
             let Some(out) = out.get_mut(first * row..first * row + texels.len()) else { return };
-            T::values(measure, texels, convention, affine, out);
+            out.iter_mut().zip(texels).for_each(|(o, t)| *o = t.value());
             if let Some(valid) = valid {
                 out.iter_mut().zip(valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = hole);
             }
         };
-        request.normals_in_bands(heights, size, &mut band)
+        request.on_map(affine).normals_in_bands(heights, size, &mut band)
     }
 }
 
@@ -105,7 +100,7 @@ impl<S: Heights + ?Sized> WithTexel for MeasureBands<'_, S> {
 /// byte a texel. Returns the count of missing texels.
 ///
 /// Errors: those of [`FitRequest::normals_into`]; [`crate::Error::Limits`]
-/// when the normals' memory (12 bytes a texel) is not there.
+/// when the memory of a band's greys (1 byte a texel) is not there.
 pub fn hillshade_into<S: Heights + ?Sized>(
     request: FitRequest<'_>,
     sun: Sun,
@@ -118,15 +113,15 @@ pub fn hillshade_into<S: Heights + ?Sized>(
     let convention: Convention = request.convention();
     let lamp = crate::light::Lamp::sun(sun, affine, convention);
     let (texels, row) = (out.len(), request.output_width(width));
-    let mut band = |first: usize, normals: &[[f32; 3]], valid: Option<&[bool]>| {
-        let Some(out) = out.get_mut(first * row..first * row + normals.len()) else { return };
-        out.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
+    let mut band = |first: usize, greys: &[Grey<true>], valid: Option<&[bool]>| {
+        let Some(out) = out.get_mut(first * row..first * row + greys.len()) else { return };
+        out.iter_mut().zip(greys).for_each(|(o, g)| *o = g.0);
         if let Some(valid) = valid {
             out.iter_mut().zip(valid).filter(|(_, v)| !**v).for_each(|(o, _)| *o = 0);
         }
     };
     check_output(texels, request.output_size(width, height))?;
-    request.normals_in_bands(heights, (width, height), &mut band)
+    request.lit(lamp).normals_in_bands(heights, (width, height), &mut band)
 }
 
 /// An output of `texels` for a request making `size` texels.

@@ -455,16 +455,13 @@ pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
     let (ax, ay) = (x.abs(), y.abs());
     let (small, large) = (ax.min(ay), ax.max(ay));
-    // 0/0 is the angle 0 (libm: ±0 or ±π by the signs); ∞/∞ is π/4.
-    let t = if large == 0.0 {
-        0.0
-    } else if small == large {
-        1.0
-    } else {
-        small / large
-    };
-    let reduced = t > TAN_PI_8;
-    let u = if reduced { (t - 1.0) / (t + 1.0) } else { t };
+    // The ratio t = small / large, or above tan(π/8) (t − 1)/(t + 1)
+    // as (small − large)/(small + large): one division either way.
+    let reduced = large != 0.0 && (small > TAN_PI_8 * large || small == large);
+    let (num, den) = if reduced { (small - large, small + large) } else { (small, large) };
+    // 0/0 is the angle 0 (libm: ±0 or ±π by the signs); equal parts (∞/∞
+    // too) are π/4.
+    let u = if large == 0.0 || small == large { 0.0 } else { num / den };
     let s = u * u;
     let mut p = ATAN[10];
     for c in ATAN[..10].iter().rev() {
@@ -546,63 +543,6 @@ impl Measure {
             }
         }
     }
-
-    /// The measures of `normals` into `out`, in parallel, each chunk
-    /// compiled for the widest vectors the processor has
-    /// ([`pulp::Arch::dispatch`]; the arithmetic is the same IEEE
-    /// operations on every target, so the bits are too), on a raster
-    /// placed by `affine` (none: north-up): the aspect is the map's,
-    /// whichever way the raster's rows and columns run. The callers write
-    /// [`NODATA`] at the holes, which they know.
-    pub(crate) fn fill(
-        self,
-        normals: &[[f64; 3]],
-        convention: Convention,
-        affine: Option<&crate::io::Affine>,
-        out: &mut [f32],
-    ) {
-        use crate::par::prelude::*;
-        let axes = MapAxes::of(affine);
-        out.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(out, normals)| {
-            if axes == MapAxes::NORTH_UP {
-                pulp::Arch::new().dispatch(MeasureRow { measure: self, convention, normals, out });
-            } else {
-                out.iter_mut()
-                    .zip(normals)
-                    .for_each(|(o, &n)| *o = self.of(axes.to_map(n, convention), Convention::OpenGl));
-            }
-        });
-    }
-}
-
-/// [`Measure::fill`]'s chunk, for [`pulp::Arch::dispatch`]: one loop a
-/// measure, so that the compiler hoists the choice and vectorises it.
-struct MeasureRow<'a> {
-    measure: Measure,
-    convention: Convention,
-    normals: &'a [[f64; 3]],
-    out: &'a mut [f32],
-}
-
-impl pulp::WithSimd for MeasureRow<'_> {
-    type Output = ();
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        let MeasureRow { measure, convention, normals, out } = self;
-        use crate::options::SlopeUnits;
-        macro_rules! each {
-            ($m:expr) => {{
-                let m = $m;
-                out.iter_mut().zip(normals).for_each(|(o, &n)| *o = m.of(n, convention));
-            }};
-        }
-        match measure {
-            Measure::Slope(SlopeUnits::Degrees) => each!(Measure::Slope(SlopeUnits::Degrees)),
-            Measure::Slope(SlopeUnits::Percent) => each!(Measure::Slope(SlopeUnits::Percent)),
-            Measure::Aspect { zero_for_flat: true } => each!(Measure::Aspect { zero_for_flat: true }),
-            Measure::Aspect { zero_for_flat: false } => each!(Measure::Aspect { zero_for_flat: false }),
-        }
-    }
 }
 
 /// A slope map's texel, made by the fit in its own loop over a row (the
@@ -627,39 +567,43 @@ impl<const PERCENT: bool> crate::fit::FromNormal for SlopeTexel<PERCENT> {
     }
 }
 
-/// What the fit makes at each texel of a slope or an aspect map
-/// ([`Measure::with_texel`] says which), and the map's values of a band
-/// of them.
-pub(crate) trait MeasureTexel: crate::fit::FromNormal + Default + Send {
-    /// The values of `texels` into `out` (as long), as `measure` of a fit
-    /// in `convention` on the raster placed by `affine` (none: north-up);
-    /// the callers write [`NODATA`] at the holes, which they know.
-    fn values(
-        measure: Measure,
-        texels: &[Self],
-        convention: Convention,
-        affine: Option<&crate::io::Affine>,
-        out: &mut [f32],
-    );
-}
+/// An aspect map's texel, made by the fit in its own loop over a row, as
+/// [`SlopeTexel`] is, from the normal leaning (east, north) in the map:
+/// the raster's axes and the convention ([`crate::fit::TexelFrame`])
+/// turn the fit's normal into the map's, exactly (a sign each) on a
+/// raster whose rows run east or west. An aspect is the angle of the
+/// normal's horizontal part, a ratio of its components, so the fit leaves
+/// the normalisation out, as for a slope.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct AspectTexel<const ZERO_FOR_FLAT: bool>(f32);
 
-/// The fitted normal itself (the aspect's texel): [`Measure::fill`].
-impl MeasureTexel for [f64; 3] {
-    fn values(
-        measure: Measure,
-        texels: &[Self],
-        convention: Convention,
-        affine: Option<&crate::io::Affine>,
-        out: &mut [f32],
-    ) {
-        measure.fill(texels, convention, affine, out);
+impl<const ZERO_FOR_FLAT: bool> crate::fit::Texel for AspectTexel<ZERO_FOR_FLAT> {
+    const UNIT: bool = false;
+    #[inline(always)]
+    fn make(n: [f64; 3], frame: &crate::fit::TexelFrame) -> Self {
+        let aspect = Measure::Aspect { zero_for_flat: ZERO_FOR_FLAT };
+        AspectTexel(aspect.of(frame.axes.to_map(n, frame.convention), Convention::OpenGl))
     }
 }
 
-/// The slope, made already: copied.
+/// What the fit makes at each texel of a slope or an aspect map
+/// ([`Measure::with_texel`] says which): the map's value itself.
+pub(crate) trait MeasureTexel: crate::fit::Texel + Default + Send {
+    /// The map's value of the texel.
+    fn value(self) -> f32;
+}
+
 impl<const PERCENT: bool> MeasureTexel for SlopeTexel<PERCENT> {
-    fn values(_: Measure, texels: &[Self], _: Convention, _: Option<&crate::io::Affine>, out: &mut [f32]) {
-        out.iter_mut().zip(texels).for_each(|(o, t)| *o = t.0);
+    #[inline(always)]
+    fn value(self) -> f32 {
+        self.0
+    }
+}
+
+impl<const ZERO_FOR_FLAT: bool> MeasureTexel for AspectTexel<ZERO_FOR_FLAT> {
+    #[inline(always)]
+    fn value(self) -> f32 {
+        self.0
     }
 }
 
@@ -671,17 +615,18 @@ pub(crate) trait WithTexel {
 }
 
 impl Measure {
-    /// Runs `work` with the texel the fit makes for this measure: the
-    /// slope, made in the fit's loop ([`SlopeTexel`]); the aspect's `f64`
-    /// normal, which [`Measure::fill`] turns into the map's angle (it
-    /// needs the raster's axes and the convention). The one choice of
-    /// every slope or aspect map, streamed, whole or in memory.
+    /// Runs `work` with the texel the fit makes for this measure, in its
+    /// own loop: the slope ([`SlopeTexel`]) or the aspect
+    /// ([`AspectTexel`], which needs the fit told the raster's axes). The
+    /// one choice of every slope or aspect map, streamed, whole or in
+    /// memory.
     pub(crate) fn with_texel<W: WithTexel>(self, work: W) -> W::Output {
         use crate::options::SlopeUnits;
         match self {
             Measure::Slope(SlopeUnits::Degrees) => work.run::<SlopeTexel<false>>(),
             Measure::Slope(SlopeUnits::Percent) => work.run::<SlopeTexel<true>>(),
-            Measure::Aspect { .. } => work.run::<[f64; 3]>(),
+            Measure::Aspect { zero_for_flat: false } => work.run::<AspectTexel<false>>(),
+            Measure::Aspect { zero_for_flat: true } => work.run::<AspectTexel<true>>(),
         }
     }
 }

@@ -7,13 +7,14 @@ use super::sink::{
     self, InMemory, Output, check_assembly_memory, check_whole_memory, encode_residual, write_all, write_to, zeroed,
 };
 use super::source::{Reopen, Rows};
-use super::stage::{Texels, fitted};
+use super::stage::{Texels, fitted, with_holes};
 use super::{ConvertError, MipStage, Observer, Place, Settings, Sink, Stage, Summary, chain_files};
 use crate::borders::{BorderChoice, Warning};
 use crate::error::Error;
 use crate::io::encoding::TiffTags;
 use crate::io::gpu::{self, Chain};
 use crate::io::{self, Encoding, FileSet, Georef, Layout, OutputFormat, Raster};
+use crate::light::Grey;
 use crate::light::Lighting;
 use crate::mips::{MipChoice, MipLevel};
 use crate::normal_map::{ImageKind, KindChoice, kind_of};
@@ -329,7 +330,8 @@ impl Job<'_> {
             let chain = if stage.all {
                 with_slice!(&heights, h => crate::mips::fit_chain(h, (width, height), &fit)).map_err(&in_failure)?
             } else {
-                let texels = fitted::<[f32; 3]>(&heights, width, height, &fit, None, None).map_err(&in_failure)?;
+                let texels =
+                    fitted::<[f32; 3]>(&heights, (width, height), crate::FitRequest::new(&fit)).map_err(&in_failure)?;
                 vec![MipLevel { width, height, texels }]
             };
             let alpha = match with_heights {
@@ -677,10 +679,10 @@ impl Job<'_> {
     ) -> Result<(), ConvertError> {
         let in_failure = ConvertError::at(Place::Input);
         let texels = (width as u64).saturating_mul(height as u64);
-        // The normals (12 bytes a texel), the validity (1), the greys (1),
-        // tiled four times over (4); and the fit's own work, which grows
-        // with N.
-        let per_texel = 12 + 1 + if tile { 5 } else { 1 };
+        // The greys, made in the fit's loop (1 byte a texel), the
+        // validity (1), the greys tiled four times over (4); and the fit's
+        // own work, which grows with N.
+        let per_texel = 1 + 1 + if tile { 4 } else { 0 };
         let holes = fit.nodata.is_some();
         let work = crate::fit::work_bytes(fit, (width, height), heights.unit(), holes, false).map_err(&in_failure)?;
         io::check_memory("lighting the view", texels.saturating_mul(per_texel).saturating_add(work))
@@ -689,11 +691,17 @@ impl Job<'_> {
             Some(_) => Some(zeroed::<bool>(heights.len()).map_err(&in_failure)?),
             None => None,
         };
-        let normals: Vec<[f32; 3]> =
-            fitted(heights, width, height, fit, None, valid.as_deref_mut()).map_err(&in_failure)?;
         let lamp = lighting.lamp(self.georef, fit.convention);
-        let mut greys = crate::light::shade_with(&normals, lamp).map_err(&in_failure)?;
-        drop(normals);
+        let request = with_holes(crate::FitRequest::new(fit), None, valid.as_deref_mut()).lit(lamp);
+        // The texels' buffer becomes the greys' (in place: the same size).
+        fn bytes<const SUN: bool>(greys: Vec<Grey<SUN>>) -> Vec<u8> {
+            greys.into_iter().map(|g| g.0).collect()
+        }
+        let greys = match lamp.is_sun() {
+            true => fitted(heights, (width, height), request).map(bytes::<true>),
+            false => fitted(heights, (width, height), request).map(bytes::<false>),
+        };
+        let mut greys = greys.map_err(&in_failure)?;
         if let Some(valid) = &valid {
             for (g, _) in greys.iter_mut().zip(valid).filter(|(_, v)| !**v) {
                 *g = 0;
@@ -771,9 +779,9 @@ impl Job<'_> {
 }
 
 impl Job<'_> {
-    /// A slope or an aspect map of the whole image: its normals fitted in
-    /// `f64` ([`crate::units::Measure::fill`]), [`crate::units::NODATA`]
-    /// at the holes, written as one float channel.
+    /// A slope or an aspect map of the whole image: its values made in
+    /// the fit's loop ([`crate::units::Measure::with_texel`]),
+    /// [`crate::units::NODATA`] at the holes, written as one float channel.
     fn terrain_whole(
         &mut self,
         heights: &Samples,
@@ -789,7 +797,7 @@ impl Job<'_> {
         };
         let affine = self.georef.and_then(crate::io::Georef::affine);
         let mut valid = None;
-        let whole = MeasureWhole { heights, size: (width, height), fit, measure, affine, valid: &mut valid };
+        let whole = MeasureWhole { heights, size: (width, height), fit, affine, valid: &mut valid };
         let mut values = measure.with_texel(whole).map_err(&in_failure)?;
         if let Some(valid) = &valid {
             for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| !**valid) {
@@ -815,7 +823,6 @@ struct MeasureWhole<'a> {
     heights: &'a Samples,
     size: (usize, usize),
     fit: &'a Options,
-    measure: crate::units::Measure,
     affine: Option<crate::io::Affine>,
     valid: &'a mut Option<Vec<bool>>,
 }
@@ -824,21 +831,21 @@ impl crate::units::WithTexel for MeasureWhole<'_> {
     type Output = crate::Result<Vec<f32>>;
 
     fn run<T: crate::units::MeasureTexel>(self) -> crate::Result<Vec<f32>> {
-        let MeasureWhole { heights, size: (width, height), fit, measure, affine, valid } = self;
-        // The texels, the validity (1 byte a texel), the values (4); and
-        // the fit's own work, which grows with N.
+        let MeasureWhole { heights, size: (width, height), fit, affine, valid } = self;
+        // The texels, which become the values in place, the validity (1
+        // byte a texel); and the fit's own work, which grows with N.
         let texels = (width as u64).saturating_mul(height as u64);
         let holes = fit.nodata.is_some();
         let work = crate::fit::work_bytes(fit, (width, height), heights.unit(), holes, false)?;
-        let per_texel = size_of::<T>() as u64 + 5;
+        let per_texel = size_of::<T>() as u64 + 1;
         io::check_memory("measuring the slopes", texels.saturating_mul(per_texel).saturating_add(work))?;
         if holes {
             *valid = Some(zeroed::<bool>(heights.len())?);
         }
-        let fitted: Vec<T> = fitted(heights, width, height, fit, None, valid.as_deref_mut())?;
-        let mut values = zeroed::<f32>(fitted.len())?;
-        T::values(measure, &fitted, fit.convention, affine.as_ref(), &mut values);
-        Ok(values)
+        let request = with_holes(crate::FitRequest::new(fit), None, valid.as_deref_mut()).on_map(affine.as_ref());
+        let fitted: Vec<T> = fitted(heights, (width, height), request)?;
+        // The same buffer, its texels' values.
+        Ok(fitted.into_iter().map(T::value).collect())
     }
 }
 

@@ -4,9 +4,10 @@
 
 use super::sink::{WriteSeek, zeroed};
 use crate::error::Result;
+use crate::fit::Texel;
 use crate::io::encoding::{TiffDepth, TiffOptions, TiffTags};
 use crate::io::{self, Encoding, PngDepth, PngOptions};
-use crate::{FromNormal, Options, Samples};
+use crate::{Options, Samples};
 
 /// The texel type an encoding stores: 8- or 16-bit integers, or floats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,22 +58,23 @@ impl Texels {
         residual: Option<&mut [f32]>,
         valid: Option<&mut [bool]>,
     ) -> Result<Texels> {
+        let request = with_holes(crate::FitRequest::new(opts), residual, valid);
         Ok(match encoding {
             Encoding::Texture(_) => return Err(crate::io::write::not_a_chain()),
             Encoding::Png(PngOptions { depth: PngDepth::Eight, .. }) => {
-                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
+                Texels::Eight(fitted(heights, (w, h), request)?)
             }
             Encoding::Png(PngOptions { depth: PngDepth::Sixteen, .. }) => {
-                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
+                Texels::Sixteen(fitted(heights, (w, h), request)?)
             }
             Encoding::Exr(_) | Encoding::Tiff(TiffOptions { depth: TiffDepth::Float, .. }) => {
-                Texels::Float(fitted(heights, w, h, opts, residual, valid)?)
+                Texels::Float(fitted(heights, (w, h), request)?)
             }
             Encoding::Tiff(TiffOptions { depth: TiffDepth::Eight, .. }) => {
-                Texels::Eight(fitted(heights, w, h, opts, residual, valid)?)
+                Texels::Eight(fitted(heights, (w, h), request)?)
             }
             Encoding::Tiff(TiffOptions { depth: TiffDepth::Sixteen, .. }) => {
-                Texels::Sixteen(fitted(heights, w, h, opts, residual, valid)?)
+                Texels::Sixteen(fitted(heights, (w, h), request)?)
             }
         })
     }
@@ -95,29 +97,35 @@ impl Texels {
     }
 }
 
-/// The normals of `heights` fitted straight into texels `T`; with
-/// `residual`, the fit's RMS distances too; with `valid`, a fit with
-/// holes that says which texels have a normal.
+/// The texels `T` of `heights` (`size`), fitted straight into them as
+/// `request` asks ([`with_holes`]: the fit's RMS distances too, or holes
+/// and which texels have a normal).
 ///
 /// Errors: those of the fit; [`Error::Limits`] when the memory is not there.
-pub(crate) fn fitted<T: FromNormal + Default + Clone>(
+pub(crate) fn fitted<T: Texel + Default + Clone>(
     heights: &Samples,
-    w: usize,
-    h: usize,
-    opts: &Options,
-    residual: Option<&mut [f32]>,
-    valid: Option<&mut [bool]>,
+    size: (usize, usize),
+    request: crate::FitRequest<'_>,
 ) -> Result<Vec<T>> {
     let mut texels = zeroed::<T>(heights.len())?;
-    let mut request = crate::FitRequest::new(opts);
+    request.texels_into(heights, size, &mut texels)?;
+    Ok(texels)
+}
+
+/// `request` with the fit's residual into `residual` and, with `valid`,
+/// holes (see [`fitted`]).
+pub(crate) fn with_holes<'a>(
+    mut request: crate::FitRequest<'a>,
+    residual: Option<&'a mut [f32]>,
+    valid: Option<&'a mut [bool]>,
+) -> crate::FitRequest<'a> {
     if let Some(residual) = residual {
         request = request.residual(residual);
     }
     if let Some(valid) = valid {
         request = request.holes(valid);
     }
-    request.normals_into(heights, w, h, &mut texels)?;
-    Ok(texels)
+    request
 }
 
 /// Writes the normal map `texels` of `size` as `encoding` says into

@@ -7,10 +7,10 @@ use crate::error::{Error, Result};
 use crate::options::Options;
 use crate::samples::{Sample, first_non_finite};
 
-use super::FromNormal;
 use super::masked::row_has_hole;
 use super::plan::{MAX_BLOCK_TEXELS, Plan};
 use super::sums::RowRef;
+use super::{FromNormal, Texel};
 
 /// The fit of an image whose rows arrive in bands, top to bottom, for
 /// callers that stream rows from a decoder to an encoder without holding
@@ -75,6 +75,22 @@ impl BandFit {
     #[must_use]
     pub fn with_unit(mut self, unit: f64) -> BandFit {
         self.unit = Some(unit);
+        self
+    }
+
+    /// The same fit, its texels made on a raster placed on the map by
+    /// `affine` (see [`super::FitRequest::on_map`]).
+    #[must_use]
+    #[cfg_attr(not(feature = "tiff"), allow(dead_code))]
+    pub(crate) fn on_map(mut self, affine: Option<&crate::io::Affine>) -> BandFit {
+        self.plan.frame.axes = crate::units::MapAxes::of(affine);
+        self
+    }
+
+    /// The same fit, its texels lit by `lamp` (a hillshade's greys).
+    #[must_use]
+    pub(crate) fn lit(mut self, lamp: crate::light::Lamp) -> BandFit {
+        self.plan.frame.lamp = lamp;
         self
     }
 
@@ -174,7 +190,10 @@ impl BandFit {
         self.missing.load(std::sync::atomic::Ordering::Relaxed)
     }
 
-    fn fit_band_with<'a, H: Sample, T: FromNormal>(
+    /// [`fit_band`](Self::fit_band) (`valid` `None`) or
+    /// [`fit_band_masked`](Self::fit_band_masked), for any texel the crate
+    /// makes ([`Texel`]).
+    pub(crate) fn fit_band_with<'a, H: Sample, T: Texel>(
         &self,
         rows: Range<usize>,
         row: &(dyn Fn(usize) -> &'a [H] + Sync),

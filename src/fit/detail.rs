@@ -16,7 +16,7 @@ use std::ops::Range;
 use crate::par::prelude::*;
 use crate::samples::Sample;
 
-use super::FromNormal;
+use super::Texel;
 use super::plan::Plan;
 use super::sums::SourceRows;
 
@@ -37,7 +37,7 @@ fn chunk_rows(plan: &Plan, w: usize) -> usize {
 /// [`Plan::fit_rows`] of `plan`, one patch size or several: the fit's
 /// callers go through here. With detail, holes as one size has them: a
 /// texel is missing when any scale misses it; no residual (refused before).
-pub(super) fn fit_rows<H: Sample, T: FromNormal>(
+pub(super) fn fit_rows<H: Sample, T: Texel>(
     plan: &Plan,
     rows: &SourceRows<'_, '_, H>,
     unit: f64,
@@ -54,7 +54,7 @@ pub(super) fn fit_rows<H: Sample, T: FromNormal>(
 }
 
 /// The detail fit of `plan.detail`'s scales, a chunk of rows at a time.
-fn fit_scales<H: Sample, T: FromNormal>(
+fn fit_scales<H: Sample, T: Texel>(
     plan: &Plan,
     rows: &SourceRows<'_, '_, H>,
     unit: f64,
@@ -73,7 +73,7 @@ fn fit_scales<H: Sample, T: FromNormal>(
     let mut normals = vec![[0.0f64; 3]; len];
     let mut sums = vec![[0.0f64; 4]; len];
     let mut scale_valid = if valid.is_some() { vec![false; len] } else { Vec::new() };
-    let missing = T::from_normal(plan.missing);
+    let missing = T::make(plan.missing, &plan.frame);
     for (c, out) in out.chunks_mut(chunk).enumerate() {
         let (y, len) = (y0 + c * chunk / w, out.len());
         let (normals, sums) = (&mut normals[..len], &mut sums[..len]);
@@ -97,13 +97,13 @@ fn fit_scales<H: Sample, T: FromNormal>(
         match chunk_valid {
             None => out.par_chunks_mut(w).zip(sums.par_chunks(w)).for_each(|(out, sums)| {
                 for (texel, s) in out.iter_mut().zip(sums) {
-                    *texel = T::from_normal(normal_of(*s));
+                    *texel = T::make(normal_of(*s), &plan.frame);
                 }
             }),
             Some((v, _)) => {
                 out.par_chunks_mut(w).zip(sums.par_chunks(w)).zip(v.par_chunks(w)).for_each(|((out, sums), v)| {
                     for ((texel, s), &v) in out.iter_mut().zip(sums).zip(v) {
-                        *texel = if v { T::from_normal(normal_of(*s)) } else { missing };
+                        *texel = if v { T::make(normal_of(*s), &plan.frame) } else { missing };
                     }
                 })
             }

@@ -2,8 +2,8 @@
 //! square grid, written without branches so that a row of them
 //! vectorises, and the texels made from the normals.
 
-use super::FromNormal;
 use super::unequal::UnequalRow;
+use super::{Texel, TexelFrame};
 
 /// The summed squared distance of the patch's points from the fitted
 /// plane, from the patch sums. The scatter matrix of the points is
@@ -40,7 +40,7 @@ pub(super) fn squared_distance_sum<const ORTHOGONAL: bool>(a: f64, cx: f64, cy: 
 /// `STEEP`: some patch of the loop may have Czz > A (d < 0), the case that
 /// divides; without it, d ≥ 0 is taken as given. `unit` false: the
 /// normal (−Cx, −Cy, n_z) as it is, not divided by its length, for the
-/// texels made of its ratios ([`FromNormal::UNIT`]); a constant where it
+/// texels made of its ratios ([`super::FromNormal::UNIT`]); a constant where it
 /// is inlined, so the loop has no branch for it.
 #[inline(always)]
 pub(super) fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(
@@ -75,9 +75,13 @@ pub(super) fn normal_from_sums<const ORTHOGONAL: bool, const STEEP: bool>(
 
 /// The texels of a row's normals (x, y and z planes).
 #[inline(always)]
-pub(super) fn store_normals<T: FromNormal>([nx, ny, nz]: &[Vec<f64>; 3], out: &mut [T]) {
+pub(super) fn store_normals<T: Texel>([nx, ny, nz]: &[Vec<f64>; 3], frame: &TexelFrame, out: &mut [T]) {
+    // A copy of its own, which the texels' stores cannot alias: the loop
+    // keeps it in registers and vectorises (through the plan, a grey's
+    // loop reloaded the lamp after every byte stored, one texel at a time).
+    let frame = *frame;
     for (((texel, &x), &y), &z) in out.iter_mut().zip(nx.iter()).zip(ny.iter()).zip(nz.iter()) {
-        *texel = T::from_normal([x, y, z]);
+        *texel = T::make([x, y, z], &frame);
     }
 }
 

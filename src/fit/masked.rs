@@ -42,7 +42,7 @@
 use std::ops::Range;
 
 use super::eigen::{NEWTON_STEPS, eigen_start, eigenvector, newton_step, select};
-use super::{FromNormal, Plan, RowRef, SourceRows};
+use super::{Plan, RowRef, SourceRows, Texel};
 use crate::samples::Sample;
 
 /// Whether a value as given is a hole.
@@ -380,20 +380,20 @@ impl MaskedRow {
     /// determine no plane (or the
     /// patch's own texel is missing); and, when asked for, the RMS distance
     /// of the points from the plane times `sx` (NaN where none).
-    pub(super) fn store<T: FromNormal>(
+    pub(super) fn store<T: Texel>(
         &self,
         out: &mut [T],
         valid: &mut [bool],
         residual: Option<&mut [f32]>,
         sx: f64,
-        missing: T,
+        (frame, missing): (&super::TexelFrame, T),
     ) {
         let len = self.len;
         let column = &self.column[..len];
         let [nx, ny, nz] = &self.normal;
         let (nx, ny, nz) = (&nx[..len], &ny[..len], &nz[..len]);
         for k in 0..len {
-            out[column[k]] = T::from_normal([nx[k], ny[k], nz[k]]);
+            out[column[k]] = T::make([nx[k], ny[k], nz[k]], frame);
         }
         for &x in &self.undetermined {
             out[x] = missing;

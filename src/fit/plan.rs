@@ -14,7 +14,7 @@ use super::emit::{EmitScratch, normal_from_sums, squared_distance_sum, store_nor
 use super::masked::{MaskSums, MaskedRow, Moments};
 use super::sums::{RowCache, RowRef, RowSums, SourceRows, WindowSums};
 use super::unequal::RowSpacing;
-use super::{FromNormal, checked_len};
+use super::{Texel, checked_len};
 
 /// Texels per branch between the two loops of the orthogonal fit's
 /// normals (see [`Plan::emit_with`]).
@@ -112,6 +112,8 @@ pub(super) struct Plan {
     pub(super) nodata: Option<f64>,
     /// The normal written at a missing texel ([`FitRequest::missing`]).
     pub(super) missing: [f64; 3],
+    /// What the texels need beside their normals ([`super::Texel`]).
+    pub(super) frame: super::TexelFrame,
     /// Detail at several scales ([`Options::detail`]): the sizes and
     /// weights whose slopes are summed, N the largest; empty for one patch
     /// size. Callers fit through `super::detail`, which runs each size's
@@ -157,6 +159,7 @@ impl Plan {
             spacing,
             nodata: opts.nodata,
             missing: [0.0, 0.0, 1.0],
+            frame: super::TexelFrame::new(opts.convention),
             detail: Vec::new(),
         };
         Ok(Plan { detail, ..plan.with_patch(n) })
@@ -206,7 +209,7 @@ impl Plan {
     /// small tasks keep both cores busy beside the pipeline's other threads
     /// (two tasks a band left one core idle while the other finished its
     /// tile), and a strip's sums stay in the core's cache.
-    pub(super) fn fit_rows<'a, H: Sample, T: FromNormal>(
+    pub(super) fn fit_rows<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
         unit: f64,
@@ -417,7 +420,7 @@ impl Plan {
     /// residual, then the patches that hold a hole refitted
     /// ([`Self::patch_holes`]).
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn finish_row<'a, H: Sample, T: FromNormal>(
+    pub(super) fn finish_row<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
         v: &mut WindowSums,
@@ -444,7 +447,7 @@ impl Plan {
     /// patch has a hole, from the valid points' moments (see `masked`;
     /// [`Self::advance_holes`] made them), over what [`Self::emit`] wrote,
     /// and marks the missing ones. `v` and `gain` are as `emit` took them.
-    pub(super) fn patch_holes<T: FromNormal>(
+    pub(super) fn patch_holes<T: Texel>(
         &self,
         v: &WindowSums,
         gain: f64,
@@ -473,7 +476,7 @@ impl Plan {
             patches.push(x, mask.centre[x], &moments);
         }
         patches.solve(self.fit == Fit::Orthogonal, rho, self.sigma);
-        patches.store(out, valid, residual, sx, T::from_normal(self.missing));
+        patches.store(out, valid, residual, sx, (&self.frame, T::make(self.missing, &self.frame)));
     }
 
     /// The source row of padded row p = y + j + r, through the y border.
@@ -569,7 +572,7 @@ impl Plan {
     /// N ≤ 63), so adding the entering texel and removing the leaving one
     /// gives every texel exactly the sums of its own patch, wherever the
     /// run started; the gain comes after, in the normals.
-    pub(super) fn fit_strip_sliding<'a, H: Sample, T: FromNormal>(
+    pub(super) fn fit_strip_sliding<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
         gain: f64,
@@ -656,7 +659,7 @@ impl Plan {
     /// same bits in whatever strip, tile or window it is computed. At this
     /// size the sums take no more work than running sums, and the loops
     /// run across the columns, so they vectorise.
-    pub(super) fn fit_strip_direct<'a, H: Sample, T: FromNormal, const N: usize>(
+    pub(super) fn fit_strip_direct<'a, H: Sample, T: Texel, const N: usize>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
         gain: f64,
@@ -728,7 +731,7 @@ impl Plan {
     /// are the same bits in whatever strip, tile or window it is computed
     /// (running sums of floats would carry the rounding of wherever they
     /// started); the cost per texel stays flat in N.
-    pub(super) fn fit_strip_blocked<'a, H: Sample, T: FromNormal>(
+    pub(super) fn fit_strip_blocked<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
         gain: f64,
@@ -864,14 +867,7 @@ impl Plan {
     /// the texel type's conversion is a loop of its own. The sums are in
     /// units of z / `gain` (stored integers), or of z (`gain` 1); `y` is
     /// the image row, whose spacing map units fit with.
-    pub(super) fn emit<T: FromNormal>(
-        &self,
-        v: &WindowSums,
-        gain: f64,
-        y: usize,
-        scratch: &mut EmitScratch,
-        out: &mut [T],
-    ) {
+    pub(super) fn emit<T: Texel>(&self, v: &WindowSums, gain: f64, y: usize, scratch: &mut EmitScratch, out: &mut [T]) {
         let normal = &mut scratch.normal;
         if self.moments {
             let n2 = self.count;
@@ -879,7 +875,7 @@ impl Plan {
             let w = out.len();
             let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
             for (x, texel) in out.iter_mut().enumerate() {
-                *texel = T::from_normal([gain * si[x], gain * sj[x], Self::czz(n2, czz_gain, s0[x], szz[x])]);
+                *texel = T::make([gain * si[x], gain * sj[x], Self::czz(n2, czz_gain, s0[x], szz[x])], &self.frame);
             }
             return;
         }
@@ -1031,13 +1027,13 @@ struct EmitRow<'a, T, const ORTHOGONAL: bool> {
     out: &'a mut [T],
 }
 
-impl<T: FromNormal, const ORTHOGONAL: bool> pulp::WithSimd for EmitRow<'_, T, ORTHOGONAL> {
+impl<T: Texel, const ORTHOGONAL: bool> pulp::WithSimd for EmitRow<'_, T, ORTHOGONAL> {
     type Output = ();
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         // Inlined here, so that it is compiled for each instruction set.
         let EmitRow { plan, v, gain, normal, out } = self;
         plan.emit_with::<ORTHOGONAL>(v, gain, T::UNIT, normal);
-        store_normals(normal, out);
+        store_normals(normal, &plan.frame, out);
     }
 }

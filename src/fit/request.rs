@@ -1,6 +1,6 @@
 //! One fit request: the fit's one way in for heights held in memory.
 
-use super::{FromNormal, Plan, RowRef, Window, checked_len, detail, row_has_hole};
+use super::{FromNormal, Plan, RowRef, Texel, Window, checked_len, detail, row_has_hole};
 use crate::error::{Error, Result};
 use crate::options::{Borders, Options};
 use crate::samples::{Sample, Samples, first_non_finite, try_filled, try_vec, with_slice};
@@ -41,13 +41,26 @@ pub struct FitRequest<'a> {
     residual: Option<&'a mut [f32]>,
     valid: Option<&'a mut [bool]>,
     missing: [f64; 3],
+    /// The raster's axes on the map, for an aspect ([`Self::on_map`]).
+    axes: crate::units::MapAxes,
+    /// The lamp of a lit view ([`Self::lit`]).
+    lamp: Option<crate::light::Lamp>,
 }
 
 impl<'a> FitRequest<'a> {
     /// A fit with these options, of the whole image, normals only; holes
     /// only where [`Options::nodata`] is set.
     pub fn new(opts: &'a Options) -> FitRequest<'a> {
-        FitRequest { opts, borders: None, window: None, residual: None, valid: None, missing: [0.0, 0.0, 1.0] }
+        FitRequest {
+            opts,
+            borders: None,
+            window: None,
+            residual: None,
+            valid: None,
+            missing: [0.0, 0.0, 1.0],
+            axes: crate::units::MapAxes::NORTH_UP,
+            lamp: None,
+        }
     }
 
     /// Fits with these borders instead of the options' (a border settled
@@ -161,6 +174,20 @@ impl<'a> FitRequest<'a> {
         self
     }
 
+    /// The texels are made on a raster placed on the map by `affine` (its
+    /// GDAL geotransform; `None`: north-up): an aspect's axes
+    /// ([`super::TexelFrame`]).
+    pub(crate) fn on_map(mut self, affine: Option<&crate::io::Affine>) -> FitRequest<'a> {
+        self.axes = crate::units::MapAxes::of(affine);
+        self
+    }
+
+    /// The texels are lit by `lamp` (a hillshade's greys).
+    pub(crate) fn lit(mut self, lamp: crate::light::Lamp) -> FitRequest<'a> {
+        self.lamp = Some(lamp);
+        self
+    }
+
     /// The options' convention: how a caller of the normals reads their y.
     /// The output's width and height for heights of `width` × `height`:
     /// the window's size, or theirs.
@@ -209,6 +236,16 @@ impl<'a> FitRequest<'a> {
         height: usize,
         out: &mut [T],
     ) -> Result<usize> {
+        self.texels_into(heights, (width, height), out)
+    }
+
+    /// [`Self::normals_into`] for any texel the crate makes ([`Texel`]).
+    pub(crate) fn texels_into<S: Heights + ?Sized, T: Texel>(
+        self,
+        heights: &S,
+        (width, height): (usize, usize),
+        out: &mut [T],
+    ) -> Result<usize> {
         heights.fit(self, (width, height), out)
     }
 
@@ -221,7 +258,7 @@ impl<'a> FitRequest<'a> {
     /// options' nodata, are missing texels); the same bits as the whole
     /// request gives; no residual, and the request's own `valid` (if any)
     /// is not written. Returns the count of missing texels.
-    pub(crate) fn normals_in_bands<S: Heights + ?Sized, T: FromNormal>(
+    pub(crate) fn normals_in_bands<S: Heights + ?Sized, T: Texel>(
         self,
         heights: &S,
         (width, height): (usize, usize),
@@ -231,19 +268,23 @@ impl<'a> FitRequest<'a> {
     }
 
     /// [`Self::normals_into`] for a slice of one sample type, into `sink`.
-    fn run<H: Sample, T: FromNormal>(
+    fn run<H: Sample, T: Texel>(
         self,
         heights: &[H],
         (width, height): (usize, usize),
         sink: Sink<'_, T>,
     ) -> Result<usize> {
-        let FitRequest { opts, borders, window, residual, valid, missing } = self;
+        let FitRequest { opts, borders, window, residual, valid, missing, axes, lamp } = self;
         let image = window.map_or((width, height), |w| w.image);
         let mut plan = Plan::new(image.0, image.1, opts)?;
         if let Some(borders) = borders {
             plan.borders = borders;
         }
         plan.missing = missing;
+        plan.frame.axes = axes;
+        if let Some(lamp) = lamp {
+            plan.frame.lamp = lamp;
+        }
         if !plan.detail.is_empty() && residual.is_some() {
             return Err(Error::InvalidOption(DETAIL_RESIDUAL.into()));
         }
@@ -335,7 +376,7 @@ impl<'a> FitRequest<'a> {
             }
             Sink::Bands(each) => each,
         };
-        let mut normals = try_filled(band_rows * ow, T::from_normal([0.0, 0.0, 1.0]))?;
+        let mut normals = try_filled(band_rows * ow, T::make([0.0, 0.0, 1.0], &plan.frame))?;
         let mut valid = if masked { try_filled(band_rows * ow, false)? } else { Vec::new() };
         let mut missing = 0;
         for first in (0..oh).step_by(band_rows) {
@@ -413,12 +454,12 @@ pub trait Heights: sealed::Sealed {
     /// Runs `request` on these heights (what
     /// [`FitRequest::normals_into`] calls).
     #[doc(hidden)]
-    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize>;
+    fn fit<T: Texel>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize>;
 
     /// Runs `request` a band at a time (what
     /// `FitRequest::normals_in_bands` calls).
     #[doc(hidden)]
-    fn fit_bands<T: FromNormal>(
+    fn fit_bands<T: Texel>(
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
@@ -429,11 +470,11 @@ pub trait Heights: sealed::Sealed {
 impl<H: Sample> sealed::Sealed for [H] {}
 
 impl<H: Sample> Heights for [H] {
-    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+    fn fit<T: Texel>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
         request.run(self, size, Sink::Whole(out))
     }
 
-    fn fit_bands<T: FromNormal>(
+    fn fit_bands<T: Texel>(
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
@@ -446,11 +487,11 @@ impl<H: Sample> Heights for [H] {
 impl<H: Sample> sealed::Sealed for Vec<H> {}
 
 impl<H: Sample> Heights for Vec<H> {
-    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+    fn fit<T: Texel>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
         self.as_slice().fit(request, size, out)
     }
 
-    fn fit_bands<T: FromNormal>(
+    fn fit_bands<T: Texel>(
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
@@ -463,11 +504,11 @@ impl<H: Sample> Heights for Vec<H> {
 impl<H: Sample, const N: usize> sealed::Sealed for [H; N] {}
 
 impl<H: Sample, const N: usize> Heights for [H; N] {
-    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+    fn fit<T: Texel>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
         self.as_slice().fit(request, size, out)
     }
 
-    fn fit_bands<T: FromNormal>(
+    fn fit_bands<T: Texel>(
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),
@@ -480,11 +521,11 @@ impl<H: Sample, const N: usize> Heights for [H; N] {
 impl sealed::Sealed for Samples {}
 
 impl Heights for Samples {
-    fn fit<T: FromNormal>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
+    fn fit<T: Texel>(&self, request: FitRequest<'_>, size: (usize, usize), out: &mut [T]) -> Result<usize> {
         with_slice!(self, s => s.fit(request, size, out))
     }
 
-    fn fit_bands<T: FromNormal>(
+    fn fit_bands<T: Texel>(
         &self,
         request: FitRequest<'_>,
         size: (usize, usize),

@@ -23,7 +23,7 @@
 
 use super::eigen::{Diagonal, eigen_start_on, eigenvector, is_flat, is_near_plane, near_plane, select};
 use super::masked::{NewtonWork, newton};
-use super::{FromNormal, Plan, WindowSums, store_normals};
+use super::{Plan, Texel, WindowSums, store_normals};
 
 /// The planes of one row's unequal-spacing fit, kept from row to row (a
 /// strip's scratch): the matrix's varying entries, the Newton state.
@@ -66,7 +66,7 @@ impl RowSpacing {
 impl UnequalRow {
     /// The normals of one row of window sums, into `normal` (x, y and z
     /// planes, as long as `out`) and then `out`.
-    pub(super) fn normals<T: FromNormal>(
+    pub(super) fn normals<T: Texel>(
         &mut self,
         plan: &Plan,
         v: &WindowSums,
@@ -170,7 +170,7 @@ struct Normals<'a, T> {
     out: &'a mut [T],
 }
 
-impl<T: FromNormal> pulp::WithSimd for Normals<'_, T> {
+impl<T: Texel> pulp::WithSimd for Normals<'_, T> {
     type Output = ();
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
@@ -185,7 +185,7 @@ impl<T: FromNormal> pulp::WithSimd for Normals<'_, T> {
         } else {
             vertical_normals(Sums::of(plan, v, row, w), nx, ny, nz);
         }
-        store_normals(normal, out);
+        store_normals(normal, &plan.frame, out);
     }
 }
 

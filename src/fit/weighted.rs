@@ -44,7 +44,7 @@
 use std::cell::RefCell;
 use std::ops::Range;
 
-use super::FromNormal;
+use super::Texel;
 use super::convolve::{Blocks, Kernel, Layout, Scratch};
 use super::emit::EmitScratch;
 use super::plan::{Plan, Strip};
@@ -68,7 +68,7 @@ struct BlockSums {
 impl Plan {
     /// Fits one strip with weights (see the module docs): every output
     /// row's sums from the N rows' weighted sums its patch covers.
-    pub(super) fn fit_strip_weighted<'a, H: Sample, T: FromNormal>(
+    pub(super) fn fit_strip_weighted<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
         gain: f64,
@@ -163,7 +163,7 @@ impl Plan {
     /// the rows' sums block by block along x, and the window sums block by
     /// block down y, each block whole from its own inputs (the top r rows,
     /// a block of their own, summed directly down y).
-    fn fit_strip_blocks<'a, H: Sample, T: FromNormal>(
+    fn fit_strip_blocks<'a, H: Sample, T: Texel>(
         &self,
         blocks: &Blocks,
         rows: &SourceRows<'_, 'a, H>,

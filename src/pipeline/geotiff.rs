@@ -7,10 +7,11 @@ use std::ops::Range;
 
 use super::{Extra, RowSource, Stages, checked_tail, run};
 use crate::error::Result;
-use crate::fit::{BandFit, FromNormal};
+use crate::fit::{BandFit, Texel};
 use crate::io::encoding::{ExrDepth, ExrOptions, Layout, TiffDepth, TiffOptions, TiffTags};
 use crate::io::texels::{Container, Sample, lay_out};
 use crate::io::tiff::write::{TiffSample, write_tiff_rows};
+use crate::light::Grey;
 use crate::options::Options;
 use crate::par::prelude::*;
 use crate::units::{Measure, MeasureTexel, WithTexel};
@@ -35,8 +36,10 @@ pub(crate) fn convert_tiff_counting<W: Write + Seek>(
     let layout = options.layout;
     let shape = (layout.png_samples(), Extra::of(layout));
     match options.depth {
-        TiffDepth::Eight => stream_tiff(rows, tail, opts, shape, tags, laid_out::<u8>(layout), visit, out),
-        TiffDepth::Sixteen => stream_tiff(rows, tail, opts, shape, tags, laid_out::<u16>(layout), visit, out),
+        TiffDepth::Eight => stream_tiff(rows, tail, (opts, NORTH_UP), shape, tags, laid_out::<u8>(layout), visit, out),
+        TiffDepth::Sixteen => {
+            stream_tiff(rows, tail, (opts, NORTH_UP), shape, tags, laid_out::<u16>(layout), visit, out)
+        }
         TiffDepth::Float => {
             // n itself, or (n + 1)/2: the rule of EXR's samples, in place
             // before the layout (a red-green map's B is then written 0).
@@ -46,7 +49,7 @@ pub(crate) fn convert_tiff_counting<W: Write + Seek>(
                 normals.par_chunks_mut(1 << 14).for_each(|chunk| rule.store_all(chunk));
                 lay_out(normals, heights, samples);
             };
-            stream_tiff(rows, tail, opts, shape, tags, samples, visit, out)
+            stream_tiff(rows, tail, (opts, NORTH_UP), shape, tags, samples, visit, out)
         }
     }
 }
@@ -74,11 +77,15 @@ pub(crate) fn shade_tiff<W: Write + Seek>(
     out: W,
 ) -> Result<usize> {
     let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
-    let greys = move |normals: &mut [[f32; 3]], valid: &[f32], grey: &mut Vec<u8>| {
-        grey.resize(normals.len(), 0);
-        super::lit_greys(lamp, normals, valid, grey);
-    };
-    stream_tiff(rows, tail, opts, (1, extra), tags, greys, visit, out)
+    fn greys<const SUN: bool>(texels: &mut [Grey<SUN>], valid: &[f32], grey: &mut Vec<u8>) {
+        grey.extend(texels.iter().map(|g| g.0));
+        super::holes_grey(valid, grey);
+    }
+    let frame = (opts, (None, Some(lamp)));
+    match lamp.is_sun() {
+        true => stream_tiff(rows, tail, frame, (1, extra), tags, greys::<true>, visit, out),
+        false => stream_tiff(rows, tail, frame, (1, extra), tags, greys::<false>, visit, out),
+    }
 }
 
 /// A height map's slope or aspect ([`crate::units::Measure`]), a float
@@ -98,7 +105,7 @@ pub(crate) fn measure_tiff<W: Write + Seek>(
     visit: impl FnMut(&[f32]) + Send,
     out: W,
 ) -> Result<usize> {
-    measure.with_texel(MeasureStream { rows, tail, opts, measure, affine: affine.copied(), tags, visit, out })
+    measure.with_texel(MeasureStream { rows, tail, opts, affine: affine.copied(), tags, visit, out })
 }
 
 /// [`measure_tiff`]'s arguments, for the measure's texel.
@@ -106,7 +113,6 @@ struct MeasureStream<'a, R, V, W> {
     rows: R,
     tail: Option<&'a [f64]>,
     opts: &'a Options,
-    measure: Measure,
     affine: Option<crate::io::Affine>,
     tags: TiffTags<'a>,
     visit: V,
@@ -117,20 +123,27 @@ impl<R: RowSource, V: FnMut(&[f32]) + Send, W: Write + Seek> WithTexel for Measu
     type Output = Result<usize>;
 
     fn run<T: MeasureTexel>(self) -> Result<usize> {
-        let MeasureStream { rows, tail, opts, measure, affine, tags, visit, out } = self;
+        let MeasureStream { rows, tail, opts, affine, tags, visit, out } = self;
         let extra = if opts.nodata.is_some() { Extra::Valid } else { Extra::None };
-        let convention = opts.convention;
         let values = move |texels: &mut [T], valid: &[f32], values: &mut Vec<f32>| {
-            values.resize(texels.len(), 0.0);
-            T::values(measure, texels, convention, affine.as_ref(), values);
+            values.extend(texels.iter().map(|t| t.value()));
             // `valid` is one a texel with holes, else empty.
             for (v, _) in values.iter_mut().zip(valid).filter(|(_, valid)| **valid == 0.0) {
                 *v = crate::units::NODATA;
             }
         };
-        stream_tiff(rows, tail, opts, (1, extra), tags, values, visit, out)
+        let frame = (affine.as_ref(), None);
+        stream_tiff(rows, tail, (opts, frame), (1, extra), tags, values, visit, out)
     }
 }
+
+/// What a fit's texels are made on beside their normals
+/// ([`crate::fit::TexelFrame`]): the raster's geotransform (`None`:
+/// north-up) and a lit view's lamp.
+type Frame<'a> = (Option<&'a crate::io::Affine>, Option<crate::light::Lamp>);
+
+/// Normals, which need no frame.
+const NORTH_UP: Frame<'static> = (None, None);
 
 /// Fits `rows` band by band into a TIFF of `channels` samples `S` a
 /// texel, with `tags`: `samples` turns a band's texels `T` (and what
@@ -144,7 +157,7 @@ impl<R: RowSource, V: FnMut(&[f32]) + Send, W: Write + Seek> WithTexel for Measu
 fn stream_tiff<S, T, W: Write + Seek>(
     rows: impl RowSource,
     tail: Option<&[f64]>,
-    opts: &Options,
+    (opts, (affine, lamp)): (&Options, Frame<'_>),
     (channels, extra): (usize, Extra),
     tags: TiffTags<'_>,
     mut samples: impl FnMut(&mut [T], &[f32], &mut Vec<S>) + Send,
@@ -154,11 +167,14 @@ fn stream_tiff<S, T, W: Write + Seek>(
 where
     S: TiffSample + Send,
     [S]: tiff::encoder::TiffValue,
-    T: FromNormal + Default,
+    T: Texel + Default,
 {
     let (w, h) = (rows.width(), rows.height());
     let tail = checked_tail(tail, w, h, opts)?;
-    let fit = BandFit::new(w, h, opts)?.with_unit(rows.unit());
+    let mut fit = BandFit::new(w, h, opts)?.with_unit(rows.unit()).on_map(affine);
+    if let Some(lamp) = lamp {
+        fit = fit.lit(lamp);
+    }
     // A band's samples, once written, go back to be filled again: a new
     // buffer for each band cost its page faults (a float band is 6 MiB at
     // 4096 wide), as much processor time as the rest of the writing.

@@ -58,7 +58,7 @@ pub use crate::io::{ExrRows, PngRows};
 
 use crate::error::{Error, Result};
 use crate::fit::quadratic::CurvatureBands;
-use crate::fit::{BandFit, FromNormal};
+use crate::fit::{BandFit, Texel};
 use crate::options::{Border, Options};
 use crate::samples::Sample;
 use crate::samples::first_non_finite;
@@ -184,7 +184,7 @@ trait BandStage<T>: Sync {
     ) -> Result<()>;
 }
 
-impl<T: FromNormal> BandStage<T> for BandFit {
+impl<T: Texel> BandStage<T> for BandFit {
     fn width(&self) -> usize {
         BandFit::width(self)
     }
@@ -216,10 +216,8 @@ impl<T: FromNormal> BandStage<T> for BandFit {
         out: &mut [T],
         valid: &mut [bool],
     ) -> Result<()> {
-        match BandFit::has_nodata(self) {
-            true => self.fit_band_masked(rows, row, out, valid).map(|_| ()),
-            false => self.fit_band(rows, row, out),
-        }
+        let valid = BandFit::has_nodata(self).then_some(valid);
+        self.fit_band_with(rows, row, out, valid).map(|_| ())
     }
 }
 
@@ -356,11 +354,9 @@ where
     })
 }
 
-/// The greys of a band's normals under `lamp` (in parallel), 0 where
-/// `valid` (one per texel, or empty without holes) is 0: gdaldem's nodata.
-fn lit_greys(lamp: crate::light::Lamp, normals: &[[f32; 3]], valid: &[f32], grey: &mut [u8]) {
-    use crate::par::prelude::*;
-    grey.par_chunks_mut(1 << 14).zip(normals.par_chunks(1 << 14)).for_each(|(g, n)| lamp.grey_row(n, g));
+/// A band's greys made 0 where `valid` (one per texel, or empty without
+/// holes) is 0: gdaldem's nodata.
+fn holes_grey(valid: &[f32], grey: &mut [u8]) {
     for (g, _) in grey.iter_mut().zip(valid).filter(|(_, v)| **v == 0.0) {
         *g = 0;
     }

@@ -134,8 +134,15 @@ pub(crate) fn shade_png_seekable<W: Write + Seek>(
     let start = out.stream_position()?;
     // One filter (Avg) for every row: choosing per row was a tenth of a
     // streamed lit view's processor time.
-    let texels = LitTexels { lamp, holes: opts.nodata.is_some() };
-    let (first_idat, missing) = convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), texels)?;
+    let holes = opts.nodata.is_some();
+    let (first_idat, missing) = match lamp.is_sun() {
+        true => {
+            convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels::<true> { lamp, holes })?
+        }
+        false => {
+            convert_as(rows, None, opts, visit, out, (PngCompression::Fast, true), LitTexels::<false> { lamp, holes })?
+        }
+    };
     write_first_idat(out, start, &first_idat)?;
     Ok(missing)
 }
@@ -190,18 +197,19 @@ impl PngTexels for CurvatureTexels {
     }
 }
 
-/// Normals lit by a lamp: one gray byte a texel.
-struct LitTexels {
+/// Normals lit by a lamp: one gray byte a texel (`SUN`: the GIS sun's,
+/// [`crate::light::Grey`]).
+struct LitTexels<const SUN: bool> {
     lamp: crate::light::Lamp,
     /// With holes: missing texels are grey 0 (gdaldem's nodata).
     holes: bool,
 }
 
-impl PngTexels for LitTexels {
-    type Normal = [f32; 3];
+impl<const SUN: bool> PngTexels for LitTexels<SUN> {
+    type Normal = crate::light::Grey<SUN>;
     type Fit = BandFit;
     fn fit(&self, (w, h): (usize, usize), opts: &Options, unit: f64) -> Result<BandFit> {
-        Ok(BandFit::new(w, h, opts)?.with_unit(unit))
+        Ok(BandFit::new(w, h, opts)?.with_unit(unit).lit(self.lamp))
     }
     fn bits(&self) -> u8 {
         8
@@ -212,9 +220,9 @@ impl PngTexels for LitTexels {
     fn needs_heights(&self) -> Extra {
         if self.holes { Extra::Valid } else { Extra::None }
     }
-    fn raw<'a>(&self, normals: &'a mut [[f32; 3]], valid: &[f32]) -> Cow<'a, [u8]> {
-        let mut grey = vec![0u8; normals.len()];
-        super::lit_greys(self.lamp, normals, valid, &mut grey);
+    fn raw<'a>(&self, texels: &'a mut [crate::light::Grey<SUN>], valid: &[f32]) -> Cow<'a, [u8]> {
+        let mut grey: Vec<u8> = texels.iter().map(|g| g.0).collect();
+        super::holes_grey(valid, &mut grey);
         Cow::Owned(grey)
     }
 }

@@ -775,3 +775,58 @@ fn a_south_up_raster_is_measured_on_the_map() {
         }
     }
 }
+
+/// The aspect and the hillshade made in the fit's loop (from the plane's
+/// unnormalised normal, and the grey of the unit normal cast to `f32`) are
+/// those of the normals the fit gives: the aspect `Measure::of` of the
+/// unit `f64` normal (its north the map's: y, or −y on a south-up
+/// raster), the grey `shade_sun` of the `f32` normals; both fits, uniform
+/// and binomial weights, both conventions, north-up and south-up.
+#[test]
+fn the_aspect_and_the_hillshade_are_those_of_the_normals() {
+    use normalfit::products::{hillshade_into, measure_into};
+    use normalfit::shade::{Sun, shade_sun};
+    use normalfit::units::Measure;
+    use normalfit::{Convention, FitRequest, Spacing, Weights};
+    let heights = terrain();
+    let south_up = normalfit::io::Affine { a: PIXEL, b: 0.0, c: 500_000.0, d: 0.0, e: PIXEL, f: 4_000_000.0 };
+    let mut sloped = 0;
+    for fit in [Fit::Vertical, Fit::Orthogonal] {
+        for weights in [Weights::Uniform, Weights::Binomial] {
+            for convention in [Convention::OpenGl, Convention::DirectX] {
+                let opts = Options::new()
+                    .with_fit(fit)
+                    .with_weights(weights)
+                    .with_convention(convention)
+                    .with_borders(Borders::both(Border::Clamp))
+                    .with_units(Units::Map(Spacing::Uniform { x: PIXEL, y: PIXEL }));
+                let mut unit = vec![[0.0f64; 3]; W * H];
+                FitRequest::new(&opts).normals_into(&heights, W, H, &mut unit).unwrap();
+                let mut normals = vec![[0.0f32; 3]; W * H];
+                FitRequest::new(&opts).normals_into(&heights, W, H, &mut normals).unwrap();
+                for (affine, north) in [(None, 1.0), (Some(&south_up), -1.0)] {
+                    let what = format!("{fit:?} {weights:?} {convention:?} north {north}");
+                    for zero_for_flat in [false, true] {
+                        let measure = Measure::Aspect { zero_for_flat };
+                        let mut aspect = vec![0.0f32; W * H];
+                        measure_into(FitRequest::new(&opts), measure, affine, f32::NAN, &heights, W, H, &mut aspect)
+                            .unwrap();
+                        for (k, (&got, n)) in aspect.iter().zip(&unit).enumerate() {
+                            let y = if convention == Convention::DirectX { -n[1] } else { n[1] };
+                            let want = measure.of([n[0], north * y, n[2]], Convention::OpenGl);
+                            assert_eq!(got.to_bits(), want.to_bits(), "{what}: aspect at {k}: {got} against {want}");
+                            sloped += usize::from(got > 0.0);
+                        }
+                    }
+                    let sun = Sun::default();
+                    let mut grey = vec![0u8; W * H];
+                    hillshade_into(FitRequest::new(&opts), sun, affine, &heights, W, H, &mut grey).unwrap();
+                    let want = shade_sun(&normals, W, H, sun, affine, convention).unwrap();
+                    assert_eq!(grey, want, "{what}: hillshade");
+                    assert!(grey.iter().any(|&g| g != grey[0]), "{what}: a hillshade of one grey");
+                }
+            }
+        }
+    }
+    assert!(sloped > 16 * W * H, "the aspects are of sloped ground: {sloped}");
+}
