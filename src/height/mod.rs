@@ -592,7 +592,7 @@ fn check_masked(width: usize, height: usize, opts: &HeightOptions) -> Result<()>
     }
     let texels = (width as u64).saturating_mul(height as u64);
     let base = texels.saturating_mul(SlopeField::BYTES_PER_TEXEL + 8 + 4);
-    crate::memory::check_memory("finding the heights with holes", base.saturating_add(holes::bytes(width, height)))
+    crate::memory::check_memory("finding the heights with holes", base.saturating_add(holes::bytes(width, height, opts)?))
 }
 
 /// [`heights_with_holes`] of a slope field whose holes are `holes` (at least
