@@ -15,15 +15,20 @@
 //! ```
 //!
 //! by conjugate gradients on the normal equations, from 0, preconditioned
-//! by the nearest transform's inverse restricted to the texels that are
-//! not holes (a fictitious domain): B = P Q⁻¹ P, Q = DₙᵀWDₙ + (λ + ε)W
-//! the operator of the map without holes (`Solver::inverse`: clamp read
-//! as a half-sample reflection, exact for N = 3; Dₙ = D for wrap and
-//! mirror), ε = [`EPSILON`] / (w h). Q sees every frequency of the map
-//! and the dropped equations change it only along the holes' edges, so
-//! the iterations stay some tens whatever the size, where W⁻¹ alone needed
-//! a multiple of the side (the lowest frequency's condition grows as the
-//! side squared).
+//! by the inverse without holes restricted to the texels that are not
+//! holes (a fictitious domain): B = P Q⁻¹ P, Q = DₙᵀWDₙ + (λ + ε)W the
+//! operator of the map without holes, ε = [`EPSILON`] / (w h), solved as
+//! the inverse without holes solves it: the transform where one is exact
+//! (Dₙ = D), else for clamp with N ≥ 5 the dense bases or banded solves
+//! within the limit of time (Dₙ = D), else the nearest transform (Dₙ
+//! reads clamp as a half-sample reflection; its edge modes then cost
+//! hundreds of iterations). Q sees every frequency of the map and the
+//! dropped equations change it only around the holes, so a lake or a
+//! river takes some tens of iterations whatever the size, where W⁻¹
+//! alone needed a multiple of the side (the lowest frequency's condition
+//! grows as the side squared). Many small holes take more: each is an
+//! edge where Q and the kept equations differ (10 % scattered, N = 3:
+//! some hundreds, growing with the side).
 //!
 //! Which solution: the steps lie in B times the range of the operator, so
 //! from 0 the iteration ends on the least-squares solution of least
@@ -45,15 +50,15 @@
 //! (mean about 0) and the transform's own null modes. λ > 0 (quantised
 //! input) adds its λ‖Pz‖²; the modes it alone pins lie below the
 //! stopping tolerance, so in practice the criterion above decides them too.
-
+//!
 //! Texels that are not holes but that no kept equation sees are
 //! undetermined: they come back NaN, counted in
 //! [`HeightReport::undetermined`](super::HeightReport::undetermined).
 //!
 //! The orthogonal fit runs the same fixed point as without holes (slopes
 //! g · (A − λ)/A asked of the vertical solve, `iterative.rs`), each solve
-//! started from the last heights (the steps stay in the same range, so the
-//! least norm holds), without the Gauss–Newton finish.
+//! started from the last heights (the steps stay in B times the same
+//! range, so the least B⁻¹-norm holds), without the Gauss–Newton finish.
 
 use crate::error::Result;
 use crate::options::Fit;
@@ -61,13 +66,13 @@ use crate::par::prelude::*;
 use crate::samples::try_filled;
 
 use super::HeightOptions;
+use super::Model;
+use super::banded::Separable;
+use super::gauss_newton::Vertical;
 use super::iterative::preconditioned_cg;
 use super::line::{Work, columns_in_place, rows};
 use super::patch::Patch;
 use super::solve::SlopeRows as Slopes;
-use super::Model;
-use super::banded::Separable;
-use super::gauss_newton::Vertical;
 use super::solve::Solver;
 
 /// The conjugate gradients stop when the normal equations' residual has
@@ -157,15 +162,13 @@ pub(super) fn solve(
     let patch = Patch::new(w, h, opts);
     let weights = super::iterative::multiplicities(&patch, h);
     let (borders, n) = (opts.fit.borders, opts.fit.patch);
-    // Q: the transform's where one is exact, else the dense bases' or
-    // banded solves' (clamp, N ≥ 5) within the limit of time, else the
-    // nearest transform's (clamp read as a half-sample reflection), which
-    // the exact operator's edge modes make slow (hundreds of iterations).
+    // Q as the module comment says.
     let transform = Solver::new(w, h, borders, n, Model::Exact);
     // A separable solve that cannot be made (its pins failing, say) leaves
     // the nearest transform: slower, never wrong.
     let dense = if transform.is_none() { Separable::within_limit(&patch, h, opts).unwrap_or(None) } else { None };
-    let nearest = if transform.is_none() && dense.is_none() { Solver::nearest(w, h, borders, n, Model::Exact) } else { None };
+    let nearest =
+        if transform.is_none() && dense.is_none() { Solver::nearest(w, h, borders, n, Model::Exact) } else { None };
     let vertical = match (&transform, &dense, &nearest) {
         (Some(solver), _, _) | (None, None, Some(solver)) => Vertical::Transform(solver),
         (None, Some(dense), _) => Vertical::Dense(dense, (&weights.0, &weights.1)),
@@ -185,7 +188,7 @@ pub(super) fn solve(
         }
     };
     z.iter_mut().for_each(|z| *z = 0.0);
-    let mut budget = if std::env::var_os("HS_OLD").is_some() { 10_000usize.max(16 * w.max(h)) } else { BUDGET };
+    let mut budget = BUDGET;
     let mut iterations = 1;
     let mut converged = conjugate_gradients(&patch, support, &weights, &precondition, &kept, z, &mut budget)?;
     if opts.fit.fit == Fit::Vertical {
@@ -283,11 +286,7 @@ fn conjugate_gradients(
                 *o = r / (m * wy[y]);
             }
         });
-        if std::env::var_os("HS_OLD").is_some() {
-            out.copy_from_slice(&weighted);
-        } else {
-            b.vertical.inverse(&weighted, lambda, b.epsilon, out)?;
-        }
+        b.vertical.inverse(&weighted, lambda, b.epsilon, out)?;
         out.par_iter_mut().zip(holes).for_each(|(o, &hole)| {
             if hole {
                 *o = 0.0;
@@ -304,12 +303,7 @@ fn conjugate_gradients(
             *b = 0.0;
         }
     });
-    let before = *budget;
-    let r = preconditioned_cg(z, &rhs, (w, TOLERANCE), normal, precondition, (&mut gx, &mut gy), budget);
-    if std::env::var_os("HS_TRACE").is_some() {
-        eprintln!("HS_TRACE cg iterations {}", before - *budget);
-    }
-    r
+    preconditioned_cg(z, &rhs, (w, TOLERANCE), normal, precondition, (&mut gx, &mut gy), budget)
 }
 
 /// Bytes the solve with holes holds besides the slopes and heights: nine
