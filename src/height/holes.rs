@@ -20,9 +20,11 @@
 //! operator of the map without holes, ε = [`EPSILON`] / (w h), solved as
 //! the inverse without holes solves it: the transform where one is exact
 //! (Dₙ = D), else for clamp with N ≥ 5 the dense bases or banded solves
-//! within the limit of time (Dₙ = D), else the nearest transform (Dₙ
-//! reads clamp as a half-sample reflection; its edge modes then cost
-//! hundreds of iterations). Q sees every frequency of the map and the
+//! within the limit of time (Dₙ = D, but ε's W taken in each basis
+//! vector's own measure, so ε settles the null modes otherwise: the dense
+//! test holds them only elsewhere), else the nearest transform (Dₙ reads
+//! clamp as a half-sample reflection; its edge modes then cost hundreds
+//! of iterations). Q sees every frequency of the map and the
 //! dropped equations change it only around the holes, so a lake or a
 //! river takes some tens of iterations whatever the size, where W⁻¹
 //! alone needed a multiple of the side (the lowest frequency's condition
