@@ -55,7 +55,7 @@ pub(super) enum Vertical<'a> {
 
 impl Vertical<'_> {
     /// (DᵀD + λ + ε)⁻¹ b, as [`Solver::inverse`].
-    fn inverse(&self, b: &[f64], lambda: f64, epsilon: f64, out: &mut [f64]) -> Result<()> {
+    pub(super) fn inverse(&self, b: &[f64], lambda: f64, epsilon: f64, out: &mut [f64]) -> Result<()> {
         match self {
             Vertical::Transform(solver) => solver.inverse(b, lambda, epsilon, out),
             Vertical::Dense(solver, weights) => solver.inverse(b, lambda, epsilon, *weights, out),

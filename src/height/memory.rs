@@ -99,7 +99,7 @@ fn has_transform(w: usize, h: usize, opts: &HeightOptions) -> bool {
 /// (13 bytes a texel) with the larger of a vertical solve and a re-fit.
 ///
 /// Errors: those of the forward fit's options (the re-fit's plan).
-fn exact_bytes(w: usize, h: usize, opts: &HeightOptions) -> Result<u64> {
+pub(super) fn exact_bytes(w: usize, h: usize, opts: &HeightOptions) -> Result<u64> {
     let r = opts.fit.patch / 2;
     let borders = opts.fit.borders;
     let p = plane(w, h);

@@ -55,10 +55,12 @@
 //!
 //! [`heights_with_holes`] takes a mask of holes (a DEM's nodata, as the
 //! forward fit's holes): holes come back NaN, and the other heights are
-//! the least-squares solution, of least norm, of the equations whose
-//! patches hold no hole, where the map's normals are the full patch's fit
-//! (`holes.rs`). Least norm gives each connected piece mean 0 and fixes
-//! the modes near holes' edges that no kept equation sees; a texel that
+//! the least-squares solution of the equations whose patches hold no
+//! hole, where the map's normals are the full patch's fit (`holes.rs`):
+//! of the solutions, the one whose extension over the holes has the
+//! least fit energy of the map without holes, which sets each connected
+//! piece's constant (a river's banks join as a smooth fill would) and the
+//! modes near holes' edges that no kept equation sees; a texel that
 //! no kept patch holds is undetermined, NaN too
 //! ([`HeightReport::undetermined`]). Without a hole the inverse is the
 //! one above, to the bit.
@@ -341,9 +343,8 @@ pub struct HeightReport {
 #[derive(Clone, Debug)]
 #[non_exhaustive]
 pub struct Heights {
-    /// Row-major, `width * height`, mean 0 (with holes: each connected
-    /// piece's, NaN at holes and undetermined texels), in units of the
-    /// gain.
+    /// Row-major, `width * height`, mean 0 (with holes: about 0, NaN at
+    /// holes and undetermined texels), in units of the gain.
     pub values: Vec<f64>,
     /// Columns.
     pub width: usize,
@@ -389,8 +390,8 @@ pub fn heights<T: NormalComponent>(
 
 /// [`heights`] with holes: `holes[k]` marks texel k a hole (its normal is
 /// not read). Holes come back NaN; the other heights are solved from the
-/// slopes of the texels whose patches hold no hole, minimum-norm (each
-/// connected piece's mean 0); texels that no such patch holds are NaN
+/// slopes of the texels whose patches hold no hole, the solution whose
+/// extension over the holes is smoothest (`holes.rs`); texels that no such patch holds are NaN
 /// too, counted in [`HeightReport::undetermined`]. Without a hole: the
 /// same bits as [`heights`].
 ///
@@ -592,7 +593,10 @@ fn check_masked(width: usize, height: usize, opts: &HeightOptions) -> Result<()>
     }
     let texels = (width as u64).saturating_mul(height as u64);
     let base = texels.saturating_mul(SlopeField::BYTES_PER_TEXEL + 8 + 4);
-    crate::memory::check_memory("finding the heights with holes", base.saturating_add(holes::bytes(width, height)))
+    crate::memory::check_memory(
+        "finding the heights with holes",
+        base.saturating_add(holes::bytes(width, height, opts)?),
+    )
 }
 
 /// [`heights_with_holes`] of a slope field whose holes are `holes` (at least
@@ -625,7 +629,7 @@ pub(crate) fn heights_of_slopes_with_holes(
         _ => 0.0,
     };
     let scale = opts.scale_for_width(width);
-    // Least norm has made each piece's mean 0: only the gain and the NaNs.
+    // The criterion has set the pieces' constants: only the gain and the NaNs.
     let row_ranges: Vec<(f64, f64)> = z
         .par_chunks_mut(width)
         .zip(support.seen.par_chunks(width))

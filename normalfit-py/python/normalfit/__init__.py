@@ -568,7 +568,8 @@ def height(
     threads: as for normals().
     holes: a (rows, columns) bool array, True where a texel is a hole (a
         DEM's nodata): holes come back NaN, the rest solved from the
-        patches that hold no hole (each connected piece's mean 0); texels
+        patches that hold no hole (the solution whose extension over the
+        holes is smoothest: a river's banks join); texels
         no such patch holds are NaN too (info.undetermined).
 
     Returns (heights, info): a (rows, columns) float64 array, mean 0, in
