@@ -179,8 +179,10 @@ pub(super) fn solve(
         }
     };
     let precondition = Preconditioner { vertical, lambda, epsilon: EPSILON / (w as f64 * h as f64) };
-    // The slopes of the kept equations; 0 where an equation is dropped
-    // (the orthogonal fit's ratios there then settle with the heights).
+    // The slopes of the kept equations; 0 where an equation is dropped.
+    // There a ratio scales nothing, and it follows the fill across the
+    // holes: it is left out of the fixed point's settling (a 1024² lake
+    // did not settle in 100 solves with it in).
     let kept = |y: usize, gx: &mut [f64], gy: &mut [f64]| {
         slopes(y, gx, gy);
         for ((gx, gy), &k) in gx.iter_mut().zip(gy.iter_mut()).zip(&support.kept[y * w..][..w]) {
@@ -199,7 +201,7 @@ pub(super) fn solve(
     let len = w * h;
     let mut rho = try_filled(len, 1.0)?;
     let mut direction = try_filled(len, 0i8)?;
-    patch.update_ratios(z, &kept, &mut rho, &mut direction, 1.0)?;
+    patch.update_ratios(z, &kept, Some(&support.kept), &mut rho, &mut direction, 1.0)?;
     let tolerance = opts.tolerance.max(opts.step);
     let (mut last_change, mut growing, mut damping) = (f64::INFINITY, 0, 1.0);
     converged = false;
@@ -215,7 +217,7 @@ pub(super) fn solve(
         if !conjugate_gradients(&patch, support, &weights, &precondition, &weighted, z, &mut budget)? {
             break;
         }
-        let (change, _, _) = patch.update_ratios(z, &kept, &mut rho, &mut direction, damping)?;
+        let (change, _, _) = patch.update_ratios(z, &kept, Some(&support.kept), &mut rho, &mut direction, damping)?;
         if change <= tolerance {
             converged = true;
             break;

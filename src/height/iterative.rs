@@ -77,7 +77,7 @@ pub(crate) fn exact(
     // The heights whose re-fitted normals are closest to the given ones so
     // far (the sum of squared differences of unit normals, which steep
     // texels cannot dominate), kept as f32: the vertical solution first.
-    let (_, first, mut off) = patch.update_ratios(z, slopes, &mut rho, &mut direction, 1.0)?;
+    let (_, first, mut off) = patch.update_ratios(z, slopes, None, &mut rho, &mut direction, 1.0)?;
     // The heights closest so far, as f32; `None` while they are the
     // vertical solution, which a solve gives again: most maps converge and
     // never need them, and copying them took 3 % of the time at 4096².
@@ -111,7 +111,7 @@ pub(crate) fn exact(
             // budget spent): the iteration stops, unsettled.
             break;
         }
-        let (change, mismatch, now_off) = patch.update_ratios(z, slopes, &mut rho, &mut direction, damping)?;
+        let (change, mismatch, now_off) = patch.update_ratios(z, slopes, None, &mut rho, &mut direction, damping)?;
         off = now_off;
         if change <= tolerance {
             if dense.is_some() && null != super::dense::NULL {
@@ -280,6 +280,7 @@ impl Patch {
         &self,
         z: &[f64],
         slopes: Slopes<'_>,
+        kept: Option<&[bool]>,
         rho: &mut [f64],
         direction: &mut [i8],
         damping: f64,
@@ -287,7 +288,7 @@ impl Patch {
         let w = self.w;
         let h = z.len() / w;
         if self.refit_by_lines(h) {
-            return self.update_ratios_by_lines(z, slopes, rho, direction, damping);
+            return self.update_ratios_by_lines(z, slopes, kept, rho, direction, damping);
         }
         let mut fit = self.moments_fit(h)?;
         let bands: Vec<std::ops::Range<usize>> = fit.bands().collect();
@@ -309,7 +310,8 @@ impl Patch {
                 .map(|(k, ((out, dir), m))| {
                     let (mut gx, mut gy) = (vec![0.0; w], vec![0.0; w]);
                     slopes(rows.start + k, &mut gx, &mut gy);
-                    ratio_row(self.a, m, &gx, &gy, out, dir, damping)
+                    let kept = kept.map(|kept| &kept[(rows.start + k) * w..][..w]);
+                    ratio_row(self.a, m, &gx, &gy, kept, out, dir, damping)
                 })
                 .collect();
             for (c, e, o) in per_row {
@@ -341,6 +343,7 @@ impl Patch {
         &self,
         z: &[f64],
         slopes: Slopes<'_>,
+        kept: Option<&[bool]>,
         rho: &mut [f64],
         direction: &mut [i8],
         damping: f64,
@@ -382,7 +385,8 @@ impl Patch {
                 let at = y * w..(y + 1) * w;
                 let m: Vec<[f64; 3]> =
                     si[at.clone()].iter().zip(&sj[at.clone()]).zip(&czz[at]).map(|((&a, &b), &c)| [a, b, c]).collect();
-                ratio_row(self.a, &m, &gx, &gy, out, dir, damping)
+                let kept = kept.map(|kept| &kept[y * w..][..w]);
+                ratio_row(self.a, &m, &gx, &gy, kept, out, dir, damping)
             })
             .collect();
         let (mut largest, mut mismatch, mut worst) = (0.0f64, 0.0, 0.0f64);
@@ -415,16 +419,18 @@ impl Patch {
 /// its square roots and divisions took half of each re-fit. They, and the
 /// other operations, round alike in every instruction set, and nothing
 /// fuses a multiply with an add: the same bits on every processor.
+#[allow(clippy::too_many_arguments)]
 fn ratio_row(
     a: f64,
     m: &[[f64; 3]],
     gx: &[f64],
     gy: &[f64],
+    kept: Option<&[bool]>,
     out: &mut [f64],
     dir: &mut [i8],
     damping: f64,
 ) -> (f64, f64, f64) {
-    pulp::Arch::new().dispatch(RatioRow { a, m, gx, gy, out, dir, damping })
+    pulp::Arch::new().dispatch(RatioRow { a, m, gx, gy, kept, out, dir, damping })
 }
 
 /// [`ratio_row`]'s arguments, for [`pulp::Arch::dispatch`].
@@ -433,6 +439,9 @@ struct RatioRow<'a> {
     m: &'a [[f64; 3]],
     gx: &'a [f64],
     gy: &'a [f64],
+    /// The texels whose equations count (the solve with holes keeps
+    /// some): the others' ratios are updated but left out of the sums.
+    kept: Option<&'a [bool]>,
     out: &'a mut [f64],
     dir: &'a mut [i8],
     damping: f64,
@@ -443,7 +452,7 @@ impl pulp::WithSimd for RatioRow<'_> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> (f64, f64, f64) {
         // Inlined here, so that it is compiled for each instruction set.
-        let RatioRow { a, m, gx, gy, out, dir, damping } = self;
+        let RatioRow { a, m, gx, gy, kept, out, dir, damping } = self;
         let (mut largest, mut mismatch, mut worst) = (0.0f64, 0.0, 0.0f64);
         // Blocks of texels computed without branches (both sides of every
         // choice, then a select), which the compiler can vectorise; the sums
@@ -462,9 +471,11 @@ impl pulp::WithSimd for RatioRow<'_> {
                 offs[l] = off;
             }
             for l in 0..k {
-                mismatch += terms[l];
-                largest = largest.max(changes[l]);
-                worst = worst.max(offs[l]);
+                if kept.is_none_or(|kept| kept[start + l]) {
+                    mismatch += terms[l];
+                    largest = largest.max(changes[l]);
+                    worst = worst.max(offs[l]);
+                }
             }
             start += k;
         }
