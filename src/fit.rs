@@ -93,7 +93,7 @@ pub use quadratic::{curvature, curvature_samples};
 pub(crate) use request::work_bytes;
 pub use request::{FitRequest, Heights};
 use sums::{RowRef, SourceRows, WindowSums};
-pub(crate) use texel::{Texel, TexelFrame};
+pub(crate) use texel::{Lamp, MapAxes, Texel, TexelFrame};
 pub use window::{Halo, HaloPlan, Window};
 
 /// A type an output texel can be made from a unit normal.

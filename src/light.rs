@@ -156,15 +156,7 @@ pub(crate) fn shade_with(normals: &[[f32; 3]], lamp: Lamp) -> Result<Vec<u8>> {
     Ok(grey)
 }
 
-/// A light resolved for one image: its direction in the fit's frame
-/// (DirectX's y already flipped) and how n · L becomes a grey.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Lamp {
-    direction: [f64; 3],
-    /// gdaldem's scale (1 + 254 · cos) rather than the texture view's
-    /// ambient share.
-    gis: bool,
-}
+pub(crate) use crate::fit::Lamp;
 
 impl Lamp {
     /// The texture view's light.

@@ -83,13 +83,13 @@ impl BandFit {
     #[must_use]
     #[cfg_attr(not(feature = "tiff"), allow(dead_code))]
     pub(crate) fn on_map(mut self, affine: Option<&crate::io::Affine>) -> BandFit {
-        self.plan.frame.axes = crate::units::MapAxes::of(affine);
+        self.plan.frame.axes = super::MapAxes::of(affine);
         self
     }
 
     /// The same fit, its texels lit by `lamp` (a hillshade's greys).
     #[must_use]
-    pub(crate) fn lit(mut self, lamp: crate::light::Lamp) -> BandFit {
+    pub(crate) fn lit(mut self, lamp: super::Lamp) -> BandFit {
         self.plan.frame.lamp = lamp;
         self
     }

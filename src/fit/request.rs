@@ -42,9 +42,9 @@ pub struct FitRequest<'a> {
     valid: Option<&'a mut [bool]>,
     missing: [f64; 3],
     /// The raster's axes on the map, for an aspect ([`Self::on_map`]).
-    axes: crate::units::MapAxes,
+    axes: super::MapAxes,
     /// The lamp of a lit view ([`Self::lit`]).
-    lamp: Option<crate::light::Lamp>,
+    lamp: Option<super::Lamp>,
 }
 
 impl<'a> FitRequest<'a> {
@@ -58,7 +58,7 @@ impl<'a> FitRequest<'a> {
             residual: None,
             valid: None,
             missing: [0.0, 0.0, 1.0],
-            axes: crate::units::MapAxes::NORTH_UP,
+            axes: super::MapAxes::NORTH_UP,
             lamp: None,
         }
     }
@@ -178,12 +178,12 @@ impl<'a> FitRequest<'a> {
     /// GDAL geotransform; `None`: north-up): an aspect's axes
     /// ([`super::TexelFrame`]).
     pub(crate) fn on_map(mut self, affine: Option<&crate::io::Affine>) -> FitRequest<'a> {
-        self.axes = crate::units::MapAxes::of(affine);
+        self.axes = super::MapAxes::of(affine);
         self
     }
 
     /// The texels are lit by `lamp` (a hillshade's greys).
-    pub(crate) fn lit(mut self, lamp: crate::light::Lamp) -> FitRequest<'a> {
+    pub(crate) fn lit(mut self, lamp: super::Lamp) -> FitRequest<'a> {
         self.lamp = Some(lamp);
         self
     }

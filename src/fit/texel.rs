@@ -32,15 +32,57 @@ impl<T: FromNormal> Texel for T {
 /// options, north-up axes and the GIS sun unless told otherwise.
 #[derive(Clone, Copy, Debug)]
 pub struct TexelFrame {
-    pub(crate) axes: crate::units::MapAxes,
+    pub(crate) axes: MapAxes,
     pub(crate) convention: crate::options::Convention,
-    pub(crate) lamp: crate::light::Lamp,
+    pub(crate) lamp: Lamp,
 }
 
 impl TexelFrame {
     /// North-up axes and the GIS sun, for a fit in `convention`.
     pub(crate) fn new(convention: crate::options::Convention) -> TexelFrame {
         let lamp = crate::light::Lamp::sun(crate::light::Sun::default(), None, convention);
-        TexelFrame { axes: crate::units::MapAxes::NORTH_UP, convention, lamp }
+        TexelFrame { axes: MapAxes::NORTH_UP, convention, lamp }
     }
+}
+
+/// Where a raster's axes point on the map: the map directions (east,
+/// north), each made unit, of a column step (a, d) and of a step up the
+/// image (−b, −e), as GDAL's geotransform places them. A normal's +x runs
+/// along a row and its +y (OpenGL's) up the image, so these turn a normal
+/// into the map's east and north: row 0 is north on the usual north-up
+/// raster (e < 0) and south on a south-up one (e > 0), whose aspect and
+/// sun would otherwise come out mirrored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct MapAxes {
+    /// (east, north) of a column step.
+    pub(crate) x: (f64, f64),
+    /// (east, north) of a step up the image.
+    pub(crate) up: (f64, f64),
+}
+
+impl MapAxes {
+    /// A north-up raster's, and a raster's without georeferencing.
+    pub(crate) const NORTH_UP: MapAxes = MapAxes { x: (1.0, 0.0), up: (0.0, 1.0) };
+
+    /// The axes of a raster placed by `affine` (none: north-up).
+    pub(crate) fn of(affine: Option<&crate::io::Affine>) -> MapAxes {
+        let unit = |x: f64, y: f64| {
+            let l = x.hypot(y);
+            if l > 0.0 && l.is_finite() { (x / l, y / l) } else { (0.0, 0.0) }
+        };
+        match affine {
+            Some(t) => MapAxes { x: unit(t.a, t.d), up: unit(-t.b, -t.e) },
+            None => MapAxes::NORTH_UP,
+        }
+    }
+}
+
+/// A light resolved for one image: its direction in the fit's frame
+/// (DirectX's y already flipped) and how n · L becomes a grey.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Lamp {
+    pub(crate) direction: [f64; 3],
+    /// gdaldem's scale (1 + 254 · cos) rather than the texture view's
+    /// ambient share.
+    pub(crate) gis: bool,
 }
