@@ -21,6 +21,8 @@
 
 use crate::error::{Error, Result};
 use crate::fit::FitRequest;
+// A chain's shape is the GPU files': their levels and the sizes they take.
+pub use crate::io::gpu::{MipLevel, level_sizes};
 use crate::options::{Options, Spacing, Strength, Units, named_values};
 use crate::samples::{Sample, try_vec};
 
@@ -41,36 +43,6 @@ pub enum MipChoice {
 }
 
 named_values!(MipChoice, "mip chain", { Auto => "auto", Fit => "fit", Average => "average" | "mean" });
-
-/// One level of a chain: its size and its texels, row-major.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MipLevel<T> {
-    /// Texels per row.
-    pub width: usize,
-    /// Rows.
-    pub height: usize,
-    /// `width × height` texels.
-    pub texels: Vec<T>,
-}
-
-/// The sizes of a chain's levels, the finest first: each side
-/// max(1, ⌊n / 2⌋) of the level before, down to 1 × 1 (Direct3D's and
-/// Vulkan's count: 1 + ⌊log₂ max(w, h)⌋ levels).
-///
-/// ```
-/// use normalfit::mips::level_sizes;
-/// assert_eq!(level_sizes(300, 7), [(300, 7), (150, 3), (75, 1), (37, 1), (18, 1), (9, 1), (4, 1), (2, 1), (1, 1)]);
-/// ```
-#[must_use]
-pub fn level_sizes(width: usize, height: usize) -> Vec<(usize, usize)> {
-    let mut sizes = vec![(width, height)];
-    let (mut w, mut h) = (width, height);
-    while w > 1 || h > 1 {
-        (w, h) = ((w / 2).max(1), (h / 2).max(1));
-        sizes.push((w, h));
-    }
-    sizes
-}
 
 /// The weights of a box filter from `n` texels to `m` (m ≤ n) along one
 /// axis: texel i of `m` covers [i·n/m, (i + 1)·n/m) of the `n`, and each

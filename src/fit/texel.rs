@@ -29,7 +29,7 @@ impl<T: FromNormal> Texel for T {
 /// ([`Texel`]): the raster's axes (from its geotransform), the fit's
 /// convention (which way the normal's y points) and the lamp of a lit
 /// view. [`FitRequest`] and [`BandFit`] take the convention from their
-/// options, north-up axes and the GIS sun unless told otherwise.
+/// options, north-up axes and a lamp overhead unless told otherwise.
 #[derive(Clone, Copy, Debug)]
 pub struct TexelFrame {
     pub(crate) axes: MapAxes,
@@ -38,10 +38,10 @@ pub struct TexelFrame {
 }
 
 impl TexelFrame {
-    /// North-up axes and the GIS sun, for a fit in `convention`.
+    /// North-up axes and a lamp overhead, for a fit in `convention`: a lit
+    /// view sets its own lamp (`lit`) before any grey is made.
     pub(crate) fn new(convention: crate::options::Convention) -> TexelFrame {
-        let lamp = crate::light::Lamp::sun(crate::light::Sun::default(), None, convention);
-        TexelFrame { axes: MapAxes::NORTH_UP, convention, lamp }
+        TexelFrame { axes: MapAxes::NORTH_UP, convention, lamp: Lamp::OVERHEAD }
     }
 }
 
@@ -85,4 +85,11 @@ pub(crate) struct Lamp {
     /// gdaldem's scale (1 + 254 · cos) rather than the texture view's
     /// ambient share.
     pub(crate) gis: bool,
+}
+
+impl Lamp {
+    /// Light straight down the normal's z, the texture view's scale: the
+    /// frame's lamp until a lit view gives its own (the light's rules, a
+    /// sun's placing among them, are `crate::light`'s, a layer above).
+    pub(crate) const OVERHEAD: Lamp = Lamp { direction: [0.0, 0.0, 1.0], gis: false };
 }

@@ -22,6 +22,7 @@ mod atomic;
 pub(crate) mod dds;
 pub mod encoding;
 pub(crate) mod exr;
+pub(crate) mod from_normal;
 pub mod gpu;
 mod identity;
 pub(crate) mod ktx2;

@@ -3,7 +3,7 @@
 //! appear whole or not at all.
 //!
 //! The encoders take texels as the fit produces them (`[u8; 3]`,
-//! `[u16; 3]`, `[f32; 3]`, see [`crate::FromNormal`]), so no float copy of
+//! `[u16; 3]`, `[f32; 3]`, see [`FromNormal`]), so no float copy of
 //! the image is made between the fit and the file. A [`Layout`] says which
 //! channels the file holds; the streaming pipeline ([`crate::pipeline`])
 //! lays texels out with the same code (`texels.rs`), so both give the same
@@ -19,18 +19,19 @@ pub use super::texels::Sample;
 
 use super::encoding::{Encoding, ExrDepth, ExrOptions, Layout, PngDepth, PngOptions, TiffDepth, TiffOptions, TiffTags};
 use super::exr::write::{exr_normals, write_exr_rows};
+use super::from_normal::FromNormal;
 use super::png::write::{png_gray, png_normals};
 use super::texels::{StoreInPlace, check_buffer};
 #[cfg(feature = "tiff")]
 use super::tiff::write::{tiff_gray, tiff_normals};
 use crate::error::{Error, Result};
 
-/// A texel of a normal map as the fit gives it ([`crate::FromNormal`]),
+/// A texel of a normal map as the fit gives it ([`FromNormal`]),
 /// which [`encode_normals`] writes: `[u8; 3]` and `[u16; 3]` are PNG's
 /// stored samples already, c = round(max · (n + 1)/2) (an 8- or 16-bit
 /// PNG); `[f32; 3]` is the normal n itself, stored as the encoding says
 /// (EXR: (n + 1)/2 or n; PNG: quantised as the integer texels are).
-pub trait NormalTexel: crate::FromNormal + sealed::Sealed {
+pub trait NormalTexel: FromNormal + sealed::Sealed {
     /// Encodes `texels` (and `heights`, checked) as `encoding` says; a
     /// TIFF with `tags`.
     #[doc(hidden)]
@@ -127,7 +128,7 @@ impl NormalTexel for [f32; 3] {
         tags: TiffTags<'_>,
         out: W,
     ) -> Result<()> {
-        fn quantised<T: crate::FromNormal>(texels: &[[f32; 3]]) -> Result<Vec<T>> {
+        fn quantised<T: FromNormal>(texels: &[[f32; 3]]) -> Result<Vec<T>> {
             let mut out = crate::samples::try_vec(texels.len())?;
             out.extend(texels.iter().map(|t| T::from_normal(t.map(f64::from))));
             Ok(out)

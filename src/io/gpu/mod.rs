@@ -58,6 +58,7 @@ mod bc4;
 #[cfg(feature = "bc7")]
 mod bc7;
 mod blocks;
+mod levels;
 
 use std::io::Write;
 use std::path::Path;
@@ -68,16 +69,15 @@ use blocks::BlockGrid;
 
 use super::atomic::write_atomically;
 use super::dds::write::write_dds;
+use super::from_normal::FromNormal;
 use super::ktx2::write::write_ktx2;
 use crate::error::{Error, Result};
-use crate::fit::FromNormal;
-use crate::mips::level_sizes;
 use crate::options::named_values;
 use crate::par::prelude::*;
 use crate::samples::try_vec;
 
 pub use super::texture::TextureFormat;
-pub use crate::mips::MipLevel;
+pub use levels::{MipLevel, level_sizes};
 
 /// The file a chain is written in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
