@@ -13,6 +13,7 @@
 //! [`Samples`] an owned plane of any of them, as decoders give it.
 
 use crate::error::{Error, Result};
+use crate::par::prelude::*;
 
 /// A height sample type the fit reads: the stored value times
 /// [`UNIT`](Self::UNIT) is the height in the contract's units.
@@ -195,12 +196,17 @@ impl Samples {
     }
 }
 
+/// Heights a task of [`first_non_finite`] checks (256 KiB of f32).
+const FINITE_CHUNK: usize = 1 << 16;
+
 /// The first texel (x, y) in row order whose height is NaN or infinite.
 pub(crate) fn first_non_finite<H: Sample>(heights: &[H], width: usize) -> Option<(usize, usize)> {
     // A loop without an early exit vectorises (a search one value at a time
     // took 2.5 % of a conversion): it finds whether there is one, and only
-    // then is it looked for.
-    let all_finite = heights.iter().fold(true, |all, h| all & h.is_finite());
+    // then is it looked for. On every core: on one, the check of a 4096²
+    // float map took a tenth of the fit's wall time.
+    let all_finite =
+        heights.par_chunks(FINITE_CHUNK).all(|chunk| chunk.iter().fold(true, |all, h| all & h.is_finite()));
     if all_finite {
         return None;
     }

@@ -282,13 +282,23 @@ impl Plan {
         // The product of S and the unit, once: every path that fits these
         // samples forms the same gain, and so the same bits.
         let gain = self.scale * unit;
-        tasks.into_par_iter().for_each(|task| match (kernel, self.n) {
-            (Kernel::Weighted, _) => self.fit_strip_weighted(rows, gain, task),
-            (Kernel::Sliding, _) => self.fit_strip_sliding(rows, gain, task),
-            (Kernel::Direct, 3) => self.fit_strip_direct::<H, T, 3>(rows, gain, task),
-            (Kernel::Direct, 5) => self.fit_strip_direct::<H, T, 5>(rows, gain, task),
-            (Kernel::Direct, 7) => self.fit_strip_direct::<H, T, 7>(rows, gain, task),
-            _ => self.fit_strip_blocked(rows, gain, task),
+        // The strips' sums are loops across the columns: compiled, with the
+        // strip's whole loop inlined, for the widest vectors the processor
+        // has (as `EmitRow` is). Rust fuses no multiply with an add and
+        // each operation rounds alike in every instruction set: the same
+        // bits on every processor.
+        tasks.into_par_iter().for_each(|task| {
+            pulp::Arch::new().dispatch(
+                #[inline(always)]
+                || match (kernel, self.n) {
+                    (Kernel::Weighted, _) => self.fit_strip_weighted(rows, gain, task),
+                    (Kernel::Sliding, _) => self.fit_strip_sliding(rows, gain, task),
+                    (Kernel::Direct, 3) => self.fit_strip_direct::<H, T, 3>(rows, gain, task),
+                    (Kernel::Direct, 5) => self.fit_strip_direct::<H, T, 5>(rows, gain, task),
+                    (Kernel::Direct, 7) => self.fit_strip_direct::<H, T, 7>(rows, gain, task),
+                    _ => self.fit_strip_blocked(rows, gain, task),
+                },
+            )
         });
     }
 
@@ -505,7 +515,7 @@ impl Plan {
     /// The heights of columns `lo .. hi` of `src`, times `gain`, into
     /// `padded`: those that `src` holds as they are, the others through
     /// the x border (which the caller made sure maps them into `src`).
-    #[inline]
+    #[inline(always)]
     pub(super) fn padded_row<H: Sample>(
         &self,
         src: RowRef<'_, H>,
@@ -572,6 +582,7 @@ impl Plan {
     /// N ≤ 63), so adding the entering texel and removing the leaving one
     /// gives every texel exactly the sums of its own patch, wherever the
     /// run started; the gain comes after, in the normals.
+    #[inline(always)]
     pub(super) fn fit_strip_sliding<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
@@ -620,6 +631,7 @@ impl Plan {
 
     /// Σh, Σih, Σh² over each column's horizontal window of one source row
     /// of integers, by a running sum along the strip.
+    #[inline(always)]
     pub(super) fn sliding_row_sums<H: Sample>(&self, src: RowRef<'_, H>, cols: Range<usize>, out: &mut RowSums) {
         // Disjoint borrows, and below slices of the strip's length: the
         // sliding loop then keeps every pointer in a register and has no
@@ -659,6 +671,7 @@ impl Plan {
     /// same bits in whatever strip, tile or window it is computed. At this
     /// size the sums take no more work than running sums, and the loops
     /// run across the columns, so they vectorise.
+    #[inline(always)]
     pub(super) fn fit_strip_direct<'a, H: Sample, T: Texel, const N: usize>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
@@ -670,15 +683,16 @@ impl Plan {
         let r = (N / 2) as isize;
         let cols = x0..x0 + first.len();
         let w = cols.len();
-        let row_sums = |v: isize, sums: &mut RowSums| self.direct_row_sums::<H, N>(rows(v), gain, cols.clone(), sums);
         let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
         let mut cache = RowCache::new(N, w);
         let mut v = WindowSums::zeros(w);
         let mut scratch = EmitScratch::new(w);
         for (k, out_row) in out.iter_mut().enumerate() {
             let y = (y0 + k) as isize;
-            for j in 0..N as isize {
-                cache.get(y - r + j, &row_sums);
+            for u in y - r..=y + r {
+                if let Some(sums) = cache.stale(u) {
+                    self.direct_row_sums::<H, N>(rows(u), gain, cols.clone(), sums);
+                }
             }
             let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
             v.sum_rows(&patch_rows);
@@ -690,6 +704,7 @@ impl Plan {
     /// Σz, Σiz, Σz² (z = gain · h) over each column's horizontal window of
     /// one source row, each window summed outright (see
     /// [`Self::fit_strip_direct`]).
+    #[inline(always)]
     pub(super) fn direct_row_sums<H: Sample, const N: usize>(
         &self,
         src: RowRef<'_, H>,
@@ -731,6 +746,7 @@ impl Plan {
     /// are the same bits in whatever strip, tile or window it is computed
     /// (running sums of floats would carry the rounding of wherever they
     /// started); the cost per texel stays flat in N.
+    #[inline(always)]
     pub(super) fn fit_strip_blocked<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
@@ -801,6 +817,7 @@ impl Plan {
     /// Σz, Σiz, Σz² (z = gain · h) over each column's horizontal window of
     /// one source row, from block-aligned suffix and prefix sums (see
     /// [`Self::fit_strip_blocked`]).
+    #[inline(always)]
     pub(super) fn blocked_row_sums<H: Sample>(
         &self,
         src: RowRef<'_, H>,

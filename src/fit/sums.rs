@@ -70,7 +70,23 @@ impl RowCache {
         sums
     }
 
+    /// The slot for row v, to be filled with its sums, unless it holds
+    /// them: the caller fills it at once. The strips' loops fill it
+    /// themselves, so that the row sums are compiled inside them (for
+    /// their instruction set) rather than in a closure called from here.
+    #[inline(always)]
+    pub(super) fn stale(&mut self, v: isize) -> Option<&mut RowSums> {
+        let slot = v.rem_euclid(self.rows.len() as isize) as usize;
+        let (held, sums) = &mut self.rows[slot];
+        if *held == v {
+            return None;
+        }
+        *held = v;
+        Some(sums)
+    }
+
     /// Row v's sums, made by `fill` unless held.
+    #[inline(always)]
     pub(super) fn get(&mut self, v: isize, fill: &impl Fn(isize, &mut RowSums)) -> &RowSums {
         let slot = v.rem_euclid(self.rows.len() as isize) as usize;
         let (held, sums) = &mut self.rows[slot];
@@ -107,6 +123,7 @@ impl WindowSums {
 
     /// The sums of a suffix and a prefix of rows, Σj·z moved by `shift`
     /// texels' weight (the rows' weights were counted from another row).
+    #[inline(always)]
     pub(super) fn combine(&mut self, a: &WindowSums, b: &WindowSums, shift: f64) {
         let w = self.s0.len();
         let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
@@ -122,6 +139,7 @@ impl WindowSums {
 
     /// The sums of the patch's N rows, `rows[j]` at vertical offset
     /// j − N/2, added in order.
+    #[inline(always)]
     pub(super) fn sum_rows<const N: usize>(&mut self, rows: &[&RowSums; N]) {
         let w = self.s0.len();
         let r = N / 2;
@@ -149,6 +167,7 @@ impl WindowSums {
     }
 
     /// `previous` plus the row sums `h` at vertical offset `j`.
+    #[inline(always)]
     pub(super) fn set_sum(&mut self, previous: &WindowSums, h: &RowSums, j: f64) {
         let w = self.s0.len();
         let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
@@ -164,6 +183,7 @@ impl WindowSums {
 
     /// Adds the row sums `h` (offset `j`) to these prefix sums, and writes
     /// `out` = `suffix` + them, as [`Self::combine`] does, in one pass.
+    #[inline(always)]
     pub(super) fn add_then_combine(
         &mut self,
         h: &RowSums,
@@ -190,6 +210,7 @@ impl WindowSums {
     }
 
     /// Adds the row sums `h` of the window's row at vertical offset `j`.
+    #[inline(always)]
     pub(super) fn add(&mut self, h: &RowSums, j: f64) {
         // Every slice cut to one length: the loop then has no bounds
         // checks and vectorises.
@@ -208,6 +229,7 @@ impl WindowSums {
     /// `entering` (offset r + 1 before the slide) come. Σj·z moves by
     /// r·leaving + (r + 1)·entering − the new Σz, as every row's offset
     /// drops by one.
+    #[inline(always)]
     pub(super) fn slide(&mut self, leaving: &RowSums, entering: &RowSums, r: f64, r1: f64) {
         let w = self.s0.len();
         let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);

@@ -68,6 +68,7 @@ struct BlockSums {
 impl Plan {
     /// Fits one strip with weights (see the module docs): every output
     /// row's sums from the N rows' weighted sums its patch covers.
+    #[inline(always)]
     pub(super) fn fit_strip_weighted<'a, H: Sample, T: Texel>(
         &self,
         rows: &SourceRows<'_, 'a, H>,
@@ -82,15 +83,16 @@ impl Plan {
         let (n, r) = (self.n, self.r as isize);
         let cols = x0..x0 + first.len();
         let w = cols.len();
-        let row_sums = |v: isize, sums: &mut RowSums| self.weighted_row_sums(rows(v), gain, cols.clone(), sums);
         let mut holes = self.strip_holes(rows, y0, out.len(), cols.clone(), valid);
         let mut cache = RowCache::new(n, w);
         let mut v = WindowSums::zeros(w);
         let mut scratch = EmitScratch::new(w);
         for (k, out_row) in out.iter_mut().enumerate() {
             let y = (y0 + k) as isize;
-            for j in 0..n as isize {
-                cache.get(y - r + j, &row_sums);
+            for u in y - r..=y + r {
+                if let Some(sums) = cache.stale(u) {
+                    self.weighted_row_sums(rows(u), gain, cols.clone(), sums);
+                }
             }
             self.weighted_window(&cache, y, &mut v);
             let residual = residual.as_mut().map(|r| &mut *r[k]);
@@ -125,6 +127,7 @@ impl Plan {
 
     /// Σw·z, Σw·u·z, Σw·z² (z = gain · h) over each column's horizontal
     /// window of one source row, added in the window's order.
+    #[inline(always)]
     fn weighted_row_sums<H: Sample>(&self, src: RowRef<'_, H>, gain: f64, cols: Range<usize>, out: &mut RowSums) {
         let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, squares, .. } = out;
         let r = self.r;
