@@ -12,7 +12,7 @@ use crate::samples::Sample;
 
 use super::emit::{EmitScratch, normal_from_sums, squared_distance_sum, store_normals};
 use super::masked::{MaskSums, MaskedRow, Moments};
-use super::sums::{RowCache, RowRef, RowSums, SourceRows, WindowSums};
+use super::sums::{RowCache, RowRef, RowSums, SourceRows, WindowSums, patch_sums};
 use super::unequal::RowSpacing;
 use super::{Texel, checked_len};
 
@@ -728,7 +728,6 @@ impl Plan {
     #[inline(always)]
     fn emit_fused<T: Texel, const N: usize, const ORTHOGONAL: bool>(&self, rows: &[&RowSums; N], out: &mut [T]) {
         const C: usize = EMIT_CHUNK;
-        let r = N / 2;
         let w = out.len();
         // The rows' sums are in units of z (the gain went in with the
         // heights): the emit's gain is 1.
@@ -738,24 +737,9 @@ impl Plan {
         for (start, out) in (0..w).step_by(C).zip(out.chunks_mut(C)) {
             let len = out.len();
             let texels = start..start + len;
-            let h0: [&[f64]; N] = std::array::from_fn(|j| &rows[j].s0[texels.clone()]);
-            let hi: [&[f64]; N] = std::array::from_fn(|j| &rows[j].si[texels.clone()]);
-            let hzz: [&[f64]; N] = std::array::from_fn(|j| &rows[j].szz[texels.clone()]);
-            let (mut s0, mut si, mut szz, mut sj) = ([0.0; C], [0.0; C], [0.0; C], [0.0; C]);
-            let (s0, si, szz, sj) = (&mut s0[..len], &mut si[..len], &mut szz[..len], &mut sj[..len]);
-            for (out, h) in [(&mut *s0, &h0), (&mut *si, &hi), (&mut *szz, &hzz)] {
-                out.iter_mut().zip(h[0]).zip(h[1]).for_each(|((a, p), q)| *a = p + q);
-            }
-            for j in 2..N {
-                s0.iter_mut().zip(h0[j]).for_each(|(a, b)| *a += b);
-                si.iter_mut().zip(hi[j]).for_each(|(a, b)| *a += b);
-                szz.iter_mut().zip(hzz[j]).for_each(|(a, b)| *a += b);
-            }
-            sj.iter_mut().zip(h0[r + 1]).zip(h0[r - 1]).for_each(|((a, p), m)| *a = p - m);
-            for d in 2..=r {
-                let k = d as f64;
-                sj.iter_mut().zip(h0[r + d]).zip(h0[r - d]).for_each(|((a, p), m)| *a += k * (p - m));
-            }
+            let (mut s0, mut si, mut sj, mut szz) = ([0.0; C], [0.0; C], [0.0; C], [0.0; C]);
+            let (s0, si, sj, szz) = (&mut s0[..len], &mut si[..len], &mut sj[..len], &mut szz[..len]);
+            patch_sums(rows, texels, [&mut *s0, &mut *si, &mut *sj, &mut *szz]);
             let mut czz = [0.0; C];
             let czz = &mut czz[..len];
             czz.iter_mut().zip(&*s0).zip(&*szz).for_each(|((c, &a), &b)| *c = Self::czz(n2, czz_gain, a, b));

@@ -142,28 +142,8 @@ impl WindowSums {
     #[inline(always)]
     pub(super) fn sum_rows<const N: usize>(&mut self, rows: &[&RowSums; N]) {
         let w = self.s0.len();
-        let r = N / 2;
-        let (s0, si, sj, szz) = (&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]);
-        let h0: [&[f64]; N] = std::array::from_fn(|j| &rows[j].s0[..w]);
-        let hi: [&[f64]; N] = std::array::from_fn(|j| &rows[j].si[..w]);
-        let hzz: [&[f64]; N] = std::array::from_fn(|j| &rows[j].szz[..w]);
-        // A pass per row and plane, each a loop of two slices that
-        // vectorises (the sums stay in the core's first cache); every
-        // texel's additions keep the rows' order. Σjz pairs the rows at ±d,
-        // as the row sums pair the columns.
-        for (out, h) in [(&mut *s0, &h0), (&mut *si, &hi), (&mut *szz, &hzz)] {
-            out.iter_mut().zip(h[0]).zip(h[1]).for_each(|((a, p), q)| *a = p + q);
-        }
-        for j in 2..N {
-            s0.iter_mut().zip(h0[j]).for_each(|(a, b)| *a += b);
-            si.iter_mut().zip(hi[j]).for_each(|(a, b)| *a += b);
-            szz.iter_mut().zip(hzz[j]).for_each(|(a, b)| *a += b);
-        }
-        sj.iter_mut().zip(h0[r + 1]).zip(h0[r - 1]).for_each(|((a, p), m)| *a = p - m);
-        for d in 2..=r {
-            let k = d as f64;
-            sj.iter_mut().zip(h0[r + d]).zip(h0[r - d]).for_each(|((a, p), m)| *a += k * (p - m));
-        }
+        let planes = [&mut self.s0[..w], &mut self.si[..w], &mut self.sj[..w], &mut self.szz[..w]];
+        patch_sums(rows, 0..w, planes);
     }
 
     /// `previous` plus the row sums `h` at vertical offset `j`.
@@ -242,5 +222,38 @@ impl WindowSums {
             si[x] += ei[x] - li[x];
             szz[x] += ezz[x] - lzz[x];
         }
+    }
+}
+
+/// Σz, Σiz, Σjz and Σz² of the patches of columns `texels` (of the rows'
+/// planes) from their N rows' sums, into `[s0, si, sj, szz]`, each
+/// `texels.len()` long: [`WindowSums::sum_rows`]' whole row, or the
+/// one-pass emit's chunk, with the same bits.
+#[inline(always)]
+pub(super) fn patch_sums<const N: usize>(
+    rows: &[&RowSums; N],
+    texels: std::ops::Range<usize>,
+    [s0, si, sj, szz]: [&mut [f64]; 4],
+) {
+    let r = N / 2;
+    let h0: [&[f64]; N] = std::array::from_fn(|j| &rows[j].s0[texels.clone()]);
+    let hi: [&[f64]; N] = std::array::from_fn(|j| &rows[j].si[texels.clone()]);
+    let hzz: [&[f64]; N] = std::array::from_fn(|j| &rows[j].szz[texels.clone()]);
+    // A pass per row and plane, each a loop of two slices that
+    // vectorises (the sums stay in the core's first cache); every
+    // texel's additions keep the rows' order. Σjz pairs the rows at ±d,
+    // as the row sums pair the columns.
+    for (out, h) in [(&mut *s0, &h0), (&mut *si, &hi), (&mut *szz, &hzz)] {
+        out.iter_mut().zip(h[0]).zip(h[1]).for_each(|((a, p), q)| *a = p + q);
+    }
+    for j in 2..N {
+        s0.iter_mut().zip(h0[j]).for_each(|(a, b)| *a += b);
+        si.iter_mut().zip(hi[j]).for_each(|(a, b)| *a += b);
+        szz.iter_mut().zip(hzz[j]).for_each(|(a, b)| *a += b);
+    }
+    sj.iter_mut().zip(h0[r + 1]).zip(h0[r - 1]).for_each(|((a, p), m)| *a = p - m);
+    for d in 2..=r {
+        let k = d as f64;
+        sj.iter_mut().zip(h0[r + d]).zip(h0[r - d]).for_each(|((a, p), m)| *a += k * (p - m));
     }
 }
