@@ -9,14 +9,20 @@
 //! same digests).
 //!
 //! ```text
-//! cargo run --release --example core_speed -- [SIZE] [REPS] [N,N,...] [--u16]
+//! cargo run --release --example core_speed -- [SIZE] [REPS] [N,N,...] [--u16] [--geographic]
 //! ```
+//!
+//! `--geographic`: map units as a geographic DEM's (the heights 0 to
+//! 250 m, slopes of hills, rows 1/9000° apart from 45.2° N: 11.1 m north to south, about
+//! 7.8 m east to west, one spacing a row), the unequal spacing's fit.
 //!
 //! `bench/core_speed.py` runs two builds of it turn about.
 
 use std::time::Instant;
 
-use normalfit::{Fit, FitRequest, FromNormal, Heights, Options};
+use std::sync::Arc;
+
+use normalfit::{Fit, FitRequest, FromNormal, Heights, Options, Spacing, Units};
 
 fn main() {
     if let Err(e) = run() {
@@ -28,6 +34,7 @@ fn main() {
 fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let u16_heights = args.iter().any(|a| a == "--u16");
+    let geographic = args.iter().any(|a| a == "--geographic");
     let positional: Vec<&String> = args.iter().filter(|a| !a.starts_with("--")).collect();
     let size: usize = positional.first().map_or(Ok(4096), |s| s.parse())?;
     let reps: usize = positional.get(1).map_or(Ok(5), |s| s.parse())?;
@@ -35,7 +42,21 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         Some(list) => list.split(',').map(str::parse).collect::<Result<_, _>>()?,
         None => vec![3, 5, 7, 9, 15, 33, 63],
     };
-    let floats = heights(size);
+    let mut floats = heights(size);
+    let units = if geographic {
+        floats.iter_mut().for_each(|h| *h *= 250.0);
+        let metres_per_degree = 111_120.0;
+        let rows: Vec<[f64; 2]> = (0..size)
+            .map(|y| {
+                let latitude = 45.2 - (y as f64 + 0.5) / 9000.0;
+                let dy = metres_per_degree / 9000.0;
+                [dy * latitude.to_radians().cos(), dy]
+            })
+            .collect();
+        Units::Map(Spacing::Rows(Arc::from(rows)))
+    } else {
+        Units::Texels
+    };
     let integers: Vec<u16> = floats.iter().map(|&h| (h * 65535.0).round() as u16).collect();
     let input = if u16_heights { "u16" } else { "f32" };
     println!("input output fit N wall_ms cpu_ms mtexel_s wall_vs_3 cpu_vs_3 digest");
@@ -43,7 +64,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         for output in ["u8", "f32"] {
             let mut at_3 = None;
             for &n in &patches {
-                let opts = Options::new().with_patch(n).with_fit(fit);
+                let opts = Options::new().with_patch(n).with_fit(fit).with_units(units.clone());
                 let (wall, cpu, digest) = match (u16_heights, output) {
                     (false, "u8") => time::<_, [u8; 3]>(&floats[..], size, &opts, reps)?,
                     (false, _) => time::<_, [f32; 3]>(&floats[..], size, &opts, reps)?,

@@ -698,10 +698,10 @@ impl Plan {
                 }
             }
             let patch_rows: [&RowSums; N] = std::array::from_fn(|j| cache.held(y - r + j as isize));
-            if fused {
+            if fused && self.fuses_row(y0 + k) {
                 match self.fit {
-                    Fit::Orthogonal => self.emit_fused::<T, N, true>(&patch_rows, out_row),
-                    Fit::Vertical => self.emit_fused::<T, N, false>(&patch_rows, out_row),
+                    Fit::Orthogonal => self.emit_fused::<T, N, true>(&patch_rows, y0 + k, &mut scratch, out_row),
+                    Fit::Vertical => self.emit_fused::<T, N, false>(&patch_rows, y0 + k, &mut scratch, out_row),
                 }
                 continue;
             }
@@ -712,52 +712,58 @@ impl Plan {
     }
 
     /// Whether a strip's rows go from the row sums to the texels in one
-    /// pass ([`Self::emit_fused`]): the square grid's closed forms, and no
-    /// plane of window sums that something else reads (holes, the
-    /// residual, the moments' texels).
+    /// pass ([`Self::emit_fused`]): no plane of window sums that something
+    /// else reads (holes, the residual, the moments' texels).
     fn fuses(&self, holes: bool, residual: bool) -> bool {
-        !holes && !residual && !self.moments && self.spacing.is_none()
+        !holes && !residual && !self.moments
     }
 
-    /// One output row from its patch's row sums, straight to the texels:
-    /// [`WindowSums::sum_rows`], [`Self::emit_with`] and
+    /// Whether output row `y` of a strip that [`Self::fuses`] does: every
+    /// row but those of the orthogonal fit where the spacing is unequal,
+    /// whose Newton steps over chunks of 32 (each chunk's slow patches
+    /// moved together on their own) took longer than over the strip's
+    /// planes (`examples/core_speed.rs --geographic`: 1.03–1.16× the time
+    /// at N = 3, measured turn about).
+    fn fuses_row(&self, y: usize) -> bool {
+        self.fit == Fit::Vertical || self.spacing_at(y).1 == 1.0
+    }
+
+    /// Output row `y` from its patch's row sums, straight to the texels:
+    /// [`WindowSums::sum_rows`], [`Self::emit`] and
     /// [`store_normals`](super::emit::store_normals) chunk by chunk, each
     /// chunk's sums and normals in arrays that stay in the core's first
     /// cache rather than in planes the width of the strip. The same
     /// operations in the same order: the same bits.
     #[inline(always)]
-    fn emit_fused<T: Texel, const N: usize, const ORTHOGONAL: bool>(&self, rows: &[&RowSums; N], out: &mut [T]) {
+    fn emit_fused<T: Texel, const N: usize, const ORTHOGONAL: bool>(
+        &self,
+        rows: &[&RowSums; N],
+        y: usize,
+        scratch: &mut EmitScratch,
+        out: &mut [T],
+    ) {
         const C: usize = EMIT_CHUNK;
         let w = out.len();
         // The rows' sums are in units of z (the gain went in with the
-        // heights): the emit's gain is 1.
-        let (n2, gy) = (self.count, self.sigma);
-        let czz_gain = 1.0 / n2;
+        // heights), lengths in units of the x spacing as `emit` takes them.
+        let ([sx, _], rho) = self.spacing_at(y);
+        let gain = 1.0 / sx;
         let frame = self.frame;
         for (start, out) in (0..w).step_by(C).zip(out.chunks_mut(C)) {
             let len = out.len();
-            let texels = start..start + len;
             let (mut s0, mut si, mut sj, mut szz) = ([0.0; C], [0.0; C], [0.0; C], [0.0; C]);
             let (s0, si, sj, szz) = (&mut s0[..len], &mut si[..len], &mut sj[..len], &mut szz[..len]);
-            patch_sums(rows, texels, [&mut *s0, &mut *si, &mut *sj, &mut *szz]);
-            let mut czz = [0.0; C];
-            let czz = &mut czz[..len];
-            czz.iter_mut().zip(&*s0).zip(&*szz).for_each(|((c, &a), &b)| *c = Self::czz(n2, czz_gain, a, b));
-            let steep = ORTHOGONAL && czz.iter().any(|&c| c > self.a);
+            patch_sums(rows, start..start + len, [&mut *s0, &mut *si, &mut *sj, &mut *szz]);
+            let sums = [&*s0, &*si, &*sj, &*szz];
             let (mut nx, mut ny, mut nz) = ([0.0; C], [0.0; C], [0.0; C]);
-            let (nx, ny, nz) = (&mut nx[..len], &mut ny[..len], &mut nz[..len]);
-            if steep {
-                for x in 0..len {
-                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, si[x], gy * sj[x], czz[x], T::UNIT);
-                    [nx[x], ny[x], nz[x]] = n;
-                }
+            let normal = [&mut nx[..len], &mut ny[..len], &mut nz[..len]];
+            if rho == 1.0 {
+                self.square_chunk::<ORTHOGONAL>(gain, sums, None, T::UNIT, normal);
             } else {
-                for x in 0..len {
-                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, si[x], gy * sj[x], czz[x], T::UNIT);
-                    [nx[x], ny[x], nz[x]] = n;
-                }
+                let row = RowSpacing { gain, rho, orthogonal: ORTHOGONAL };
+                scratch.unequal.fill_normals(self, sums, row, normal);
             }
-            for (((texel, &x), &y), &z) in out.iter_mut().zip(&*nx).zip(&*ny).zip(&*nz) {
+            for (((texel, &x), &y), &z) in out.iter_mut().zip(&nx[..len]).zip(&ny[..len]).zip(&nz[..len]) {
                 *texel = T::make([x, y, z], &frame);
             }
         }
@@ -1008,38 +1014,59 @@ impl Plan {
         unit: bool,
         normal: &mut [Vec<f64>; 3],
     ) {
+        let w = normal[0].len();
+        let planes = v.planes(w);
+        for start in (0..w).step_by(EMIT_CHUNK) {
+            let texels = start..(start + EMIT_CHUNK).min(w);
+            let sums = planes.map(|plane| &plane[texels.clone()]);
+            let with_hole = (!v.with_hole.is_empty()).then(|| &v.with_hole[texels.clone()]);
+            let chunk = normal.each_mut().map(|plane| &mut plane[texels.clone()]);
+            self.square_chunk::<ORTHOGONAL>(gain, sums, with_hole, unit, chunk);
+        }
+    }
+
+    /// The square grid's normals of at most [`EMIT_CHUNK`] texels from
+    /// their window sums `[s0, si, sj, szz]` (in units of z / `gain`), into
+    /// `[nx, ny, nz]`: a row's chunk ([`Self::emit_with`]) or the one-pass
+    /// emit's ([`Self::emit_fused`]).
+    #[inline(always)]
+    fn square_chunk<const ORTHOGONAL: bool>(
+        &self,
+        gain: f64,
+        [s0, si, sj, szz]: [&[f64]; 4],
+        with_hole: Option<&[bool]>,
+        unit: bool,
+        [nx, ny, nz]: [&mut [f64]; 3],
+    ) {
+        let len = s0.len();
+        let (si, sj, szz) = (&si[..len], &sj[..len], &szz[..len]);
+        let (nx, ny, nz) = (&mut nx[..len], &mut ny[..len], &mut nz[..len]);
         let n2 = self.count;
         let czz_gain = gain * gain / n2;
         let (gx, gy) = (gain, self.sigma * gain);
-        let [nx, ny, nz] = normal;
-        let w = nx.len();
-        let (s0, si, sj, szz) = (&v.s0[..w], &v.si[..w], &v.sj[..w], &v.szz[..w]);
-        let (ny, nz) = (&mut ny[..w], &mut nz[..w]);
-        let czz_at = |x: usize| Self::czz(n2, czz_gain, s0[x], szz[x]);
-        for start in (0..w).step_by(EMIT_CHUNK) {
-            let texels = start..(start + EMIT_CHUNK).min(w);
-            // Only a patch whose heights spread more than its columns and
-            // rows (Czz > A) needs the orthogonal fit's division; most
-            // chunks have none, and their loop leaves it out (the
-            // division took a tenth of the fit), with the same results.
-            // A patch with a hole (read as 0: a cliff) is refitted after,
-            // whatever this loop gives it, and does not make its chunk steep.
-            let steep = ORTHOGONAL
-                && if v.with_hole.is_empty() {
-                    texels.clone().any(|x| czz_at(x) > self.a)
-                } else {
-                    texels.clone().any(|x| czz_at(x) > self.a && !v.with_hole[x])
-                };
-            if steep {
-                for x in texels {
-                    let n = normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz_at(x), unit);
-                    [nx[x], ny[x], nz[x]] = n;
-                }
-            } else {
-                for x in texels {
-                    let n = normal_from_sums::<ORTHOGONAL, false>(self.a, gx * si[x], gy * sj[x], czz_at(x), unit);
-                    [nx[x], ny[x], nz[x]] = n;
-                }
+        let mut czz = [0.0; EMIT_CHUNK];
+        let czz = &mut czz[..len];
+        czz.iter_mut().zip(s0).zip(szz).for_each(|((c, &a), &b)| *c = Self::czz(n2, czz_gain, a, b));
+        // Only a patch whose heights spread more than its columns and
+        // rows (Czz > A) needs the orthogonal fit's division; most
+        // chunks have none, and their loop leaves it out (the
+        // division took a tenth of the fit), with the same results.
+        // A patch with a hole (read as 0: a cliff) is refitted after,
+        // whatever this loop gives it, and does not make its chunk steep.
+        let steep = ORTHOGONAL
+            && match with_hole {
+                None => czz.iter().any(|&c| c > self.a),
+                Some(hole) => czz.iter().zip(&hole[..len]).any(|(&c, &hole)| c > self.a && !hole),
+            };
+        if steep {
+            for x in 0..len {
+                [nx[x], ny[x], nz[x]] =
+                    normal_from_sums::<ORTHOGONAL, true>(self.a, gx * si[x], gy * sj[x], czz[x], unit);
+            }
+        } else {
+            for x in 0..len {
+                [nx[x], ny[x], nz[x]] =
+                    normal_from_sums::<ORTHOGONAL, false>(self.a, gx * si[x], gy * sj[x], czz[x], unit);
             }
         }
     }

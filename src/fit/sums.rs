@@ -115,6 +115,12 @@ impl WindowSums {
         WindowSums { s0: z.clone(), si: z.clone(), sj: z.clone(), szz: z, with_hole: Vec::new() }
     }
 
+    /// The first `w` texels' planes: Σz, Σiz, Σjz and Σz².
+    #[inline(always)]
+    pub(super) fn planes(&self, w: usize) -> [&[f64]; 4] {
+        [&self.s0[..w], &self.si[..w], &self.sj[..w], &self.szz[..w]]
+    }
+
     pub(super) fn clear(&mut self) {
         for plane in [&mut self.s0, &mut self.si, &mut self.sj, &mut self.szz] {
             plane.fill(0.0);

@@ -21,7 +21,7 @@
 //! conversion (`perf`, 4096², N = 3), which ran at a third of the square
 //! grid's speed.
 
-use super::eigen::{Diagonal, eigen_start_on, eigenvector, is_flat, is_near_plane, near_plane, select};
+use super::eigen::{Diagonal, eigen_start_on, eigenvector, is_flat, is_near_plane, near_plane, newton_step, select};
 use super::masked::{NewtonWork, newton};
 use super::{Plan, Texel, WindowSums, store_normals};
 
@@ -77,6 +77,31 @@ impl UnequalRow {
         pulp::Arch::new().dispatch(Normals { fit: self, plan, v, row, normal, out });
     }
 
+    /// The unit normals of the patches whose window sums are `[s0, si,
+    /// sj, szz]` (in units of z / `row.gain`), into `[nx, ny, nz]`: a
+    /// row's planes ([`Self::normals`]), or the one-pass emit's chunk
+    /// (`Plan::emit_fused`), with the same bits. Inlined into its caller's
+    /// [`pulp::Arch::dispatch`].
+    #[inline(always)]
+    pub(super) fn fill_normals(
+        &mut self,
+        plan: &Plan,
+        sums: [&[f64]; 4],
+        row: RowSpacing,
+        [nx, ny, nz]: [&mut [f64]; 3],
+    ) {
+        let w = sums[0].len();
+        let (nx, ny, nz) = (&mut nx[..w], &mut ny[..w], &mut nz[..w]);
+        if row.orthogonal {
+            self.smallest_eigenvalues(plan, sums, row);
+            let UnequalRow { b1, b2, czz, flat, lambda, .. } = &*self;
+            let diagonal = row.diagonal(plan);
+            orthogonal_normals(diagonal, &b1[..w], &b2[..w], &czz[..w], &lambda[..w], &flat[..w], nx, ny, nz);
+        } else {
+            vertical_normals(Sums::of(plan, sums, row), nx, ny, nz);
+        }
+    }
+
     /// The orthogonal fit's RMS distance of each patch's points from its
     /// plane, times `sx` (the heights' unit): the smallest eigenvalue
     /// (Czz for a flat patch) over N², its root.
@@ -96,25 +121,27 @@ impl UnequalRow {
         self.stepping.resize(w, false);
     }
 
-    /// The orthogonal fit's λ of the first `w` patches of `v`: the
-    /// matrices, the start, and Newton's steps.
+    /// The orthogonal fit's λ of the patches whose window sums are
+    /// `sums`: the matrices, the start, and Newton's steps.
     #[inline(always)]
-    fn smallest_eigenvalues(&mut self, plan: &Plan, v: &WindowSums, row: RowSpacing, w: usize) {
+    fn smallest_eigenvalues(&mut self, plan: &Plan, sums: [&[f64]; 4], row: RowSpacing) {
+        let w = sums[0].len();
         self.resize(w);
         let UnequalRow { a1, a2, b1, b2, czz, flat, lambda, scale, stepping, work } = self;
         let (a1, a2, b1, b2, czz) = (&mut a1[..w], &mut a2[..w], &mut b1[..w], &mut b2[..w], &mut czz[..w]);
         let (flat, lambda, scale, stepping) = (&mut flat[..w], &mut lambda[..w], &mut scale[..w], &mut stepping[..w]);
         let (a, rho_a) = row.diagonal(plan);
-        a1.fill(a);
-        a2.fill(rho_a);
-        let sums = Sums::of(plan, v, row, w);
-        matrices(sums, b1, b2, czz, flat);
-        start(Diagonal::new(a, rho_a), b1, b2, czz, flat, lambda, scale, stepping);
-        newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work);
+        let sums = Sums::of(plan, sums, row);
+        let stragglers = start_and_step(sums, Diagonal::new(a, rho_a), b1, b2, czz, flat, lambda, scale, stepping);
+        if stragglers {
+            a1.fill(a);
+            a2.fill(rho_a);
+            newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work, 1);
+        }
     }
 }
 
-/// A row's window sums, cut to its length, and the constants that turn
+/// Patches' window sums, each plane as long, and the constants that turn
 /// them into moments (lengths in x spacings).
 #[derive(Clone, Copy)]
 struct Sums<'a> {
@@ -134,13 +161,14 @@ struct Sums<'a> {
 
 impl<'a> Sums<'a> {
     #[inline(always)]
-    fn of(plan: &Plan, v: &'a WindowSums, row: RowSpacing, w: usize) -> Sums<'a> {
+    fn of(plan: &Plan, [s0, si, sj, szz]: [&'a [f64]; 4], row: RowSpacing) -> Sums<'a> {
         let n2 = plan.count;
+        let w = s0.len();
         Sums {
-            s0: &v.s0[..w],
-            si: &v.si[..w],
-            sj: &v.sj[..w],
-            szz: &v.szz[..w],
+            s0,
+            si: &si[..w],
+            sj: &sj[..w],
+            szz: &szz[..w],
             n2,
             czz_gain: row.gain * row.gain / n2,
             gx: row.gain,
@@ -176,15 +204,7 @@ impl<T: Texel> pulp::WithSimd for Normals<'_, T> {
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         let Normals { fit, plan, v, row, normal, out } = self;
         let w = out.len();
-        let [nx, ny, nz] = normal.each_mut().map(|plane| &mut plane[..w]);
-        if row.orthogonal {
-            fit.smallest_eigenvalues(plan, v, row, w);
-            let UnequalRow { b1, b2, czz, flat, lambda, .. } = &*fit;
-            let diagonal = row.diagonal(plan);
-            orthogonal_normals(diagonal, &b1[..w], &b2[..w], &czz[..w], &lambda[..w], &flat[..w], nx, ny, nz);
-        } else {
-            vertical_normals(Sums::of(plan, v, row, w), nx, ny, nz);
-        }
+        fit.fill_normals(plan, v.planes(w), row, normal.each_mut().map(|plane| &mut plane[..w]));
         store_normals(normal, &plan.frame, out);
     }
 }
@@ -205,7 +225,7 @@ impl pulp::WithSimd for Residuals<'_> {
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         let Residuals { fit, plan, v, row, sx, out } = self;
         let w = out.len();
-        fit.smallest_eigenvalues(plan, v, row, w);
+        fit.smallest_eigenvalues(plan, v.planes(w), row);
         let inv_n2 = 1.0 / plan.count;
         let (czz, flat, lambda) = (&fit.czz[..w], &fit.flat[..w], &fit.lambda[..w]);
         for x in 0..w {
@@ -235,42 +255,45 @@ fn vertical_normals(sums: Sums<'_>, nx: &mut [f64], ny: &mut [f64], nz: &mut [f6
     }
 }
 
-/// The orthogonal fit's matrix entries that vary along the row: b1 = Cx,
-/// b2 = ρ·Cy, Czz, and whether the patch is flat.
-#[inline(always)]
-fn matrices(sums: Sums<'_>, b1: &mut [f64], b2: &mut [f64], czz: &mut [f64], flat: &mut [bool]) {
-    let w = sums.s0.len();
-    let (b1, b2, czz, flat) = (&mut b1[..w], &mut b2[..w], &mut czz[..w], &mut flat[..w]);
-    let (a, rho) = (sums.a, sums.rho);
-    for x in 0..w {
-        let (cx, cy, c) = sums.at(x);
-        flat[x] = is_flat(a, cx, cy, c);
-        (b1[x], b2[x], czz[x]) = (cx, rho * cy, c);
-    }
-}
-
-/// Newton's start for every patch of the row, whose diagonal is
-/// `diagonal`; a flat patch does not step.
+/// The orthogonal fit's matrix entries that vary along the row (b1 =
+/// Cx, b2 = ρ·Cy, Czz, and whether the patch is flat), Newton's start
+/// and its first step, in one loop: nearly every patch of a terrain
+/// settles in that step (the tangent start leaves it within the square
+/// of the two fits' angle: one in a hundred of a geographic DEM's 3 × 3
+/// patches steps again). A flat patch does not step. The step is
+/// [`newton`]'s first pass, the same arithmetic; whether some patch
+/// still steps is returned.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn start(
+fn start_and_step(
+    sums: Sums<'_>,
     diagonal: Diagonal,
-    b1: &[f64],
-    b2: &[f64],
-    czz: &[f64],
-    flat: &[bool],
+    b1: &mut [f64],
+    b2: &mut [f64],
+    czz: &mut [f64],
+    flat: &mut [bool],
     lambda: &mut [f64],
     scale: &mut [f64],
     stepping: &mut [bool],
-) {
-    let w = flat.len();
-    let (b1, b2, czz) = (&b1[..w], &b2[..w], &czz[..w]);
+) -> bool {
+    let w = sums.s0.len();
+    let (b1, b2, czz, flat) = (&mut b1[..w], &mut b2[..w], &mut czz[..w], &mut flat[..w]);
     let (lambda, scale, stepping) = (&mut lambda[..w], &mut scale[..w], &mut stepping[..w]);
+    let (a, rho, (a1, a2)) = (sums.a, sums.rho, diagonal.entries());
+    let mut any = false;
     for x in 0..w {
-        let settled;
-        (lambda[x], scale[x], settled) = eigen_start_on(diagonal, b1[x], b2[x], czz[x]);
-        stepping[x] = !flat[x] & !settled;
+        let (cx, cy, c) = sums.at(x);
+        let is_flat = is_flat(a, cx, cy, c);
+        let (bx, by) = (cx, rho * cy);
+        let (start, trace, settled) = eigen_start_on(diagonal, bx, by, c);
+        let steps = !is_flat & !settled;
+        let (next, more) = newton_step([a1, a2, bx, by, c], trace, start);
+        (b1[x], b2[x], czz[x], flat[x]) = (bx, by, c, is_flat);
+        (lambda[x], scale[x]) = (select(steps, next, start), trace);
+        stepping[x] = steps & more;
+        any |= steps & more;
     }
+    any
 }
 
 /// The orthogonal fit's unit normals from the converged λ: the
