@@ -117,12 +117,6 @@ impl Diagonal {
     pub(super) fn new(a1: f64, a2: f64) -> Diagonal {
         Diagonal { a1, a2, sum: a1 + a2, inv: 1.0 / (a1 * a2) }
     }
-
-    /// a1 and a2.
-    #[inline(always)]
-    pub(super) fn entries(self) -> (f64, f64) {
-        (self.a1, self.a2)
-    }
 }
 
 /// [`eigen_start`] with its diagonal's constants formed.

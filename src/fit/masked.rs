@@ -471,7 +471,7 @@ impl pulp::WithSimd for SolveRow<'_> {
         // In place: [Cuu, Cvv, Cuv, Cuz, Cvz] become [a1, a2, cos θ, b1, b2].
         let (a1, a2, cos, b1, b2) = (cuu, cvv, cuv, cuz, cvz);
         rotate(a1, a2, cos, b1, b2, czz, sin, flat, lambda, scale, stepping);
-        newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work, 0);
+        newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work);
         orthogonal_normals(a1, a2, b1, b2, czz, cos, sin, lambda, flat, nx, ny, nz, distances);
     }
 }
@@ -650,8 +650,6 @@ fn rotate(
 /// are moved together (`work`), and again whenever half of those have
 /// stopped, so that a pass costs what the patches still stepping do.
 /// Each patch takes the same steps either way, so the same bits.
-/// `taken`: the passes its caller took already (their number counts
-/// toward the bound of [`NEWTON_STEPS`]).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn newton(
@@ -664,12 +662,11 @@ pub(super) fn newton(
     lambda: &mut [f64],
     stepping: &mut [bool],
     work: &mut NewtonWork,
-    taken: usize,
 ) {
     let all = stepping.len();
     let (a1, a2, b1, b2, czz, scale, lambda) =
         (&a1[..all], &a2[..all], &b1[..all], &b2[..all], &czz[..all], &scale[..all], &mut lambda[..all]);
-    let mut steps = taken;
+    let mut steps = 0;
     while steps < NEWTON_STEPS && stepping_count(stepping) * 4 > all {
         newton_pass(a1, a2, b1, b2, czz, scale, lambda, stepping);
         steps += 1;

@@ -21,7 +21,7 @@
 //! conversion (`perf`, 4096², N = 3), which ran at a third of the square
 //! grid's speed.
 
-use super::eigen::{Diagonal, eigen_start_on, eigenvector, is_flat, is_near_plane, near_plane, newton_step, select};
+use super::eigen::{Diagonal, eigen_start_on, eigenvector, is_flat, is_near_plane, near_plane, select};
 use super::masked::{NewtonWork, newton};
 use super::{Plan, Texel, WindowSums, store_normals};
 
@@ -131,13 +131,11 @@ impl UnequalRow {
         let (a1, a2, b1, b2, czz) = (&mut a1[..w], &mut a2[..w], &mut b1[..w], &mut b2[..w], &mut czz[..w]);
         let (flat, lambda, scale, stepping) = (&mut flat[..w], &mut lambda[..w], &mut scale[..w], &mut stepping[..w]);
         let (a, rho_a) = row.diagonal(plan);
-        let sums = Sums::of(plan, sums, row);
-        let stragglers = start_and_step(sums, Diagonal::new(a, rho_a), b1, b2, czz, flat, lambda, scale, stepping);
-        if stragglers {
-            a1.fill(a);
-            a2.fill(rho_a);
-            newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work, 1);
-        }
+        a1.fill(a);
+        a2.fill(rho_a);
+        matrices(Sums::of(plan, sums, row), b1, b2, czz, flat);
+        start(Diagonal::new(a, rho_a), b1, b2, czz, flat, lambda, scale, stepping);
+        newton(a1, a2, b1, b2, czz, scale, lambda, stepping, work);
     }
 }
 
@@ -255,45 +253,42 @@ fn vertical_normals(sums: Sums<'_>, nx: &mut [f64], ny: &mut [f64], nz: &mut [f6
     }
 }
 
-/// The orthogonal fit's matrix entries that vary along the row (b1 =
-/// Cx, b2 = ρ·Cy, Czz, and whether the patch is flat), Newton's start
-/// and its first step, in one loop: nearly every patch of a terrain
-/// settles in that step (the tangent start leaves it within the square
-/// of the two fits' angle: one in a hundred of a geographic DEM's 3 × 3
-/// patches steps again). A flat patch does not step. The step is
-/// [`newton`]'s first pass, the same arithmetic; whether some patch
-/// still steps is returned.
+/// The orthogonal fit's matrix entries that vary along the row: b1 = Cx,
+/// b2 = ρ·Cy, Czz, and whether the patch is flat.
+#[inline(always)]
+fn matrices(sums: Sums<'_>, b1: &mut [f64], b2: &mut [f64], czz: &mut [f64], flat: &mut [bool]) {
+    let w = sums.s0.len();
+    let (b1, b2, czz, flat) = (&mut b1[..w], &mut b2[..w], &mut czz[..w], &mut flat[..w]);
+    let (a, rho) = (sums.a, sums.rho);
+    for x in 0..w {
+        let (cx, cy, c) = sums.at(x);
+        flat[x] = is_flat(a, cx, cy, c);
+        (b1[x], b2[x], czz[x]) = (cx, rho * cy, c);
+    }
+}
+
+/// Newton's start for every patch of the row, whose diagonal is
+/// `diagonal`; a flat patch does not step.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn start_and_step(
-    sums: Sums<'_>,
+fn start(
     diagonal: Diagonal,
-    b1: &mut [f64],
-    b2: &mut [f64],
-    czz: &mut [f64],
-    flat: &mut [bool],
+    b1: &[f64],
+    b2: &[f64],
+    czz: &[f64],
+    flat: &[bool],
     lambda: &mut [f64],
     scale: &mut [f64],
     stepping: &mut [bool],
-) -> bool {
-    let w = sums.s0.len();
-    let (b1, b2, czz, flat) = (&mut b1[..w], &mut b2[..w], &mut czz[..w], &mut flat[..w]);
+) {
+    let w = flat.len();
+    let (b1, b2, czz) = (&b1[..w], &b2[..w], &czz[..w]);
     let (lambda, scale, stepping) = (&mut lambda[..w], &mut scale[..w], &mut stepping[..w]);
-    let (a, rho, (a1, a2)) = (sums.a, sums.rho, diagonal.entries());
-    let mut any = false;
     for x in 0..w {
-        let (cx, cy, c) = sums.at(x);
-        let is_flat = is_flat(a, cx, cy, c);
-        let (bx, by) = (cx, rho * cy);
-        let (start, trace, settled) = eigen_start_on(diagonal, bx, by, c);
-        let steps = !is_flat & !settled;
-        let (next, more) = newton_step([a1, a2, bx, by, c], trace, start);
-        (b1[x], b2[x], czz[x], flat[x]) = (bx, by, c, is_flat);
-        (lambda[x], scale[x]) = (select(steps, next, start), trace);
-        stepping[x] = steps & more;
-        any |= steps & more;
+        let settled;
+        (lambda[x], scale[x], settled) = eigen_start_on(diagonal, b1[x], b2[x], czz[x]);
+        stepping[x] = !flat[x] & !settled;
     }
-    any
 }
 
 /// The orthogonal fit's unit normals from the converged λ: the
