@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Times `normalfit height` against `normalfit convert` of the same height
-# map, in one run: each command 3 times, the best wall time and the highest
-# peak RSS (/usr/bin/time), and the round trip's error
-# (examples/height_error.rs). Prints a Markdown table.
+# map (float EXR in and out both ways), in one run: each command 3 times,
+# the best wall time and the highest peak RSS (/usr/bin/time), and the
+# round trip's error (examples/height_error.rs). Prints a Markdown table.
 #
 #   bench/height.sh          # 4096² (bench/.work/h4096.png, ridged fractal noise, tiles)
 #   bench/height.sh 1024     # another size
@@ -33,8 +33,12 @@ measure() {
 
 echo "| ${size}² | wall (best of 3) | × convert | peak RSS | round trip (max, RMS of the range) |"
 echo "|---|---|---|---|---|"
-read -r tc mc < <(measure "$bin" convert "$h" -o "$work/n$size.exr" -s 8)
-echo "| convert -s 8 (orthogonal, wrap) → float EXR | $tc s | 1 | $mc MiB | |"
+# Side by side with `convert` of the same heights, float EXR in and out
+# both ways: the heights the default inverse finds, converted again.
+"$bin" convert "$h" -o "$work/n$size.exr" -s 8
+"$bin" height "$work/n$size.exr" -o "$work/heights$size.exr" -s 8
+read -r tc mc < <(measure "$bin" convert "$work/heights$size.exr" -o "$work/again$size.exr" -s 8)
+echo "| convert -s 8 (orthogonal, wrap), float EXR heights → float EXR | $tc s | 1 | $mc MiB | |"
 row() {
   local label=$1; shift
   read -r t m < <(measure "$bin" height "$work/n$size.exr" -o "$work/back$size.exr" -s 8 "$@")

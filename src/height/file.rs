@@ -284,42 +284,51 @@ impl HeightConversion {
         }
         // The inverse needs the whole image: decoded whole by the engine's
         // source, with the same reading and errors as every command.
-        let raster = engine::decode_whole(input, &self.read).map_err(fail_in)?;
+        let mut raster = engine::decode_whole(input, &self.read).map_err(fail_in)?;
         let (w, h) = (raster.width, raster.height);
         let (input_format, sample) = (raster.format.clone(), raster.sample);
-        let planes = match (raster.plane("R"), raster.plane("G"), raster.plane("B")) {
-            (Some(r), Some(g), Some(b)) => [&r.data, &g.data, &b.data],
-            _ => return Err(fail_in(Error::Unsupported("a normal map needs R, G and B channels".into()))),
-        };
+        if ["R", "G", "B"].iter().any(|&name| raster.plane(name).is_none()) {
+            return Err(fail_in(Error::Unsupported("a normal map needs R, G and B channels".into())));
+        }
         let stored = Storage::of_file(raster.sample, self.signed).map_err(fail_in)?;
         let bits = match stored {
             Storage::Int { bits } => Some(bits),
             _ => None,
         };
         let options = HeightOptions { step: self.step.unwrap_or(stored.step()), ..self.options.clone() };
-        let holes = self.hole_mask(&raster, [planes[0], planes[1], planes[2]]).map_err(fail_in)?;
+        let holes = {
+            let rgb = ["R", "G", "B"].map(|name| raster.plane(name).map(|p| &p.data));
+            let [Some(r), Some(g), Some(b)] = rgb else { unreachable!("checked above") };
+            self.hole_mask(&raster, [r, g, b]).map_err(fail_in)?
+        };
         match &holes {
             Some(_) => super::check_masked(w, h, &options),
             None => super::memory::check(w, h, &options),
         }
         .map_err(fail_in)?;
-        let row = |y: usize, out: &mut [[f64; 3]]| {
-            for (c, plane) in planes.iter().enumerate() {
+        // The normals stay for the solve, which makes the slopes from them
+        // row by row at each pass: R, G and B only.
+        raster.planes.retain(|p| ["R", "G", "B"].contains(&p.name.as_str()));
+        let planes = ["R", "G", "B"].map(|name| raster.plane(name).map(|p| &p.data));
+        let [Some(r), Some(g), Some(b)] = planes else { unreachable!("checked above") };
+        let planes = [r, g, b];
+        let rows = |y: usize, normals: [&mut [f64]; 3]| {
+            for (plane, out) in planes.iter().zip(normals) {
                 with_slice!(plane, s => {
                     for (o, &v) in out.iter_mut().zip(&s[y * w..][..w]) {
-                        o[c] = stored.normal(v);
+                        *o = stored.normal(v);
                     }
                 });
             }
         };
-        let field = SlopeField::of_rows_masked(&row, w, h, holes.as_deref()).map_err(fail_in)?;
-        drop(raster);
+        let field = SlopeField::of_planes(&rows, w, h, holes.as_deref()).map_err(fail_in)?;
         let found = match &holes {
             Some(holes) => heights_of_slopes_with_holes(&field, holes, &options),
             None => heights_of_slopes(&field, &options),
         }
         .map_err(fail_in)?;
         drop(field);
+        drop(raster);
         let report = found.report.clone();
         let (lo, hi) = report.range;
         let png_range = (format == OutputFormat::Png).then_some((lo, hi));

@@ -15,7 +15,7 @@
 
 use super::dense::MAX_DENSE;
 use super::solve::{Axis, RHS_DIRECT_RADIUS, Solver};
-use super::{HeightOptions, Model, SlopeField};
+use super::{HeightOptions, Model};
 use crate::error::Result;
 use crate::options::{Borders, Fit};
 
@@ -38,8 +38,9 @@ pub(super) fn check(w: usize, h: usize, opts: &HeightOptions) -> Result<()> {
 }
 
 /// The bytes the inverse of a `w` × `h` map holds at most, beside the
-/// caller's normals (or decoded image): the slopes ([`SlopeField`], 16 a
-/// texel), the heights (8) and the output's samples (4); the most the
+/// caller's normals (or decoded image), from which the slopes are made
+/// row by row ([`super::SlopeField`]): the heights (8 a texel) and the output's
+/// samples (4); the most the
 /// solve holds at once on top ([`generic_bytes`], [`exact_bytes`]); and
 /// every thread's scratch ([`thread_scratch`]). Gauss–Newton's steps come
 /// on top only when their own room is there ([`gauss_newton_bytes`]).
@@ -47,7 +48,7 @@ pub(super) fn check(w: usize, h: usize, opts: &HeightOptions) -> Result<()> {
 /// Errors: those of the forward fit's options (the re-fit's plan).
 pub(super) fn bytes_needed(w: usize, h: usize, opts: &HeightOptions) -> Result<u64> {
     let texels = (w as u64).saturating_mul(h as u64);
-    let base = texels.saturating_mul(SlopeField::BYTES_PER_TEXEL + F64 + 4);
+    let base = texels.saturating_mul(F64 + 4);
     let solve = match opts.model {
         Model::Generic => generic_bytes(w, h, opts.fit.borders),
         Model::Exact => exact_bytes(w, h, opts)?,
@@ -275,7 +276,10 @@ fn threads_scratch(w: usize, h: usize, opts: &HeightOptions) -> u64 {
     // columns: their input, output and scratch; a task's columns.
     let transforms = 96 * (2 * w + 2) + 64 * (2 * h + 2) + 16 * 8 * h;
     let line = |n: u64| 40 * (4 * n + 2 * r) + 32 * n;
-    let rows_task = 32 * w + 48 * w + line(w);
+    // A row of normals and two of slopes ([`super::SlopeField`]'s, kept by each
+    // thread) beside the row tasks' planes.
+    let slope_rows = 24 * w + 16 * w;
+    let rows_task = 32 * w + 48 * w + line(w) + slope_rows;
     let columns_task = 6 * 16 * 8 * h + 32 * h + line(h);
     let dense = if has_transform(w as usize, h as usize, opts) { 0 } else { PACKING };
     let per_thread = right_hand_side

@@ -435,12 +435,12 @@ fn of_normals<T: NormalComponent>(
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    let row = |y: usize, out: &mut [[f64; 3]]| {
-        for (o, n) in out.iter_mut().zip(&normals[y * width..][..width]) {
-            *o = n.map(T::to_f64);
+    let planes = |y: usize, [nx, ny, nz]: [&mut [f64]; 3]| {
+        for (((n, x), y), z) in normals[y * width..][..width].iter().zip(nx).zip(ny).zip(nz) {
+            [*x, *y, *z] = n.map(T::to_f64);
         }
     };
-    heights_of_rows_with_holes(&row, width, height, holes, opts)
+    heights_of_planes(&planes, width, height, holes, opts)
 }
 
 /// [`heights_of_rows`] with holes (`None`: none), as [`heights_with_holes`].
@@ -453,6 +453,35 @@ pub fn heights_of_rows_with_holes(
     holes: Option<&[bool]>,
     opts: &HeightOptions,
 ) -> Result<Heights> {
+    let planes = |y: usize, [nx, ny, nz]: [&mut [f64]; 3]| {
+        let mut normals = NORMALS.take();
+        normals.resize(width, [0.0; 3]);
+        row(y, &mut normals);
+        for (((n, x), y), z) in normals.iter().zip(nx).zip(ny).zip(nz) {
+            [*x, *y, *z] = *n;
+        }
+        NORMALS.set(normals);
+    };
+    heights_of_planes(&planes, width, height, holes, opts)
+}
+
+thread_local! {
+    /// A thread's row of normals for [`heights_of_rows_with_holes`]'s
+    /// caller, taken out while in use (see [`Rows`]).
+    static NORMALS: std::cell::RefCell<Vec<[f64; 3]>> = std::cell::RefCell::default();
+}
+
+/// The inverse of the normals `planes(y, [nx, ny, nz])` gives row by row,
+/// with holes (`None`: none): every entry point's.
+///
+/// Errors: as [`heights_with_holes`].
+pub(crate) fn heights_of_planes(
+    planes: NormalPlanes<'_>,
+    width: usize,
+    height: usize,
+    holes: Option<&[bool]>,
+    opts: &HeightOptions,
+) -> Result<Heights> {
     opts.validate()?;
     let len = crate::fit::checked_len(width, height)?;
     if let Some(holes) = holes
@@ -460,11 +489,16 @@ pub fn heights_of_rows_with_holes(
     {
         return Err(Error::BufferSize { expected: len, actual: holes.len() });
     }
-    let Some(holes) = holes.filter(|m| m.iter().any(|&h| h)) else {
-        return heights_of_rows(row, width, height, opts);
-    };
-    check_masked(width, height, opts)?;
-    heights_of_slopes_with_holes(&SlopeField::of_rows_masked(row, width, height, Some(holes))?, holes, opts)
+    match holes.filter(|m| m.iter().any(|&h| h)) {
+        None => {
+            memory::check(width, height, opts)?;
+            heights_of_slopes(&SlopeField::of_planes(planes, width, height, None)?, opts)
+        }
+        Some(holes) => {
+            check_masked(width, height, opts)?;
+            heights_of_slopes_with_holes(&SlopeField::of_planes(planes, width, height, Some(holes))?, holes, opts)
+        }
+    }
 }
 
 /// [`heights`] of a normal map given row by row: `row(y, out)` fills
@@ -478,95 +512,120 @@ pub fn heights_of_rows(
     height: usize,
     opts: &HeightOptions,
 ) -> Result<Heights> {
-    opts.validate()?;
-    memory::check(width, height, opts)?;
-    heights_of_slopes(&SlopeField::of_rows(row, width, height)?, opts)
+    heights_of_rows_with_holes(row, width, height, None, opts)
 }
 
-/// The slopes of a normal map, read once: every pass of the solve reads
-/// them again (the right-hand sides, the re-fits, Gauss–Newton), and
-/// dividing the normals' components each time took 8 % of a conversion.
-/// Held as the normals' own slopes (−nx/nz, −ny/nz), 0 where there is
-/// none, so either green convention reads them by a sign: 16 bytes a
-/// texel, and the normals themselves can go once it is made.
-pub(crate) struct SlopeField {
+/// The slopes of a normal map, made from its normals row by row whenever
+/// a pass of the solve reads them (the right-hand sides, the re-fits,
+/// Gauss–Newton): nothing is held beside the normals themselves. Slopes
+/// stored once took 16 bytes a texel (256 MiB at 4096², a third of the
+/// inverse's peak) beside the normals the caller or the decoded file
+/// holds anyway; made again at each pass, their two divisions a texel
+/// cost about what writing and reading back that plane did. Held as the
+/// normals' own slopes (−nx/nz, −ny/nz), 0 where there is none or a hole,
+/// so either green convention reads them by a sign.
+pub(crate) struct SlopeField<'a> {
     width: usize,
     height: usize,
-    /// −nx/nz per texel, row-major.
-    x: Vec<f64>,
-    /// −ny/nz per texel, row-major.
-    y: Vec<f64>,
+    /// Row y's normals.
+    normals: NormalPlanes<'a>,
+    /// Texels left at slope 0 and not counted without one.
+    holes: Option<&'a [bool]>,
     /// Texels without a slope (nz ≤ 0 or a component not finite).
     bad: usize,
 }
 
-impl SlopeField {
-    /// Bytes held per texel.
-    pub(crate) const BYTES_PER_TEXEL: u64 = 16;
+/// `planes(y, [nx, ny, nz])` fills the three with row y's normals.
+pub(crate) type NormalPlanes<'a> = &'a (dyn Fn(usize, [&mut [f64]; 3]) + Sync);
 
-    /// The slopes of the normals `row(y, out)` gives, rows in parallel.
+impl<'a> SlopeField<'a> {
+    /// The slopes of the normals `planes(y, [nx, ny, nz])` gives, the
+    /// texels `holes` marks left at slope 0, the others without a slope
+    /// counted (rows in parallel).
     ///
-    /// Errors: [`Error::InvalidOption`] for a zero or overflowing size,
-    /// [`Error::Limits`] when the memory is not there.
-    pub(crate) fn of_rows(
-        row: &(dyn Fn(usize, &mut [[f64; 3]]) + Sync),
+    /// Errors: [`Error::InvalidOption`] for a zero or overflowing size.
+    pub(crate) fn of_planes(
+        planes: NormalPlanes<'a>,
         width: usize,
         height: usize,
-    ) -> Result<SlopeField> {
-        SlopeField::of_rows_masked(row, width, height, None)
+        holes: Option<&'a [bool]>,
+    ) -> Result<SlopeField<'a>> {
+        crate::fit::checked_len(width, height)?;
+        let mut field = SlopeField { width, height, normals: planes, holes, bad: 0 };
+        field.bad = (0..height).into_par_iter().map(|y| field.with_row(y, |_, _| ()).0).sum();
+        Ok(field)
     }
 
-    /// [`Self::of_rows`], the texels `holes` marks left at slope 0 and not
-    /// counted without one.
-    ///
-    /// Errors: as [`Self::of_rows`].
-    pub(crate) fn of_rows_masked(
-        row: &(dyn Fn(usize, &mut [[f64; 3]]) + Sync),
-        width: usize,
-        height: usize,
-        holes: Option<&[bool]>,
-    ) -> Result<SlopeField> {
-        let len = crate::fit::checked_len(width, height)?;
-        let (mut x, mut y) = (try_filled(len, 0.0)?, try_filled(len, 0.0)?);
-        let bad = x
-            .par_chunks_mut(width)
-            .zip(y.par_chunks_mut(width))
-            .enumerate()
-            .map(|(k, (sx, sy))| {
-                let mut normals = vec![[0.0; 3]; width];
-                row(k, &mut normals);
-                let mut bad = 0;
-                let hole = |x: usize| holes.is_some_and(|m| m[k * width + x]);
-                for (x, ((n, sx), sy)) in normals.iter().zip(sx).zip(sy).enumerate() {
-                    [*sx, *sy] = if hole(x) {
-                        [0.0, 0.0]
-                    } else {
-                        slope(n).unwrap_or_else(|| {
-                            bad += 1;
-                            [0.0, 0.0]
-                        })
-                    };
-                }
-                bad
-            })
-            .sum();
-        Ok(SlopeField { width, height, x, y, bad })
+    /// Row `y`'s slopes (−nx/nz, −ny/nz) into `sx` and `sy`, 0 at holes
+    /// and texels without one, whose count it returns; `normals` is the
+    /// caller's scratch.
+    fn slopes_of(&self, y: usize, sx: &mut [f64], sy: &mut [f64], normals: &mut [Vec<f64>; 3]) -> usize {
+        let w = self.width;
+        for plane in normals.iter_mut() {
+            plane.resize(w, 0.0);
+        }
+        let [nx, ny, nz] = normals;
+        (self.normals)(y, [&mut nx[..], &mut ny[..], &mut nz[..]]);
+        let holes = self.holes.map(|m| &m[y * w..][..w]);
+        let (nx, ny, nz, sx, sy) = (&nx[..w], &ny[..w], &nz[..w], &mut sx[..w], &mut sy[..w]);
+        // Without branches, so that the loop vectorises (it runs at every
+        // pass): both divisions made, 0 chosen where there is no slope.
+        let mut bad = 0;
+        for x in 0..w {
+            let (nx, ny, nz) = (nx[x], ny[x], nz[x]);
+            let hole = holes.is_some_and(|m| m[x]);
+            let has_slope = nx.is_finite() & ny.is_finite() & nz.is_finite() & (nz > 0.0);
+            let taken = has_slope & !hole;
+            sx[x] = if taken { -nx / nz } else { 0.0 };
+            sy[x] = if taken { -ny / nz } else { 0.0 };
+            bad += usize::from(!has_slope & !hole);
+        }
+        bad
+    }
+
+    /// `look(sx, sy)` of row `y`'s slopes, in the thread's own rows
+    /// ([`ROWS`]), and the row's count of texels without a slope.
+    fn with_row<R>(&self, y: usize, look: impl FnOnce(&[f64], &[f64]) -> R) -> (usize, R) {
+        let mut rows = ROWS.take();
+        let Rows { normals, sx, sy } = &mut rows;
+        sx.resize(self.width, 0.0);
+        sy.resize(self.width, 0.0);
+        let bad = self.slopes_of(y, sx, sy, normals);
+        let seen = look(sx, sy);
+        ROWS.set(rows);
+        (bad, seen)
     }
 
     /// Whether every slope is 0 (a flat map, or none with a slope).
     fn is_flat(&self) -> bool {
-        self.x.par_iter().all(|&v| v == 0.0) && self.y.par_iter().all(|&v| v == 0.0)
+        (0..self.height).into_par_iter().all(|y| self.with_row(y, |sx, sy| sx.iter().chain(sy).all(|&v| v == 0.0)).1)
     }
 
     /// Row `y`'s slopes under the convention of sign `sigma`: gx = −nx/nz,
     /// gy = −σ ny/nz.
     fn row(&self, y: usize, sigma: f64, gx: &mut [f64], gy: &mut [f64]) {
-        let w = self.width;
-        gx.copy_from_slice(&self.x[y * w..][..w]);
-        for (g, &s) in gy.iter_mut().zip(&self.y[y * w..][..w]) {
-            *g = sigma * s;
+        let mut rows = ROWS.take();
+        self.slopes_of(y, gx, gy, &mut rows.normals);
+        ROWS.set(rows);
+        for g in gy.iter_mut() {
+            *g *= sigma;
         }
     }
+}
+
+/// A thread's rows for [`SlopeField`]: every pass of the solve asks for
+/// every row, on every thread. Taken out while in use (not borrowed), so
+/// that a row function that waits on the thread pool, which may run
+/// another row's task on this thread meanwhile, finds none taken.
+#[derive(Default)]
+struct Rows {
+    normals: [Vec<f64>; 3],
+    sx: Vec<f64>,
+    sy: Vec<f64>,
+}
+
+thread_local! {
+    static ROWS: std::cell::RefCell<Rows> = std::cell::RefCell::default();
 }
 
 /// The convention to read the slopes with, and under auto the curls
@@ -592,7 +651,7 @@ fn check_masked(width: usize, height: usize, opts: &HeightOptions) -> Result<()>
         ));
     }
     let texels = (width as u64).saturating_mul(height as u64);
-    let base = texels.saturating_mul(SlopeField::BYTES_PER_TEXEL + 8 + 4);
+    let base = texels.saturating_mul(8 + 4);
     crate::memory::check_memory(
         "finding the heights with holes",
         base.saturating_add(holes::bytes(width, height, opts)?),
@@ -758,14 +817,6 @@ pub(crate) fn heights_of_slopes(field: &SlopeField, opts: &HeightOptions) -> Res
     Ok(Heights { values: z, width, height, report })
 }
 
-/// The slopes (−nx/nz, −ny/nz) of a normal, `None` where nz ≤ 0 or a
-/// component is not finite.
-#[inline]
-fn slope(n: &[f64; 3]) -> Option<[f64; 2]> {
-    let [x, y, z] = *n;
-    (x.is_finite() && y.is_finite() && z.is_finite() && z > 0.0).then(|| [-x / z, -y / z])
-}
-
 fn generic_border(b: Border) -> Border {
     match b {
         Border::Clamp => Border::Mirror,
@@ -788,22 +839,25 @@ fn period_texels(w: usize, h: usize, borders: Borders) -> f64 {
 /// ∂y gx and ∂x gy as differences of neighbours inside the image,
 /// Σ(∂y gx − ∂x gy)² / Σ((∂y gx)² + (∂x gy)²). A true slope field has
 /// none; the wrong green sign gives ∂y gx + ∂x gy, about 1.
-fn curl(field: &SlopeField) -> [f64; 2] {
+fn curl(field: &SlopeField<'_>) -> [f64; 2] {
     let (w, h) = (field.width, field.height);
     let per_row: Vec<[f64; 3]> = (0..h.saturating_sub(1))
         .into_par_iter()
         .map(|y| {
-            let (top, below) = (y * w, (y + 1) * w);
-            let s = |k: usize| [field.x[k], field.y[k]];
-            let mut sums = [0.0; 3];
-            for x in 0..w.saturating_sub(1) {
-                let dgx_dy = s(below + x)[0] - s(top + x)[0];
-                // ny/nz, which is gy under OpenGL and −gy under DirectX.
-                let dny_dx = -(s(top + x + 1)[1] - s(top + x)[1]);
-                sums[0] += (dgx_dy - dny_dx) * (dgx_dy - dny_dx);
-                sums[1] += (dgx_dy + dny_dx) * (dgx_dy + dny_dx);
-                sums[2] += dgx_dy * dgx_dy + dny_dx * dny_dx;
-            }
+            // Row y's slopes kept while row y + 1's are made.
+            let (_, (top_x, top_y)) = field.with_row(y, |sx, sy| (sx.to_vec(), sy.to_vec()));
+            let (_, sums) = field.with_row(y + 1, |below_x, _| {
+                let mut sums = [0.0; 3];
+                for x in 0..w.saturating_sub(1) {
+                    let dgx_dy = below_x[x] - top_x[x];
+                    // ny/nz, which is gy under OpenGL and −gy under DirectX.
+                    let dny_dx = -(top_y[x + 1] - top_y[x]);
+                    sums[0] += (dgx_dy - dny_dx) * (dgx_dy - dny_dx);
+                    sums[1] += (dgx_dy + dny_dx) * (dgx_dy + dny_dx);
+                    sums[2] += dgx_dy * dgx_dy + dny_dx * dny_dx;
+                }
+                sums
+            });
             sums
         })
         .collect();

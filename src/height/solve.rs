@@ -374,6 +374,8 @@ impl Solver {
     /// mirror, 16 for clamp), the generic model two complex ones.
     pub fn memory(w: usize, h: usize, borders: Borders, model: Model) -> u64 {
         let (kx, planes, bytes) = match (borders.x, model) {
+            // Even widths keep the spectra in the output (`solve_packed`).
+            (Border::Wrap, Model::Exact) if w.is_multiple_of(2) => (0, 0, 0),
             (Border::Wrap, Model::Exact) => (w / 2 + 1, 1, size_of::<C>()),
             (Border::Mirror, Model::Exact) if w > 2 => (w, 1, size_of::<f64>()),
             (Border::Mirror, Model::Exact) => (w, 1, size_of::<C>()),
@@ -579,6 +581,9 @@ impl Solver {
         epsilon: Option<f64>,
         out: &mut [f64],
     ) -> Result<SolveStats> {
+        if self.packs_into_output() {
+            return Ok(self.solve_packed(fill, lambda, epsilon, out));
+        }
         let (w, h, kx) = (self.w, self.h, self.kx);
         let mut a = self.plane(&self.spare, C::default())?;
         let chunk = kx * RHS_ROWS_PER_TASK;
@@ -628,6 +633,137 @@ impl Solver {
         self.inverse_rows(&mut a, out);
         self.give_back(&self.spare, a);
         Ok(self.stats(&partial))
+    }
+
+    /// Whether the row spectra fit in the output itself ([`Self::solve_packed`]):
+    /// a periodic x of even width, whose w/2 + 1 coefficients a row are w
+    /// numbers once the two that are always real share a slot.
+    fn packs_into_output(&self) -> bool {
+        self.x.ext == Extension::Periodic && self.w.is_multiple_of(2) && self.w >= 2
+    }
+
+    /// [`Self::solve_complex`] with the row spectra kept in `out` rather
+    /// than a plane of their own (128 MiB at 4096², an eighth of the
+    /// inverse's peak): row y's w numbers hold its real FFT's first
+    /// coefficient's real part, then its last's (x = w/2; both are real),
+    /// then the real and imaginary parts of coefficients 1 to w/2 − 1.
+    /// The same transforms of the same numbers in the same order, and the
+    /// noise's sums in the plane's order: the same bits as the plane.
+    fn solve_packed(
+        &self,
+        fill: Option<RhsRows<'_>>,
+        lambda: f64,
+        epsilon: Option<f64>,
+        out: &mut [f64],
+    ) -> SolveStats {
+        let (w, h, kx) = (self.w, self.h, self.kx);
+        let last = kx - 1;
+        out.par_chunks_mut(w * RHS_ROWS_PER_TASK).enumerate().for_each(|(block, rows)| {
+            let y0 = block * RHS_ROWS_PER_TASK;
+            let mut filled = Vec::new();
+            if let Some(fill) = fill {
+                filled.resize(rows.len(), 0.0);
+                fill(y0..y0 + rows.len() / w, &mut filled);
+            }
+            let mut ext = self.r2c.make_input_vec();
+            let mut spectrum = self.r2c.make_output_vec();
+            let mut scratch = self.r2c.make_scratch_vec();
+            for (k, row) in rows.chunks_mut(w).enumerate() {
+                // Without `fill`, the right-hand side is `out` itself.
+                let rhs: &[f64] = if fill.is_some() { &filled[k * w..][..w] } else { row };
+                self.x.extend(rhs, &mut ext, false);
+                let _ = self.r2c.process_with_scratch(&mut ext, &mut spectrum, &mut scratch);
+                (row[0], row[1]) = (spectrum[0].re, spectrum[last].re);
+                for (pair, c) in row[2..].chunks_exact_mut(2).zip(&spectrum[1..last]) {
+                    (pair[0], pair[1]) = (c.re, c.im);
+                }
+            }
+        });
+        // Blocks of COLUMNS_PER_TASK coefficients, as the plane's: block 0
+        // also holds the last coefficient, whose noise is set aside to be
+        // added where the plane's order has it, at the very end.
+        let blocks = column_blocks(out, w, 2 * COLUMNS_PER_TASK);
+        let partial: Vec<(f64, f64)> = blocks
+            .into_par_iter()
+            .enumerate()
+            .map(|(block, mut rows)| {
+                let p = self.y.period;
+                let mut ext = vec![C::default(); p];
+                let scratch_len = self.forward.get_inplace_scratch_len().max(self.inverse.get_inplace_scratch_len());
+                let mut scratch = vec![C::default(); scratch_len];
+                let slots = rows.first().map_or(0, |r| r.len() / 2);
+                let mut columns = vec![C::default(); slots * h];
+                for (y, row) in rows.iter().enumerate() {
+                    for (c, pair) in row.chunks_exact(2).enumerate() {
+                        columns[c * h + y] = C::new(pair[0], pair[1]);
+                    }
+                }
+                let mut column = |kxi: usize, col: &mut [C]| -> f64 {
+                    self.y.extend(col, &mut ext, false);
+                    self.forward.process_with_scratch(&mut ext, &mut scratch);
+                    let mut column_noise = 0.0;
+                    for (ky, e) in ext.iter_mut().enumerate() {
+                        let (scale, n) = self.inverse_response(kxi, ky, lambda, epsilon);
+                        *e *= scale;
+                        column_noise += n;
+                    }
+                    self.inverse.process_with_scratch(&mut ext, &mut scratch);
+                    col.copy_from_slice(&ext[..h]);
+                    self.column_weight(kxi) * column_noise
+                };
+                let (mut noise, mut set_aside) = (0.0, 0.0);
+                for (c, col) in columns.chunks_mut(h.max(1)).enumerate() {
+                    let kxi = block * COLUMNS_PER_TASK + c;
+                    if kxi == 0 {
+                        // The slot of the first and last coefficients: each
+                        // its own column, of real values as the plane held.
+                        let mut first: Vec<C> = col.iter().map(|v| C::new(v.re, 0.0)).collect();
+                        let mut final_: Vec<C> = col.iter().map(|v| C::new(v.im, 0.0)).collect();
+                        noise += column(0, &mut first);
+                        set_aside = column(last, &mut final_);
+                        // Their imaginary parts the inverse rows do not read.
+                        for ((v, a), b) in col.iter_mut().zip(&first).zip(&final_) {
+                            *v = C::new(a.re, b.re);
+                        }
+                    } else {
+                        noise += column(kxi, col);
+                    }
+                }
+                for (y, row) in rows.iter_mut().enumerate() {
+                    for (c, pair) in row.chunks_exact_mut(2).enumerate() {
+                        let v = columns[c * h + y];
+                        (pair[0], pair[1]) = (v.re, v.im);
+                    }
+                }
+                (noise, set_aside)
+            })
+            .collect();
+        let mut sums: Vec<f64> = partial.iter().map(|&(noise, _)| noise).collect();
+        let last_noise = partial.first().map_or(0.0, |&(_, n)| n);
+        // The plane's blocks: one more where the last coefficient begins one.
+        if kx.div_ceil(COLUMNS_PER_TASK) > sums.len() {
+            sums.push(0.0 + last_noise);
+        } else if let Some(end) = sums.last_mut() {
+            *end += last_noise;
+        }
+        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
+        out.par_chunks_mut(w * ROWS_PER_TASK).for_each(|rows| {
+            let mut spectrum = self.c2r.make_input_vec();
+            let mut ext = self.c2r.make_output_vec();
+            let mut scratch = self.c2r.make_scratch_vec();
+            for row in rows.chunks_mut(w) {
+                spectrum[0] = C::new(row[0], 0.0);
+                spectrum[last] = C::new(row[1], 0.0);
+                for (c, pair) in spectrum[1..last].iter_mut().zip(row[2..].chunks_exact(2)) {
+                    *c = C::new(pair[0], pair[1]);
+                }
+                let _ = self.c2r.process_with_scratch(&mut spectrum, &mut ext, &mut scratch);
+                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
+                    *o = e * norm;
+                }
+            }
+        });
+        self.stats(&sums)
     }
 
     /// The exact model for a mirrored x: the right-hand side is even along
