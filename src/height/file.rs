@@ -327,7 +327,7 @@ impl HeightConversion {
             None => heights_of_slopes(&field, &options),
         }
         .map_err(fail_in)?;
-        drop(field);
+        // The normals go before the output is made.
         drop(raster);
         let report = found.report.clone();
         let (lo, hi) = report.range;

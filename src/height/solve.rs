@@ -584,6 +584,17 @@ impl Solver {
         if self.packs_into_output() {
             return Ok(self.solve_packed(fill, lambda, epsilon, out));
         }
+        self.solve_in_plane(fill, lambda, epsilon, out)
+    }
+
+    /// [`Self::solve_complex`] with the row spectra in a plane of their own.
+    fn solve_in_plane(
+        &self,
+        fill: Option<RhsRows<'_>>,
+        lambda: f64,
+        epsilon: Option<f64>,
+        out: &mut [f64],
+    ) -> Result<SolveStats> {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let mut a = self.plane(&self.spare, C::default())?;
         let chunk = kx * RHS_ROWS_PER_TASK;
@@ -1026,6 +1037,45 @@ fn scatter<T: Copy>(columns: &[T], rows: &mut [&mut [T]], width: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The row spectra packed into the output give the plane's bits: the
+    /// heights and the noise gain, for right-hand sides given row by row
+    /// and as a plane, every y border, widths with the last coefficient
+    /// alone in its block of columns and sharing one.
+    #[test]
+    fn packed_spectra_give_the_planes_bits() {
+        for (w, h) in [(2, 3), (6, 5), (16, 7), (20, 4), (34, 9)] {
+            for by in [Border::Wrap, Border::Mirror, Border::Clamp] {
+                let borders = Borders { x: Border::Wrap, y: by };
+                let Some(solver) = Solver::new(w, h, borders, 3, Model::Exact) else { continue };
+                assert!(solver.packs_into_output());
+                let b: Vec<f64> = (0..w * h).map(|k| ((k * 7919) % 101) as f64 / 10.0 - 5.0).collect();
+                let fill = |rows: std::ops::Range<usize>, dst: &mut [f64]| {
+                    dst.copy_from_slice(&b[rows.start * w..rows.end * w])
+                };
+                for epsilon in [None, Some(1e-3)] {
+                    let mut packed = vec![0.0; w * h];
+                    let mut plane = vec![0.0; w * h];
+                    let p = solver.solve_packed(Some(&fill), 1e-4, epsilon, &mut packed);
+                    let q = solver.solve_in_plane(Some(&fill), 1e-4, epsilon, &mut plane).unwrap();
+                    assert_eq!(
+                        packed.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                        plane.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                        "{w}×{h} {by:?} {epsilon:?}"
+                    );
+                    assert_eq!(p.noise_gain.to_bits(), q.noise_gain.to_bits(), "{w}×{h} {by:?}");
+                    assert!(packed.iter().any(|&v| v != 0.0));
+                    // The right-hand side as the output's own plane.
+                    let mut given = b.clone();
+                    solver.solve_packed(None, 1e-4, epsilon, &mut given);
+                    assert_eq!(
+                        given.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                        plane.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn extensions_follow_the_borders() {
