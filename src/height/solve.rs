@@ -297,8 +297,6 @@ pub(crate) struct Solver {
     /// and a fresh plane each time cost its page faults and zeroing, 9 %
     /// of the time of `normalfit height` at 4096².
     spare: Mutex<Option<Vec<C>>>,
-    /// The same for a mirrored x's real spectra.
-    spare_real: Mutex<Option<Vec<f64>>>,
 }
 
 impl Solver {
@@ -345,7 +343,6 @@ impl Solver {
             column_r2c: real.plan_fft_forward(y.period),
             column_c2r: real.plan_fft_inverse(y.period),
             spare: Mutex::new(None),
-            spare_real: Mutex::new(None),
         }
     }
 
@@ -369,15 +366,17 @@ impl Solver {
         }
     }
 
-    /// Bytes the solve holds besides its output: the exact model one plane
-    /// of row spectra (real for a mirrored x: 8 bytes a texel for wrap and
-    /// mirror, 16 for clamp), the generic model two complex ones.
+    /// Bytes the solve holds besides its output: for the exact model none
+    /// where the row spectra fit in the output (a mirrored x, a wrapped
+    /// one of even width), else one plane of them (16 bytes a texel for
+    /// clamp); the generic model two complex ones.
     pub fn memory(w: usize, h: usize, borders: Borders, model: Model) -> u64 {
         let (kx, planes, bytes) = match (borders.x, model) {
             // Even widths keep the spectra in the output (`solve_packed`).
             (Border::Wrap, Model::Exact) if w.is_multiple_of(2) => (0, 0, 0),
             (Border::Wrap, Model::Exact) => (w / 2 + 1, 1, size_of::<C>()),
-            (Border::Mirror, Model::Exact) if w > 2 => (w, 1, size_of::<f64>()),
+            // Its w real coefficients a row are kept in the output.
+            (Border::Mirror, Model::Exact) if w > 2 => (0, 0, 0),
             (Border::Mirror, Model::Exact) => (w, 1, size_of::<C>()),
             (Border::Clamp, Model::Exact) => (w + 1, 1, size_of::<C>()),
             (Border::Wrap, Model::Generic) => (w / 2 + 1, 2, size_of::<C>()),
@@ -778,8 +777,11 @@ impl Solver {
     }
 
     /// The exact model for a mirrored x: the right-hand side is even along
-    /// x, so its rows' spectra are real (the type-I cosine transform), one
-    /// plane of f64, and the columns real FFTs.
+    /// x, so its rows' spectra are real (the type-I cosine transform), and
+    /// the columns real FFTs. A row's kx = w real coefficients (a mirrored
+    /// x is at least 3 wide) are as many as its heights: they are kept in
+    /// `out` itself, not in a plane of their own (128 MiB at 4096²; the
+    /// same transforms of the same numbers as that plane, so its bits).
     fn solve_real(
         &self,
         fill: Option<RhsRows<'_>>,
@@ -787,26 +789,49 @@ impl Solver {
         epsilon: Option<f64>,
         out: &mut [f64],
     ) -> Result<SolveStats> {
-        let (w, h, kx) = (self.w, self.h, self.kx);
-        let mut a = self.plane(&self.spare_real, 0.0)?;
-        let chunk = kx * RHS_ROWS_PER_TASK;
-        let given: &[f64] = out;
-        a.par_chunks_mut(chunk).enumerate().for_each(|(block, spectra)| {
+        let w = self.w;
+        debug_assert_eq!(self.kx, w);
+        out.par_chunks_mut(w * RHS_ROWS_PER_TASK).enumerate().for_each(|(block, rows)| {
             let y0 = block * RHS_ROWS_PER_TASK;
-            let rows = spectra.len() / kx;
             let mut filled = Vec::new();
-            let rhs = right_hand_side_rows(fill, given, y0..y0 + rows, w, &mut filled);
+            if let Some(fill) = fill {
+                filled.resize(rows.len(), 0.0);
+                fill(y0..y0 + rows.len() / w, &mut filled);
+            }
             let mut ext = self.r2c.make_input_vec();
             let mut spectrum = self.r2c.make_output_vec();
             let mut scratch = self.r2c.make_scratch_vec();
-            for (row, real) in rhs.chunks(w).zip(spectra.chunks_mut(kx)) {
-                self.x.extend(row, &mut ext, false);
+            for (k, row) in rows.chunks_mut(w).enumerate() {
+                // Without `fill`, the right-hand side is `out` itself.
+                let rhs: &[f64] = if fill.is_some() { &filled[k * w..][..w] } else { row };
+                self.x.extend(rhs, &mut ext, false);
                 let _ = self.r2c.process_with_scratch(&mut ext, &mut spectrum, &mut scratch);
-                real.iter_mut().zip(&spectrum).for_each(|(o, s)| *o = s.re);
+                row.iter_mut().zip(&spectrum).for_each(|(o, s)| *o = s.re);
             }
         });
-        let blocks = column_blocks(&mut a, kx, COLUMNS_PER_TASK);
-        let partial: Vec<f64> = blocks
+        let partial = self.real_columns(out, lambda, epsilon);
+        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
+        out.par_chunks_mut(w * ROWS_PER_TASK).for_each(|rows| {
+            let mut spectrum = self.c2r.make_input_vec();
+            let mut ext = self.c2r.make_output_vec();
+            let mut scratch = self.c2r.make_scratch_vec();
+            for row in rows.chunks_mut(w) {
+                spectrum.iter_mut().zip(&*row).for_each(|(s, &v)| *s = C::new(v, 0.0));
+                let _ = self.c2r.process_with_scratch(&mut spectrum, &mut ext, &mut scratch);
+                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
+                    *o = e * norm;
+                }
+            }
+        });
+        Ok(self.stats(&partial))
+    }
+
+    /// The column pass of [`Self::solve_real`] over the real row spectra
+    /// `a` (rows of kx): each column's real FFT divided by the response
+    /// and transformed back; the noise's sums of each block of columns.
+    fn real_columns(&self, a: &mut [f64], lambda: f64, epsilon: Option<f64>) -> Vec<f64> {
+        let (h, kx) = (self.h, self.kx);
+        column_blocks(a, kx, COLUMNS_PER_TASK)
             .into_par_iter()
             .enumerate()
             .map(|(block, mut rows)| {
@@ -841,22 +866,7 @@ impl Solver {
                 scatter(&columns, &mut rows, width);
                 noise
             })
-            .collect();
-        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
-        out.par_chunks_mut(w * ROWS_PER_TASK).zip(a.par_chunks(chunk_rows(kx))).for_each(|(out_rows, reals)| {
-            let mut spectrum = self.c2r.make_input_vec();
-            let mut ext = self.c2r.make_output_vec();
-            let mut scratch = self.c2r.make_scratch_vec();
-            for (row, real) in out_rows.chunks_mut(w).zip(reals.chunks(kx)) {
-                spectrum.iter_mut().zip(real).for_each(|(s, &v)| *s = C::new(v, 0.0));
-                let _ = self.c2r.process_with_scratch(&mut spectrum, &mut ext, &mut scratch);
-                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
-                    *o = e * norm;
-                }
-            }
-        });
-        self.give_back(&self.spare_real, a);
-        Ok(self.stats(&partial))
+            .collect()
     }
 
     /// The last pass: inverse real FFT of each row of spectra, the first w
