@@ -668,25 +668,10 @@ impl Solver {
     ) -> SolveStats {
         let (w, h, kx) = (self.w, self.h, self.kx);
         let last = kx - 1;
-        out.par_chunks_mut(w * RHS_ROWS_PER_TASK).enumerate().for_each(|(block, rows)| {
-            let y0 = block * RHS_ROWS_PER_TASK;
-            let mut filled = Vec::new();
-            if let Some(fill) = fill {
-                filled.resize(rows.len(), 0.0);
-                fill(y0..y0 + rows.len() / w, &mut filled);
-            }
-            let mut ext = self.r2c.make_input_vec();
-            let mut spectrum = self.r2c.make_output_vec();
-            let mut scratch = self.r2c.make_scratch_vec();
-            for (k, row) in rows.chunks_mut(w).enumerate() {
-                // Without `fill`, the right-hand side is `out` itself.
-                let rhs: &[f64] = if fill.is_some() { &filled[k * w..][..w] } else { row };
-                self.x.extend(rhs, &mut ext, false);
-                let _ = self.r2c.process_with_scratch(&mut ext, &mut spectrum, &mut scratch);
-                (row[0], row[1]) = (spectrum[0].re, spectrum[last].re);
-                for (pair, c) in row[2..].chunks_exact_mut(2).zip(&spectrum[1..last]) {
-                    (pair[0], pair[1]) = (c.re, c.im);
-                }
+        self.forward_rows_in_output(fill, out, |spectrum, row| {
+            (row[0], row[1]) = (spectrum[0].re, spectrum[last].re);
+            for (pair, c) in row[2..].chunks_exact_mut(2).zip(&spectrum[1..last]) {
+                (pair[0], pair[1]) = (c.re, c.im);
             }
         });
         // Blocks of COLUMNS_PER_TASK coefficients, as the plane's: block 0
@@ -756,21 +741,11 @@ impl Solver {
         } else if let Some(end) = sums.last_mut() {
             *end += last_noise;
         }
-        let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
-        out.par_chunks_mut(w * ROWS_PER_TASK).for_each(|rows| {
-            let mut spectrum = self.c2r.make_input_vec();
-            let mut ext = self.c2r.make_output_vec();
-            let mut scratch = self.c2r.make_scratch_vec();
-            for row in rows.chunks_mut(w) {
-                spectrum[0] = C::new(row[0], 0.0);
-                spectrum[last] = C::new(row[1], 0.0);
-                for (c, pair) in spectrum[1..last].iter_mut().zip(row[2..].chunks_exact(2)) {
-                    *c = C::new(pair[0], pair[1]);
-                }
-                let _ = self.c2r.process_with_scratch(&mut spectrum, &mut ext, &mut scratch);
-                for (o, &e) in row.iter_mut().zip(&ext[..w]) {
-                    *o = e * norm;
-                }
+        self.inverse_rows_in_output(out, |row, spectrum| {
+            spectrum[0] = C::new(row[0], 0.0);
+            spectrum[last] = C::new(row[1], 0.0);
+            for (c, pair) in spectrum[1..last].iter_mut().zip(row[2..].chunks_exact(2)) {
+                *c = C::new(pair[0], pair[1]);
             }
         });
         self.stats(&sums)
@@ -791,6 +766,26 @@ impl Solver {
     ) -> Result<SolveStats> {
         let w = self.w;
         debug_assert_eq!(self.kx, w);
+        self.forward_rows_in_output(fill, out, |spectrum, row| {
+            row.iter_mut().zip(spectrum).for_each(|(o, s)| *o = s.re);
+        });
+        let partial = self.real_columns(out, lambda, epsilon);
+        self.inverse_rows_in_output(out, |row, spectrum| {
+            spectrum.iter_mut().zip(row).for_each(|(s, &v)| *s = C::new(v, 0.0));
+        });
+        Ok(self.stats(&partial))
+    }
+
+    /// The row pass of a solve whose spectra are kept in `out`: each row's
+    /// right-hand side (from `fill`, else `out`'s own row) through the real
+    /// FFT, its spectrum laid into the row by `store`.
+    fn forward_rows_in_output(
+        &self,
+        fill: Option<RhsRows<'_>>,
+        out: &mut [f64],
+        store: impl Fn(&[C], &mut [f64]) + Sync,
+    ) {
+        let w = self.w;
         out.par_chunks_mut(w * RHS_ROWS_PER_TASK).enumerate().for_each(|(block, rows)| {
             let y0 = block * RHS_ROWS_PER_TASK;
             let mut filled = Vec::new();
@@ -806,24 +801,29 @@ impl Solver {
                 let rhs: &[f64] = if fill.is_some() { &filled[k * w..][..w] } else { row };
                 self.x.extend(rhs, &mut ext, false);
                 let _ = self.r2c.process_with_scratch(&mut ext, &mut spectrum, &mut scratch);
-                row.iter_mut().zip(&spectrum).for_each(|(o, s)| *o = s.re);
+                store(&spectrum, row);
             }
         });
-        let partial = self.real_columns(out, lambda, epsilon);
+    }
+
+    /// The last pass of a solve whose spectra are kept in `out`: each
+    /// row's spectrum read back by `load`, through the inverse real FFT,
+    /// normalised into the row.
+    fn inverse_rows_in_output(&self, out: &mut [f64], load: impl Fn(&[f64], &mut [C]) + Sync) {
+        let w = self.w;
         let norm = 1.0 / (self.x.period as f64 * self.y.period as f64);
         out.par_chunks_mut(w * ROWS_PER_TASK).for_each(|rows| {
             let mut spectrum = self.c2r.make_input_vec();
             let mut ext = self.c2r.make_output_vec();
             let mut scratch = self.c2r.make_scratch_vec();
             for row in rows.chunks_mut(w) {
-                spectrum.iter_mut().zip(&*row).for_each(|(s, &v)| *s = C::new(v, 0.0));
+                load(row, &mut spectrum);
                 let _ = self.c2r.process_with_scratch(&mut spectrum, &mut ext, &mut scratch);
                 for (o, &e) in row.iter_mut().zip(&ext[..w]) {
                     *o = e * norm;
                 }
             }
         });
-        Ok(self.stats(&partial))
     }
 
     /// The column pass of [`Self::solve_real`] over the real row spectra
