@@ -546,35 +546,37 @@ impl Plan {
             } else {
                 padded.extend((lo..hi).map(value));
             }
-        } else if a >= 0 && b <= src.values.len() as isize {
-            // Away from the borders: a slice, and a loop that vectorises.
-            padded.extend(src.values[a as usize..b as usize].iter().map(|&h| gain * h.to_f64()));
         } else {
-            self.bordered_row(src, (lo, hi), gain, padded);
+            // The columns `src` holds in the same vectorised loop as away
+            // from the borders (out of line, a row's first and last strips
+            // had converted them in a loop compiled for baseline x86-64:
+            // 8 % of a 1024² fit's instructions), those beyond out of line.
+            let held = src.x0..src.x0 + src.values.len() as isize;
+            let (inside_lo, inside_hi) = (lo.max(held.start).min(hi), hi.min(held.end).max(lo));
+            self.bordered_values(src, lo..inside_lo, gain, padded);
+            let inside = &src.values[(inside_lo - src.x0) as usize..(inside_hi - src.x0) as usize];
+            padded.extend(inside.iter().map(|&h| gain * h.to_f64()));
+            self.bordered_values(src, inside_hi..hi, gain, padded);
         }
     }
 
-    /// [`Self::padded_row`] where some column is not in `src`. Out of
-    /// line: only a row's first and last strips come here, and the hot
-    /// loop stays small.
+    /// The heights of columns `cols` of a row beyond what `src` holds,
+    /// times `gain`, through the x border (which maps them into `src`),
+    /// appended to `padded`. Out of line: a few columns of a row's first
+    /// and last strips, and the hot loop stays small.
     #[inline(never)]
-    pub(super) fn bordered_row<H: Sample>(
+    pub(super) fn bordered_values<H: Sample>(
         &self,
         src: RowRef<'_, H>,
-        (lo, hi): (isize, isize),
+        cols: Range<isize>,
         gain: f64,
         padded: &mut Vec<f64>,
     ) {
         let held = src.x0..src.x0 + src.values.len() as isize;
-        let (inside_lo, inside_hi) = (lo.max(held.start).min(hi), hi.min(held.end).max(lo));
-        let value = |u: isize| {
+        padded.extend(cols.map(|u| {
             let at = if held.contains(&u) { u } else { self.borders.x.map(u, self.width) as isize };
             gain * src.values[(at - src.x0) as usize].to_f64()
-        };
-        padded.extend((lo..inside_lo).map(value));
-        let inside = &src.values[(inside_lo - src.x0) as usize..(inside_hi - src.x0) as usize];
-        padded.extend(inside.iter().map(|&h| gain * h.to_f64()));
-        padded.extend((inside_hi..hi).map(value));
+        }));
     }
 
     /// Fits one strip of stored integers by running sums. Sums of the
@@ -749,16 +751,19 @@ impl Plan {
         let ([sx, _], rho) = self.spacing_at(y);
         let gain = 1.0 / sx;
         let frame = self.frame;
+        // The chunks' arrays, made once a row: zeroed in every chunk (2 KiB
+        // of stores per 32 texels), they took 4 % of the N = 3 fit's
+        // instructions (callgrind, `examples/core_speed.rs`).
+        let (mut s0, mut si, mut sj, mut szz) = ([0.0; C], [0.0; C], [0.0; C], [0.0; C]);
+        let (mut nx, mut ny, mut nz, mut czz) = ([0.0; C], [0.0; C], [0.0; C], [0.0; C]);
         for (start, out) in (0..w).step_by(C).zip(out.chunks_mut(C)) {
             let len = out.len();
-            let (mut s0, mut si, mut sj, mut szz) = ([0.0; C], [0.0; C], [0.0; C], [0.0; C]);
             let (s0, si, sj, szz) = (&mut s0[..len], &mut si[..len], &mut sj[..len], &mut szz[..len]);
             patch_sums(rows, start..start + len, [&mut *s0, &mut *si, &mut *sj, &mut *szz]);
             let sums = [&*s0, &*si, &*sj, &*szz];
-            let (mut nx, mut ny, mut nz) = ([0.0; C], [0.0; C], [0.0; C]);
             let normal = [&mut nx[..len], &mut ny[..len], &mut nz[..len]];
             if rho == 1.0 {
-                self.square_chunk::<ORTHOGONAL>(gain, sums, None, T::UNIT, normal);
+                self.square_chunk::<ORTHOGONAL>(gain, sums, None, T::UNIT, normal, &mut czz);
             } else {
                 let row = RowSpacing { gain, rho, orthogonal: ORTHOGONAL };
                 scratch.unequal.fill_normals(self, sums, row, normal);
@@ -1016,19 +1021,20 @@ impl Plan {
     ) {
         let w = normal[0].len();
         let planes = v.planes(w);
+        let mut czz = [0.0; EMIT_CHUNK];
         for start in (0..w).step_by(EMIT_CHUNK) {
             let texels = start..(start + EMIT_CHUNK).min(w);
             let sums = planes.map(|plane| &plane[texels.clone()]);
             let with_hole = (!v.with_hole.is_empty()).then(|| &v.with_hole[texels.clone()]);
             let chunk = normal.each_mut().map(|plane| &mut plane[texels.clone()]);
-            self.square_chunk::<ORTHOGONAL>(gain, sums, with_hole, unit, chunk);
+            self.square_chunk::<ORTHOGONAL>(gain, sums, with_hole, unit, chunk, &mut czz);
         }
     }
 
     /// The square grid's normals of at most [`EMIT_CHUNK`] texels from
     /// their window sums `[s0, si, sj, szz]` (in units of z / `gain`), into
     /// `[nx, ny, nz]`: a row's chunk ([`Self::emit_with`]) or the one-pass
-    /// emit's ([`Self::emit_fused`]).
+    /// emit's ([`Self::emit_fused`]). `czz` is the caller's scratch.
     #[inline(always)]
     fn square_chunk<const ORTHOGONAL: bool>(
         &self,
@@ -1037,6 +1043,7 @@ impl Plan {
         with_hole: Option<&[bool]>,
         unit: bool,
         [nx, ny, nz]: [&mut [f64]; 3],
+        czz: &mut [f64; EMIT_CHUNK],
     ) {
         let len = s0.len();
         let (si, sj, szz) = (&si[..len], &sj[..len], &szz[..len]);
@@ -1044,7 +1051,6 @@ impl Plan {
         let n2 = self.count;
         let czz_gain = gain * gain / n2;
         let (gx, gy) = (gain, self.sigma * gain);
-        let mut czz = [0.0; EMIT_CHUNK];
         let czz = &mut czz[..len];
         czz.iter_mut().zip(s0).zip(szz).for_each(|((c, &a), &b)| *c = Self::czz(n2, czz_gain, a, b));
         // Only a patch whose heights spread more than its columns and
