@@ -550,7 +550,7 @@ impl Plan {
             // The columns `src` holds in the same vectorised loop as away
             // from the borders (out of line, a row's first and last strips
             // had converted them in a loop compiled for baseline x86-64:
-            // 8 % of a 1024² fit's instructions), those beyond out of line.
+            // 9 % of a 1024² fit's instructions), those beyond out of line.
             let held = src.x0..src.x0 + src.values.len() as isize;
             let (inside_lo, inside_hi) = (lo.max(held.start).min(hi), hi.min(held.end).max(lo));
             self.bordered_values(src, lo..inside_lo, gain, padded);
