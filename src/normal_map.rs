@@ -90,12 +90,22 @@ impl Storage {
     #[inline]
     #[must_use]
     pub fn normal<T: Sample>(self, v: T) -> f64 {
-        let c = contract(v);
-        match self {
-            Storage::Float32 { signed: true } | Storage::Float64 { signed: true } => c,
-            _ => 2.0 * c - 1.0,
-        }
+        normal_component(v, self.is_signed())
     }
+
+    /// Whether the samples hold n itself (signed floats), not (n + 1)/2.
+    #[must_use]
+    pub fn is_signed(self) -> bool {
+        matches!(self, Storage::Float32 { signed: true } | Storage::Float64 { signed: true })
+    }
+}
+
+/// [`Storage::normal`] with its choice given (`signed`: the sample is n
+/// itself), for loops that make that choice once, outside.
+#[inline(always)]
+pub(crate) fn normal_component<T: Sample>(v: T, signed: bool) -> f64 {
+    let c = contract(v);
+    if signed { c } else { 2.0 * c - 1.0 }
 }
 
 /// The R, G and B planes as stored values in [0, 1] (integers divided by

@@ -435,12 +435,11 @@ fn of_normals<T: NormalComponent>(
     if normals.len() != len {
         return Err(Error::BufferSize { expected: len, actual: normals.len() });
     }
-    let planes = |y: usize, [nx, ny, nz]: [&mut [f64]; 3]| {
-        for (((n, x), y), z) in normals[y * width..][..width].iter().zip(nx).zip(ny).zip(nz) {
-            [*x, *y, *z] = n.map(T::to_f64);
-        }
+    let slopes = |y: usize, sx: &mut [f64], sy: &mut [f64], holes: Option<&[bool]>| {
+        let row = &normals[y * width..][..width];
+        row_slopes(|x| row[x].map(T::to_f64), holes, sx, sy)
     };
-    heights_of_planes(&planes, width, height, holes, opts)
+    heights_of_planes(&slopes, width, height, holes, opts)
 }
 
 /// [`heights_of_rows`] with holes (`None`: none), as [`heights_with_holes`].
@@ -453,16 +452,15 @@ pub fn heights_of_rows_with_holes(
     holes: Option<&[bool]>,
     opts: &HeightOptions,
 ) -> Result<Heights> {
-    let planes = |y: usize, [nx, ny, nz]: [&mut [f64]; 3]| {
+    let slopes = |y: usize, sx: &mut [f64], sy: &mut [f64], holes: Option<&[bool]>| {
         let mut normals = NORMALS.take();
         normals.resize(width, [0.0; 3]);
         row(y, &mut normals);
-        for (((n, x), y), z) in normals.iter().zip(nx).zip(ny).zip(nz) {
-            [*x, *y, *z] = *n;
-        }
+        let bad = row_slopes(|x| normals[x], holes, sx, sy);
         NORMALS.set(normals);
+        bad
     };
-    heights_of_planes(&planes, width, height, holes, opts)
+    heights_of_planes(&slopes, width, height, holes, opts)
 }
 
 thread_local! {
@@ -471,12 +469,12 @@ thread_local! {
     static NORMALS: std::cell::RefCell<Vec<[f64; 3]>> = std::cell::RefCell::default();
 }
 
-/// The inverse of the normals `planes(y, [nx, ny, nz])` gives row by row,
+/// The inverse of the normals whose slopes `planes` gives row by row,
 /// with holes (`None`: none): every entry point's.
 ///
 /// Errors: as [`heights_with_holes`].
 pub(crate) fn heights_of_planes(
-    planes: NormalPlanes<'_>,
+    planes: RowSlopes<'_>,
     width: usize,
     height: usize,
     holes: Option<&[bool]>,
@@ -527,70 +525,101 @@ pub fn heights_of_rows(
 pub(crate) struct SlopeField<'a> {
     width: usize,
     height: usize,
-    /// Row y's normals.
-    normals: NormalPlanes<'a>,
+    /// Row y's slopes.
+    normals: RowSlopes<'a>,
     /// Texels left at slope 0 and not counted without one.
     holes: Option<&'a [bool]>,
     /// Texels without a slope (nz ≤ 0 or a component not finite).
     bad: usize,
 }
 
-/// `planes(y, [nx, ny, nz])` fills the three with row y's normals.
-pub(crate) type NormalPlanes<'a> = &'a (dyn Fn(usize, [&mut [f64]; 3]) + Sync);
+/// `slopes(y, sx, sy, holes)` fills `sx` and `sy` (the width) with row
+/// y's slopes by [`row_slopes`], `holes` that row's, and returns its
+/// count of texels without a slope: each caller reads its own storage of
+/// the normals straight into the slopes, in one loop.
+pub(crate) type RowSlopes<'a> = &'a (dyn Fn(usize, &mut [f64], &mut [f64], Option<&[bool]>) -> usize + Sync);
+
+/// A row's slopes (−nx/nz, −ny/nz) of the normals `normal(x)` gives, into
+/// `sx` and `sy` (the row's width), 0 at holes and where there is none
+/// (nz ≤ 0 or a component not finite); returns the count of texels
+/// without one, holes not counted. The one rule of every caller's rows
+/// ([`RowSlopes`]), inlined into each so that the normals' reading and
+/// the divisions are one loop.
+#[inline(always)]
+pub(crate) fn row_slopes(
+    normal: impl Fn(usize) -> [f64; 3],
+    holes: Option<&[bool]>,
+    sx: &mut [f64],
+    sy: &mut [f64],
+) -> usize {
+    let w = sx.len();
+    let sy = &mut sy[..w];
+    match holes {
+        None => slopes_where(normal, |_| false, sx, sy),
+        Some(holes) => {
+            let holes = &holes[..w];
+            slopes_where(normal, |x| holes[x], sx, sy)
+        }
+    }
+}
+
+/// [`row_slopes`] with the holes as a function of the column.
+#[inline(always)]
+fn slopes_where(
+    normal: impl Fn(usize) -> [f64; 3],
+    hole: impl Fn(usize) -> bool,
+    sx: &mut [f64],
+    sy: &mut [f64],
+) -> usize {
+    // Without branches, so that the loop vectorises (it runs at every
+    // pass): both divisions made, 0 chosen where there is no slope.
+    let mut bad = 0;
+    for x in 0..sx.len() {
+        let [nx, ny, nz] = normal(x);
+        let hole = hole(x);
+        let has_slope = nx.is_finite() & ny.is_finite() & nz.is_finite() & (nz > 0.0);
+        let taken = has_slope & !hole;
+        sx[x] = if taken { -nx / nz } else { 0.0 };
+        sy[x] = if taken { -ny / nz } else { 0.0 };
+        bad += usize::from(!has_slope & !hole);
+    }
+    bad
+}
 
 impl<'a> SlopeField<'a> {
-    /// The slopes of the normals `planes(y, [nx, ny, nz])` gives, the
-    /// texels `holes` marks left at slope 0, the others without a slope
-    /// counted (rows in parallel).
+    /// The slopes `slopes` gives row by row, the texels `holes` marks
+    /// left at slope 0, the others without a slope counted (rows in
+    /// parallel).
     ///
     /// Errors: [`Error::InvalidOption`] for a zero or overflowing size.
     pub(crate) fn of_planes(
-        planes: NormalPlanes<'a>,
+        slopes: RowSlopes<'a>,
         width: usize,
         height: usize,
         holes: Option<&'a [bool]>,
     ) -> Result<SlopeField<'a>> {
         crate::fit::checked_len(width, height)?;
-        let mut field = SlopeField { width, height, normals: planes, holes, bad: 0 };
+        let mut field = SlopeField { width, height, normals: slopes, holes, bad: 0 };
         field.bad = (0..height).into_par_iter().map(|y| field.with_row(y, |_, _| ()).0).sum();
         Ok(field)
     }
 
     /// Row `y`'s slopes (−nx/nz, −ny/nz) into `sx` and `sy`, 0 at holes
-    /// and texels without one, whose count it returns; `normals` is the
-    /// caller's scratch.
-    fn slopes_of(&self, y: usize, sx: &mut [f64], sy: &mut [f64], normals: &mut [Vec<f64>; 3]) -> usize {
+    /// and texels without one, whose count it returns.
+    fn slopes_of(&self, y: usize, sx: &mut [f64], sy: &mut [f64]) -> usize {
         let w = self.width;
-        for plane in normals.iter_mut() {
-            plane.resize(w, 0.0);
-        }
-        let [nx, ny, nz] = normals;
-        (self.normals)(y, [&mut nx[..], &mut ny[..], &mut nz[..]]);
         let holes = self.holes.map(|m| &m[y * w..][..w]);
-        let (nx, ny, nz, sx, sy) = (&nx[..w], &ny[..w], &nz[..w], &mut sx[..w], &mut sy[..w]);
-        // Without branches, so that the loop vectorises (it runs at every
-        // pass): both divisions made, 0 chosen where there is no slope.
-        let mut bad = 0;
-        for x in 0..w {
-            let (nx, ny, nz) = (nx[x], ny[x], nz[x]);
-            let hole = holes.is_some_and(|m| m[x]);
-            let has_slope = nx.is_finite() & ny.is_finite() & nz.is_finite() & (nz > 0.0);
-            let taken = has_slope & !hole;
-            sx[x] = if taken { -nx / nz } else { 0.0 };
-            sy[x] = if taken { -ny / nz } else { 0.0 };
-            bad += usize::from(!has_slope & !hole);
-        }
-        bad
+        (self.normals)(y, &mut sx[..w], &mut sy[..w], holes)
     }
 
     /// `look(sx, sy)` of row `y`'s slopes, in the thread's own rows
     /// ([`ROWS`]), and the row's count of texels without a slope.
     fn with_row<R>(&self, y: usize, look: impl FnOnce(&[f64], &[f64]) -> R) -> (usize, R) {
         let mut rows = ROWS.take();
-        let Rows { normals, sx, sy } = &mut rows;
+        let Rows { sx, sy } = &mut rows;
         sx.resize(self.width, 0.0);
         sy.resize(self.width, 0.0);
-        let bad = self.slopes_of(y, sx, sy, normals);
+        let bad = self.slopes_of(y, sx, sy);
         let seen = look(sx, sy);
         ROWS.set(rows);
         (bad, seen)
@@ -604,9 +633,7 @@ impl<'a> SlopeField<'a> {
     /// Row `y`'s slopes under the convention of sign `sigma`: gx = −nx/nz,
     /// gy = −σ ny/nz.
     fn row(&self, y: usize, sigma: f64, gx: &mut [f64], gy: &mut [f64]) {
-        let mut rows = ROWS.take();
-        self.slopes_of(y, gx, gy, &mut rows.normals);
-        ROWS.set(rows);
+        self.slopes_of(y, gx, gy);
         for g in gy.iter_mut() {
             *g *= sigma;
         }
@@ -619,7 +646,6 @@ impl<'a> SlopeField<'a> {
 /// another row's task on this thread meanwhile, finds none taken.
 #[derive(Default)]
 struct Rows {
-    normals: [Vec<f64>; 3],
     sx: Vec<f64>,
     sy: Vec<f64>,
 }
