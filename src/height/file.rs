@@ -329,9 +329,15 @@ impl HeightConversion {
             let at = y * w..(y + 1) * w;
             match planes {
                 [Samples::U8(r), Samples::U8(g), Samples::U8(b)] => stored_slopes(stored, [r, g, b], at, holes, sx, sy),
-                [Samples::U16(r), Samples::U16(g), Samples::U16(b)] => stored_slopes(stored, [r, g, b], at, holes, sx, sy),
-                [Samples::F32(r), Samples::F32(g), Samples::F32(b)] => stored_slopes(stored, [r, g, b], at, holes, sx, sy),
-                [Samples::F64(r), Samples::F64(g), Samples::F64(b)] => stored_slopes(stored, [r, g, b], at, holes, sx, sy),
+                [Samples::U16(r), Samples::U16(g), Samples::U16(b)] => {
+                    stored_slopes(stored, [r, g, b], at, holes, sx, sy)
+                }
+                [Samples::F32(r), Samples::F32(g), Samples::F32(b)] => {
+                    stored_slopes(stored, [r, g, b], at, holes, sx, sy)
+                }
+                [Samples::F64(r), Samples::F64(g), Samples::F64(b)] => {
+                    stored_slopes(stored, [r, g, b], at, holes, sx, sy)
+                }
                 // Planes of several types (no reader makes them): a sample
                 // at a time.
                 _ => row_slopes(
@@ -381,7 +387,7 @@ impl HeightConversion {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
                         stored.clear();
-                        stored.extend(rows.iter().map(|&v| v as f32));
+                        stored.par_extend(rows.par_iter().map(|&v| v as f32));
                         push(&stored)
                     })
                 })
@@ -396,7 +402,7 @@ impl HeightConversion {
                     let mut stored = Vec::with_capacity(w.saturating_mul(EXR_ROWS));
                     values.chunks(w.saturating_mul(EXR_ROWS)).try_for_each(|rows| {
                         stored.clear();
-                        stored.extend(rows.iter().map(|&v| v as f32));
+                        stored.par_extend(rows.par_iter().map(|&v| v as f32));
                         push(&stored)
                     })
                 })
@@ -505,4 +511,4 @@ impl<T: Sample> pulp::WithSimd for StoredSlopes<'_, T> {
 }
 
 /// Rows of heights converted to f32 at a time for an EXR.
-const EXR_ROWS: usize = 256;
+const EXR_ROWS: usize = 1024;
