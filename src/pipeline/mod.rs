@@ -45,7 +45,7 @@ pub use self::exr::convert_exr;
 pub(crate) use self::exr::{convert_exr_counting, curvature_exr};
 #[cfg(feature = "tiff")]
 pub(crate) use self::geotiff::{convert_tiff_counting, measure_tiff, shade_tiff};
-pub use self::png::{convert_png, convert_png_seekable};
+pub use self::png::{convert_png, convert_png_seekable, png_codec_floor};
 pub(crate) use self::png::{convert_png_counting, convert_png_seekable_counting};
 pub(crate) use self::png::{curvature_png_seekable, shade_png_seekable};
 // The rows it reads are io's, by format.

@@ -120,6 +120,105 @@ pub(crate) fn convert_png_seekable_counting<W: Write + Seek>(
     Ok(missing)
 }
 
+/// The codec floor of [`convert_png_seekable`] into an 8-bit RGB PNG
+/// (`opts`' fit, the fast compression): the same run, the rows decoded on
+/// their thread, the bands filtered and deflated in pieces on every core
+/// and written as the conversion writes them, with the fit replaced by a
+/// copy of `texels`, normals made beforehand (row after row). The
+/// conversion's time over this one's is what its fit adds to decoding
+/// and encoding, overlapped as they are (`examples/codec_floor.rs`
+/// measures both). Given the conversion's own normals, the file is the
+/// conversion's, byte for byte. For that measurement only.
+///
+/// Errors: those of decoding, [`Error::BufferSize`] when `texels` do not
+/// cover the image, [`Error::Io`] if writing fails.
+#[doc(hidden)]
+pub fn png_codec_floor<W: Write + Seek>(
+    rows: impl RowSource,
+    opts: &Options,
+    texels: &[[u8; 3]],
+    out: &mut W,
+) -> Result<()> {
+    let len = crate::samples::image_len(rows.width(), rows.height())?;
+    if texels.len() != len {
+        return Err(Error::BufferSize { expected: len, actual: texels.len() });
+    }
+    let start = out.stream_position()?;
+    let (first_idat, _) =
+        convert_as(rows, None, opts, |_| {}, out, (PngCompression::Fast, true), GivenTexels { texels })?;
+    write_first_idat(out, start, &first_idat)
+}
+
+/// Texels made beforehand, for [`png_codec_floor`].
+struct GivenTexels<'a> {
+    texels: &'a [[u8; 3]],
+}
+
+/// The bands of the fit a conversion would run, each filled by a copy of
+/// the texels given.
+struct GivenBands<'a> {
+    fit: BandFit,
+    texels: &'a [[u8; 3]],
+}
+
+impl<'a> PngTexels for GivenTexels<'a> {
+    type Normal = [u8; 3];
+    type Fit = GivenBands<'a>;
+    fn fit(&self, (w, h): (usize, usize), opts: &Options, unit: f64) -> Result<GivenBands<'a>> {
+        Ok(GivenBands { fit: BandFit::new(w, h, opts)?.with_unit(unit), texels: self.texels })
+    }
+    fn bits(&self) -> u8 {
+        8
+    }
+    fn samples(&self) -> usize {
+        3
+    }
+    fn needs_heights(&self) -> Extra {
+        Extra::None
+    }
+    fn raw<'b>(&self, normals: &'b mut [[u8; 3]], _: &[f32]) -> Cow<'b, [u8]> {
+        Cow::Borrowed(normals.as_flattened())
+    }
+}
+
+impl BandStage<[u8; 3]> for GivenBands<'_> {
+    fn width(&self) -> usize {
+        self.fit.width()
+    }
+    fn height(&self) -> usize {
+        self.fit.height()
+    }
+    fn radius(&self) -> usize {
+        self.fit.radius()
+    }
+    fn band_rows(&self) -> usize {
+        self.fit.band_rows()
+    }
+    fn has_nodata(&self) -> bool {
+        false
+    }
+    fn missing(&self) -> usize {
+        0
+    }
+    fn band_list(&self) -> Vec<Range<usize>> {
+        self.fit.bands().collect()
+    }
+    fn work_bytes<H: crate::samples::Sample>(&self) -> u64 {
+        0
+    }
+    fn fit_into<'r, H: crate::samples::Sample>(
+        &self,
+        rows: Range<usize>,
+        _: &(dyn Fn(usize) -> &'r [H] + Sync),
+        out: &mut [[u8; 3]],
+        _: &mut [bool],
+    ) -> Result<()> {
+        let w = self.fit.width();
+        out.copy_from_slice(&self.texels[rows.start * w..rows.end * w]);
+        Ok(())
+    }
+}
+
 /// The lit view of the rows of `rows` (see [`crate::shade`]): the fit's
 /// normals lit by `lamp`, an 8-bit gray PNG written to `out` in one pass,
 /// the top rows last as [`convert_png_seekable`] writes them. The grey of
@@ -490,6 +589,32 @@ mod tests {
         let mut seekable = std::io::Cursor::new(Vec::new());
         convert_png_seekable(rows(), opts, png, |_| {}, &mut seekable).unwrap();
         [in_order, seekable.into_inner()]
+    }
+
+    /// The codec floor given the fit's own normals writes the conversion's
+    /// file, byte for byte, over several bands (the same filtering,
+    /// pieces and top rows last); texels that do not cover the image are
+    /// an error.
+    #[test]
+    fn the_codec_floor_writes_the_conversions_file() {
+        let (w, h) = (700, 90);
+        let heights = heights(w, h, 97);
+        let opts = Options::new().with_strength(crate::options::Strength::Scale(3.0));
+        let rows = || Rows { heights: heights.clone(), width: w, next: 0 };
+        let mut normals = vec![[0u8; 3]; w * h];
+        FitRequest::new(&opts).normals_into(&heights, w, h, &mut normals).unwrap();
+        let mut converted = std::io::Cursor::new(Vec::new());
+        convert_png_seekable(rows(), &opts, PngOptions::new(PngDepth::Eight), |_| {}, &mut converted).unwrap();
+        let mut floor = std::io::Cursor::new(Vec::new());
+        png_codec_floor(rows(), &opts, &normals, &mut floor).unwrap();
+        assert!(floor.get_ref() == converted.get_ref(), "the same bytes");
+        // Other texels, another file: the copy is what is written.
+        normals[w * h / 2] = [0, 0, 0];
+        let mut other = std::io::Cursor::new(Vec::new());
+        png_codec_floor(rows(), &opts, &normals, &mut other).unwrap();
+        assert!(other.get_ref() != converted.get_ref());
+        let short = png_codec_floor(rows(), &opts, &normals[1..], &mut std::io::Cursor::new(Vec::new()));
+        assert!(matches!(short, Err(Error::BufferSize { .. })), "{short:?}");
     }
 
     #[test]
