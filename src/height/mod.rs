@@ -469,12 +469,12 @@ thread_local! {
     static NORMALS: std::cell::RefCell<Vec<[f64; 3]>> = std::cell::RefCell::default();
 }
 
-/// The inverse of the normals whose slopes `planes` gives row by row,
+/// The inverse of the normals whose slopes `slopes` gives row by row,
 /// with holes (`None`: none): every entry point's.
 ///
 /// Errors: as [`heights_with_holes`].
 pub(crate) fn heights_of_planes(
-    planes: RowSlopes<'_>,
+    slopes: RowSlopes<'_>,
     width: usize,
     height: usize,
     holes: Option<&[bool]>,
@@ -490,11 +490,11 @@ pub(crate) fn heights_of_planes(
     match holes.filter(|m| m.iter().any(|&h| h)) {
         None => {
             memory::check(width, height, opts)?;
-            heights_of_slopes(&SlopeField::of_planes(planes, width, height, None)?, opts)
+            heights_of_slopes(&SlopeField::of_planes(slopes, width, height, None)?, opts)
         }
         Some(holes) => {
             check_masked(width, height, opts)?;
-            heights_of_slopes_with_holes(&SlopeField::of_planes(planes, width, height, Some(holes))?, holes, opts)
+            heights_of_slopes_with_holes(&SlopeField::of_planes(slopes, width, height, Some(holes))?, holes, opts)
         }
     }
 }
@@ -526,7 +526,7 @@ pub(crate) struct SlopeField<'a> {
     width: usize,
     height: usize,
     /// Row y's slopes.
-    normals: RowSlopes<'a>,
+    slopes: RowSlopes<'a>,
     /// Texels left at slope 0 and not counted without one.
     holes: Option<&'a [bool]>,
     /// Texels without a slope (nz ≤ 0 or a component not finite).
@@ -599,7 +599,7 @@ impl<'a> SlopeField<'a> {
         holes: Option<&'a [bool]>,
     ) -> Result<SlopeField<'a>> {
         crate::fit::checked_len(width, height)?;
-        let mut field = SlopeField { width, height, normals: slopes, holes, bad: 0 };
+        let mut field = SlopeField { width, height, slopes, holes, bad: 0 };
         field.bad = (0..height).into_par_iter().map(|y| field.with_row(y, |_, _| ()).0).sum();
         Ok(field)
     }
@@ -609,7 +609,7 @@ impl<'a> SlopeField<'a> {
     fn slopes_of(&self, y: usize, sx: &mut [f64], sy: &mut [f64]) -> usize {
         let w = self.width;
         let holes = self.holes.map(|m| &m[y * w..][..w]);
-        (self.normals)(y, &mut sx[..w], &mut sy[..w], holes)
+        (self.slopes)(y, &mut sx[..w], &mut sy[..w], holes)
     }
 
     /// `look(sx, sy)` of row `y`'s slopes, in the thread's own rows
