@@ -12,7 +12,7 @@ use crate::samples::Sample;
 
 use super::emit::{EmitScratch, normal_from_sums, squared_distance_sum, store_normals};
 use super::masked::{MaskSums, MaskedRow, Moments};
-use super::sums::{RowCache, RowRef, RowSums, SourceRows, WindowSums, patch_sums};
+use super::sums::{BLOCK_LANES, BlockLanes, RowCache, RowRef, RowSums, SourceRows, WindowSums, patch_sums};
 use super::unequal::RowSpacing;
 use super::{Texel, checked_len};
 
@@ -837,7 +837,7 @@ impl Plan {
         // Horizontal sums of the source rows a block of output rows and
         // the next one read (2N rows), in slot v mod 2N.
         let mut cache = RowCache::new(2 * n, w);
-        let row_sums = |v: isize, sums: &mut RowSums| self.blocked_row_sums(rows(v), gain, cols.clone(), sums);
+        let mut lanes = BlockLanes::default();
         let mut suffix: Vec<WindowSums> = (0..n).map(|_| WindowSums::zeros(w)).collect();
         let (zero, mut prefix, mut v) = (WindowSums::zeros(w), WindowSums::zeros(w), WindowSums::zeros(w));
         let mut scratch = EmitScratch::new(w);
@@ -852,7 +852,7 @@ impl Plan {
             // (rows top + r down to top + t − r, the last alone).
             for t in (ts.start..n).rev() {
                 let u = top + t as isize - r;
-                let h = cache.get(u, &row_sums);
+                let h = self.blocked_row((&mut cache, &mut lanes), rows, u, gain, &cols);
                 let (lower, upper) = suffix.split_at_mut(t + 1);
                 let previous = upper.first().unwrap_or(&zero);
                 lower[t].set_sum(previous, h, (u - o) as f64);
@@ -866,12 +866,15 @@ impl Plan {
                 let wanted = top + r + t as isize;
                 while through + 1 < wanted {
                     through += 1;
-                    prefix.add(cache.get(through, &row_sums), (through - o) as f64);
+                    prefix.add(
+                        self.blocked_row((&mut cache, &mut lanes), rows, through, gain, &cols),
+                        (through - o) as f64,
+                    );
                 }
                 if through < wanted {
                     through += 1;
                     prefix.add_then_combine(
-                        cache.get(through, &row_sums),
+                        self.blocked_row((&mut cache, &mut lanes), rows, through, gain, &cols),
                         (through - o) as f64,
                         &suffix[t],
                         shift,
@@ -887,6 +890,26 @@ impl Plan {
         }
     }
 
+    /// Source row v's sums in `cache`, made now unless it holds them:
+    /// compiled, on their own, for the widest vectors the processor has
+    /// (inside the strip's loop, three copies of them made its registers
+    /// spill; in a closure, they were compiled for baseline x86-64).
+    #[inline(always)]
+    fn blocked_row<'c, H: Sample>(
+        &self,
+        (cache, lanes): (&'c mut RowCache, &mut BlockLanes),
+        rows: &SourceRows<'_, '_, H>,
+        v: isize,
+        gain: f64,
+        cols: &Range<usize>,
+    ) -> &'c RowSums {
+        if let Some(sums) = cache.stale(v) {
+            let (plan, src, cols) = (self, rows(v), cols.clone());
+            pulp::Arch::new().dispatch(BlockedRow { plan, src, gain, cols, sums, lanes });
+        }
+        cache.held(v)
+    }
+
     /// Σz, Σiz, Σz² (z = gain · h) over each column's horizontal window of
     /// one source row, from block-aligned suffix and prefix sums (see
     /// [`Self::fit_strip_blocked`]).
@@ -897,6 +920,7 @@ impl Plan {
         gain: f64,
         cols: Range<usize>,
         out: &mut RowSums,
+        lanes: &mut BlockLanes,
     ) {
         let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, suffix, prefix, .. } = out;
         let (n, r) = (self.n, self.r);
@@ -905,8 +929,24 @@ impl Plan {
         let weight = |q: usize| q as f64 - (2 * r + 1) as f64;
         suffix.resize(n, [0.0; 3]);
         prefix.resize(n, [0.0; 3]);
-        for block in cols.start / n..=(cols.end - 1) / n {
+        let last = (cols.end - 1) / n;
+        // Whether every column of a block is in `cols` (all but perhaps the
+        // first and the last are).
+        let whole = |block: usize| block * n >= cols.start && (block + 1) * n <= cols.end;
+        let mut block = cols.start / n;
+        while block <= last {
             let bx = block * n;
+            if block + BLOCK_LANES - 1 <= last && whole(block) && whole(block + BLOCK_LANES - 1) {
+                let blocks = bx - cols.start..bx - cols.start + BLOCK_LANES * n;
+                lanes.side_by_side(n, weight, &padded[blocks.start..], |l, t, [h0, hi, hzz]| {
+                    let x = blocks.start + l * n + t;
+                    out_s0[x] = h0;
+                    out_si[x] = hi - (t as f64 - r as f64 - 1.0) * h0;
+                    out_szz[x] = hzz;
+                });
+                block += BLOCK_LANES;
+                continue;
+            }
             let ts = cols.start.saturating_sub(bx)..(cols.end - bx).min(n);
             // Value q of the block (column bx − r + q) is padded[bx + q − cols.start].
             let z = &padded[bx + ts.start - cols.start..];
@@ -949,6 +989,7 @@ impl Plan {
                 out_si[x] = (ai + pi) - (t as f64 - r as f64 - 1.0) * h0;
                 out_szz[x] = azz + pzz;
             }
+            block += 1;
         }
     }
 
@@ -1121,6 +1162,27 @@ impl Plan {
             let sum = squared_distance_sum::<ORTHOGONAL>(self.a, gain * si[x], gain * sj[x], czz);
             out[x] = ((sum * inv_n2).sqrt() * sx) as f32;
         }
+    }
+}
+
+/// [`Plan::blocked_row_sums`] of one source row, dispatched for the
+/// processor's instruction set.
+struct BlockedRow<'a, 'r, H> {
+    plan: &'a Plan,
+    src: RowRef<'r, H>,
+    gain: f64,
+    cols: Range<usize>,
+    sums: &'a mut RowSums,
+    lanes: &'a mut BlockLanes,
+}
+
+impl<H: Sample> pulp::WithSimd for BlockedRow<'_, '_, H> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        // Inlined here, so that it is compiled for each instruction set.
+        let BlockedRow { plan, src, gain, cols, sums, lanes } = self;
+        plan.blocked_row_sums(src, gain, cols, sums, lanes);
     }
 }
 

@@ -52,6 +52,77 @@ impl RowSums {
     }
 }
 
+/// Blocks of a row summed side by side by [`BlockLanes::side_by_side`].
+pub(super) const BLOCK_LANES: usize = 4;
+
+/// The block-aligned suffix and prefix sums of [`BLOCK_LANES`] adjacent
+/// blocks at once, one block a vector lane: each lane adds the same values
+/// in the same order as one block alone, so the bits are the same, and the
+/// chains of dependent additions of four blocks run side by side (one
+/// block at a time, they were the N ≥ 9 fit's largest cost).
+#[derive(Default)]
+pub(super) struct BlockLanes {
+    /// Value q of every block, lane l holding block l's.
+    values: Vec<[f64; BLOCK_LANES]>,
+    /// Σz, Σ(weight·z), Σz² of values q up to 2r (suffixes, index q) and of
+    /// values 2r + 1 to 2r + t (prefixes, index t).
+    suffix: Vec<[[f64; BLOCK_LANES]; 3]>,
+    prefix: Vec<[[f64; BLOCK_LANES]; 3]>,
+}
+
+impl BlockLanes {
+    /// The sums of [`BLOCK_LANES`] blocks of `n` (= 2r + 1) outputs, block
+    /// l's value q (its column − r + q) being `z[l · n + q]`, each value
+    /// weighted by `weight(q)`. Gives `out(l, t, [Σz, Σ weight·z, Σz²])` for
+    /// output t of block l, over the values t to t + 2r: the suffix of
+    /// values t to 2r plus the prefix 2r + 1 to 2r + t, each summed from
+    /// its first value (as `Plan::blocked_row_sums` sums one block).
+    #[inline(always)]
+    pub(super) fn side_by_side(
+        &mut self,
+        n: usize,
+        weight: impl Fn(usize) -> f64,
+        z: &[f64],
+        mut out: impl FnMut(usize, usize, [f64; 3]),
+    ) {
+        const L: usize = BLOCK_LANES;
+        let BlockLanes { values, suffix, prefix } = self;
+        values.resize(2 * n - 1, [0.0; L]);
+        for l in 0..L {
+            for (v, &z) in values.iter_mut().zip(&z[l * n..][..2 * n - 1]) {
+                v[l] = z;
+            }
+        }
+        suffix.resize(n, [[0.0; L]; 3]);
+        prefix.resize(n, [[0.0; L]; 3]);
+        let add = |sums: &mut [[f64; L]; 3], z: &[f64; L], w: f64| {
+            for l in 0..L {
+                sums[0][l] += z[l];
+                sums[1][l] += w * z[l];
+                sums[2][l] += z[l] * z[l];
+            }
+        };
+        // Suffix q = 2r − i and prefix t = i + 1 (value 2r + 1 + i) in one
+        // loop: six chains of vectors side by side.
+        let (mut a, mut p) = ([[0.0; L]; 3], [[0.0; L]; 3]);
+        for i in 0..n - 1 {
+            let (q, t) = (n - 1 - i, i + 1);
+            add(&mut a, &values[q], weight(q));
+            suffix[q] = a;
+            add(&mut p, &values[n + i], weight(n + i));
+            prefix[t] = p;
+        }
+        add(&mut a, &values[0], weight(0));
+        suffix[0] = a;
+        prefix[0] = [[0.0; L]; 3];
+        for l in 0..L {
+            for (t, (s, p)) in suffix.iter().zip(prefix.iter()).enumerate() {
+                out(l, t, [s[0][l] + p[0][l], s[1][l] + p[1][l], s[2][l] + p[2][l]]);
+            }
+        }
+    }
+}
+
 /// The horizontal sums of the last source rows read, by row: slot v mod
 /// the slots holds row v.
 pub(super) struct RowCache {

@@ -214,6 +214,48 @@ fn any_partition_of_float_heights_gives_the_whole_image_bits() {
     partitions_match(|v| (((v - 0.5) * 10.0).powi(5) * 1e-3) as f32, 7);
 }
 
+/// Float heights in rows wide enough that the blocked sums (N ≥ 9) sum
+/// four whole blocks at once, one a vector lane, against windows narrower
+/// than four blocks, whose every block is summed alone: the same bits of
+/// f64 normals (which show a sum's last bit more often than f32 ones), for
+/// widths that leave blocks cut at both ends, both fits, magnitudes far
+/// apart, and a hole.
+#[test]
+fn blocks_summed_side_by_side_give_the_bits_of_blocks_summed_alone() {
+    let mut rng = Rng(11);
+    for n in [9, 11, 33] {
+        let (w, h) = (9 * n + 5, n + 7);
+        for (k, fit) in [Fit::Orthogonal, Fit::Vertical].into_iter().enumerate() {
+            let mut heights: Vec<f32> =
+                field(w, h, &mut rng).into_iter().map(|v| (((v - 0.5) * 10.0).powi(5) * 1e-3) as f32).collect();
+            let nodata = (k == 1).then(|| {
+                heights[3 * w + 2 * n + 1] = -1.0e4;
+                -1.0e4
+            });
+            let opts =
+                Options::new().with_patch(n).with_fit(fit).with_strength(Strength::Scale(2.3)).with_nodata(nodata);
+            let mut expected = vec![[0.0f64; 3]; w * h];
+            FitRequest::new(&opts).normals_into(&heights, w, h, &mut expected).unwrap();
+            let mut got = vec![[f64::NAN; 3]; w * h];
+            for x in (0..w).step_by(n + 3) {
+                let xs = x..(x + n + 3).min(w);
+                let window = window_of((w, h), &xs, &(0..h), &opts, Held::Padded);
+                let (hw, hh) = window.held_size();
+                let x0 = x as isize - window.halo.left as isize;
+                let y0 = -(window.halo.top as isize);
+                let values = held(&heights, (w, h), opts.borders, x0..x0 + hw as isize, y0..y0 + hh as isize);
+                let mut out = vec![[0.0f64; 3]; xs.len() * h];
+                fit_window(&values, &window, &opts, &mut out, None).unwrap();
+                for y in 0..h {
+                    got[y * w + xs.start..y * w + xs.end].copy_from_slice(&out[y * xs.len()..][..xs.len()]);
+                }
+            }
+            let bits = |normals: &[[f64; 3]]| normals.iter().map(|n| n.map(f64::to_bits)).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&expected), "{w}×{h}, {opts:?}");
+        }
+    }
+}
+
 #[test]
 fn any_partition_of_f64_heights_gives_the_whole_image_bits() {
     partitions_match(|v| v, 3);
