@@ -358,10 +358,10 @@ impl Plan {
             Kernel::Sliding => (n + 1) * row(0) + window,
             // N rows' sums and their squares.
             Kernel::Direct => n * row(8 * padded) + window,
-            // 2N rows' sums; the values of the blocks side by side and
-            // their suffixes and prefixes (2N − 1 and 6N values a lane); N
-            // suffixes of window sums, a prefix, the sums and a zero.
-            Kernel::Blocked => 2 * n * row(0) + 8 * BLOCK_LANES as u64 * 8 * n + (n + 3) * window,
+            // 2N rows' sums, each with a block's suffixes and prefixes (N
+            // of 24 bytes each); N suffixes of window sums, a prefix, the
+            // sums and a zero.
+            Kernel::Blocked => 2 * n * row(48 * n) + (n + 3) * window,
             // N rows' sums and their squares; with holes, N rows' weighted
             // mask sums (three planes) and the six moments' planes.
             Kernel::Weighted => {
@@ -922,11 +922,13 @@ impl Plan {
         out: &mut RowSums,
         lanes: &mut BlockLanes,
     ) {
-        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, .. } = out;
+        let RowSums { s0: out_s0, si: out_si, szz: out_szz, padded, suffix, prefix, .. } = out;
         let (n, r) = (self.n, self.r);
         self.padded_row(src, (cols.start as isize - r as isize, (cols.end + r) as isize), gain, padded);
         // Weights relative to the next block's first value (q = 2r + 1).
         let weight = |q: usize| q as f64 - (2 * r + 1) as f64;
+        suffix.resize(n, [0.0; 3]);
+        prefix.resize(n, [0.0; 3]);
         let last = (cols.end - 1) / n;
         // Whether every column of a block is in `cols` (all but perhaps the
         // first and the last are).
@@ -934,22 +936,60 @@ impl Plan {
         let mut block = cols.start / n;
         while block <= last {
             let bx = block * n;
+            if block + BLOCK_LANES - 1 <= last && whole(block) && whole(block + BLOCK_LANES - 1) {
+                let blocks = bx - cols.start..bx - cols.start + BLOCK_LANES * n;
+                lanes.side_by_side(n, weight, &padded[blocks.start..], |l, t, [h0, hi, hzz]| {
+                    let x = blocks.start + l * n + t;
+                    out_s0[x] = h0;
+                    out_si[x] = hi - (t as f64 - r as f64 - 1.0) * h0;
+                    out_szz[x] = hzz;
+                });
+                block += BLOCK_LANES;
+                continue;
+            }
             let ts = cols.start.saturating_sub(bx)..(cols.end - bx).min(n);
             // Value q of the block (column bx − r + q) is padded[bx + q − cols.start].
             let z = &padded[bx + ts.start - cols.start..];
-            let out = |l: usize, t: usize, [h0, hi, hzz]: [f64; 3]| {
-                let x = bx + l * n + t - cols.start;
-                out_s0[x] = h0;
-                out_si[x] = hi - (t as f64 - r as f64 - 1.0) * h0;
-                out_szz[x] = hzz;
+            let at = |q: usize| z[q - ts.start];
+            // The suffixes (values q = 2r down to t) and the prefixes
+            // (values q = 2r + 1 up to 2r + t) in one loop while both run:
+            // six chains of additions side by side rather than three.
+            let (suffix_steps, prefix_steps) = (n - ts.start, ts.end.saturating_sub(1));
+            let (mut a0, mut ai, mut azz) = (0.0, 0.0, 0.0);
+            let (mut p0, mut pi, mut pzz) = (0.0, 0.0, 0.0);
+            let mut suffix_step = |i: usize| {
+                let q = 2 * r - i;
+                let zq = at(q);
+                a0 += zq;
+                ai += weight(q) * zq;
+                azz += zq * zq;
+                suffix[q] = [a0, ai, azz];
             };
-            if block + BLOCK_LANES - 1 <= last && whole(block) && whole(block + BLOCK_LANES - 1) {
-                lanes.side_by_side::<BLOCK_LANES>(n, ts, weight, z, out);
-                block += BLOCK_LANES;
-            } else {
-                lanes.side_by_side::<1>(n, ts, weight, z, out);
-                block += 1;
+            let mut prefix_step = |i: usize| {
+                let q = 2 * r + 1 + i;
+                let zq = at(q);
+                p0 += zq;
+                pi += weight(q) * zq;
+                pzz += zq * zq;
+                prefix[i + 1] = [p0, pi, pzz];
+            };
+            let both = suffix_steps.min(prefix_steps);
+            for i in 0..both {
+                suffix_step(i);
+                prefix_step(i);
             }
+            (both..suffix_steps).for_each(&mut suffix_step);
+            (both..prefix_steps).for_each(&mut prefix_step);
+            prefix[0] = [0.0; 3];
+            for t in ts {
+                let ([a0, ai, azz], [p0, pi, pzz]) = (suffix[t], prefix[t]);
+                let h0 = a0 + p0;
+                let x = bx + t - cols.start;
+                out_s0[x] = h0;
+                out_si[x] = (ai + pi) - (t as f64 - r as f64 - 1.0) * h0;
+                out_szz[x] = azz + pzz;
+            }
+            block += 1;
         }
     }
 

@@ -2,8 +2,6 @@
 //! row sums along each row's windows and the window sums down the rows
 //! (see the module docs of [`crate::fit`] for how they stay exact).
 
-use std::ops::Range;
-
 /// A source row as the fit reads it: heights, and the image column of the
 /// first (a window's rows start left of the image's edge, or inside it).
 pub(super) struct RowRef<'a, H> {
@@ -32,6 +30,9 @@ pub(super) struct RowSums {
     pub(super) szz: Vec<f64>,
     /// Scratch: the row's heights with their borders.
     pub(super) padded: Vec<f64>,
+    /// Scratch: a block's suffix and prefix sums (floats).
+    pub(super) suffix: Vec<[f64; 3]>,
+    pub(super) prefix: Vec<[f64; 3]>,
     /// Scratch: the squares of `padded` (floats).
     pub(super) squares: Vec<f64>,
 }
@@ -39,63 +40,61 @@ pub(super) struct RowSums {
 impl RowSums {
     pub(super) fn zeros(width: usize) -> Self {
         let z = vec![0.0; width];
-        RowSums { s0: z.clone(), si: z.clone(), szz: z, padded: Vec::new(), squares: Vec::new() }
+        RowSums {
+            s0: z.clone(),
+            si: z.clone(),
+            szz: z,
+            padded: Vec::new(),
+            suffix: Vec::new(),
+            prefix: Vec::new(),
+            squares: Vec::new(),
+        }
     }
 }
 
-/// Whole blocks of a row summed side by side by [`BlockLanes::side_by_side`]
-/// wherever that many follow one another (the others, one at a time).
+/// Blocks of a row summed side by side by [`BlockLanes::side_by_side`].
 pub(super) const BLOCK_LANES: usize = 4;
 
-/// The block-aligned suffix and prefix sums of a row's blocks (floats,
-/// N ≥ 9; `Plan::blocked_row_sums`), several adjacent blocks at once, one
-/// a vector lane: each lane adds its block's values in the order of one
-/// block alone, so the bits are the same however many run side by side,
-/// and the chains of dependent additions of four blocks overlap (one block
-/// at a time, they were the N ≥ 9 fit's largest cost).
+/// The block-aligned suffix and prefix sums of [`BLOCK_LANES`] adjacent
+/// blocks at once, one block a vector lane: each lane adds the same values
+/// in the same order as one block alone, so the bits are the same, and the
+/// chains of dependent additions of four blocks run side by side (one
+/// block at a time, they were the N ≥ 9 fit's largest cost).
 #[derive(Default)]
 pub(super) struct BlockLanes {
-    /// Value q of every block, lane after lane.
-    values: Vec<f64>,
-    /// Σz, Σ(weight·z) and Σz² of the values q to 2r (suffixes, at q) and
-    /// of the values 2r + 1 to 2r + t (prefixes, at t), lane after lane.
-    suffix: [Vec<f64>; 3],
-    prefix: [Vec<f64>; 3],
+    /// Value q of every block, lane l holding block l's.
+    values: Vec<[f64; BLOCK_LANES]>,
+    /// Σz, Σ(weight·z), Σz² of values q up to 2r (suffixes, index q) and of
+    /// values 2r + 1 to 2r + t (prefixes, index t).
+    suffix: Vec<[[f64; BLOCK_LANES]; 3]>,
+    prefix: Vec<[[f64; BLOCK_LANES]; 3]>,
 }
 
 impl BlockLanes {
-    /// The sums of outputs `ts` of `L` adjacent blocks of `n` = 2r + 1
-    /// outputs, value q of block l (its column − r + q) being
-    /// `z[l · n + q − ts.start]`, weighted by `weight(q)`: gives
-    /// `out(l, t, [Σz, Σ weight·z, Σz²])` of output t of block l, the values
-    /// t to t + 2r: the suffix of values t to 2r plus the prefix of values
-    /// 2r + 1 to 2r + t, each summed from its first value.
+    /// The sums of [`BLOCK_LANES`] blocks of `n` (= 2r + 1) outputs, block
+    /// l's value q (its column − r + q) being `z[l · n + q]`, each value
+    /// weighted by `weight(q)`. Gives `out(l, t, [Σz, Σ weight·z, Σz²])` for
+    /// output t of block l, over the values t to t + 2r: the suffix of
+    /// values t to 2r plus the prefix 2r + 1 to 2r + t, each summed from
+    /// its first value (as `Plan::blocked_row_sums` sums one block).
     #[inline(always)]
-    pub(super) fn side_by_side<const L: usize>(
+    pub(super) fn side_by_side(
         &mut self,
         n: usize,
-        ts: Range<usize>,
         weight: impl Fn(usize) -> f64,
         z: &[f64],
         mut out: impl FnMut(usize, usize, [f64; 3]),
     ) {
+        const L: usize = BLOCK_LANES;
         let BlockLanes { values, suffix, prefix } = self;
-        values.resize(L * (2 * n - 1), 0.0);
-        let (values, _) = values.as_chunks_mut::<L>();
-        // The values read: ts.start up to 2r + ts.end − 1.
-        let read = ts.start..n + ts.end.saturating_sub(1);
+        values.resize(2 * n - 1, [0.0; L]);
         for l in 0..L {
-            for (v, &z) in values[read.clone()].iter_mut().zip(&z[l * n..][..read.len()]) {
+            for (v, &z) in values.iter_mut().zip(&z[l * n..][..2 * n - 1]) {
                 v[l] = z;
             }
         }
-        fn planes<const L: usize>(sums: &mut [Vec<f64>; 3], n: usize) -> [&mut [[f64; L]]; 3] {
-            sums.each_mut().map(|plane| {
-                plane.resize(L * n, 0.0);
-                plane.as_chunks_mut::<L>().0
-            })
-        }
-        let ([s0, si, szz], [p0, pi, pzz]) = (planes::<L>(suffix, n), planes::<L>(prefix, n));
+        suffix.resize(n, [[0.0; L]; 3]);
+        prefix.resize(n, [[0.0; L]; 3]);
         let add = |sums: &mut [[f64; L]; 3], z: &[f64; L], w: f64| {
             for l in 0..L {
                 sums[0][l] += z[l];
@@ -103,32 +102,22 @@ impl BlockLanes {
                 sums[2][l] += z[l] * z[l];
             }
         };
-        // The suffixes (values q = 2r down to ts.start) and the prefixes
-        // (values q = 2r + 1 up) in one loop while both run: six chains of
-        // additions side by side rather than three.
-        let (suffix_steps, prefix_steps) = (n - ts.start, ts.end.saturating_sub(1));
+        // Suffix q = 2r − i and prefix t = i + 1 (value 2r + 1 + i) in one
+        // loop: six chains of vectors side by side.
         let (mut a, mut p) = ([[0.0; L]; 3], [[0.0; L]; 3]);
-        let mut suffix_step = |i: usize| {
-            let q = n - 1 - i;
+        for i in 0..n - 1 {
+            let (q, t) = (n - 1 - i, i + 1);
             add(&mut a, &values[q], weight(q));
-            [s0[q], si[q], szz[q]] = a;
-        };
-        let mut prefix_step = |i: usize| {
-            let q = n + i;
-            add(&mut p, &values[q], weight(q));
-            [p0[i + 1], pi[i + 1], pzz[i + 1]] = p;
-        };
-        let both = suffix_steps.min(prefix_steps);
-        for i in 0..both {
-            suffix_step(i);
-            prefix_step(i);
+            suffix[q] = a;
+            add(&mut p, &values[n + i], weight(n + i));
+            prefix[t] = p;
         }
-        (both..suffix_steps).for_each(&mut suffix_step);
-        (both..prefix_steps).for_each(&mut prefix_step);
-        [p0[0], pi[0], pzz[0]] = [[0.0; L]; 3];
+        add(&mut a, &values[0], weight(0));
+        suffix[0] = a;
+        prefix[0] = [[0.0; L]; 3];
         for l in 0..L {
-            for t in ts.clone() {
-                out(l, t, [s0[t][l] + p0[t][l], si[t][l] + pi[t][l], szz[t][l] + pzz[t][l]]);
+            for (t, (s, p)) in suffix.iter().zip(prefix.iter()).enumerate() {
+                out(l, t, [s[0][l] + p[0][l], s[1][l] + p[1][l], s[2][l] + p[2][l]]);
             }
         }
     }
