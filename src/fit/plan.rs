@@ -359,9 +359,10 @@ impl Plan {
             // N rows' sums and their squares.
             Kernel::Direct => n * row(8 * padded) + window,
             // 2N rows' sums, each with a block's suffixes and prefixes (N
-            // of 24 bytes each); N suffixes of window sums, a prefix, the
-            // sums and a zero.
-            Kernel::Blocked => 2 * n * row(48 * n) + (n + 3) * window,
+            // of 24 bytes each); the values of four blocks side by side and
+            // their suffixes and prefixes (2N − 1 and 6N values a lane); N
+            // suffixes of window sums, a prefix, the sums and a zero.
+            Kernel::Blocked => 2 * n * row(48 * n) + 8 * BLOCK_LANES as u64 * 8 * n + (n + 3) * window,
             // N rows' sums and their squares; with holes, N rows' weighted
             // mask sums (three planes) and the six moments' planes.
             Kernel::Weighted => {
