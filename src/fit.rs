@@ -161,6 +161,63 @@ mod tests {
         out
     }
 
+    /// Stored integers at N = 3 are summed outright, as floats are
+    /// ([`Plan::kernel`]), not by the running sums larger patches take:
+    /// the sums are exact either way, so the texels (f64 normals, which
+    /// show a sum's last bit, and the residual) must be the running sums'
+    /// bits, with and without holes, in the one-pass emit and the planes'.
+    #[test]
+    fn stored_integers_summed_outright_give_the_bits_of_running_sums() {
+        use crate::samples::Sample;
+        let (w, h) = (41, 29);
+        let heights: Vec<u16> = (0..w * h).map(|k| ((k * 7919 + (k / w) * 104_729) % 65_536) as u16).collect();
+        let hole = f64::from(heights[5 * w + 7]);
+        let mut compared = 0;
+        for fit in [Fit::Orthogonal, Fit::Vertical] {
+            for borders in [Borders::both(Border::Wrap), Borders { x: Border::Mirror, y: Border::Clamp }] {
+                for (nodata, with_residual) in [(None, false), (None, true), (Some(hole), false)] {
+                    let opts = Options::new()
+                        .with_patch(3)
+                        .with_fit(fit)
+                        .with_borders(borders)
+                        .with_strength(crate::Strength::Scale(40.0))
+                        .with_nodata(nodata);
+                    let plan = Plan::new(w, h, &opts).unwrap();
+                    assert_eq!(plan.kernel(u16::UNIT), plan::Kernel::Direct);
+                    let gain = plan.scale * u16::UNIT;
+                    let rows = |v: isize| RowRef {
+                        values: &heights[plan.borders.y.map(v, h) * w..][..w],
+                        x0: 0,
+                        holes: nodata.is_some(),
+                    };
+                    let run = |outright: bool| {
+                        let mut out = vec![[0.0f64; 3]; w * h];
+                        let mut residual = vec![0.0f32; w * h];
+                        let mut valid = vec![false; w * h];
+                        let strip = plan::Strip {
+                            y0: 0,
+                            x0: 0,
+                            out: out.chunks_mut(w).collect(),
+                            residual: with_residual.then(|| residual.chunks_mut(w).collect()),
+                            valid: nodata.map(|v| (valid.chunks_mut(w).collect(), v)),
+                        };
+                        match outright {
+                            true => plan.fit_strip_direct::<u16, [f64; 3], 3>(&rows, (1.0, gain), strip),
+                            false => plan.fit_strip_sliding(&rows, gain, strip),
+                        }
+                        let normals: Vec<[u64; 3]> = out.iter().map(|n| n.map(f64::to_bits)).collect();
+                        (normals, residual.iter().map(|r| r.to_bits()).collect::<Vec<_>>(), valid)
+                    };
+                    let (outright, running) = (run(true), run(false));
+                    assert!(outright.0.iter().any(|n| n[0] != 0), "non-zero slopes");
+                    assert_eq!(outright, running, "{opts:?}, residual {with_residual}");
+                    compared += 1;
+                }
+            }
+        }
+        assert_eq!(compared, 12);
+    }
+
     /// The patch moments of the sliding sums against the sums written out
     /// over each N×N patch, through the borders' index maps.
     #[test]
