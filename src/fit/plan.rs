@@ -286,8 +286,7 @@ impl Plan {
         // Stored integers are summed as they are, exactly, whatever the
         // kernel, and the gain comes after, in the normals; floats are
         // scaled first.
-        let integers = self.spacing.is_none() && unit != 1.0;
-        let gains = if integers { (1.0, gain) } else { (gain, 1.0) };
+        let gains = if self.sums_integers(unit) { (1.0, gain) } else { (gain, 1.0) };
         // The strips' sums are loops across the columns: compiled, with the
         // strip's whole loop inlined, for the widest vectors the processor
         // has (as `EmitRow` is). Rust fuses no multiply with an add and
@@ -320,13 +319,20 @@ impl Plan {
     pub(super) fn kernel(&self, unit: f64) -> Kernel {
         if self.weights != Weights::Uniform {
             Kernel::Weighted
-        } else if self.spacing.is_none() && unit != 1.0 && self.n > 3 {
+        } else if self.sums_integers(unit) && self.n > 3 {
             Kernel::Sliding
         } else if self.n <= 7 {
             Kernel::Direct
         } else {
             Kernel::Blocked
         }
+    }
+
+    /// Whether samples of `unit` are summed as the integers they store
+    /// (a unit below 1), the gain applied after: not in map units, which
+    /// take every value as it is given.
+    fn sums_integers(&self, unit: f64) -> bool {
+        self.spacing.is_none() && unit != 1.0
     }
 
     /// The bytes [`Self::fit_rows`] allocates, beyond its caller's
