@@ -41,6 +41,14 @@ pub struct ExrRows {
     /// The heights of the block being handed out, from row `current_y0`.
     current: Vec<f64>,
     current_y0: usize,
+    /// The wanted channels' planes of the block being read, and one line's
+    /// samples as stored: kept from block to block, so that a block's
+    /// buffers are not new pages each time (under glibc's
+    /// `MALLOC_TRIM_THRESHOLD_`, which Dask sets, freed blocks went back to
+    /// the system and every block's buffers came back as fresh pages:
+    /// twice the processor time of a 16384² EXR conversion).
+    planes: Vec<Vec<f64>>,
+    line: LineSamples,
     /// The next row handed out.
     next: usize,
 }
@@ -173,6 +181,8 @@ impl ExrRows {
             lines_per_block,
             current: Vec::new(),
             current_y0: first_row - first_row % lines_per_block,
+            planes: Vec::new(),
+            line: LineSamples::default(),
             next: first_row,
         }
     }
@@ -184,7 +194,7 @@ impl ExrRows {
             Source::Plane(c) => vec![c],
             Source::Luma(rgb) => rgb.to_vec(),
         };
-        let mut planes = match &mut self.decoder {
+        match &mut self.decoder {
             Decoder::Exr { blocks, channels, part, early } => {
                 let block = next_block(blocks, early, *part, y0, self.lines_per_block, self.height)?;
                 let index = block.index;
@@ -194,14 +204,21 @@ impl ExrRows {
                 {
                     return Err(Error::Decode(format!("block for row {y0} has the wrong size")));
                 }
-                block_planes(&block, channels, &wanted, self.width, y0, rows)?
+                let into = (&mut self.planes, &mut self.line);
+                block_planes(&block, channels, &wanted, (self.width, y0, rows), into)?;
             }
-            Decoder::Subsampled { file, part } => part.read_block(file, y0, &wanted)?,
-        };
-        self.current = match planes.as_slice() {
-            [r, g, b] => r.iter().zip(g).zip(b).map(|((&r, &g), &b)| luma(r, g, b)).collect(),
-            _ => planes.swap_remove(0),
-        };
+            Decoder::Subsampled { file, part } => self.planes = part.read_block(file, y0, &wanted)?,
+        }
+        match self.planes.as_mut_slice() {
+            [r, g, b] => {
+                self.current.clear();
+                self.current.extend(r.iter().zip(&*g).zip(&*b).map(|((&r, &g), &b)| luma(r, g, b)));
+            }
+            // The plane becomes the current block, and the current block's
+            // buffer the plane's for the next.
+            [plane, ..] => std::mem::swap(&mut self.current, plane),
+            [] => unreachable!("one or three channels are wanted"),
+        }
         self.current_y0 = y0;
         Ok(())
     }
@@ -247,16 +264,30 @@ fn next_block(
     }
 }
 
-/// The rows of the `wanted` channels of a block, as `f32`.
+/// One line's samples as a block stores them, for [`block_planes`].
+#[derive(Default)]
+struct LineSamples {
+    floats: Vec<f32>,
+    halves: Vec<f16>,
+    ints: Vec<u32>,
+}
+
+/// The rows of the `wanted` channels of a block (`rows` rows of `w` from
+/// row `y0`), widened to f64, into `planes` (one a wanted channel, 0 where
+/// the block has no line), with `line` for the samples as stored.
 fn block_planes(
     block: &UncompressedBlock,
     channels: &ChannelList,
     wanted: &[usize],
-    w: usize,
-    y0: usize,
-    rows: usize,
-) -> Result<Vec<Vec<f64>>> {
-    let mut planes = vec![vec![0.0f64; rows * w]; wanted.len()];
+    (w, y0, rows): (usize, usize, usize),
+    (planes, line_samples): (&mut Vec<Vec<f64>>, &mut LineSamples),
+) -> Result<()> {
+    planes.resize_with(wanted.len(), Vec::new);
+    for plane in planes.iter_mut() {
+        plane.clear();
+        plane.resize(rows * w, 0.0);
+    }
+    let LineSamples { floats, halves, ints } = line_samples;
     for line in block.lines(channels) {
         let Some(k) = wanted.iter().position(|&c| c == line.location.channel) else { continue };
         let row = line.location.position.y() - y0;
@@ -265,27 +296,27 @@ fn block_planes(
         // reader keeps u32 in f64 too).
         let read = match channels.list[line.location.channel].sample_type {
             ExrSample::F32 => {
-                let mut floats = vec![0.0f32; w];
-                line.read_samples_into_slice(&mut floats).map(|()| {
-                    out.iter_mut().zip(&floats).for_each(|(o, &v)| *o = f64::from(v));
+                floats.resize(w, 0.0);
+                line.read_samples_into_slice(floats).map(|()| {
+                    out.iter_mut().zip(&*floats).for_each(|(o, &v)| *o = f64::from(v));
                 })
             }
             ExrSample::F16 => {
-                let mut halves = vec![f16::ZERO; w];
-                line.read_samples_into_slice(&mut halves).map(|()| {
-                    out.iter_mut().zip(&halves).for_each(|(o, h)| *o = f64::from(h.to_f32()));
+                halves.resize(w, f16::ZERO);
+                line.read_samples_into_slice(halves).map(|()| {
+                    out.iter_mut().zip(&*halves).for_each(|(o, h)| *o = f64::from(h.to_f32()));
                 })
             }
             ExrSample::U32 => {
-                let mut ints = vec![0u32; w];
-                line.read_samples_into_slice(&mut ints).map(|()| {
-                    out.iter_mut().zip(&ints).for_each(|(o, &n)| *o = f64::from(n));
+                ints.resize(w, 0);
+                line.read_samples_into_slice(ints).map(|()| {
+                    out.iter_mut().zip(&*ints).for_each(|(o, &n)| *o = f64::from(n));
                 })
             }
         };
         read.map_err(from_exr_error)?;
     }
-    Ok(planes)
+    Ok(())
 }
 
 impl RowSource for ExrRows {
