@@ -13,8 +13,9 @@ Steps (each timed):
    written by normalfit.dask.to_zarr (a temporary store renamed into place)
    on a LocalCluster of 2 worker processes, 1 thread each, memory_limit
    1 GiB each. Printed: wall time, texels/s in all and per worker thread,
-   and each worker process's peak RSS, sampled with psutil every 50 ms
-   during the run.
+   the processor time of the workers and of this process (which runs the
+   scheduler) and texels per processor second, and each worker process's
+   peak RSS, sampled with psutil every 50 ms during the run.
 3. With --cli PATH (the normalfit binary): the single-process command
    line on the same heights. heights.exr holds the same float32 values as
    one channel Y (uncompressed scanlines, written here a row of chunks at
@@ -22,9 +23,10 @@ Steps (each timed):
    cluster's options (N, wrap, scale 8, --bits) and --max-texels the
    raster's size. Printed: wall time, texels/s in all and per core (the
    command line's fit uses every core of the machine), its CPU time over
-   its wall time, and its peak RSS, sampled as the workers' are. Then the
-   PNG's first --cli-check-rows rows (0: all) are read back with pypng,
-   streaming, and compared with normals.zarr.
+   its wall time, texels per processor second and the cluster's over
+   them (the ratio of docs/dask.md), and its peak RSS, sampled as the
+   workers' are. Then the PNG's first --cli-check-rows rows (0: all) are
+   read back with pypng, streaming, and compared with normals.zarr.
 4. The comparison: normalfit.normals on the whole array in this process
    (every core, the library's default), after reading the heights whole;
    and the two results compared chunk by chunk (--no-compare skips it, for
@@ -145,14 +147,14 @@ def write_exr(heights_path: Path, exr_path: Path) -> None:
             out.write(blocks.tobytes())
 
 
-def run_cli(command: list[str]) -> tuple[float, float, int]:
-    """Runs the command line; returns its wall time, its CPU time (user and
-    system, the kernel's, from wait4) and its peak RSS in bytes, sampled
-    like the workers'. (wait4's ru_maxrss is not the program's: Python
+def run_cli(command: list[str], env: dict[str, str]) -> tuple[float, float, int]:
+    """Runs the command line in `env`; returns its wall time, its CPU time
+    (user and system, the kernel's, from wait4) and its peak RSS in bytes,
+    sampled like the workers'. (wait4's ru_maxrss is not the program's: Python
     starts it with vfork, and Linux counts the parent's peak, which the
     child shared until exec, as the child's.)"""
     start = time.perf_counter()
-    proc = subprocess.Popen(command)
+    proc = subprocess.Popen(command, env=env)
     with PeakRss({"cli": proc.pid}) as rss:
         _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
@@ -204,7 +206,16 @@ def main() -> None:
     parser.add_argument("--no-compare", action="store_true",
                         help="skip the in-memory normalfit.normals run and its check")
     parser.add_argument("--keep", action="store_true", help="keep the Zarr stores (and the EXR and PNG)")
+    parser.add_argument("--raw", action="store_true",
+                        help="both Zarr stores without a compressor (Zarr's default codec otherwise)")
     args = parser.parse_args()
+    # The command line runs in the environment this process had before
+    # Dask changed it: a LocalCluster sets MALLOC_TRIM_THRESHOLD_=65536
+    # (for its workers, in this process's environment too), under which
+    # glibc hands every freed block at the heap's top back and the command
+    # line's blocks come back as fresh pages: at 32768², twice its
+    # processor time, most of it the kernel's.
+    plain_env = dict(os.environ)
     if args.cli_check_rows < 0:
         parser.error("--cli-check-rows: a number of rows, 0 for all")
     if args.cli is not None:
@@ -239,20 +250,27 @@ def main() -> None:
     shutil.rmtree(heights_path, ignore_errors=True)
     raster = da.map_blocks(generate_block, chunks=da.core.normalize_chunks(args.chunk, (args.size, args.size)),
                            dtype=np.float32, meta=np.empty((0, 0), np.float32))
-    nd.to_zarr(raster, heights_path)
+    codec: dict[str, Any] = {"compressors": None} if args.raw else {}
+    nd.to_zarr(raster, heights_path, **codec)
     print(f"heights.zarr written in {time.perf_counter() - start:.1f} s")
 
     # 2. The normals on the cluster.
     shutil.rmtree(normals_path, ignore_errors=True)
     lazy = nd.normals(nd.read_zarr(heights_path), **opts)
     pids = client.run(os.getpid)
+    # The processor time of the workers and of this process (the client,
+    # and a LocalCluster's scheduler): known for local workers only.
+    local = [psutil.Process(pid) for pid in pids.values()] + [psutil.Process()] if cluster is not None else []
+    used = lambda: sum(p.cpu_times().user + p.cpu_times().system for p in local)  # noqa: E731
     with PeakRss(pids) as rss:
-        start = time.perf_counter()
-        nd.to_zarr(lazy, normals_path)
-        wall = time.perf_counter() - start
+        start, cpu_before = time.perf_counter(), used()
+        nd.to_zarr(lazy, normals_path, **codec)
+        wall, cluster_cpu = time.perf_counter() - start, used() - cpu_before
     rate = texels / wall
     print(f"normals.zarr ({args.bits}-bit) on the cluster: {wall:.1f} s, {rate / 1e6:.1f} Mtexels/s, "
-          f"{rate / cores / 1e6:.1f} Mtexels/s per worker thread")
+          f"{rate / cores / 1e6:.1f} Mtexels/s per worker thread"
+          + (f"; processor time {cluster_cpu:.1f} s, {texels / cluster_cpu / 1e6:.1f} Mtexels per processor second"
+             if local else ""))
     for name, peak in sorted(rss.peak.items()):
         print(f"  worker {name}: peak RSS {peak / 2**20:.0f} MiB (limit {args.memory_limit})")
     client.close()
@@ -263,18 +281,24 @@ def main() -> None:
     if args.cli is not None:
         start = time.perf_counter()
         write_exr(heights_path, exr_path)
+        # On disk before the command line starts: its output's syncs would
+        # otherwise write the EXR's pages too, on its processor time.
+        os.sync()
         print(f"heights.exr written in {time.perf_counter() - start:.1f} s "
               f"({exr_path.stat().st_size / 2**30:.2f} GiB, float32 Y, uncompressed)")
         command = [os.fspath(args.cli), "convert", os.fspath(exr_path), "-o", os.fspath(png_path),
                    "--patch", str(opts["patch"]), "--border", str(opts["border"]), "--scale", str(opts["scale"]),
                    "--bits", str(args.bits), "--max-texels", str(texels), "--quiet"]
         print("$ " + " ".join(command))
-        wall, cpu, peak = run_cli(command)
+        wall, cpu, peak = run_cli(command, plain_env)
         machine = os.cpu_count() or 1
         rate = texels / wall
         print(f"normals.png ({args.bits}-bit) by the command line: {wall:.1f} s, {rate / 1e6:.1f} Mtexels/s, "
               f"{rate / machine / 1e6:.1f} Mtexels/s per core (its fit uses all {machine} cores; "
-              f"CPU time {cpu:.1f} s, {cpu / wall:.2f} cores busy on average), peak RSS {peak / 2**20:.0f} MiB")
+              f"CPU time {cpu:.1f} s, {cpu / wall:.2f} cores busy on average, {texels / cpu / 1e6:.1f} Mtexels per "
+              f"processor second), peak RSS {peak / 2**20:.0f} MiB")
+        if local:
+            print(f"the cluster's texels per processor second over the command line's: {cpu / cluster_cpu:.2f}")
         rows = args.size if args.cli_check_rows == 0 else min(args.cli_check_rows, args.size)
         start = time.perf_counter()
         same = png_matches_zarr(png_path, normals_path, rows)

@@ -171,6 +171,23 @@ def test_a_patch_wider_than_the_image(client: Any) -> None:
             assert np.array_equal(got, normalfit.normals(whole, patch=15, border=border)), (border, chunks)
 
 
+@pytest.mark.parametrize("border", ["wrap", "clamp", ("mirror", "wrap")])
+def test_the_graph_is_two_tasks_a_chunk(border: Any) -> None:
+    """Beside the input's tasks, each chunk's strips for its neighbours'
+    halos and its fit, nothing more (map_overlap made 25 a chunk under
+    wrap, whose scheduling took a third of a cluster's processor time:
+    docs/dask.md); and each input chunk is made once."""
+    whole = heights((40, 30), np.float32)
+    array, made = counted(whole, (10, 10))
+    lazy = nd.normals(array, patch=5, border=border)
+    added = set(dict(lazy.__dask_graph__())) - set(dict(array.__dask_graph__()))
+    assert len(added) == 2 * 4 * 3, sorted(map(str, added))[:8]
+    with dask.config.set(scheduler="synchronous"):
+        got = lazy.compute()
+    assert sorted(made) == sorted(itertools.product(range(4), range(3)))
+    assert np.array_equal(got, normalfit.normals(whole, patch=5, border=border))
+
+
 def test_options_are_checked_when_the_graph_is_made() -> None:
     array = da.zeros((8, 8), chunks=4, dtype=np.float32)
     with pytest.raises(ValueError, match="auto"):

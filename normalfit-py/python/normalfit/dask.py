@@ -3,8 +3,8 @@ machine's memory, equal to the whole image's, bit for bit.
 
 Each chunk's normals are computed by the library's window fit
 (``normalfit::FitRequest::window``) from the chunk and the halo the library
-plans (``normalfit::fit::HaloPlan``: r = patch // 2 texels), which
-``dask.array.map_overlap`` gathers around it.
+plans (``normalfit::fit::HaloPlan``: r = patch // 2 texels), taken from the
+strips its eight neighbours copy out: two tasks a chunk.
 Every texel's sums come from its own patch alone, so the result is exactly
 ``normalfit.normals`` of the whole array, whatever the chunking.
 
@@ -27,12 +27,14 @@ import os
 import shutil
 import time
 import uuid
+from functools import partial
 from pathlib import Path
 from collections.abc import Sequence
 from typing import Any
 
 import dask
 import dask.array as da
+from dask.highlevelgraph import HighLevelGraph
 import numpy as np
 
 from . import _normalfit, _pixel_size
@@ -68,9 +70,9 @@ def _describe(index: tuple[int, int], rows: tuple[int, int], cols: tuple[int, in
 
 
 def _merged(chunks: tuple[int, ...], depth: int) -> tuple[int, ...]:
-    """Chunks of at least ``depth`` texels (what ``map_overlap`` needs of
-    each neighbour), made by joining neighbours; unchanged when every chunk
-    already has ``depth``."""
+    """Chunks of at least ``depth`` texels (a chunk's halo on a side comes
+    from its one neighbour there), made by joining neighbours; unchanged
+    when every chunk already has ``depth``."""
     if all(c >= depth for c in chunks):
         return chunks
     merged: list[int] = []
@@ -88,36 +90,63 @@ def _merged(chunks: tuple[int, ...], depth: int) -> tuple[int, ...]:
     return tuple(merged)
 
 
-def _fit_block(
-    held: np.ndarray,
+def _halo_strips(block: np.ndarray, depth: tuple[int, int]) -> dict[tuple[int, int], np.ndarray]:
+    """The parts of a chunk its neighbours' halos take, copied out (so a
+    neighbour's task receives them, not the chunk): keyed (rows, columns),
+    0 the first ``depth`` lines of that axis, 1 all of them, 2 the last;
+    (1, 1), the chunk itself, is not one. An axis without depth gives
+    only its 1s."""
+    (dy, dx) = depth
+    rows = {0: slice(0, dy), 1: slice(None), 2: slice(block.shape[0] - dy, None)}
+    cols = {0: slice(0, dx), 1: slice(None), 2: slice(block.shape[1] - dx, None)}
+    return {
+        (a, b): block[rows[a], cols[b]].copy()
+        for a in ((0, 1, 2) if dy else (1,))
+        for b in ((0, 1, 2) if dx else (1,))
+        if (a, b) != (1, 1)
+    }
+
+
+def _fit_chunk(
+    core: np.ndarray,
+    around: list[list[dict[tuple[int, int], np.ndarray] | None]],
     *,
+    where: tuple[tuple[int, int], tuple[int, int], tuple[int, int]],
+    halo: tuple[int, int, int, int],
     image: tuple[int, int],
     options: dict[str, Any],
-    block_info: Any = None,
 ) -> np.ndarray:
-    """One chunk's normals from the chunk and the halo ``map_overlap``
-    gathered: the halo the library plans for the chunk."""
-    index, rows, cols = _where(block_info)
+    """One chunk's normals from the chunk and, round it, the halo the
+    library plans for it (``halo``: left, right, top, bottom), taken from
+    the neighbours' strips ``around[1 + di][1 + dj]`` (the neighbour di
+    rows of chunks down and dj columns right, wrapping where the border
+    does; None where no halo is read)."""
+    index, rows, cols = where
     try:
-        size = (cols[1] - cols[0], rows[1] - rows[0])
-        (left, right, top, bottom) = _normalfit.window_halo(
-            image, (cols[0], rows[0]), size, options["patch"], options["border"], options["detail"],
-            options["weights"],
-        )
-        # map_overlap holds the same depth round every chunk (none beyond
-        # an edge that does not wrap); the library's halo for this chunk is
-        # at most that (binomial weights by blocks plan it chunk by chunk).
-        (depth_y, depth_x), (wrap_y, wrap_x) = options["depth"], options["periodic"]
-        held_top = depth_y if wrap_y or rows[0] > 0 else 0
-        held_bottom = depth_y if wrap_y or rows[1] < image[1] else 0
-        held_left = depth_x if wrap_x or cols[0] > 0 else 0
-        held_right = depth_x if wrap_x or cols[1] < image[0] else 0
-        gathered = (size[1] + held_top + held_bottom, size[0] + held_left + held_right)
-        if held.shape != gathered or top > held_top or bottom > held_bottom or left > held_left or right > held_right:
-            raise ValueError(f"the chunk and its halo hold {held.shape} texels, expected {gathered}")
-        held = held[held_top - top:held_top + size[1] + bottom, held_left - left:held_left + size[0] + right]
+        (left, right, top, bottom) = halo
+        (h, w) = core.shape
+        held = np.empty((h + top + bottom, w + left + right), core.dtype)
+        held[top:top + h, left:left + w] = core
+        # Along each axis: the neighbour before gives its last lines (its
+        # strips' 2s), the chunk's own lines are all of them (1s), the
+        # neighbour after gives its first (0s): (strip part, how many
+        # lines, where they go in the window).
+        parts_y = ((2, top, 0), (1, h, top), (0, bottom, top + h))
+        parts_x = ((2, left, 0), (1, w, left), (0, right, left + w))
+        for di, (a, lines_y, at_y) in enumerate(parts_y):
+            for dj, (b, lines_x, at_x) in enumerate(parts_x):
+                if (di, dj) == (1, 1) or lines_y == 0 or lines_x == 0:
+                    continue
+                strips = around[di][dj]
+                if strips is None:
+                    raise ValueError(f"no neighbouring chunk holds the halo at {(di - 1, dj - 1)}")
+                strip = strips[(a, b)]
+                # A strip holds the most any chunk reads; this one may read fewer.
+                take_y = slice(strip.shape[0] - lines_y, None) if a == 2 else slice(0, lines_y)
+                take_x = slice(strip.shape[1] - lines_x, None) if b == 2 else slice(0, lines_x)
+                held[at_y:at_y + lines_y, at_x:at_x + lines_x] = strip[take_y, take_x]
         result = _normalfit.window_normals(
-            held, image, (cols[0], rows[0]), (left, right, top, bottom), options["patch"], options["fit"],
+            held, image, (cols[0], rows[0]), halo, options["patch"], options["fit"],
             options["border"], options["convention"], options["scale"], options["relief"], options["invert"],
             options["dtype"], options["residual"], options["threads"], options["nodata"], options["detail"],
             options["units"], options["pixel_size"], options["weights"], **(options["product"] or {}),
@@ -164,10 +193,11 @@ def normals(
         normalfit.normals (with detail, the halo is the largest size's) (dtype float32 unit vectors, or uint8 / uint16
         encoded RGB).
     border: "wrap", "clamp" or "mirror", for both axes or as an (x, y)
-        pair (or "x,y"). Wrap becomes Dask's ``periodic`` boundary; clamp
-        and mirror take ``boundary="none"``: the halo stops at the image's
-        edge and the library maps the reads beyond it (Dask's ``reflect``
-        repeats the edge texel, the contract's mirror does not). "auto" is
+        pair (or "x,y"). Wrap takes the halo of a chunk at the image's edge
+        from the chunk at the far edge; under clamp and mirror the halo
+        stops at the image's edge and the library maps the reads beyond it
+        (a reflection such as Dask's ``reflect`` repeats the edge texel,
+        the contract's mirror does not). "auto" is
         refused (ValueError): it needs the whole array's tiling check; run
         ``check_tiling(array)`` and pass its ``suggested_borders`` (the
         borders normalfit.normals(border="auto") picks, exactly).
@@ -189,8 +219,9 @@ def normals(
         threads it was given and no more. None: every core (rayon's global
         pool), for a single-threaded scheduler.
 
-    Chunks smaller than the halo: ``map_overlap`` needs each chunk to hold
-    r texels; an axis with a smaller chunk is rechunked by joining
+    Chunks smaller than the halo: a chunk's halo on a side comes from its
+    one neighbour there, so each chunk must hold r texels; an axis with a
+    smaller chunk is rechunked by joining
     neighbours for the fit, and the result rechunked back to the input's
     chunks. An axis in one chunk takes no halo (the library maps every
     border's reads into the chunk).
@@ -232,7 +263,7 @@ def normals(
         patch=patch, fit=fit, border=(bx, by), convention=convention, scale=scale, relief=relief, invert=invert,
         dtype=out_dtype, residual=residual, threads=threads, nodata=nodata,
         detail=None if detail is None else list(detail), units=units, pixel_size=pixel_size, weights=weights,
-        product=None if _product is None else dict(_product), depth=depth, periodic=periodic,
+        product=None if _product is None else dict(_product),
     )
     packed_dtype = np.dtype(np.float64) if residual else out_dtype
     result = _map(work, depth, periodic, chunks, (w, h), options, packed_dtype)
@@ -252,28 +283,66 @@ def _map(
     options: dict[str, Any],
     dtype: np.dtype[Any],
 ) -> Any:
+    """The graph: one task per chunk copies out the strips its neighbours'
+    halos take (``_halo_strips``), one fits each chunk from the chunk and
+    its eight neighbours' strips (``_fit_chunk``). Two tasks a chunk,
+    where ``dask.array.map_overlap`` made 25 under wrap and 8 under clamp
+    on a 4 × 4 grid (a slice of each neighbour, the joins, and wrap's
+    boundary chunks and their own overlaps), whose scheduling took a
+    third of the cluster's processor time (docs/dask.md)."""
     # A terrain product is one value a texel (2-D chunks); normals add an
     # axis of 3 components (4 with the residual).
     if options["product"] is not None:
-        shape: dict[str, Any] = dict(chunks=chunks, meta=np.empty((0, 0), dtype))
+        out_chunks: tuple[tuple[int, ...], ...] = chunks
+        meta = np.empty((0, 0), dtype)
         what = "terrain"
     else:
-        last = 4 if options["residual"] else 3
-        shape = dict(new_axis=2, chunks=(chunks[0], chunks[1], (last,)), meta=np.empty((0, 0, 0), dtype))
+        out_chunks = (chunks[0], chunks[1], (4 if options["residual"] else 3,))
+        meta = np.empty((0, 0, 0), dtype)
         what = "normals"
-    return da.map_overlap(
-        _fit_block,
-        work,
-        depth={0: depth[0], 1: depth[1]},
-        boundary={0: "periodic" if periodic[0] else "none", 1: "periodic" if periodic[1] else "none"},
-        trim=False,
-        allow_rechunk=False,
-        dtype=dtype,
-        name=f"normalfit-{what}-" + dask.base.tokenize(work, depth, periodic, image, sorted(options.items())),
-        image=image,
-        options=options,
-        **shape,
-    )
+    token = dask.base.tokenize(work, depth, periodic, image, sorted(options.items()))
+    name, strips = f"normalfit-{what}-{token}", f"normalfit-halo-{token}"
+    (ni, nj) = (len(chunks[0]), len(chunks[1]))
+    starts = [np.cumsum((0, *c)).tolist() for c in chunks]
+    layer: dict[Any, Any] = {}
+    if depth != (0, 0):
+        for i in range(ni):
+            for j in range(nj):
+                layer[(strips, i, j)] = (_halo_strips, (work.name, i, j), depth)
+
+    def neighbour(k: int, step: int, n: int, wraps: bool) -> int | None:
+        if step == 0:
+            return k
+        if 0 <= k + step < n:
+            return k + step
+        return (k + step) % n if wraps and n > 1 else None
+
+    for i in range(ni):
+        for j in range(nj):
+            rows = (starts[0][i], starts[0][i + 1])
+            cols = (starts[1][j], starts[1][j + 1])
+            halo = _normalfit.window_halo(
+                image, (cols[0], rows[0]), (cols[1] - cols[0], rows[1] - rows[0]), options["patch"],
+                options["border"], options["detail"], options["weights"],
+            )
+            (left, right, top, bottom) = halo
+            if max(top, bottom) > depth[0] or max(left, right) > depth[1]:
+                raise ValueError(f"the library's halo {halo} for {_describe((i, j), rows, cols)} exceeds {depth}")
+            reads = ((top > 0, True, bottom > 0), (left > 0, True, right > 0))
+            around: list[list[Any]] = []
+            for di in (-1, 0, 1):
+                line: list[Any] = []
+                for dj in (-1, 0, 1):
+                    ii = neighbour(i, di, ni, periodic[0])
+                    jj = neighbour(j, dj, nj, periodic[1])
+                    read = (di, dj) != (0, 0) and reads[0][di + 1] and reads[1][dj + 1]
+                    line.append((strips, ii, jj) if read and ii is not None and jj is not None else None)
+                around.append(line)
+            key = (name, i, j) if options["product"] is not None else (name, i, j, 0)
+            fit = partial(_fit_chunk, where=((i, j), rows, cols), halo=halo, image=image, options=options)
+            layer[key] = (fit, (work.name, i, j), around)
+    graph = HighLevelGraph.from_collections(name, layer, dependencies=[work])
+    return da.Array(graph, name, out_chunks, meta=meta)
 
 
 def check_tiling(
