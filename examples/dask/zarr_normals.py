@@ -281,8 +281,8 @@ def main() -> None:
     if args.cli is not None:
         start = time.perf_counter()
         write_exr(heights_path, exr_path)
-        # On disk before the command line starts: its output's syncs would
-        # otherwise write the EXR's pages too, on its processor time.
+        # Flushed before the command line starts, so that its time does not
+        # include writing back the EXR just written.
         os.sync()
         print(f"heights.exr written in {time.perf_counter() - start:.1f} s "
               f"({exr_path.stat().st_size / 2**30:.2f} GiB, float32 Y, uncompressed)")

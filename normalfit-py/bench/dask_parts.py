@@ -14,9 +14,9 @@ heights is taken through more and more of the conversion:
    codec), as the example does.
 
 Then the library's fit alone (``_normalfit.window_normals``, what each
-fit task runs) on the same chunks one after another in this process, and
-the graph's own share: the cluster's processor time less the read, the
-fits alone and the write's codec and files.
+fit task runs) on the same chunks one after another in this process, the
+graph's own share (the fit stage less the read and the fits alone) and
+the write's codec and files (the write stage less the fit stage).
 
 Each stage's figure is the workers' CPU time (user + system, psutil) and
 the client's (which runs the scheduler), best of --rounds: a CPU time is
