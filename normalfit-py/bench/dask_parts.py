@@ -138,20 +138,23 @@ def main() -> None:
     cluster.close()
 
     # The library's fit alone: each chunk's window (the chunk and its halo
-    # of 1, wrapped) fitted as a fit task fits it, in this process.
+    # of r, wrapped) fitted with the stages' options as a fit task fits it,
+    # in this process.
+    r = opts["patch"] // 2
     whole = np.asarray(heights.compute(scheduler="threads"))
-    padded = np.pad(whole, 1, mode="wrap")
+    padded = np.pad(whole, r, mode="wrap")
     fits = float("inf")
     for _ in range(args.rounds):
         used = 0.0
         for r0 in range(0, args.size, args.chunk):
             for c0 in range(0, args.size, args.chunk):
                 r1, c1 = min(r0 + args.chunk, args.size), min(c0 + args.chunk, args.size)
-                held = np.ascontiguousarray(padded[r0:r1 + 2, c0:c1 + 2])
+                held = np.ascontiguousarray(padded[r0:r1 + 2 * r, c0:c1 + 2 * r])
                 start = time.process_time()
                 nd._normalfit.window_normals(
-                    held, (args.size, args.size), (c0, r0), (1, 1, 1, 1), 3, "orthogonal", ("wrap", "wrap"),
-                    "opengl", 8.0, None, False, np.dtype(np.uint8), False, 1)
+                    held, (args.size, args.size), (c0, r0), (r, r, r, r), opts["patch"], "orthogonal",
+                    (opts["border"], opts["border"]), "opengl", opts["scale"], None, False, np.dtype(opts["dtype"]),
+                    False, 1)
                 used += time.process_time() - start
         fits = min(fits, used)
     read, fitted, written = cpus
